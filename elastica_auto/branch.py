@@ -1,0 +1,103 @@
+"""A branch in memory: one row per point, profiles on a fixed grid, labelled solutions."""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .corrector import State, Tangent
+from .problem import Problem
+
+#: Fixed grid on which every point's profile is stored (for configurations and tip traces).
+PROFILE_GRID = np.linspace(0.0, 1.0, 101)
+
+#: Label types, AUTO-07p's vocabulary.
+LABEL_TYPES = ("EP", "LP", "BP", "UZ", "MX")
+
+#: Index columns hold this until the stability post-processor has filled them.
+INDEX_UNKNOWN = -1
+
+
+@dataclass
+class Point:
+    """One point of a branch. ``state``/``tangent`` are kept for labelled points only."""
+
+    params: dict[str, float]
+    ordinates: dict[str, float]
+    arclength: float
+    ds: float
+    niter: int
+    nodes: int
+    type: str
+    profile: np.ndarray
+    fold_residual: float = float("nan")
+    note: str = ""
+    state: State | None = None
+    tangent: Tangent | None = None
+    label: int = 0
+    index: int = INDEX_UNKNOWN
+    index_rule: int = INDEX_UNKNOWN
+    index_direct: int = INDEX_UNKNOWN
+
+    @property
+    def name(self) -> str:
+        """The label as users write it (``LP3``), or '' for an unlabelled point."""
+        return f"{self.type}{self.label}" if self.type else ""
+
+
+@dataclass
+class Branch:
+    """The points of one continuation in one direction, in order of pseudo-arclength."""
+
+    problem: Problem
+    parameter: str
+    direction: int
+    start: str
+    options: dict
+    points: list[Point] = field(default_factory=list)
+    end: str = ""
+    message: str = ""
+    diagnostics: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    last: tuple[State, Tangent | None] | None = None
+
+    def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
+            niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),
+            note: str = "") -> Point:
+        """Insert a point at its place in arclength order; labelled points keep their solution."""
+        if type and type not in LABEL_TYPES:
+            raise ValueError(f"unknown label type {type!r}")
+        point = Point(params=dict(state.params),
+                      ordinates=self.problem.ordinate_values(state.s, state.y, state.params),
+                      arclength=float(arclength), ds=float(ds), niter=int(niter),
+                      nodes=len(state.s), type=type, profile=state(PROFILE_GRID).copy(),
+                      fold_residual=float(fold_residual), note=note,
+                      state=state if type else None, tangent=tangent if type else None)
+        self.last = (state, tangent)
+        keys = [p.arclength for p in self.points]
+        self.points.insert(bisect.bisect_right(keys, point.arclength), point)
+        return point
+
+    def relabel(self, point: Point, type: str, state: State, tangent: Tangent | None):
+        """Give an existing point a label (e.g. the last point becomes EP or MX)."""
+        point.type, point.state, point.tangent = type, state, tangent
+
+    @property
+    def folds(self) -> list[Point]:
+        return [p for p in self.points if p.type == "LP"]
+
+    @property
+    def labelled(self) -> list[Point]:
+        return [p for p in self.points if p.type]
+
+    def column(self, name: str) -> np.ndarray:
+        """A parameter, ordinate or bookkeeping column as an array (``branch.column("psi")``)."""
+        pts = self.points
+        if name in self.problem.parameters:
+            return np.array([p.params[name] for p in pts])
+        if name in self.problem.ordinates:
+            return np.array([p.ordinates[name] for p in pts])
+        return np.array([getattr(p, name) for p in pts])

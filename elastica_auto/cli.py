@@ -1,0 +1,189 @@
+"""The ``elastica-auto`` command line: run, list, show, export, plot.
+
+User errors (a bad run file, a missing or foreign branch file) print one line and exit with
+status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
+interrupted run saves what it computed and exits with status 130.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import math
+import sys
+from pathlib import Path
+
+import click
+
+from . import __version__
+from .problem import ProblemError
+from .runfile import RunFileError
+from .store import StoreError
+
+USER_ERRORS = (RunFileError, StoreError, ProblemError)
+EXIT_USER, EXIT_BRANCH_FAILED, EXIT_INTERRUPTED = 2, 1, 130
+
+
+def _fail(msg: str, code: int = EXIT_USER):
+    click.echo(f"elastica-auto: error: {msg}", err=True)
+    sys.exit(code)
+
+
+def shipped_runs() -> dict[str, Path]:
+    """Run files shipped with the package (``runs/*.toml``), by name."""
+    root = importlib.resources.files("elastica_auto.runs")
+    return {p.name[:-5]: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
+
+
+def resolve_run(name_or_path: str) -> Path:
+    """A run file path: an existing ``.toml`` path, ``runs/<name>.toml`` here, or a shipped run."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.is_file():
+        if not p.is_file():
+            raise RunFileError(f"{p}: no such run file")
+        return p
+    local = Path("runs") / f"{name_or_path}.toml"
+    if local.is_file():
+        return local
+    runs = shipped_runs()
+    if name_or_path in runs:
+        return runs[name_or_path]
+    raise RunFileError(f"{name_or_path}: no such run; shipped runs: {', '.join(sorted(runs))}")
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="elastica-auto")
+def main():
+    """AUTO-07p-style continuation of boundary value problems, with stability labels."""
+
+
+@main.command("list")
+def list_runs():
+    """List the shipped run files."""
+    from .runfile import load
+    for name, path in sorted(shipped_runs().items()):
+        try:
+            desc = load(path).description
+        except USER_ERRORS:
+            desc = "(needs the output of another run first)"
+        click.echo(f"{name:<20} {desc}")
+
+
+def _fmt_params(params: dict, names) -> str:
+    return " ".join(f"{k}={params[k]:.6g}" for k in names)
+
+
+@main.command()
+@click.argument("name_or_path")
+@click.option("--out", "out_dir", default="out", show_default=True, type=click.Path(file_okay=False),
+              help="Folder for the branch file <run>.h5.")
+@click.option("--quiet", "-q", is_flag=True, help="Print only the summary lines.")
+def run(name_or_path, out_dir, quiet):
+    """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
+    from .run import StartError, execute
+    from .runfile import load
+    out_dir = Path(out_dir)
+    try:
+        plan = load(resolve_run(name_or_path), out_dir=out_dir)
+    except USER_ERRORS as exc:
+        _fail(str(exc))
+    nbr = len(plan.branches)
+    varying = plan.varying
+    tty = sys.stderr.isatty() and not quiet
+    click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter} "
+               f"-> {out_dir / plan.output_name}", err=True)
+
+    def progress(k, br, lam):
+        if tty:
+            click.echo(f"\r  branch {k}/{nbr}  {plan.parameter} = {lam:+.6f}  "
+                       f"points {len(br.points):5d}  folds {len(br.folds):3d}", nl=False, err=True)
+
+    def on_branch(k, br):
+        if tty:
+            click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
+        folds = ", ".join(f"{p.name}{'(NOT LOCATED)' if p.note else ''}" for p in br.folds)
+        click.echo(f"branch {k}/{nbr} {_fmt_params(br.points[0].params, varying)} "
+                   f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
+                   f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
+                   + (f"; folds {folds}" if folds else ""))
+        for w in br.warnings:
+            click.echo(f"  warning: {w}")
+
+    try:
+        result = execute(plan, out_dir, progress, on_branch)
+    except StartError as exc:
+        _fail(str(exc))
+    except USER_ERRORS as exc:
+        _fail(str(exc))
+    if result.interrupted:
+        click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
+                   err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    click.echo(f"{plan.name}: {nbr} branches, "
+               f"{sum(len(b.points) for b in result.branches)} points, "
+               f"{sum(len(b.folds) for b in result.branches)} folds, {result.seconds:.2f} s "
+               f"-> {result.path}")
+    if result.failed:
+        click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
+        sys.exit(EXIT_BRANCH_FAILED)
+
+
+def _open(path):
+    from .store import BranchFile
+    try:
+        return BranchFile(path)
+    except StoreError as exc:
+        _fail(str(exc))
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--all", "all_points", is_flag=True, help="Every point, not only labelled ones.")
+def show(file, all_points):
+    """Print an AUTO-like table of the labelled points of FILE.h5."""
+    from .store import rows
+    bf = _open(file)
+    cols = bf.parameters + bf.ordinates
+    head = f"{'BR':>3} {'PT':>5} {'TY':>2} {'LAB':>6} " + " ".join(f"{c:>14}" for c in cols) \
+        + f" {'index':>5} {'rule':>4} {'direct':>6}"
+    click.echo(head)
+    for r in rows(bf, labelled_only=not all_points):
+        click.echo(f"{r['branch']:>3} {r['pt']:>5} {r['type']:>2} {r['label']:>6} "
+                   + " ".join(f"{r[c]:>14.7g}" for c in cols)
+                   + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
+    for b in bf.branches:
+        if b.attrs["end"] == "MX" or b.attrs.get("warnings", "[]") != "[]":
+            click.echo(f"branch {b.number}: {b.attrs['end']}: {b.attrs['message']}")
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="CSV file to write.")
+def export(file, output):
+    """Write every point of every branch of FILE.h5 to a CSV file."""
+    from .store import export_csv
+    bf = _open(file)
+    path = export_csv(bf, Path(output))
+    n = sum(len(b) for b in bf.branches)
+    click.echo(f"{n} points of {len(bf.branches)} branches -> {path}")
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("-x", "xname", default=None, help="Abscissa (default: the continued parameter).")
+@click.option("-y", "yname", default=None,
+              help="Ordinate (default: the continued parameter's distinguished ordinate).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Figure file (.png, .pdf, .svg).")
+@click.option("--fold/--no-fold", "fold", default=False,
+              help="Fold periodic abscissae into [0, 2 pi).")
+def plot(file, xname, yname, output, fold):
+    """Plot a bifurcation diagram of FILE.h5 (reads the file, computes nothing)."""
+    from .plots import bifurcation_diagram
+    bf = _open(file)
+    try:
+        path = bifurcation_diagram(bf, Path(output), xname, yname,
+                                   period=2 * math.pi if fold else None)
+    except ValueError as exc:
+        _fail(str(exc))
+    click.echo(f"wrote {path}")

@@ -1,0 +1,86 @@
+"""Detection and exact location of special points between two continuation points.
+
+* LP (fold): the parameter component of the secant changes sign. Located by the extended
+  system of :func:`elastica_auto.corrector.solve_fold`; its residual is stored and a failed
+  solve is reported as an unlocated LP, never as a located one.
+* UZ (user point) and EP at a parameter bound: the parameter crosses a given value (for
+  periodic values, any value + k * period). Located by solving the BVP at that value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .corrector import Curve, SolveResult, State, Tangent, inner, solve_fixed, solve_fold
+from .problem import Problem
+
+
+@dataclass(frozen=True)
+class UserValues:
+    """UZ values of the continued parameter; with ``period`` every ``v + k period`` counts."""
+
+    values: tuple[float, ...]
+    period: float | None = None
+
+
+def crossings(a: float, b: float, spec: UserValues) -> list[float]:
+    """The user values c crossed on the way from a to b: c in (a, b] (or [b, a) going down),
+    ordered in the direction of travel."""
+    if a == b:
+        return []
+    lo, hi = min(a, b), max(a, b)
+    found = []
+    for v in spec.values:
+        if spec.period is None:
+            cands = [v]
+        else:
+            T = spec.period
+            cands = [v + j * T for j in range(math.ceil((lo - v) / T), math.floor((hi - v) / T) + 1)]
+        for c in cands:
+            if (a < c <= b) or (b <= c < a):
+                found.append(c)
+    return sorted(set(found), reverse=bool(b < a))
+
+
+def locate_value(problem: Problem, a: State, b: State, name: str, value: float, tol: float,
+                 max_nodes: int) -> tuple[SolveResult, float]:
+    """Solve the BVP at ``p[name] = value`` between points a and b.
+
+    The initial guess interpolates a and b linearly in the parameter; returns the solve and
+    that interpolation weight (0 at a, 1 at b) as the position estimate.
+    """
+    la, lb = a.params[name], b.params[name]
+    w = (value - la) / (lb - la)
+    s = b.s
+    guess = Curve(s, (1 - w) * a(s) + w * b.y, (1 - w) * a.derivative(s) + w * b.yp)
+    return solve_fixed(problem, guess, {**b.params, name: value}, tol, max_nodes), w
+
+
+def locate_fold(problem: Problem, base: State, t_in: Tangent, t_out: Tangent, name: str,
+                max_dist: float, tol: float, max_nodes: int) -> tuple[SolveResult, float]:
+    """Locate the fold near ``base``, where the parameter component of the incoming secant
+    ``t_in`` and the outgoing ``t_out`` differ in sign.
+
+    The null-vector guess is the mean of the two secants' state components. Returns the solve
+    and the fold's signed distance from ``base`` along ``t_out`` (its arclength offset). A
+    converged solve that lands farther than ``max_dist`` (the bracket's length) from ``base``
+    found some other fold and is reported as a failure.
+    """
+    s = base.s
+    phi = Curve(s, t_in(s) + t_out(s), t_in.derivative(s) + t_out.derivative(s))
+    res = solve_fold(problem, base, phi, name, tol, max_nodes)
+    if not res.success:
+        return res, 0.0
+    st = res.state
+    d = Tangent(st.s, st.y - base(st.s), st.yp - base.derivative(st.s),
+                st.params[name] - base.params[name])
+    offset = inner(d, t_out)
+    dist = math.sqrt(max(inner(d, d), 0.0))
+    if not np.isfinite(dist) or dist > max_dist:
+        res.success = False
+        res.message = (f"extended system converged {dist:.3g} away from the bracketing point "
+                       "(another fold?)")
+    return res, offset

@@ -1,0 +1,77 @@
+"""Continuation options, validated on construction (AUTO-07p's names where they exist)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+
+class OptionsError(ValueError):
+    """Inconsistent continuation options."""
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """Step control, corrector accuracy and stopping rules for one branch.
+
+    Attributes
+    ----------
+    ds : float
+        Initial pseudo-arclength step (its sign is ignored; the direction is set per branch).
+    ds_min, ds_max : float
+        Bounds on |ds|; ``ds_min <= |ds| <= ds_max``. The step halves on corrector failure and
+        the branch ends with MX once it would drop below ``ds_min``.
+    growth : float
+        Factor applied to |ds| after a step that converged on the first mesh (>= 1).
+    max_points : int
+        Points per branch including the start (AUTO's NMX).
+    ntst : int
+        Mesh intervals of the starting mesh; solve_bvp refines it where needed.
+    max_nodes : int
+        Mesh size limit passed to solve_bvp.
+    tol : float
+        solve_bvp tolerance (relative collocation residual) for continuation points. The
+        residual of its cubic collocation scales like h^3 while the error scales like h^4, so
+        1e-5 gives points good to about 1e-7 (relative) on meshes of 50-250 nodes.
+    fold_tol : float
+        solve_bvp tolerance for locating folds (user and end points use ``tol``); 1e-7 puts folds
+        within ~1e-10 of an independent shooting solve (tests/test_folds.py checks 1e-8).
+    max_angle : float
+        Largest angle (radians) between successive tangents; a larger turn rejects the step.
+    """
+
+    ds: float = 0.05
+    ds_min: float = 1e-6
+    ds_max: float = 0.5
+    growth: float = 1.4
+    max_points: int = 2000
+    ntst: int = 50
+    max_nodes: int = 5000
+    tol: float = 1e-5
+    fold_tol: float = 1e-7
+    max_angle: float = 0.35
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise OptionsError(f"{f.name} must be a finite number, got {v!r}")
+        if not 0 < self.ds_min <= abs(self.ds) <= self.ds_max:
+            raise OptionsError(f"need 0 < ds_min <= |ds| <= ds_max, got ds_min={self.ds_min}, "
+                               f"ds={self.ds}, ds_max={self.ds_max}")
+        if self.growth < 1:
+            raise OptionsError(f"growth must be >= 1, got {self.growth}")
+        for name in ("max_points", "ntst", "max_nodes"):
+            v = getattr(self, name)
+            if int(v) != v or v < 2:
+                raise OptionsError(f"{name} must be an integer >= 2, got {v!r}")
+        if self.max_nodes <= self.ntst:
+            raise OptionsError(f"max_nodes ({self.max_nodes}) must exceed ntst ({self.ntst})")
+        for name in ("tol", "fold_tol"):
+            if not 0 < getattr(self, name) < 1:
+                raise OptionsError(f"{name} must be in (0, 1), got {getattr(self, name)}")
+        if not 0 < self.max_angle < math.pi / 2:
+            raise OptionsError(f"max_angle must be in (0, pi/2) radians, got {self.max_angle}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,278 @@
+"""The equation-module protocol and the `Problem` object the engine works with.
+
+An equation module is a plain Python file. It declares
+
+``STATES``
+    tuple of state names, e.g. ``("theta", "kappa", "x", "y")``; n = len(STATES).
+``PARAMETERS``
+    list of :class:`Parameter`: name, default, TeX label, and where it enters the problem:
+    ``"fixed"`` (boundary condition at s = 0), ``"free"`` (boundary condition or end term at
+    s = 1) or ``"ode"`` (the differential equation). Angles declare ``period=2*pi``.
+``ORDINATES``
+    list of :class:`Ordinate`: named output functionals ``fn(s, y, p) -> float`` of a solution.
+``rhs(s, y, p)``
+    vectorised right-hand side, ``s`` shape (m,), ``y`` shape (n, m), returns (n, m);
+    ``p`` is a ``dict`` of parameter values by name.
+``bc(ya, yb, p)``
+    the n boundary residuals, shape (n,).
+
+and optionally
+
+``rhs_jac(s, y, p)``  -> (n, n, m), ``bc_jac(ya, yb, p)`` -> ((n, n), (n, n)),
+``rhs_dp(s, y, p, name)`` -> (n, m), ``bc_dp(ya, yb, p, name)`` -> (n,)
+    analytic derivatives; central differences are used for whatever is missing.
+``exact_start(s, p)``
+    an exact solution on the mesh ``s`` for parameter values ``p``, or ``None`` where the module
+    knows none (used by ``start = "trivial"`` in run files).
+
+Only equation modules know any physics; everything in `elastica_auto` is generic.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import importlib.util
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+ENTERS = ("fixed", "free", "ode")
+
+
+class ProblemError(ValueError):
+    """An equation module does not follow the protocol (missing name, wrong shape, ...)."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named parameter: default value, TeX label, where it enters, optional period."""
+
+    name: str
+    default: float
+    tex: str
+    enters: str
+    period: float | None = None
+    doc: str = ""
+
+    def __post_init__(self):
+        if self.enters not in ENTERS:
+            raise ProblemError(
+                f"parameter {self.name!r}: enters={self.enters!r}, expected one of {ENTERS}")
+
+
+@dataclass(frozen=True)
+class Ordinate:
+    """A named output functional of a solution, ``fn(s, y, p) -> float``.
+
+    ``parameter`` names the parameter whose distinguished bifurcation diagram uses this ordinate
+    (None if it is not one).
+    """
+
+    name: str
+    tex: str
+    fn: Callable
+    parameter: str | None = None
+    doc: str = ""
+
+
+def _fd_step(v):
+    return 1e-6 * (1.0 + np.abs(v))
+
+
+class Problem:
+    """An equation module wrapped with validation and finite-difference fallbacks.
+
+    Parameters
+    ----------
+    module : module
+        The loaded equation module.
+    source : str
+        Where it came from (shipped name or file path), for messages and for the HDF5 file.
+    """
+
+    def __init__(self, module, source: str):
+        self.module = module
+        self.source = source
+        self.name = Path(source).stem
+        for attr in ("STATES", "PARAMETERS", "rhs", "bc"):
+            if not hasattr(module, attr):
+                raise ProblemError(f"{source}: equation module defines no {attr}")
+        self.states = tuple(module.STATES)
+        self.n = len(self.states)
+        if self.n == 0:
+            raise ProblemError(f"{source}: STATES is empty")
+        self.parameters = {q.name: q for q in module.PARAMETERS}
+        if len(self.parameters) != len(module.PARAMETERS):
+            raise ProblemError(f"{source}: duplicate parameter names in PARAMETERS")
+        self.ordinates = {o.name: o for o in getattr(module, "ORDINATES", [])}
+        clash = set(self.ordinates) & set(self.parameters)
+        if clash:
+            raise ProblemError(f"{source}: names used both as parameter and ordinate: {sorted(clash)}")
+        self.doc = (module.__doc__ or "").strip()
+        self._rhs_jac = getattr(module, "rhs_jac", None)
+        self._bc_jac = getattr(module, "bc_jac", None)
+        self._rhs_dp = getattr(module, "rhs_dp", None)
+        self._bc_dp = getattr(module, "bc_dp", None)
+        self._exact_start = getattr(module, "exact_start", None)
+        self._check_shapes()
+
+    # -- names ---------------------------------------------------------------------------------
+    @property
+    def parameter_names(self) -> list[str]:
+        return list(self.parameters)
+
+    @property
+    def ordinate_names(self) -> list[str]:
+        return list(self.ordinates)
+
+    def defaults(self) -> dict[str, float]:
+        return {k: float(q.default) for k, q in self.parameters.items()}
+
+    # -- the BVP -------------------------------------------------------------------------------
+    def rhs(self, s, y, p):
+        return self.module.rhs(s, y, p)
+
+    def bc(self, ya, yb, p):
+        return np.asarray(self.module.bc(ya, yb, p), dtype=float)
+
+    def rhs_jac(self, s, y, p):
+        """df/dy, shape (n, n, m): the module's, or central differences."""
+        if self._rhs_jac is not None:
+            return self._rhs_jac(s, y, p)
+        jac = np.empty((self.n, self.n, y.shape[1]))
+        for j in range(self.n):
+            h = _fd_step(y[j])
+            yp, ym = y.copy(), y.copy()
+            yp[j] += h
+            ym[j] -= h
+            jac[:, j, :] = (self.rhs(s, yp, p) - self.rhs(s, ym, p)) / (2 * h)
+        return jac
+
+    def bc_jac(self, ya, yb, p):
+        """(dbc/dya, dbc/dyb), each (n, n): the module's, or central differences."""
+        if self._bc_jac is not None:
+            return self._bc_jac(ya, yb, p)
+        da = np.empty((self.n, self.n))
+        db = np.empty((self.n, self.n))
+        for j in range(self.n):
+            e = np.zeros(self.n)
+            e[j] = _fd_step(ya[j])
+            da[:, j] = (self.bc(ya + e, yb, p) - self.bc(ya - e, yb, p)) / (2 * e[j])
+            e[j] = _fd_step(yb[j])
+            db[:, j] = (self.bc(ya, yb + e, p) - self.bc(ya, yb - e, p)) / (2 * e[j])
+        return da, db
+
+    def rhs_dp(self, s, y, p, name):
+        """df/d(p[name]), shape (n, m)."""
+        if self._rhs_dp is not None:
+            return self._rhs_dp(s, y, p, name)
+        h = _fd_step(p[name])
+        return (self.rhs(s, y, {**p, name: p[name] + h})
+                - self.rhs(s, y, {**p, name: p[name] - h})) / (2 * h)
+
+    def bc_dp(self, ya, yb, p, name):
+        """dbc/d(p[name]), shape (n,)."""
+        if self._bc_dp is not None:
+            return np.asarray(self._bc_dp(ya, yb, p, name), dtype=float)
+        h = _fd_step(p[name])
+        return (self.bc(ya, yb, {**p, name: p[name] + h})
+                - self.bc(ya, yb, {**p, name: p[name] - h})) / (2 * h)
+
+    def ordinate_values(self, s, y, p) -> dict[str, float]:
+        return {k: float(o.fn(s, y, p)) for k, o in self.ordinates.items()}
+
+    def exact_start(self, s, p):
+        """An exact solution on mesh ``s`` for parameters ``p``, or None if the module has none."""
+        if self._exact_start is None:
+            return None
+        y = self._exact_start(s, p)
+        if y is None:
+            return None
+        y = np.asarray(y, dtype=float)
+        if y.shape != (self.n, len(s)):
+            raise ProblemError(f"{self.source}: exact_start(s, p) returned shape {y.shape}; "
+                               f"expected {(self.n, len(s))} = (len(STATES), len(s))")
+        return y
+
+    def period(self, name) -> float | None:
+        return self.parameters[name].period
+
+    # -- validation ----------------------------------------------------------------------------
+    def _check_shapes(self):
+        """Call every function once on a small state and check the shapes it returns."""
+        n, m = self.n, 3
+        s = np.linspace(0.0, 1.0, m)
+        y = np.full((n, m), 0.1)
+        p = self.defaults()
+
+        def check(what, value, shape):
+            arr = np.asarray(value)
+            if arr.shape != shape:
+                raise ProblemError(f"{self.source}: {what} returned shape {arr.shape}; "
+                                   f"expected {shape}")
+
+        try:
+            check("rhs(s, y, p) with y of shape (n, 3)", self.rhs(s, y, p), (n, m))
+            check("bc(ya, yb, p)", self.bc(y[:, 0], y[:, -1], p), (n,))
+            if self._rhs_jac is not None:
+                check("rhs_jac(s, y, p)", self._rhs_jac(s, y, p), (n, n, m))
+            if self._bc_jac is not None:
+                da, db = self._bc_jac(y[:, 0], y[:, -1], p)
+                check("bc_jac(ya, yb, p)[0]", da, (n, n))
+                check("bc_jac(ya, yb, p)[1]", db, (n, n))
+            for name in self.parameters:
+                if self._rhs_dp is not None:
+                    check(f"rhs_dp(s, y, p, {name!r})", self._rhs_dp(s, y, p, name), (n, m))
+                if self._bc_dp is not None:
+                    check(f"bc_dp(ya, yb, p, {name!r})", self._bc_dp(y[:, 0], y[:, -1], p, name),
+                          (n,))
+            for o in self.ordinates.values():
+                v = o.fn(s, y, p)
+                if np.ndim(v) != 0:
+                    raise ProblemError(f"{self.source}: ordinate {o.name!r} returned shape "
+                                       f"{np.shape(v)}; expected a scalar")
+        except ProblemError:
+            raise
+        except Exception as exc:  # a user module raising on valid input is a module error
+            raise ProblemError(f"{self.source}: calling the module failed: "
+                               f"{type(exc).__name__}: {exc}") from exc
+
+
+def shipped_equations() -> list[str]:
+    """Names of the equation modules shipped in ``equations/``."""
+    root = importlib.resources.files("elastica_auto.equations")
+    return sorted(p.name[:-3] for p in root.iterdir()
+                  if p.name.endswith(".py") and not p.name.startswith("_"))
+
+
+def load_problem(name_or_path: str, base_dir: Path | None = None) -> Problem:
+    """Load an equation module by shipped name (``elastica_lever_arm``) or by ``.py`` path.
+
+    Relative paths are resolved against ``base_dir`` (the run file's folder) first, then the
+    current directory.
+    """
+    if name_or_path.endswith(".py"):
+        candidates = [Path(name_or_path)]
+        if base_dir is not None and not Path(name_or_path).is_absolute():
+            candidates.insert(0, Path(base_dir) / name_or_path)
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            raise ProblemError(f"equation module file not found: {name_or_path}")
+        source = str(path)
+    else:
+        if name_or_path not in shipped_equations():
+            raise ProblemError(f"unknown equation module {name_or_path!r}; shipped modules: "
+                               f"{', '.join(shipped_equations())}, or give a path to a .py file")
+        path = Path(str(importlib.resources.files("elastica_auto.equations") / f"{name_or_path}.py"))
+        source = name_or_path
+    spec = importlib.util.spec_from_file_location(f"elastica_auto_eq_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        raise ProblemError(f"{source}: importing the module failed: "
+                           f"{type(exc).__name__}: {exc}") from exc
+    return Problem(module, source)
+

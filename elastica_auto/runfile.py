@@ -1,0 +1,293 @@
+"""TOML run files -> a validated plan of branches.
+
+A run file (``runs/<name>.toml``)::
+
+    description = "what this run reproduces"
+    equation = "elastica_lever_arm"     # shipped module name, or path to a .py file
+    start = "trivial"                   # or "FILE.h5:LABEL", or a list of either
+
+    [parameters]                        # values; a list gives one set of branches per value
+    eps = [0.25, 0.5]
+    P = ["pi^2/4", "9*pi^2/4"]          # numbers or expressions in pi, e, sqrt, sin, cos, ...
+
+    [continuation]
+    parameter = "psi"                   # the continued parameter
+    directions = "both"                 # "both", "+" or "-"
+    bounds = ["-6*pi", "6*pi"]          # the branch ends (EP) where the parameter leaves these
+    stop = ["LP4"]                      # optional: end at the 4th fold
+    uz = [0, "pi/12"]                   # optional: user points (UZ)
+    uz_period = "2*pi"                  # optional: UZ at every value + k * uz_period
+
+    [options]                           # ContinuationOptions: ds, ds_min, ds_max, ntst, ...
+
+Unknown keys, wrong types and names the equation module does not declare are errors
+(:class:`RunFileError`, whose message names the file and the key).
+"""
+
+from __future__ import annotations
+
+import ast
+import itertools
+import math
+import operator
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+from .events import UserValues
+from .options import ContinuationOptions, OptionsError
+from .problem import Problem, ProblemError, load_problem
+from .stepper import Stops
+
+
+class RunFileError(ValueError):
+    """A run file that cannot be used; the message is one line naming the file and key."""
+
+
+_FUNCS = {"sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "tan": math.tan,
+          "exp": math.exp, "log": math.log, "abs": abs}
+_CONSTS = {"pi": math.pi, "e": math.e, "inf": math.inf}
+_BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+           ast.Div: operator.truediv, ast.Pow: operator.pow}
+_UNOPS = {ast.USub: operator.neg, ast.UAdd: operator.pos}
+
+
+def evaluate(text: str) -> float:
+    """Evaluate an arithmetic expression such as ``"9*pi^2/4"`` (``^`` means power).
+
+    Only numbers, the constants pi, e, inf, the functions sqrt, sin, cos, tan, exp, log, abs and
+    + - * / ** are allowed; anything else raises ValueError.
+    """
+    def ev(node):
+        if isinstance(node, ast.Expression):
+            return ev(node.body)
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+                and not isinstance(node.value, bool):
+            return float(node.value)
+        if isinstance(node, ast.Name) and node.id in _CONSTS:
+            return _CONSTS[node.id]
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
+            return _BINOPS[type(node.op)](ev(node.left), ev(node.right))
+        if isinstance(node, ast.UnaryOp) and type(node.op) in _UNOPS:
+            return _UNOPS[type(node.op)](ev(node.operand))
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                and node.func.id in _FUNCS and len(node.args) == 1 and not node.keywords):
+            return float(_FUNCS[node.func.id](ev(node.args[0])))
+        raise ValueError(f"not allowed in an expression: {ast.dump(node)[:40]}")
+
+    try:
+        value = ev(ast.parse(str(text).replace("^", "**"), mode="eval"))
+    except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+        raise ValueError(f"cannot evaluate {text!r}: {exc}") from exc
+    if isinstance(value, complex) or math.isnan(value):
+        raise ValueError(f"{text!r} is not a real number")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a branch starts: the module's exact solution or a label in a branch file."""
+
+    kind: str          # "trivial" or "label"
+    file: Path | None = None
+    label: str = ""
+
+    def __str__(self):
+        return "trivial" if self.kind == "trivial" else f"{self.file.name}:{self.label}"
+
+
+@dataclass(frozen=True)
+class BranchSpec:
+    """One branch to compute: start, parameter values, direction."""
+
+    start: Start
+    params: dict
+    direction: int
+
+
+@dataclass
+class Plan:
+    """A validated run: the problem, the branches and everything that applies to all of them."""
+
+    name: str
+    path: Path
+    text: str
+    description: str
+    problem: Problem
+    parameter: str
+    options: ContinuationOptions
+    stops: Stops
+    user_values: list[UserValues]
+    branches: list[BranchSpec] = field(default_factory=list)
+    varying: list[str] = field(default_factory=list)
+
+    @property
+    def output_name(self) -> str:
+        return f"{self.name}.h5"
+
+
+_TOP = {"description", "equation", "start", "parameters", "continuation", "options"}
+_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
+_DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
+
+
+def load(path, out_dir: Path | None = None) -> Plan:
+    """Read and validate a run file; restart files are looked up in ``out_dir`` first."""
+    path = Path(path)
+    where = str(path)
+
+    def fail(key, msg):
+        raise RunFileError(f"{where}: {key}: {msg}")
+
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise RunFileError(f"{where}: cannot read ({exc.strerror})") from exc
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RunFileError(f"{where}: not valid TOML ({exc})") from exc
+
+    for key in doc:
+        if key not in _TOP:
+            fail(key, f"unknown key; expected one of {sorted(_TOP)}")
+
+    def number(key, v):
+        if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+            fail(key, f"expected a number or an expression string, got {v!r}")
+        try:
+            return evaluate(v) if isinstance(v, str) else float(v)
+        except ValueError as exc:
+            fail(key, str(exc))
+
+    def string(key, v):
+        if not isinstance(v, str):
+            fail(key, f"expected a string, got {v!r}")
+        return v
+
+    def table(key):
+        v = doc.get(key, {})
+        if not isinstance(v, dict):
+            fail(key, f"expected a table [{key}], got {type(v).__name__}")
+        return v
+
+    description = string("description", doc.get("description", ""))
+    if "equation" not in doc:
+        fail("equation", "missing; name a module in equations/ or a .py file")
+    try:
+        problem = load_problem(string("equation", doc["equation"]), base_dir=path.parent)
+    except ProblemError as exc:
+        fail("equation", str(exc))
+
+    cont = table("continuation")
+    for key in cont:
+        if key not in _CONT:
+            fail(f"[continuation] {key}", f"unknown key; expected one of {sorted(_CONT)}")
+    if "parameter" not in cont:
+        fail("[continuation] parameter", "missing; name the continued parameter")
+    parameter = string("[continuation] parameter", cont["parameter"])
+    if parameter not in problem.parameters:
+        fail("[continuation] parameter", f"unknown parameter {parameter!r}; "
+             f"{problem.source} declares {', '.join(problem.parameter_names)}")
+
+    directions = cont.get("directions", "both")
+    if directions not in _DIRECTIONS:
+        fail("[continuation] directions", f"expected one of {sorted(_DIRECTIONS)}, got {directions!r}")
+
+    lower, upper = -math.inf, math.inf
+    if "bounds" in cont:
+        b = cont["bounds"]
+        if not isinstance(b, list) or len(b) != 2:
+            fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
+        lower, upper = (number("[continuation] bounds", v) for v in b)
+        if not lower < upper:
+            fail("[continuation] bounds", f"need lower < upper, got {lower:g}, {upper:g}")
+    at_fold = None
+    stop = cont.get("stop", [])
+    if not isinstance(stop, list):
+        fail("[continuation] stop", f"expected a list such as [\"LP4\"], got {stop!r}")
+    for item in stop:
+        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isdigit()
+                and int(item[2:]) > 0):
+            fail("[continuation] stop", f"expected entries like \"LP4\", got {item!r}")
+        at_fold = min(int(item[2:]), at_fold or math.inf)
+    user_values = []
+    if "uz" in cont:
+        uz = cont["uz"]
+        if not isinstance(uz, list):
+            fail("[continuation] uz", f"expected a list of values, got {uz!r}")
+        period = None
+        if "uz_period" in cont:
+            period = number("[continuation] uz_period", cont["uz_period"])
+            if not period > 0:
+                fail("[continuation] uz_period", f"must be positive, got {period:g}")
+        user_values.append(UserValues(tuple(number("[continuation] uz", v) for v in uz), period))
+    elif "uz_period" in cont:
+        fail("[continuation] uz_period", "given without uz")
+
+    opts = table("options")
+    known = {f.name: f.type for f in fields(ContinuationOptions)}
+    values = {}
+    for key, v in opts.items():
+        if key not in known:
+            fail(f"[options] {key}", f"unknown option; expected one of {sorted(known)}")
+        if key in ("max_points", "ntst", "max_nodes"):
+            if isinstance(v, bool) or not isinstance(v, int):
+                fail(f"[options] {key}", f"expected an integer, got {v!r}")
+            values[key] = v
+        else:
+            values[key] = number(f"[options] {key}", v)
+    try:
+        options = ContinuationOptions(**values)
+    except OptionsError as exc:
+        fail("[options]", str(exc))
+
+    params = table("parameters")
+    grid = {}
+    for key, v in params.items():
+        if key not in problem.parameters:
+            fail(f"[parameters] {key}", f"unknown parameter; {problem.source} declares "
+                 f"{', '.join(problem.parameter_names)}")
+        vals = v if isinstance(v, list) else [v]
+        if not vals:
+            fail(f"[parameters] {key}", "empty list")
+        grid[key] = [number(f"[parameters] {key}", x) for x in vals]
+
+    starts = doc.get("start", "trivial")
+    starts = starts if isinstance(starts, list) else [starts]
+    if not starts:
+        fail("start", "empty list")
+    parsed = []
+    for s in starts:
+        s = string("start", s)
+        if s == "trivial":
+            parsed.append(Start("trivial"))
+            continue
+        if ":" not in s:
+            fail("start", f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
+        fname, label = s.rsplit(":", 1)
+        candidates = [Path(fname)] if Path(fname).is_absolute() else (
+            ([out_dir / fname] if out_dir is not None else []) + [path.parent / fname, Path(fname)])
+        file = next((c for c in candidates if c.is_file()), None)
+        if file is None:
+            fail("start", f"restart file {fname!r} not found (looked in "
+                 f"{', '.join(str(c.parent) for c in candidates)}); run the run that writes it first")
+        from .store import BranchFile, StoreError
+        try:
+            bf = BranchFile(file)
+            bf.label(label)
+        except StoreError as exc:
+            fail("start", str(exc))
+        if bf.equation != problem.source:
+            fail("start", f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
+        parsed.append(Start("label", file, label))
+
+    plan = Plan(name=path.stem, path=path, text=text, description=description, problem=problem,
+                parameter=parameter, options=options, stops=Stops(lower, upper, at_fold),
+                user_values=user_values, varying=[k for k, v in grid.items() if len(v) > 1])
+    keys = list(grid)
+    for combo in itertools.product(*(grid[k] for k in keys)):
+        for start in parsed:
+            for d in _DIRECTIONS[directions]:
+                plan.branches.append(BranchSpec(start, dict(zip(keys, combo)), d))
+    return plan

@@ -1,0 +1,139 @@
+"""End-loaded planar elastica with a rigid lever arm (nondimensional: K = l = 1).
+
+State ``[theta, kappa, x, y]`` on s in [0, 1]; theta is the tangent angle from the vertical,
+kappa = theta' the bending moment m.e_z, (x, y) the centreline. Moment balance
+(the paper's eqn:Moment_balance with n = F = P (sin alpha, -cos alpha))::
+
+    theta' = kappa,  kappa' = -P sin(theta - alpha),  x' = -sin theta,  y' = cos theta.
+
+Clamp: theta(0) = theta0, x(0) = y(0) = 0. Free end (eqn:N_BC_2)::
+
+    kappa(1) + eps P sin(psi + alpha - theta(1)) = 0.
+
+The lever arm points at angle theta(1) - psi from the vertical (psi measured clockwise from
+the tip tangent). Reduced energy, whose Euler-Lagrange equations are the system above::
+
+    E[theta] = int_0^1 (kappa^2/2 + P cos(theta - alpha)) ds + eps P cos(psi + alpha - theta(1)).
+
+P and alpha appear in the reduced ODE, but in the paper's formulation (positions with Lagrange
+multipliers n) they enter only the free-end term, so they are declared ``enters="free"``.
+"""
+
+import math
+
+import numpy as np
+
+from elastica_auto.problem import Ordinate, Parameter
+
+STATES = ("theta", "kappa", "x", "y")
+
+PARAMETERS = [
+    Parameter("P", math.pi ** 2 / 4, r"P", "free", doc="load |F| l^2 / K; negative reverses F"),
+    Parameter("eps", 0.25, r"\epsilon", "free", doc="lever-arm length / l; negative flips it"),
+    Parameter("psi", 0.0, r"\psi", "free", period=2 * math.pi,
+              doc="arm angle to the tip tangent, clockwise"),
+    Parameter("alpha", 0.0, r"\alpha", "free", period=2 * math.pi,
+              doc="load direction from the vertical"),
+    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=2 * math.pi,
+              doc="rotation of the clamp"),
+]
+
+
+def _arm_angle(yb, p):
+    """psi + alpha - theta(1), the angle in the free-end moment eps P sin(.)."""
+    return p["psi"] + p["alpha"] - yb[0]
+
+
+def rhs(s, y, p):
+    theta, kappa = y[0], y[1]
+    return np.vstack((kappa, -p["P"] * np.sin(theta - p["alpha"]), -np.sin(theta), np.cos(theta)))
+
+
+def rhs_jac(s, y, p):
+    theta = y[0]
+    jac = np.zeros((4, 4, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = -p["P"] * np.cos(theta - p["alpha"])
+    jac[2, 0] = -np.cos(theta)
+    jac[3, 0] = -np.sin(theta)
+    return jac
+
+
+def rhs_dp(s, y, p, name):
+    out = np.zeros_like(y)
+    if name == "P":
+        out[1] = -np.sin(y[0] - p["alpha"])
+    elif name == "alpha":
+        out[1] = p["P"] * np.cos(y[0] - p["alpha"])
+    return out
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0] - p["theta0"], ya[2], ya[3],
+                     yb[1] + p["eps"] * p["P"] * np.sin(_arm_angle(yb, p))))
+
+
+def bc_jac(ya, yb, p):
+    da = np.zeros((4, 4))
+    db = np.zeros((4, 4))
+    da[0, 0] = da[1, 2] = da[2, 3] = 1.0
+    db[3, 1] = 1.0
+    db[3, 0] = -p["eps"] * p["P"] * np.cos(_arm_angle(yb, p))
+    return da, db
+
+
+def bc_dp(ya, yb, p, name):
+    out = np.zeros(4)
+    a = _arm_angle(yb, p)
+    if name == "theta0":
+        out[0] = -1.0
+    elif name == "eps":
+        out[3] = p["P"] * np.sin(a)
+    elif name == "P":
+        out[3] = p["eps"] * np.sin(a)
+    elif name in ("psi", "alpha"):
+        out[3] = p["eps"] * p["P"] * np.cos(a)
+    return out
+
+
+def _m1(s, y, p):
+    return y[1, -1]
+
+
+def _beta(s, y, p):
+    return p["P"] * np.cos(_arm_angle(y[:, -1], p))
+
+
+def _m_alpha(s, y, p):
+    x1, y1, a = y[2, -1], y[3, -1], p["alpha"]
+    return y[1, -1] - p["P"] * (x1 * np.cos(a) + y1 * np.sin(a))
+
+
+def _gamma(s, y, p):
+    x1, y1, a = y[2, -1], y[3, -1], p["alpha"]
+    return -x1 * np.sin(a) + y1 * np.cos(a) + p["eps"] * np.cos(_arm_angle(y[:, -1], p))
+
+
+def _m0(s, y, p):
+    return y[1, 0]
+
+
+ORDINATES = [
+    Ordinate("m1", r"$m(1)\cdot e_z$", _m1, "psi", "tip moment kappa(1); ordinate for psi"),
+    Ordinate("beta", r"$\beta$", _beta, "eps", "P cos(psi + alpha - theta(1)); ordinate for eps"),
+    Ordinate("mA", r"$(m + r\times n)\cdot e_z$", _m_alpha, "alpha",
+             "kappa(1) - P (x(1) cos alpha + y(1) sin alpha) = kappa(0); ordinate for alpha"),
+    Ordinate("gamma", r"$\gamma$", _gamma, "P",
+             "-x(1) sin alpha + y(1) cos alpha + eps cos(alpha + psi - theta(1)); ordinate for P"),
+    Ordinate("m0", r"$m(0)\cdot e_z$", _m0, "theta0", "clamp moment kappa(0); ordinate for theta0"),
+]
+
+
+def exact_start(s, p):
+    """The straight rod theta = theta0 along the load line, exact when theta0 = alpha and
+    sin(psi) = 0 (mod 2 pi); None otherwise."""
+    if (abs(math.remainder(p["theta0"] - p["alpha"], 2 * math.pi)) > 1e-14
+            or abs(math.sin(p["psi"])) > 1e-14):
+        return None
+    t = p["theta0"]
+    return np.vstack((np.full_like(s, t), np.zeros_like(s), -s * math.sin(t), s * math.cos(t)))
