@@ -63,6 +63,7 @@ class Branch:
     warnings: list[str] = field(default_factory=list)
     seconds: float = 0.0
     last: tuple[State, Tangent | None] | None = None
+    interrupted: bool = False
 
     def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
             niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),

@@ -8,7 +8,8 @@ interrupted run saves what it computed and exits with status 130.
 from __future__ import annotations
 
 import importlib.resources
-import math
+import os
+import signal
 import sys
 from pathlib import Path
 
@@ -76,8 +77,10 @@ def _fmt_params(params: dict, names) -> str:
 @click.argument("name_or_path")
 @click.option("--out", "out_dir", default="out", show_default=True, type=click.Path(file_okay=False),
               help="Folder for the branch file <run>.h5.")
+@click.option("--jobs", "-j", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Branches computed at once (0: one per CPU core).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only the summary lines.")
-def run(name_or_path, out_dir, quiet):
+def run(name_or_path, out_dir, jobs, quiet):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
     from .run import StartError, execute
     from .runfile import load
@@ -92,10 +95,10 @@ def run(name_or_path, out_dir, quiet):
     click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter} "
                f"-> {out_dir / plan.output_name}", err=True)
 
-    def progress(k, br, lam):
+    def progress(k, npts, nfolds, lam):
         if tty:
             click.echo(f"\r  branch {k}/{nbr}  {plan.parameter} = {lam:+.6f}  "
-                       f"points {len(br.points):5d}  folds {len(br.folds):3d}", nl=False, err=True)
+                       f"points {npts:5d}  folds {nfolds:3d}", nl=False, err=True)
 
     def on_branch(k, br):
         if tty:
@@ -108,8 +111,9 @@ def run(name_or_path, out_dir, quiet):
         for w in br.warnings:
             click.echo(f"  warning: {w}")
 
+    signal.signal(signal.SIGTERM, _terminate)
     try:
-        result = execute(plan, out_dir, progress, on_branch)
+        result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:
@@ -125,6 +129,11 @@ def run(name_or_path, out_dir, quiet):
     if result.failed:
         click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
         sys.exit(EXIT_BRANCH_FAILED)
+
+
+def _terminate(signum, frame):
+    """SIGTERM stops a run like Ctrl-C: what was computed is saved."""
+    raise KeyboardInterrupt
 
 
 def _open(path):
@@ -176,14 +185,20 @@ def export(file, output):
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Figure file (.png, .pdf, .svg).")
 @click.option("--fold/--no-fold", "fold", default=False,
-              help="Fold periodic abscissae into [0, 2 pi).")
+              help="Fold a periodic abscissa into [0, period), e.g. psi into [0, 2 pi).")
 def plot(file, xname, yname, output, fold):
     """Plot a bifurcation diagram of FILE.h5 (reads the file, computes nothing)."""
     from .plots import bifurcation_diagram
     bf = _open(file)
+    period = None
+    if fold:
+        x = xname or (bf.branches[0].parameter if bf.branches else "")
+        if x not in bf.periods:
+            _fail(f"--fold: {x!r} is not a periodic parameter of {file} "
+                  f"(periodic: {', '.join(bf.periods) or 'none'})")
+        period = bf.periods[x]
     try:
-        path = bifurcation_diagram(bf, Path(output), xname, yname,
-                                   period=2 * math.pi if fold else None)
+        path = bifurcation_diagram(bf, Path(output), xname, yname, period=period)
     except ValueError as exc:
         _fail(str(exc))
     click.echo(f"wrote {path}")

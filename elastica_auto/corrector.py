@@ -38,6 +38,12 @@ class Curve:
         self._spline = None
         self._memo = {}
 
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k not in ("_spline", "_memo")}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state, _spline=None, _memo={})
+
     def _eval(self, x, nu):
         if self._spline is None:
             self._spline = CubicHermiteSpline(self.s, self.y, self.yp, axis=1)

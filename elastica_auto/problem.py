@@ -196,9 +196,6 @@ class Problem:
                                f"expected {(self.n, len(s))} = (len(STATES), len(s))")
         return y
 
-    def period(self, name) -> float | None:
-        return self.parameters[name].period
-
     # -- validation ----------------------------------------------------------------------------
     def _check_shapes(self):
         """Call every function once on a small state and check the shapes it returns."""

@@ -270,8 +270,9 @@ def load(path, out_dir: Path | None = None) -> Plan:
             ([out_dir / fname] if out_dir is not None else []) + [path.parent / fname, Path(fname)])
         file = next((c for c in candidates if c.is_file()), None)
         if file is None:
-            fail("start", f"restart file {fname!r} not found (looked in "
-                 f"{', '.join(str(c.parent) for c in candidates)}); run the run that writes it first")
+            folders = ", ".join(dict.fromkeys(str(c.parent) for c in candidates))
+            fail("start", f"restart file {fname!r} not found (looked in {folders}); "
+                 "run the run that writes it first")
         from .store import BranchFile, StoreError
         try:
             bf = BranchFile(file)

@@ -4,8 +4,8 @@ Layout of ``out/<run>.h5``::
 
     /                       attrs: format, format_version, run, equation, created, version,
                             run_file (the TOML text), states, parameters, ordinates (JSON
-                            lists), tex (JSON: name -> TeX label), labels (JSON: label ->
-                            [branch, pt])
+                            lists), tex (JSON: name -> TeX label), periods (JSON: periodic
+                            parameter -> period), labels (JSON: label -> [branch, pt])
     /profile_grid           the fixed s grid of the stored profiles
     /branches/<NNN>/        attrs: parameter, ordinate, direction, start, options, end,
                             message, diagnostics, warnings, seconds
@@ -105,7 +105,9 @@ class Writer:
                        run_file=self.text, states=json.dumps(problem.states),
                        parameters=json.dumps(problem.parameter_names),
                        ordinates=json.dumps(problem.ordinate_names),
-                       tex=json.dumps(_tex_labels(problem)))
+                       tex=json.dumps(_tex_labels(problem)),
+                       periods=json.dumps({k: q.period for k, q in problem.parameters.items()
+                                           if q.period is not None}))
         f["profile_grid"] = PROFILE_GRID
 
 
@@ -192,6 +194,7 @@ class BranchFile:
                 self.ordinates = json.loads(self.attrs["ordinates"])
                 self.states = json.loads(self.attrs["states"])
                 self.tex = json.loads(self.attrs["tex"])
+                self.periods = json.loads(self.attrs["periods"])
                 self.labels = {k: tuple(v) for k, v in json.loads(self.attrs["labels"]).items()}
                 self.profile_grid = f["profile_grid"][()]
                 self.branches = []
@@ -219,11 +222,18 @@ class BranchFile:
     def equation(self) -> str:
         return self.attrs["equation"]
 
+    def label_ranges(self) -> str:
+        """The labels in the file, compactly: ``EP1-EP16, LP1-LP50, UZ1-UZ276``."""
+        counts = {}
+        for lab in self.labels:
+            counts[lab[:2]] = max(counts.get(lab[:2], 0), int(lab[2:]))
+        return ", ".join(f"{t}1-{t}{n}" if n > 1 else f"{t}1"
+                         for t, n in sorted(counts.items())) or "none"
+
     def label(self, name: str) -> StoredLabel:
         """The solution stored under a label such as ``UZ3`` (StoreError if there is none)."""
         if name not in self.labels:
-            known = ", ".join(sorted(self.labels, key=_label_key)) or "none"
-            raise StoreError(f"{self.path}: no label {name!r} (labels: {known})")
+            raise StoreError(f"{self.path}: no label {name!r} (labels: {self.label_ranges()})")
         br, pt = self.labels[name]
         with h5py.File(self.path, "r") as f:
             h = f[f"branches/{br:03d}/solutions/{name}"]
@@ -237,8 +247,6 @@ class BranchFile:
         return StoredLabel(name, br, pt, state, tangent, tpar)
 
 
-def _label_key(name):
-    return (name[:2], int(name[2:]))
 
 
 def _fmt(v):
