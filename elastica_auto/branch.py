@@ -9,6 +9,7 @@ import numpy as np
 
 from .corrector import State, Tangent
 from .problem import Problem
+from .stability import direct_index
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)
@@ -71,12 +72,17 @@ class Branch:
         """Insert a point at its place in arclength order; labelled points keep their solution."""
         if type and type not in LABEL_TYPES:
             raise ValueError(f"unknown label type {type!r}")
+        jacobi, fem = direct_index(self.problem, state)
+        if jacobi != fem and type not in ("LP", "BP"):
+            note = "; ".join(filter(None, (note, f"direct counts differ: Jacobi field {jacobi}, "
+                                                 f"finite elements {fem}")))
         point = Point(params=dict(state.params),
                       ordinates=self.problem.ordinate_values(state.s, state.y, state.params),
                       arclength=float(arclength), ds=float(ds), niter=int(niter),
                       nodes=len(state.s), type=type, profile=state(PROFILE_GRID).copy(),
                       fold_residual=float(fold_residual), note=note,
-                      state=state if type else None, tangent=tangent if type else None)
+                      state=state if type else None, tangent=tangent if type else None,
+                      index_direct=jacobi)
         self.last = (state, tangent)
         keys = [p.arclength for p in self.points]
         self.points.insert(bisect.bisect_right(keys, point.arclength), point)
@@ -85,6 +91,20 @@ class Branch:
     def relabel(self, point: Point, type: str, state: State, tangent: Tangent | None):
         """Give an existing point a label (e.g. the last point becomes EP or MX)."""
         point.type, point.state, point.tangent = type, state, tangent
+
+    def transition(self, point: Point) -> str:
+        """``"1 -> 0"``: the index before and after a labelled point, in the direction of
+        travel ('' where unknown)."""
+        k = self.points.index(point)
+        if k + 1 >= len(self.points):
+            return ""
+        before, after = point.index, self.points[k + 1].index
+        return f"{before} -> {after}" if before >= 0 and after >= 0 else ""
+
+    @property
+    def disagreements(self) -> list[Point]:
+        """Points where the fold rule and the direct count disagree."""
+        return [p for p in self.points if "index disagreement" in p.note]
 
     @property
     def folds(self) -> list[Point]:

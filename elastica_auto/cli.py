@@ -103,13 +103,18 @@ def run(name_or_path, out_dir, jobs, quiet):
     def on_branch(k, br):
         if tty:
             click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
-        folds = ", ".join(f"{p.name}{'(NOT LOCATED)' if p.note else ''}" for p in br.folds)
+        folds = ", ".join(f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
+                          f" {br.transition(p)}".rstrip() for p in br.folds)
         click.echo(f"branch {k}/{nbr} {_fmt_params(br.points[0].params, varying)} "
                    f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
                    f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
                    + (f"; folds {folds}" if folds else ""))
         for w in br.warnings:
             click.echo(f"  warning: {w}")
+        if br.disagreements:
+            click.echo(f"  index disagreements at {len(br.disagreements)} points: "
+                       + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
+                                   for p in br.disagreements[:5]))
 
     signal.signal(signal.SIGTERM, _terminate)
     try:

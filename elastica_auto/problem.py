@@ -24,6 +24,10 @@ and optionally
 ``exact_start(s, p)``
     an exact solution on the mesh ``s`` for parameter values ``p``, or ``None`` where the module
     knows none (used by ``start = "trivial"`` in run files).
+``second_variation(s, y, p)`` -> ``(a, b, c)``
+    the second variation in scalar form ``int_0^1 (a h'^2 + b h^2) ds + c h(1)^2`` with
+    ``h(0) = 0`` (a > 0; a, b arrays on s or scalars, c a scalar); enables the stability index
+    (see `elastica_auto.stability`).
 
 Only equation modules know any physics; everything in `elastica_auto` is generic.
 """
@@ -116,6 +120,7 @@ class Problem:
         self._rhs_dp = getattr(module, "rhs_dp", None)
         self._bc_dp = getattr(module, "bc_dp", None)
         self._exact_start = getattr(module, "exact_start", None)
+        self._second_variation = getattr(module, "second_variation", None)
         self._check_shapes()
 
     # -- names ---------------------------------------------------------------------------------
@@ -182,6 +187,14 @@ class Problem:
 
     def ordinate_values(self, s, y, p) -> dict[str, float]:
         return {k: float(o.fn(s, y, p)) for k, o in self.ordinates.items()}
+
+    @property
+    def has_second_variation(self) -> bool:
+        return self._second_variation is not None
+
+    def second_variation(self, s, y, p):
+        """(a(s), b(s), c) of delta^2 E[h] = int a h'^2 + b h^2 ds + c h(1)^2, h(0) = 0."""
+        return self._second_variation(s, y, p)
 
     def exact_start(self, s, p):
         """An exact solution on mesh ``s`` for parameters ``p``, or None if the module has none."""

@@ -21,6 +21,7 @@ from . import store
 from .branch import Branch
 from .corrector import State, solve_fixed
 from .runfile import BranchSpec, Plan, RunFileError
+from .stability import label_stability
 from .stepper import continue_branch
 
 
@@ -105,6 +106,7 @@ def compute_branch(plan: Plan, k: int, start, progress: Progress | None = None,
         br.end, br.message, br.interrupted = "MX", "interrupted by the user", True
         if br.points and not br.points[-1].type and br.last is not None:
             br.relabel(br.points[-1], "MX", *br.last)
+    label_stability(br)
     br.seconds = time.perf_counter() - t0
     return br
 

@@ -11,7 +11,7 @@ Layout of ``out/<run>.h5``::
                             message, diagnostics, warnings, seconds
         columns/<name>      one row per point: every parameter and ordinate, arclength, ds,
                             niter, nodes, fold_residual, type, label, note, index,
-                            index_rule, index_direct
+                            index_rule, index_direct, transition ("1 -> 0" at LP and BP)
         profiles            (points, states, grid): every state on /profile_grid
         solutions/<LAB>/    s, y, yp: the exact collocation solution of a labelled point;
                             tangent_s, tangent_y, tangent_yp and attr tangent_lam; attrs
@@ -126,6 +126,8 @@ def _write_branch(g, problem, br: Branch):
     str_dt = h5py.string_dtype()
     cols.create_dataset("type", data=[p.type for p in br.points], dtype=str_dt)
     cols.create_dataset("note", data=[p.note for p in br.points], dtype=str_dt)
+    cols.create_dataset("transition", data=[br.transition(p) if p.type in ("LP", "BP") else ""
+                                            for p in br.points], dtype=str_dt)
     g["profiles"] = np.array([p.profile for p in br.points])
     sols = g.create_group("solutions")
     for pt, p in enumerate(br.points, start=1):

@@ -137,3 +137,10 @@ def exact_start(s, p):
         return None
     t = p["theta0"]
     return np.vstack((np.full_like(s, t), np.zeros_like(s), -s * math.sin(t), s * math.cos(t)))
+
+
+def second_variation(s, y, p):
+    """delta^2 E[h] = int_0^1 (h'^2 - P cos(theta - alpha) h^2) ds - eps P cos(psi + alpha -
+    theta(1)) h(1)^2 with h(0) = 0 (DESIGN 3.2): a = 1, b = -P cos(theta - alpha), c = -eps P
+    cos(psi + alpha - theta(1)); natural end condition h'(1) = eps P cos(.) h(1)."""
+    return 1.0, -p["P"] * np.cos(y[0] - p["alpha"]), -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p))
