@@ -57,6 +57,7 @@ class Branch:
     direction: int
     start: str
     options: dict
+    singular_start: bool = False
     points: list[Point] = field(default_factory=list)
     end: str = ""
     message: str = ""
@@ -68,11 +69,13 @@ class Branch:
 
     def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
             niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),
-            note: str = "") -> Point:
-        """Insert a point at its place in arclength order; labelled points keep their solution."""
+            note: str = "", direct: tuple[int, int] | None = None) -> Point:
+        """Insert a point at its place in arclength order; labelled points keep their solution.
+
+        ``direct`` is the (Jacobi, finite-element) index if the caller has computed it."""
         if type and type not in LABEL_TYPES:
             raise ValueError(f"unknown label type {type!r}")
-        jacobi, fem = direct_index(self.problem, state)
+        jacobi, fem = direct if direct is not None else direct_index(self.problem, state)
         if jacobi != fem and type not in ("LP", "BP"):
             note = "; ".join(filter(None, (note, f"direct counts differ: Jacobi field {jacobi}, "
                                                  f"finite elements {fem}")))

@@ -79,7 +79,7 @@ def _fmt_params(params: dict, names) -> str:
               help="Folder for the branch file <run>.h5.")
 @click.option("--jobs", "-j", default=0, show_default=True, type=click.IntRange(min=0),
               help="Branches computed at once (0: one per CPU core).")
-@click.option("--quiet", "-q", is_flag=True, help="Print only the summary lines.")
+@click.option("--quiet", "-q", is_flag=True, help="No live progress line (summaries only).")
 def run(name_or_path, out_dir, jobs, quiet):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
     from .run import StartError, execute
@@ -92,12 +92,17 @@ def run(name_or_path, out_dir, jobs, quiet):
     nbr = len(plan.branches)
     varying = plan.varying
     tty = sys.stderr.isatty() and not quiet
-    click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter} "
-               f"-> {out_dir / plan.output_name}", err=True)
+    switched = (f", then the other branch at the first {plan.switch_count} BPs of each"
+                if plan.switch_count else "")
+    click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter}"
+               f"{switched} -> {out_dir / plan.output_name}", err=True)
+
+    def of(k):
+        return f"{k}/{nbr}" if k <= nbr else f"{k}"
 
     def progress(k, npts, nfolds, lam):
         if tty:
-            click.echo(f"\r  branch {k}/{nbr}  {plan.parameter} = {lam:+.6f}  "
+            click.echo(f"\r  branch {of(k)}  {plan.parameter} = {lam:+.6f}  "
                        f"points {npts:5d}  folds {nfolds:3d}", nl=False, err=True)
 
     def on_branch(k, br):
@@ -105,10 +110,13 @@ def run(name_or_path, out_dir, jobs, quiet):
             click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
         folds = ", ".join(f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
                           f" {br.transition(p)}".rstrip() for p in br.folds)
-        click.echo(f"branch {k}/{nbr} {_fmt_params(br.points[0].params, varying)} "
+        start = f" from {br.start}" if br.start != "trivial" else ""
+        bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
+                        for p in br.points if p.type == "BP")
+        click.echo(f"branch {of(k)} {_fmt_params(br.points[0].params, varying)}{start} "
                    f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
                    f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
-                   + (f"; folds {folds}" if folds else ""))
+                   + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else ""))
         for w in br.warnings:
             click.echo(f"  warning: {w}")
         if br.disagreements:
@@ -127,7 +135,7 @@ def run(name_or_path, out_dir, jobs, quiet):
         click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
                    err=True)
         sys.exit(EXIT_INTERRUPTED)
-    click.echo(f"{plan.name}: {nbr} branches, "
+    click.echo(f"{plan.name}: {len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
                f"{sum(len(b.folds) for b in result.branches)} folds, {result.seconds:.2f} s "
                f"-> {result.path}")

@@ -3,6 +3,8 @@
 * LP (fold): the parameter component of the secant changes sign. Located by the extended
   system of :func:`elastica_auto.corrector.solve_fold`; its residual is stored and a failed
   solve is reported as an unlocated LP, never as a located one.
+* BP (branch point): the direct stability index changes between two points with no fold near
+  them; located as the zero of the Jacobi-field test function along the arclength hyperplanes.
 * UZ (user point) and EP at a parameter bound: the parameter crosses a given value (for
   periodic values, any value + k * period). Located by solving the BVP at that value.
 """
@@ -13,9 +15,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 
-from .corrector import Curve, SolveResult, State, Tangent, inner, solve_fixed, solve_fold
+from .corrector import (Curve, SolveResult, State, Tangent, inner, solve_arclength, solve_fixed,
+                        solve_fold)
 from .problem import Problem
+from .stability import singularity_test
 
 
 @dataclass(frozen=True)
@@ -84,3 +89,35 @@ def locate_fold(problem: Problem, base: State, t_in: Tangent, t_out: Tangent, na
         res.message = (f"extended system converged {dist:.3g} away from the bracketing point "
                        "(another fold?)")
     return res, offset
+
+
+def locate_branch_point(problem: Problem, a: State, t_out: Tangent, name: str, dist: float,
+                        tol: float, max_nodes: int):
+    """Locate a branch point between ``a`` and the next point, at distance ``dist`` along the
+    unit secant ``t_out``, as the zero of the Jacobi-field test function
+    (:func:`elastica_auto.stability.singularity_test`) on the arclength hyperplanes
+    ``<u - u_a, t_out> = sigma``, by Brent's method in sigma.
+
+    Returns ``(solve, sigma, g)`` for the located point, or ``(None, reason, nan)`` if the test
+    function does not change sign or a corrector fails.
+    """
+    solves = {}
+
+    def g(sigma):
+        if sigma == 0.0:
+            return singularity_test(problem, a)
+        res = solve_arclength(problem, a, t_out, name, sigma, tol, max_nodes)
+        if not res.success:
+            raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
+        solves[sigma] = res
+        return singularity_test(problem, res.state)
+
+    try:
+        g0, g1 = g(0.0), g(dist)
+        if g0 * g1 > 0:
+            return None, "the test function does not change sign", float("nan")
+        sigma = brentq(g, 0.0, dist, xtol=1e-13, rtol=4 * np.finfo(float).eps)
+        value = g(sigma)
+    except RuntimeError as exc:
+        return None, str(exc), float("nan")
+    return solves[sigma], sigma, value

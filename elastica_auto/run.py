@@ -19,10 +19,11 @@ import numpy as np
 
 from . import store
 from .branch import Branch
-from .corrector import State, solve_fixed
-from .runfile import BranchSpec, Plan, RunFileError
+from .corrector import State, Tangent, solve_fixed
+from .runfile import BranchSpec, Plan, RunFileError, Start
 from .stability import label_stability
 from .stepper import continue_branch
+from .switching import switch_direction
 
 
 class StartError(RuntimeError):
@@ -41,8 +42,21 @@ class RunResult:
         return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
 
 
-def build_start(plan: Plan, spec: BranchSpec):
-    """The start State for a branch and, on a restart, the stored tangent (or None)."""
+@dataclass
+class Job:
+    """One branch to compute: its spec and its start (state, tangent).
+
+    ``singular`` marks a start at a branch point, where ``tangent`` is the direction of the
+    other branch (used as it is: the bordered tangent system is singular there)."""
+
+    spec: BranchSpec
+    state: State
+    tangent: Tangent | None
+    singular: bool = False
+
+
+def build_start(plan: Plan, spec: BranchSpec) -> Job:
+    """The start of a branch: an exact solution, a stored label, or the other branch at a BP."""
     problem, opt = plan.problem, plan.options
     if spec.start.kind == "trivial":
         params = {**problem.defaults(), **spec.params}
@@ -52,9 +66,13 @@ def build_start(plan: Plan, spec: BranchSpec):
             fixed = ", ".join(f"{k}={v:g}" for k, v in params.items())
             raise StartError(f"{problem.source} has no exact start at {fixed}; "
                              "start from a label (start = \"FILE.h5:LABEL\")")
-        return State.from_values(problem, s, y, params), None
+        return _checked(plan, Job(spec, State.from_values(problem, s, y, params), None))
     stored = store.BranchFile(spec.start.file).label(spec.start.label)
     state, tangent = stored.state, stored.tangent
+    if spec.start.kind == "switch":
+        if not spec.start.label.startswith("BP"):
+            raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
+        return _switch_job(plan, spec, state, tangent)
     if stored.tangent_parameter != plan.parameter:
         tangent = None
     params = {**state.params, **spec.params}
@@ -64,7 +82,27 @@ def build_start(plan: Plan, spec: BranchSpec):
             raise StartError(f"{spec.start}: no solution at the changed parameters "
                              f"({res.message})")
         state, tangent = res.state, None
-    return state, tangent
+    return _checked(plan, Job(spec, state, tangent))
+
+
+def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
+    if tangent is None:
+        raise StartError(f"{spec.start}: no tangent stored with the branch point")
+    direction = switch_direction(plan.problem, state, tangent, plan.parameter, plan.options)
+    if direction is None:
+        raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
+                         "of the linearised problem not found)")
+    d = spec.direction
+    return Job(spec, state, Tangent(direction.s, d * direction.y, d * direction.yp,
+                                    d * direction.lam), singular=True)
+
+
+def _checked(plan: Plan, job: Job) -> Job:
+    lam = job.state.params[plan.parameter]
+    if not plan.stops.lower <= lam <= plan.stops.upper:
+        raise StartError(f"{job.spec.start}: the start has {plan.parameter} = {lam:g}, outside "
+                         f"the bounds [{plan.stops.lower:g}, {plan.stops.upper:g}]")
+    return job
 
 
 def number_labels(branches: list[Branch]):
@@ -81,16 +119,16 @@ def number_labels(branches: list[Branch]):
 Progress = Callable[[int, int, int, float], None]
 
 
-def compute_branch(plan: Plan, k: int, start, progress: Progress | None = None,
+def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = None,
                    should_stop: Callable[[], bool] | None = None) -> Branch:
-    """Continue branch ``k`` (1-based) of ``plan`` from ``start = (state, tangent)``.
+    """Continue branch number ``k`` of the file from ``job``'s start.
 
     Ctrl-C (or ``should_stop()`` turning true) ends the branch early: it keeps every point
     computed so far, its last point is labelled MX and ``branch.interrupted`` is set.
     """
-    spec = plan.branches[k - 1]
+    spec = job.spec
     br = Branch(plan.problem, plan.parameter, spec.direction, str(spec.start),
-                plan.options.to_dict())
+                plan.options.to_dict(), singular_start=job.singular)
 
     def on_step(b, lam):
         if should_stop is not None and should_stop():
@@ -100,8 +138,8 @@ def compute_branch(plan: Plan, k: int, start, progress: Progress | None = None,
 
     t0 = time.perf_counter()
     try:
-        continue_branch(br, start[0], plan.options, plan.stops, plan.user_values, start[1],
-                        on_step)
+        continue_branch(br, job.state, plan.options, plan.stops, plan.user_values, job.tangent,
+                        on_step, singular_start=job.singular)
     except KeyboardInterrupt:
         br.end, br.message, br.interrupted = "MX", "interrupted by the user", True
         if br.points and not br.points[-1].type and br.last is not None:
@@ -111,18 +149,33 @@ def compute_branch(plan: Plan, k: int, start, progress: Progress | None = None,
     return br
 
 
+def switch_jobs(plan: Plan, branches: list[Branch]) -> list[Job]:
+    """``switch = N``: both directions of the other branch at the first N BPs of each branch."""
+    jobs = []
+    for br in branches:
+        for p in [q for q in br.points if q.type == "BP"][: plan.switch_count]:
+            for d in (1, -1):
+                spec = BranchSpec(Start("switch", None, p.name), {}, d)
+                try:
+                    jobs.append(_switch_job(plan, spec, p.state, p.tangent))
+                except StartError as exc:
+                    br.warnings.append(str(exc))
+    return jobs
+
+
 def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
-    Every start is built (and so validated) before any branch is computed. The file is
-    rewritten after each branch completes, in plan order, so labels are numbered the same way
-    whatever ``jobs`` is. An interrupted run saves every branch computed so far, the ones in
-    progress up to their last point.
+    Every start is built (and so validated) before any branch is computed; branches switched
+    at this run's own branch points (``switch = N``) follow once their parents are done. The
+    file is rewritten after each branch completes, in plan order, so labels are numbered the
+    same way whatever ``jobs`` is. An interrupted run saves every branch computed so far, the
+    ones in progress up to their last point.
     """
     out = Path(out_dir) / plan.output_name
     t_run = time.perf_counter()
-    starts = [build_start(plan, spec) for spec in plan.branches]
+    first = [build_start(plan, spec) for spec in plan.branches]
     writer = store.Writer(out, plan.name, plan.problem, plan.text)
     branches: list[Branch] = []
 
@@ -130,30 +183,41 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
         number_labels(branches)
         writer.save(branches)
 
-    jobs = max(1, min(jobs, len(plan.branches)))
+    interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
+    if not interrupted and plan.switch_count:
+        second = switch_jobs(plan, list(branches))
+        interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
+    return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted)
+
+
+def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
+    """Compute ``jobs_list`` (appending to ``branches``); True if interrupted."""
+    if not jobs_list:
+        return False
+    jobs = max(1, min(jobs, len(jobs_list)))
     if jobs == 1 or "fork" not in mp.get_all_start_methods():
-        for k in range(1, len(plan.branches) + 1):
-            br = compute_branch(plan, k, starts[k - 1], progress)
+        for job in jobs_list:
+            k = len(branches) + 1
+            br = compute_branch(plan, k, job, progress)
             branches.append(br)
             save()
             if br.interrupted:
-                return RunResult(out, branches, time.perf_counter() - t_run, interrupted=True)
+                return True
             if on_branch is not None:
                 on_branch(k, br)
-        return RunResult(out, branches, time.perf_counter() - t_run)
-    return _execute_parallel(plan, starts, jobs, branches, save, progress, on_branch, out,
-                             t_run)
+        return False
+    return _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch)
 
 
 _WORKER: dict = {}
 
 
-def _init_worker(plan, starts, queue, stop):
+def _init_worker(plan, jobs_list, offset, queue, stop):
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
-    _WORKER.update(plan=plan, starts=starts, queue=queue, stop=stop)
+    _WORKER.update(plan=plan, jobs=jobs_list, offset=offset, queue=queue, stop=stop)
 
 
-def _worker_branch(k: int) -> Branch:
+def _worker_branch(i: int) -> Branch:
     plan, queue, stop = _WORKER["plan"], _WORKER["queue"], _WORKER["stop"]
     last = [0.0]
 
@@ -163,21 +227,23 @@ def _worker_branch(k: int) -> Branch:
             last[0] = now
             queue.put((k, npts, nfolds, lam))
 
-    br = compute_branch(plan, k, _WORKER["starts"][k - 1], progress, stop.is_set)
+    br = compute_branch(plan, _WORKER["offset"] + i + 1, _WORKER["jobs"][i], progress,
+                        stop.is_set)
     br.problem = None  # modules do not pickle; the parent puts its own back
     br.last = None
     return br
 
 
-def _execute_parallel(plan, starts, jobs, branches, save, progress, on_branch, out, t_run):
-    """Branches in worker processes (fork); results are saved in plan order as they arrive."""
+def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
+    """Branches in worker processes (fork); results are saved in order as they arrive."""
     ctx = mp.get_context("fork")
     queue, stop = ctx.Queue(), ctx.Event()
+    offset = len(branches)
     done: dict[int, Branch] = {}
     interrupted = False
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
-                             initargs=(plan, starts, queue, stop)) as pool:
-        futures = {pool.submit(_worker_branch, k): k for k in range(1, len(plan.branches) + 1)}
+                             initargs=(plan, jobs_list, offset, queue, stop)) as pool:
+        futures = {pool.submit(_worker_branch, i): i for i in range(len(jobs_list))}
         pending = set(futures)
         while pending:
             try:
@@ -187,6 +253,8 @@ def _execute_parallel(plan, starts, jobs, branches, save, progress, on_branch, o
                     if progress is not None:
                         progress(*msg)
             except KeyboardInterrupt:
+                # A second Ctrl-C must not abort the saving of what the workers computed.
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
                 interrupted = True
                 stop.set()
                 for f in pending:
@@ -198,18 +266,16 @@ def _execute_parallel(plan, starts, jobs, branches, save, progress, on_branch, o
                 br = f.result()
                 br.problem = plan.problem
                 done[futures[f]] = br
-            while len(branches) + 1 in done:
-                k = len(branches) + 1
-                branches.append(done.pop(k))
+            while len(branches) - offset in done:
+                branches.append(done.pop(len(branches) - offset))
                 save()
                 if on_branch is not None and not branches[-1].interrupted:
-                    on_branch(k, branches[-1])
+                    on_branch(len(branches), branches[-1])
     if done:  # after an interruption: branches that finished beyond a gap
-        branches.extend(done[k] for k in sorted(done))
+        branches.extend(done[i] for i in sorted(done))
         save()
-    interrupted = interrupted or any(b.interrupted for b in branches)
-    return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted)
+    return interrupted or any(b.interrupted for b in branches)
 
 
-__all__ = ["execute", "compute_branch", "build_start", "RunResult", "StartError",
-           "RunFileError"]
+__all__ = ["execute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",
+           "StartError", "RunFileError"]

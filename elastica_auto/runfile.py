@@ -5,6 +5,9 @@ A run file (``runs/<name>.toml``)::
     description = "what this run reproduces"
     equation = "elastica_lever_arm"     # shipped module name, or path to a .py file
     start = "trivial"                   # or "FILE.h5:LABEL", or a list of either
+    switch = 2                          # optional: also follow the other branch, both ways,
+                                        # at the first 2 BPs of each branch (AUTO's ISW=-1);
+                                        # or a list of "FILE.h5:BPn" labels to switch at
 
     [parameters]                        # values; a list gives one set of branches per value
     eps = [0.25, 0.5]
@@ -88,12 +91,15 @@ def evaluate(text: str) -> float:
 class Start:
     """Where a branch starts: the module's exact solution or a label in a branch file."""
 
-    kind: str          # "trivial" or "label"
+    kind: str          # "trivial", "label", or "switch" (the other branch at a BP label)
     file: Path | None = None
     label: str = ""
 
     def __str__(self):
-        return "trivial" if self.kind == "trivial" else f"{self.file.name}:{self.label}"
+        if self.kind == "trivial":
+            return "trivial"
+        where = f"{self.file.name}:{self.label}" if self.file is not None else self.label
+        return f"switch at {where}" if self.kind == "switch" else where
 
 
 @dataclass(frozen=True)
@@ -120,13 +126,14 @@ class Plan:
     user_values: list[UserValues]
     branches: list[BranchSpec] = field(default_factory=list)
     varying: list[str] = field(default_factory=list)
+    switch_count: int = 0
 
     @property
     def output_name(self) -> str:
         return f"{self.name}.h5"
 
 
-_TOP = {"description", "equation", "start", "parameters", "continuation", "options"}
+_TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
 _DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
 
@@ -253,42 +260,60 @@ def load(path, out_dir: Path | None = None) -> Plan:
             fail(f"[parameters] {key}", "empty list")
         grid[key] = [number(f"[parameters] {key}", x) for x in vals]
 
-    starts = doc.get("start", "trivial")
-    starts = starts if isinstance(starts, list) else [starts]
-    if not starts:
-        fail("start", "empty list")
-    parsed = []
-    for s in starts:
-        s = string("start", s)
-        if s == "trivial":
-            parsed.append(Start("trivial"))
-            continue
+    def file_label(key, s):
         if ":" not in s:
-            fail("start", f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
+            fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
         fname, label = s.rsplit(":", 1)
         candidates = [Path(fname)] if Path(fname).is_absolute() else (
             ([out_dir / fname] if out_dir is not None else []) + [path.parent / fname, Path(fname)])
         file = next((c for c in candidates if c.is_file()), None)
         if file is None:
             folders = ", ".join(dict.fromkeys(str(c.parent) for c in candidates))
-            fail("start", f"restart file {fname!r} not found (looked in {folders}); "
+            fail(key, f"restart file {fname!r} not found (looked in {folders}); "
                  "run the run that writes it first")
         from .store import BranchFile, StoreError
         try:
             bf = BranchFile(file)
             bf.label(label)
         except StoreError as exc:
-            fail("start", str(exc))
-        if bf.equation != problem.source:
-            fail("start", f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
-        parsed.append(Start("label", file, label))
+            fail(key, str(exc))
+        if Path(bf.equation).stem != problem.name:
+            fail(key, f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
+        return file, label
+
+    parsed = []
+    switch = doc.get("switch", [])
+    switch_count = 0
+    if isinstance(switch, int) and not isinstance(switch, bool):
+        if switch < 0:
+            fail("switch", f"expected a count >= 0 or a list of \"FILE.h5:BPn\", got {switch}")
+        switch_count = switch
+    elif isinstance(switch, list):
+        for item in switch:
+            file, label = file_label("switch", string("switch", item))
+            if not label.startswith("BP"):
+                fail("switch", f"{item!r}: branch switching needs a BP label")
+            parsed.append(Start("switch", file, label))
+    else:
+        fail("switch", f"expected a count or a list of \"FILE.h5:BPn\", got {switch!r}")
+    starts = doc.get("start", [] if parsed else "trivial")
+    starts = starts if isinstance(starts, list) else [starts]
+    if not starts and not parsed:
+        fail("start", "empty list")
+    for s in starts:
+        s = string("start", s)
+        if s == "trivial":
+            parsed.append(Start("trivial"))
+        else:
+            parsed.append(Start("label", *file_label("start", s)))
 
     plan = Plan(name=path.stem, path=path, text=text, description=description, problem=problem,
                 parameter=parameter, options=options, stops=Stops(lower, upper, at_fold),
-                user_values=user_values, varying=[k for k, v in grid.items() if len(v) > 1])
+                user_values=user_values, varying=[k for k, v in grid.items() if len(v) > 1],
+                switch_count=switch_count)
     keys = list(grid)
     for combo in itertools.product(*(grid[k] for k in keys)):
         for start in parsed:
-            for d in _DIRECTIONS[directions]:
+            for d in (1, -1) if start.kind == "switch" else _DIRECTIONS[directions]:
                 plan.branches.append(BranchSpec(start, dict(zip(keys, combo)), d))
     return plan

@@ -38,12 +38,13 @@ def _coefficients(problem, state, n=N_ELEMENTS):
             np.broadcast_to(np.asarray(b, dtype=float), s.shape), float(c))
 
 
-def index_jacobi(a, b, c) -> int:
-    """Index from the Jacobi field; ``a``, ``b`` sampled at nodes and midpoints (2n + 1)."""
+def _jacobi_field(a, b):
+    """RK4 for u' = w / a, w' = b u from u(0) = 0, w(0) = 1 on the grid of ``a``, ``b``
+    (nodes and midpoints). Returns u(1), w(1) = a u'(1) and the zeros of u in (0, 1)."""
     n = (len(a) - 1) // 2
     h = 1.0 / n
     a, b = np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()
-    u, w = 0.0, 1.0  # u and w = a u'
+    u, w = 0.0, 1.0
     zeros = 0
     for j in range(n):
         a0, am, a1 = a[2 * j], a[2 * j + 1], a[2 * j + 2]
@@ -57,9 +58,24 @@ def index_jacobi(a, b, c) -> int:
         if j > 0 and u != 0.0 and u * u_new <= 0.0 and (u_new != 0.0 or j < n - 1):
             zeros += 1
         u = u_new
+    return u, w, zeros
+
+
+def index_jacobi(a, b, c) -> int:
+    """Index from the Jacobi field; ``a``, ``b`` sampled at nodes and midpoints (2n + 1)."""
+    u, w, zeros = _jacobi_field(a, b)
     if u == 0.0:
         return zeros + 1
     return zeros + (1 if u * (w + c * u) < 0 else 0)
+
+
+def singularity_test(problem, state) -> float:
+    """``a u'(1) + c u(1)`` of the Jacobi field: zero exactly where the second variation has a
+    zero eigenvalue with the natural end condition (a fold or a branch point), and of opposite
+    signs on either side of a simple one. Used to locate branch points."""
+    a, b, c = _coefficients(problem, state)
+    u, w, _ = _jacobi_field(a, b)
+    return w + c * u
 
 
 def index_fem(a, b, c) -> int:
@@ -132,17 +148,19 @@ def fold_rule(branch, start_index: int) -> list[int]:
 def label_stability(branch) -> None:
     """Fill ``index_rule`` and ``index`` on every point of ``branch``.
 
-    The rule starts from the direct count at the first point. ``index`` is the common value
+    The rule starts from the direct count at the first point (the second after a switch). ``index`` is the common value
     where rule and direct count agree; at LP and BP points (critical eigenvalue zero, direct
     count ambiguous) it is the rule's value. Elsewhere a disagreement leaves ``index = -1``
     and says so in the point's note: it is never hidden.
     """
     if not branch.points or not branch.problem.has_second_variation:
         return
-    rule = fold_rule(branch, branch.points[0].index_direct)
-    for p, r in zip(branch.points, rule):
+    # A branch switched at a branch point starts where the direct count is ambiguous.
+    seed = branch.points[1 if branch.singular_start and len(branch.points) > 1 else 0]
+    rule = fold_rule(branch, seed.index_direct)
+    for k, (p, r) in enumerate(zip(branch.points, rule)):
         p.index_rule = r
-        if p.type in ("LP", "BP"):
+        if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):
             p.index = r
         elif r == p.index_direct:
             p.index = r

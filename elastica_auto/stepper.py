@@ -29,7 +29,8 @@ import numpy as np
 from .branch import Branch
 from .corrector import (State, Tangent, coarsen, inner, secant, solve_arclength,
                         solve_tangent)
-from .events import UserValues, crossings, locate_fold, locate_value
+from .events import UserValues, crossings, locate_branch_point, locate_fold, locate_value
+from .stability import direct_index
 from .options import ContinuationOptions
 
 
@@ -64,26 +65,37 @@ def initial_tangent(branch: Branch, start: State, direction: int, guess: Tangent
 
 def continue_branch(branch: Branch, start: State, options: ContinuationOptions, stops: Stops,
                     user_values: list[UserValues] = (), start_tangent: Tangent | None = None,
-                    progress: Callable[[Branch, float], None] | None = None) -> Branch:
+                    progress: Callable[[Branch, float], None] | None = None,
+                    singular_start: bool = False) -> Branch:
     """Continue ``start`` in ``branch.parameter`` in ``branch.direction``; fills ``branch``.
 
+    ``singular_start``: the start is a branch point and ``start_tangent`` the (already
+    oriented) direction of the branch to follow; it is used as it is, and no fold or branch
+    point is sought in the first step, where the start's own singularity would be found.
     Points are appended as they are accepted, so an interrupted call leaves every completed
     point in ``branch``.
     """
     problem, name, opt = branch.problem, branch.parameter, options
-    t = initial_tangent(branch, start, branch.direction, start_tangent, opt)
+    if singular_start:
+        t = start_tangent
+    else:
+        t = initial_tangent(branch, start, branch.direction, start_tangent, opt)
     if t is None:
         branch.add(start, type="MX", arclength=0.0, note="singular start")
         branch.end, branch.message = "MX", "no tangent at the start point (singular bordered system)"
         return branch
     base_point = branch.add(start, type="EP", arclength=0.0, tangent=t)
     base, arclength, ds = start, 0.0, abs(opt.ds)
-    t_in = t            # secant into base (start: the tangent); folds are sign changes of it
+    # secant into base (start: the tangent); folds are sign changes of its parameter component
+    t_in = Tangent(t.s, t.y, t.yp, 0.0) if singular_start else t
     dist_in = abs(opt.ds)
     exact = True        # t is the true tangent at base, not a secant
     mesh = start.s
     cos_max, cos_grow = math.cos(opt.max_angle), math.cos(opt.max_angle / 2)
     history = []
+    # A change of the direct index between two points with no fold near either is a branch
+    # point; it is located one step later, once a fold just after the second point is ruled out.
+    pending = None
 
     def end_at_base(kind):
         if base_point.type:
@@ -93,6 +105,8 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
 
     while True:
         if len(branch.points) >= opt.max_points:
+            if pending is not None:
+                _branch_point(branch, *pending, opt)
             end_at_base("EP")
             branch.end, branch.message = "EP", f"reached max_points = {opt.max_points}"
             return branch
@@ -120,6 +134,8 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
                             "message": reason})
             ds /= 2
             if ds < opt.ds_min:
+                if pending is not None:
+                    _branch_point(branch, *pending, opt)
                 end_at_base("MX")
                 branch.end = "MX"
                 branch.message = (f"corrector failed at ds < ds_min = {opt.ds_min:g} after point "
@@ -130,18 +146,43 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
             continue
         history.clear()
         new = res.state
+        direct_new = direct_index(problem, new)
+        fold_here = t_in.lam * sec.lam < 0
+        if pending is not None and not fold_here:
+            _branch_point(branch, *pending, opt)
+        pending = None
+        if (not fold_here and direct_new[0] >= 0 and not (singular_start and base is start)
+                and direct_new[0] != base_point.index_direct):
+            pending = (base, new, sec, dist, arclength, base_point.index_direct, direct_new[0])
         stop = _events(branch, base, new, t_in, sec, dist_in, dist, arclength, ds, opt, stops,
                        user_values)
         if stop:
             return branch
         arclength += ds
-        base_point = branch.add(new, arclength=arclength, ds=ds, niter=res.niter)
+        base_point = branch.add(new, arclength=arclength, ds=ds, niter=res.niter,
+                                direct=direct_new)
         if progress is not None:
             progress(branch, res.lam)
         mesh = coarsen(new.s, res.extra["rms_residuals"], opt.tol, opt.ntst + 1)
         if res.niter == 1 and cos_turn > cos_grow:
             ds = min(ds * opt.growth, opt.ds_max)
         base, t, t_in, dist_in, exact = new, sec, sec, dist, False
+
+
+def _branch_point(branch: Branch, a: State, b: State, t_out: Tangent, dist: float,
+                  arclength: float, index_a: int, index_b: int, opt: ContinuationOptions):
+    """Locate and add the branch point between a and b, where the direct index changes with no
+    fold: the zero of the Jacobi-field test function along the arclength hyperplanes from a."""
+    res, sigma, g = locate_branch_point(branch.problem, a, t_out, branch.parameter, dist,
+                                        opt.fold_tol, opt.max_nodes)
+    name = branch.parameter
+    if res is None:
+        branch.warnings.append(f"index changes {index_a} -> {index_b} between {name} = "
+                               f"{a.params[name]:.6g} and {b.params[name]:.6g} without a fold, "
+                               f"but no branch point was located: {sigma}")
+        return
+    branch.add(res.state, type="BP", arclength=arclength + sigma, tangent=t_out,
+               fold_residual=abs(g))
 
 
 def _events(branch: Branch, a: State, b: State, t_in: Tangent, t_out: Tangent, dist_in: float,
