@@ -131,6 +131,10 @@ def run(name_or_path, out_dir, jobs, quiet):
         _fail(str(exc))
     except USER_ERRORS as exc:
         _fail(str(exc))
+    except KeyboardInterrupt:  # between branches or while saving: the last file written stands
+        click.echo(f"\ninterrupted; {out_dir / plan.output_name} holds the branches completed "
+                   "before", err=True)
+        sys.exit(EXIT_INTERRUPTED)
     if result.interrupted:
         click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
                    err=True)

@@ -106,6 +106,13 @@ def inner(a: Tangent, b: Tangent, s=None) -> float:
     return float(np.sum(trapezoid_weights(x) * np.sum(a(x) * b(x), axis=0)) + a.lam * b.lam)
 
 
+def bc_tol(tol: float) -> float:
+    """Tolerance on boundary residuals: solve_bvp's default (= tol) would leave the boundary
+    conditions, e.g. the free-end moment balance, satisfied only to ~tol; Newton converges
+    quadratically, so a tighter one costs at most one more iteration."""
+    return tol * 1e-4
+
+
 @dataclass
 class SolveResult:
     """Outcome of one solve_bvp call: ``state`` is None unless ``success``."""
@@ -144,7 +151,7 @@ def solve_fixed(problem: Problem, guess: Curve, params: dict, tol: float,
     def bc_jac(ya, yb):
         return problem.bc_jac(ya, yb, params)
 
-    sol = solve_bvp(fun, bc, guess.s, guess(guess.s), fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+    sol = solve_bvp(fun, bc, guess.s, guess(guess.s), fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1])
     return _result(sol, params, float("nan"), problem.n, res)
@@ -205,7 +212,8 @@ def solve_arclength(problem: Problem, base: State, tangent: Tangent, name: str, 
     y_guess = base(s) + ds * tangent(s)
     z_guess = np.zeros((1, len(s)))
     sol = solve_bvp(fun, bc, s, np.vstack((y_guess, z_guess)), p=[lam0 + ds * tangent.lam],
-                    fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, max_nodes=max_nodes)
+                    fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
+                    max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1], sol.p)
     return _result(sol, prm(sol.p), float(sol.p[0]), n, res)
 
@@ -264,7 +272,7 @@ def solve_tangent(problem: Problem, state: State, name: str, guess: Tangent | No
     Y0 = np.zeros((n + 1, len(s)))
     if guess is not None:
         Y0[:n] = guess(s)
-    sol = solve_bvp(fun, bc, s, Y0, p=[g_lam], fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+    sol = solve_bvp(fun, bc, s, Y0, p=[g_lam], fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     if not sol.success:
         return None
@@ -333,7 +341,7 @@ def solve_fold(problem: Problem, base: State, phi: Curve, name: str, tol: float,
     cum = np.concatenate(([0.0], np.cumsum(np.diff(s) * 0.5 * (np.sum(ph[:, 1:] ** 2, axis=0)
                                                               + np.sum(ph[:, :-1] ** 2, axis=0)))))
     Y0 = np.vstack((base.y, ph, cum[None, :] / cum[-1]))
-    sol = solve_bvp(fun, bc, s, Y0, p=[fixed[name]], fun_jac=fun_jac, tol=tol,
+    sol = solve_bvp(fun, bc, s, Y0, p=[fixed[name]], fun_jac=fun_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1], sol.p)
     out = _result(sol, prm(sol.p), float(sol.p[0]), n, res)

@@ -227,6 +227,9 @@ def _events(branch: Branch, a: State, b: State, t_in: Tangent, t_out: Tangent, d
         if kind == "LP":
             nfolds += 1
             if stops.at_fold is not None and nfolds >= stops.at_fold:
+                # The fold may lie just before the last accepted point: the branch ends at it.
+                cut = arclength + offset
+                branch.points[:] = [p for p in branch.points if p.arclength <= cut]
                 branch.end, branch.message = "LP", f"stopped at fold {nfolds} (stop = LP{nfolds})"
                 return True
         if kind == "EP":

@@ -196,7 +196,7 @@ class BranchFile:
                 self.ordinates = json.loads(self.attrs["ordinates"])
                 self.states = json.loads(self.attrs["states"])
                 self.tex = json.loads(self.attrs["tex"])
-                self.periods = json.loads(self.attrs["periods"])
+                self.periods = json.loads(self.attrs.get("periods", "{}"))
                 self.labels = {k: tuple(v) for k, v in json.loads(self.attrs["labels"]).items()}
                 self.profile_grid = f["profile_grid"][()]
                 self.branches = []

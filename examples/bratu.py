@@ -1,0 +1,82 @@
+"""The Bratu (Gelfand) problem: u'' + lam exp(u) = 0 on x in [0, 1], u(0) = u(1) = 0.
+
+A small non-elastica equation module for elastica-auto (see `elastica_auto.problem` for the
+protocol). First-order state ``[u, v]`` with v = u'::
+
+    u' = v,  v' = -lam exp(u),  u(0) = 0,  u(1) = 0.
+
+u = 0 solves it at lam = 0 (``start = "trivial"``). Continuing lam upward, the branch of
+solutions folds at lam_c = 3.51383... and returns toward lam -> 0 with u(1/2) growing without
+bound. The solutions are known in closed form,
+
+    u(x) = -2 ln( cosh(z (x - 1/2)) / cosh(z / 2) ),   lam = 2 z^2 / cosh(z / 2)^2,
+
+so u'(0) = 2 z tanh(z / 2), u(1/2) = 2 ln cosh(z / 2), and the fold is where z tanh(z / 2) = 2.
+"""
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+
+from elastica_auto.problem import Ordinate, Parameter
+
+STATES = ("u", "v")
+
+PARAMETERS = [
+    Parameter("lam", 0.0, r"\lambda", "ode", doc="the Bratu parameter in u'' + lam exp(u) = 0"),
+]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.exp(y[0])))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = -p["lam"] * np.exp(y[0])
+    return jac
+
+
+def rhs_dp(s, y, p, name):
+    out = np.zeros_like(y)
+    if name == "lam":
+        out[1] = -np.exp(y[0])
+    return out
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def bc_jac(ya, yb, p):
+    da = np.zeros((2, 2))
+    db = np.zeros((2, 2))
+    da[0, 0] = 1.0
+    db[1, 0] = 1.0
+    return da, db
+
+
+def bc_dp(ya, yb, p, name):
+    return np.zeros(2)
+
+
+def _du0(s, y, p):
+    return y[1, 0]
+
+
+def _u_half(s, y, p):
+    # u' = v is part of the state, so cubic Hermite interpolation is 4th-order accurate.
+    return CubicHermiteSpline(s, y[0], y[1])(0.5)
+
+
+ORDINATES = [
+    Ordinate("du0", r"$u'(0)$", _du0, "lam", "slope at x = 0; ordinate for lam"),
+    Ordinate("u_half", r"$u(1/2)$", _u_half, None, "u at the midpoint, its maximum"),
+]
+
+
+def exact_start(s, p):
+    """u = 0, exact at lam = 0 only; None otherwise."""
+    if p["lam"] != 0:
+        return None
+    return np.zeros((2, len(s)))

@@ -1,0 +1,48 @@
+"""Shared fixtures. Expensive continuations run once per session."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+from elastica_auto import runfile
+from elastica_auto.problem import load_problem
+from helpers import ROTATING_ARM, RunOutput, elastica_run_file, run_cli, run_plan
+
+
+@pytest.fixture(scope="session")
+def elastica():
+    return load_problem("elastica_lever_arm")
+
+
+@pytest.fixture(scope="session")
+def rotating_arm(tmp_path_factory) -> RunOutput:
+    """The shipped rotating_arm run, all branches, computed once (about 10-15 s)."""
+    plan = runfile.load(ROTATING_ARM)
+    # The symmetry tests below assume the paper's configuration; fail loudly if it changed.
+    assert plan.parameter == "psi"
+    for spec in plan.branches:
+        assert spec.start.kind == "trivial"
+        assert spec.params.get("alpha", 0.0) == 0.0 and spec.params.get("theta0", 0.0) == 0.0
+    return run_plan(plan, tmp_path_factory.mktemp("rotating_arm"), jobs=2)
+
+
+@pytest.fixture(scope="session")
+def cli_exe() -> str:
+    """The installed console script."""
+    exe = shutil.which("elastica-auto") or str(Path(sys.executable).parent / "elastica-auto")
+    assert Path(exe).is_file(), "console script elastica-auto not installed"
+    return exe
+
+
+@pytest.fixture(scope="session")
+def small_cli_run(tmp_path_factory, cli_exe):
+    """A one-(eps, P) rotating-arm run through the console script: (out_dir, h5 path, process)."""
+    root = tmp_path_factory.mktemp("small_cli")
+    toml = elastica_run_file(root / "small.toml", uz=[0, "pi/12", "pi/6", "pi/2"])
+    out = root / "out"
+    proc = run_cli(cli_exe, "run", toml, "--out", out)
+    return out, out / "small.h5", proc

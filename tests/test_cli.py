@@ -1,0 +1,139 @@
+"""The console script elastica-auto: run, show, export and its user-error handling."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+
+from helpers import run_cli
+from elastica_auto.store import BranchFile
+
+PARAMS = ["P", "eps", "psi", "alpha", "theta0"]
+ORDS = ["m1", "beta", "mA", "gamma", "m0"]
+HEADER = ["branch", "pt", "type", "label", *PARAMS, *ORDS, "index", "index_rule", "index_direct"]
+
+
+def test_run_writes_a_branch_file(small_cli_run):
+    out, h5, proc = small_cli_run
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    bf = BranchFile(h5)
+    assert len(bf.branches) == 2
+    assert {int(b.attrs["direction"]) for b in bf.branches} == {1, -1}
+    for b in bf.branches:
+        psi = b.columns["psi"]
+        assert psi[0] == 0.0 and b.attrs["end"] == "EP"
+        assert abs(abs(psi[-1]) - 2 * math.pi) < 1e-12      # ends at a bound +-2 pi
+    assert any(n.startswith("LP") for n in bf.labels)
+    assert any(n.startswith("UZ") for n in bf.labels)
+
+
+def test_show_lists_every_label(small_cli_run, cli_exe):
+    _, h5, _ = small_cli_run
+    proc = run_cli(cli_exe, "show", h5)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    head = lines[0].split()
+    assert head[:4] == ["BR", "PT", "TY", "LAB"]
+    assert head[4:14] == PARAMS + ORDS
+    shown = [ln.split()[3] for ln in lines[1:]
+             if len(ln.split()) > 3 and ln.split()[2] in ("EP", "LP", "UZ", "MX", "BP")]
+    bf = BranchFile(h5)
+    assert sorted(shown) == sorted(bf.labels)
+    # each row names the label's branch and point, as recorded in the file
+    for ln in lines[1:]:
+        f = ln.split()
+        if len(f) > 3 and f[3] in bf.labels:
+            assert (int(f[0]), int(f[1])) == tuple(bf.labels[f[3]])
+
+
+def test_export_has_the_documented_header_and_one_row_per_point(small_cli_run, cli_exe, tmp_path):
+    _, h5, _ = small_cli_run
+    out = tmp_path / "small.csv"
+    proc = run_cli(cli_exe, "export", h5, "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    with open(out, newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == HEADER
+    bf = BranchFile(h5)
+    body = rows[1:]
+    assert len(body) == sum(len(b) for b in bf.branches)
+    expected_keys = [(b.number, i + 1) for b in bf.branches for i in range(len(b))]
+    assert [(int(r[0]), int(r[1])) for r in body] == expected_keys
+    # the values survive the round trip (17 significant digits)
+    for b in bf.branches:
+        rs = [r for r in body if int(r[0]) == b.number]
+        for j, name in enumerate(PARAMS + ORDS, start=4):
+            np.testing.assert_array_equal([float(r[j]) for r in rs], b.columns[name])
+        assert [r[2] for r in rs] == list(b.columns["type"])
+        assert [r[3] for r in rs] == b.label_names()
+    for r in body:   # index columns: an integer, or empty where unknown
+        assert all(v == "" or v.lstrip("-").isdigit() for v in r[-3:])
+
+
+def _assert_one_line_user_error(proc, *needles):
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+
+
+def test_run_file_with_an_unknown_key_is_a_user_error(cli_exe, tmp_path):
+    path = tmp_path / "bad_key.toml"
+    path.write_text('equation = "elastica_lever_arm"\ncolour = "red"\n'
+                    '[continuation]\nparameter = "psi"\n')
+    _assert_one_line_user_error(run_cli(cli_exe, "run", path, "--out", tmp_path / "o"),
+                                "bad_key.toml", "colour")
+    assert not (tmp_path / "o" / "bad_key.h5").exists()
+
+
+def test_run_file_with_an_unknown_option_is_a_user_error(cli_exe, tmp_path):
+    path = tmp_path / "bad_option.toml"
+    path.write_text('equation = "elastica_lever_arm"\n[continuation]\nparameter = "psi"\n'
+                    '[options]\nstep = 0.1\n')
+    _assert_one_line_user_error(run_cli(cli_exe, "run", path, "--out", tmp_path / "o"),
+                                "bad_option.toml", "step")
+
+
+def test_run_file_with_a_bad_parameter_name_is_a_user_error(cli_exe, tmp_path):
+    path = tmp_path / "bad_param.toml"
+    path.write_text('equation = "elastica_lever_arm"\n[parameters]\nlength = 2\n'
+                    '[continuation]\nparameter = "psi"\n')
+    _assert_one_line_user_error(run_cli(cli_exe, "run", path, "--out", tmp_path / "o"),
+                                "bad_param.toml", "length")
+    path = tmp_path / "bad_cont.toml"
+    path.write_text('equation = "elastica_lever_arm"\n[continuation]\nparameter = "phi"\n')
+    _assert_one_line_user_error(run_cli(cli_exe, "run", path, "--out", tmp_path / "o"),
+                                "bad_cont.toml", "phi")
+
+
+def test_show_and_export_on_a_file_that_is_not_hdf5(cli_exe, tmp_path):
+    fake = tmp_path / "fake.h5"
+    fake.write_text("not an HDF5 file\n")
+    _assert_one_line_user_error(run_cli(cli_exe, "show", fake), "fake.h5")
+    _assert_one_line_user_error(run_cli(cli_exe, "export", fake, "-o", tmp_path / "x.csv"),
+                                "fake.h5")
+    _assert_one_line_user_error(run_cli(cli_exe, "show", tmp_path / "missing.h5"), "missing.h5")
+
+
+def test_unknown_run_name_is_a_user_error(cli_exe, tmp_path):
+    _assert_one_line_user_error(run_cli(cli_exe, "run", "no_such_run", "--out", tmp_path),
+                                "no_such_run")
+
+
+def test_plot_writes_a_png(small_cli_run, cli_exe, tmp_path):
+    _, h5, _ = small_cli_run
+    png = tmp_path / "diagram.png"
+    proc = run_cli(cli_exe, "plot", h5, "-o", png)
+    assert proc.returncode == 0, proc.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_list_names_the_shipped_runs(cli_exe):
+    proc = run_cli(cli_exe, "list")
+    assert proc.returncode == 0, proc.stderr
+    assert any(ln.split()[0] == "rotating_arm" for ln in proc.stdout.splitlines() if ln.split())

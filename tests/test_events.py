@@ -1,0 +1,68 @@
+"""User points and parameter bounds in a step that passes a fold.
+
+Near psi ~ 0.8173 (eps = 0.25, P = pi^2/4) the psi-branch from the straight rod turns back.
+A continuation step that passes the fold goes from psi_a below the fold to psi_b below the fold,
+so every value between max(psi_a, psi_b) and the fold's psi is crossed twice within the step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import shooting
+from helpers import elastica_run_file, run_plan
+from elastica_auto import runfile
+
+P, EPS = math.pi ** 2 / 4, 0.25
+
+
+@pytest.fixture(scope="module")
+def the_fold():
+    """(k0, psi) of the first fold of the straight-rod branch, by shooting from a rough guess
+    (psi in (0.7, 0.9) is where the paper's figure 4 shows it)."""
+    k0, psi, _ = shooting.fold(P, EPS, 1.8, 0.8)
+    assert 0.8 < psi < 0.83
+    return k0, psi
+
+
+def _run(tmp_path, **kw):
+    path = elastica_run_file(tmp_path / "near_fold.toml", directions="+", **kw)
+    return run_plan(runfile.load(path), tmp_path / "out").result.branches[0]
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "engine bug: events.crossings() only looks at the end values (la, lb] of a step, so in a "
+    "step through a fold it misses user values between max(la, lb) and the fold (crossed "
+    "twice), and events.locate_value() interpolates between the two ends, converging to the "
+    "solution on the wrong side of the fold: the branch gets a second UZ identical to the "
+    "first (stepper._events, events.crossings/locate_value)"))
+def test_user_values_next_to_a_fold_are_labelled_on_both_sides(tmp_path, the_fold):
+    k0_fold, psi_fold = the_fold
+    values = [0.80, 0.81, 0.815, 0.817]
+    assert all(v < psi_fold for v in values)
+    br = _run(tmp_path, bounds=("-1", "1"), extra=f"uz = {values}\n")
+    uz = [p for p in br.points if p.type == "UZ"]
+    for v in values:
+        # two distinct equilibria at psi = v straddle the fold (shooting, bracketed by k0_fold)
+        lower, upper = shooting.roots_beside_fold(v, P, EPS, k0_fold, 0.5)
+        got = sorted(p.ordinates["m0"] for p in uz if abs(p.params["psi"] - v) < 1e-12)
+        assert len(got) == 2, (v, got)
+        np.testing.assert_allclose(got, [lower, upper], rtol=0, atol=1e-5)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "engine bug: the bound test in stepper._events compares only the step's end value lb "
+    "with the bounds, so a branch whose fold lies beyond a bound (step from below the bound "
+    "to below the bound through the fold) neither stops nor labels EP, and keeps an LP outside "
+    "the bounds"))
+def test_a_branch_never_leaves_its_bounds(tmp_path, the_fold):
+    _, psi_fold = the_fold
+    upper = 0.815
+    assert upper < psi_fold     # the branch must stop at psi = upper before it folds
+    br = _run(tmp_path, bounds=("-1", str(upper)))
+    psi = np.array([p.params["psi"] for p in br.points])
+    assert np.all(psi <= upper + 1e-12), psi.max()
+    assert br.end == "EP" and br.points[-1].params["psi"] == pytest.approx(upper, abs=1e-12)

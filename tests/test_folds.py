@@ -1,0 +1,170 @@
+"""Folds (LP) of psi-branches, against exact symmetries and an independent shooting solve."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import defaultdict
+
+import numpy as np
+import pytest
+
+import shooting
+from helpers import elastica_run_file, run_plan
+from elastica_auto import runfile
+
+TWO_PI = 2 * math.pi
+
+# Fold locations: the engine locates folds with an extended system solved at fold_tol = 1e-7,
+# documented (options.py) as putting them within ~1e-10 of a shooting solve; we check 1e-8.
+# The same 1e-8 bounds the tip moment m1 = kappa(1) at a fold: unlike psi, which is stationary
+# at a fold, m1 is first order in the state error, which at fold_tol = 1e-7 is ~1e-9 here.
+FOLD_ATOL = 1e-8
+
+
+def _by_pair(run):
+    """Branches grouped by (eps, P): {(eps, P): {direction: StoredBranch}}."""
+    out = defaultdict(dict)
+    for b in run.file.branches:
+        key = (float(b.columns["eps"][0]), float(b.columns["P"][0]))
+        out[key][int(b.attrs["direction"])] = b
+    return out
+
+
+def _lps(b):
+    c = b.columns
+    i = np.nonzero(c["type"] == "LP")[0]
+    return {k: c[k][i] for k in ("psi", "m1", "m0", "fold_residual")}
+
+
+# ---- the shooting solver itself -----------------------------------------------------------
+
+@pytest.mark.parametrize("P", [0.5, math.pi ** 2 / 4, 9 * math.pi ** 2 / 4])
+def test_shooting_jacobi_field_on_the_straight_rod(P):
+    """On theta = 0 the Jacobi field solves u'' + P u = 0: u = sin(sqrt P s) / sqrt P."""
+    th1, k1, u1, up1 = shooting.integrate(P, 0.0, 0.0, 0.0)
+    w = math.sqrt(P)
+    assert th1 == 0.0 and k1 == 0.0
+    assert u1 == pytest.approx(math.sin(w) / w, abs=1e-11)
+    assert up1 == pytest.approx(math.cos(w), abs=1e-11)
+
+
+@pytest.mark.parametrize("eps", [0.25, 0.5])
+def test_shooting_critical_loads_of_the_straight_rod(eps):
+    """dr/dk0 on the straight rod is cos(w) - eps w sin(w), w = sqrt(P): it vanishes at the
+    critical loads cot(w) = eps w of DESIGN.md section 3 (found here by brentq on the formula)."""
+    from scipy.optimize import brentq
+    w = brentq(lambda w: math.cos(w) - eps * w * math.sin(w), 0.1, math.pi / 2)
+    _, dr = shooting.residual(0.0, 0.0, w * w, eps)
+    assert abs(dr) < 1e-11
+
+
+# ---- 6. every fold of the rotating_arm run, against shooting ------------------------------
+
+def test_every_fold_matches_an_independent_shooting_solve(rotating_arm):
+    pairs = _by_pair(rotating_arm)
+    wanted = {(0.25, math.pi ** 2 / 4), (0.25, 9 * math.pi ** 2 / 4),
+              (0.5, math.pi ** 2 / 4), (0.5, 9 * math.pi ** 2 / 4)}
+    for eps, P in wanted:   # all four (eps, P) pairs of the paper's figures are covered
+        assert any(abs(e - eps) < 1e-15 and abs(p - P) < 1e-12 for e, p in pairs)
+    nfolds = 0
+    for (eps, P), dirs in pairs.items():
+        for b in dirs.values():
+            lp = _lps(b)
+            assert len(lp["psi"]) >= 2
+            for psi, m1, m0, res in zip(lp["psi"], lp["m1"], lp["m0"], lp["fold_residual"]):
+                assert np.isfinite(res)    # located, not merely detected
+                k0, psi_s, m1_s = shooting.fold(P, eps, m0, psi)
+                assert abs(psi - psi_s) <= FOLD_ATOL, (eps, P, psi, psi_s)
+                assert abs(m0 - k0) <= FOLD_ATOL * (1 + abs(k0))
+                assert abs(m1 - m1_s) <= FOLD_ATOL * (1 + abs(m1_s))
+                nfolds += 1
+    assert nfolds >= 40
+
+
+# ---- 3. mirror symmetry ---------------------------------------------------------------------
+
+def test_the_two_directions_are_mirror_images(rotating_arm):
+    """With alpha = theta0 = 0, (theta, kappa, x, y, psi) -> (-theta, -kappa, -x, y, -psi) maps
+    solutions to solutions (sin is odd). The branch leaving psi = 0 upward is the mirror image
+    of the one leaving downward: its k-th fold is at -psi_k with m1 -> -m1."""
+    for (eps, P), dirs in _by_pair(rotating_arm).items():
+        assert set(dirs) == {1, -1}
+        up, down = _lps(dirs[1]), _lps(dirs[-1])
+        assert len(up["psi"]) == len(down["psi"]) > 0
+        np.testing.assert_allclose(up["psi"], -down["psi"], rtol=0, atol=FOLD_ATOL)
+        np.testing.assert_allclose(up["m1"], -down["m1"], rtol=0,
+                                   atol=FOLD_ATOL * (1 + np.abs(up["m1"]).max()))
+
+
+# ---- 4. 2 pi periodicity ----------------------------------------------------------------------
+
+def test_folds_repeat_with_period_two_pi(rotating_arm):
+    """psi is an angle: the equations depend on it only through sin(psi + alpha - theta(1)),
+    so a fold at psi recurs at psi + 2 pi k with the same solution (same m1, m0). Folds are
+    grouped loosely (psi mod 2 pi and m1 within 1e-3), then each group must match to 1e-8."""
+    for (eps, P), dirs in _by_pair(rotating_arm).items():
+        psi = np.concatenate([_lps(b)["psi"] for b in dirs.values()])
+        m1 = np.concatenate([_lps(b)["m1"] for b in dirs.values()])
+        m0 = np.concatenate([_lps(b)["m0"] for b in dirs.values()])
+        partners = 0
+        for i in range(len(psi)):
+            found = False
+            for j in range(len(psi)):
+                k = round((psi[j] - psi[i]) / TWO_PI)
+                if i == j or k == 0:
+                    continue
+                if abs(psi[j] - psi[i] - k * TWO_PI) < 1e-3 and abs(m1[j] - m1[i]) < 1e-3:
+                    assert abs(psi[j] - psi[i] - k * TWO_PI) <= FOLD_ATOL, (eps, P, i, j)
+                    assert abs(m1[j] - m1[i]) <= FOLD_ATOL * (1 + abs(m1[i]))
+                    assert abs(m0[j] - m0[i]) <= FOLD_ATOL * (1 + abs(m0[i]))
+                    found = True
+            partners += found
+        # The shipped run spans 12 pi: every fold it finds has a translate it also finds.
+        assert partners == len(psi), (eps, P, partners, len(psi))
+
+
+# ---- 5. the fold does not depend on the step size and converges in fold_tol -----------------
+
+@pytest.fixture(scope="module")
+def small_plan_file(tmp_path_factory):
+    # One direction, three folds: psi up to LP1 ~ 0.817, down past LP2 ~ -7.10, up to LP3.
+    return elastica_run_file(tmp_path_factory.mktemp("folds") / "folds.toml", directions="+",
+                             bounds=("-4*pi", "4*pi"))
+
+
+def _run_with(path, tmp_path, **options):
+    plan = runfile.load(path)
+    plan.options = dataclasses.replace(plan.options, **options)
+    return run_plan(plan, tmp_path).result.branches[0]
+
+
+def test_fold_location_does_not_depend_on_ds_max(small_plan_file, tmp_path):
+    branches = {d: _run_with(small_plan_file, tmp_path / str(d), ds_max=d)
+                for d in (0.1, 0.25, 0.5, 1.0)}
+    npoints = {d: len(b.points) for d, b in branches.items()}
+    assert len(set(npoints.values())) == len(npoints), npoints   # the runs did differ
+    ref = [p.params["psi"] for p in branches[0.25].folds]
+    assert len(ref) == 3
+    for d, b in branches.items():
+        psi = [p.params["psi"] for p in b.folds]
+        np.testing.assert_allclose(psi, ref, rtol=0, atol=1e-8, err_msg=f"ds_max = {d}")
+
+
+def test_fold_location_converges_as_fold_tol_shrinks(small_plan_file, tmp_path):
+    P, eps = math.pi ** 2 / 4, 0.25
+    errors = []
+    exact = None
+    for ft in (1e-5, 1e-6, 1e-7, 1e-8):
+        folds = _run_with(small_plan_file, tmp_path / f"{ft:g}", fold_tol=ft).folds
+        assert len(folds) == 3
+        if exact is None:   # shooting at its tightest: DOP853 at rtol = atol = 1e-13
+            exact = [shooting.fold(P, eps, f.ordinates["m0"], f.params["psi"], rtol=1e-13,
+                                   atol=1e-13)[1] for f in folds]
+        errors.append([abs(f.params["psi"] - e) for f, e in zip(folds, exact)])
+    errors = np.array(errors)   # rows: fold_tol, columns: folds
+    print("fold psi errors by fold_tol:\n", errors)
+    # each tenfold tightening must reduce every fold's error ...
+    assert np.all(errors[1:] < errors[:-1]), errors
+    # ... and the tightest is well inside the 1e-8 claimed for the default fold_tol
+    assert np.all(errors[-1] < 1e-9)
