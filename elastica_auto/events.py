@@ -121,3 +121,36 @@ def locate_branch_point(problem: Problem, a: State, t_out: Tangent, name: str, d
     except RuntimeError as exc:
         return None, str(exc), float("nan")
     return solves[sigma], sigma, value
+
+
+def locate_value_on_step(problem: Problem, a: State, direction: Tangent, name: str,
+                         value: float, s0: float, s1: float, tol: float, max_nodes: int):
+    """The solution with ``p[name] = value`` on the arclength hyperplanes
+    ``<u - u_a, direction> = sigma``, sigma in [s0, s1], by Brent's method on the parameter's
+    value along them, then solved at exactly that value. The robust fallback of a plain solve
+    at fixed parameter, which may converge to a solution beyond a nearby fold.
+
+    Returns ``(solve, sigma)``, or ``(None, reason)``.
+    """
+    def lam(sigma):
+        if sigma == 0.0:
+            return a.params[name] - value
+        res = solve_arclength(problem, a, direction, name, sigma, tol, max_nodes)
+        if not res.success:
+            raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
+        solves[sigma] = res
+        return res.lam - value
+
+    solves = {}
+    try:
+        if lam(s0) * lam(s1) > 0:
+            return None, f"{name} does not cross {value:.6g} in this step"
+        sigma = brentq(lam, s0, s1, xtol=1e-12)
+        lam(sigma)
+    except RuntimeError as exc:
+        return None, str(exc)
+    near = solves[sigma].state
+    res = solve_fixed(problem, near, {**near.params, name: value}, tol, max_nodes)
+    if not res.success:
+        return None, res.message
+    return res, sigma

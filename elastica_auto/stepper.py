@@ -29,9 +29,10 @@ import numpy as np
 from .branch import Branch
 from .corrector import (State, Tangent, coarsen, inner, secant, solve_arclength,
                         solve_tangent)
-from .events import UserValues, crossings, locate_branch_point, locate_fold, locate_value
-from .stability import direct_index
+from .events import (UserValues, crossings, locate_branch_point, locate_fold, locate_value,
+                     locate_value_on_step)
 from .options import ContinuationOptions
+from .stability import direct_index
 
 
 @dataclass(frozen=True)
@@ -93,9 +94,6 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
     mesh = start.s
     cos_max, cos_grow = math.cos(opt.max_angle), math.cos(opt.max_angle / 2)
     history = []
-    # A change of the direct index between two points with no fold near either is a branch
-    # point; it is located one step later, once a fold just after the second point is ruled out.
-    pending = None
 
     def end_at_base(kind):
         if base_point.type:
@@ -105,8 +103,6 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
 
     while True:
         if len(branch.points) >= opt.max_points:
-            if pending is not None:
-                _branch_point(branch, *pending, opt)
             end_at_base("EP")
             branch.end, branch.message = "EP", f"reached max_points = {opt.max_points}"
             return branch
@@ -134,8 +130,6 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
                             "message": reason})
             ds /= 2
             if ds < opt.ds_min:
-                if pending is not None:
-                    _branch_point(branch, *pending, opt)
                 end_at_base("MX")
                 branch.end = "MX"
                 branch.message = (f"corrector failed at ds < ds_min = {opt.ds_min:g} after point "
@@ -146,17 +140,31 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
             continue
         history.clear()
         new = res.state
+        step = _Step(base, new, sec, dist, arclength, ds, name)
         direct_new = direct_index(problem, new)
-        fold_here = t_in.lam * sec.lam < 0
-        if pending is not None and not fold_here:
-            _branch_point(branch, *pending, opt)
-        pending = None
-        if (not fold_here and direct_new[0] >= 0 and not (singular_start and base is start)
-                and direct_new[0] != base_point.index_direct):
-            pending = (base, new, sec, dist, arclength, base_point.index_direct, direct_new[0])
-        stop = _events(branch, base, new, t_in, sec, dist_in, dist, arclength, ds, opt, stops,
-                       user_values)
-        if stop:
+        found = []
+        if t_in.lam * sec.lam < 0:
+            found.append(_secant_fold(branch, step, t_in, dist_in, opt))
+        elif (direct_new[0] >= 0 and base_point.index_direct >= 0
+              and direct_new[0] != base_point.index_direct
+              and not (singular_start and base is start)):
+            # The index changed with no fold seen by the secants: a branch point, or a fold
+            # passed within this one step. The parameter then turns back inside the step, so
+            # the true tangent at the new point disagrees in sign with the secant: retry with a
+            # smaller step, until the secants see the fold.
+            true = solve_tangent(problem, new, name, sec, opt.tol, opt.max_nodes)
+            if true is not None and true.lam * sec.lam < 0:
+                history.append({"ds": ds, "residual": res.residual, "nodes": res.nodes,
+                                "message": "a fold was passed within one step"})
+                ds /= 2
+                if ds >= opt.ds_min:
+                    continue
+                branch.warnings.append(f"fold inside a step of ds_min near {name} = "
+                                       f"{base.params[name]:.6g}; labelled by its test function")
+            event = _index_change(branch, step, base_point.index_direct, direct_new[0], opt)
+            if event is not None:
+                found.append(event)
+        if _add_events(branch, step, found, opt, stops, user_values):
             return branch
         arclength += ds
         base_point = branch.add(new, arclength=arclength, ds=ds, niter=res.niter,
@@ -169,70 +177,147 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
         base, t, t_in, dist_in, exact = new, sec, sec, dist, False
 
 
-def _branch_point(branch: Branch, a: State, b: State, t_out: Tangent, dist: float,
-                  arclength: float, index_a: int, index_b: int, opt: ContinuationOptions):
-    """Locate and add the branch point between a and b, where the direct index changes with no
-    fold: the zero of the Jacobi-field test function along the arclength hyperplanes from a."""
-    res, sigma, g = locate_branch_point(branch.problem, a, t_out, branch.parameter, dist,
+@dataclass
+class _Step:
+    """An accepted step from a to b: unit secant, its length, arclength at a, and ds."""
+
+    a: State
+    b: State
+    secant: Tangent
+    dist: float
+    arclength: float
+    ds: float
+    name: str
+
+    def sigma(self, state: State) -> float:
+        """Coordinate of a solution along the secant from a (0 at a, dist at b)."""
+        d = Tangent(state.s, state.y - self.a(state.s), state.yp - self.a.derivative(state.s),
+                    state.params[self.name] - self.a.params[self.name])
+        return inner(d, self.secant, state.s)
+
+    def position(self, sigma: float) -> float:
+        """Pseudo-arclength of the point at coordinate sigma (for ordering the points)."""
+        return self.arclength + self.ds * sigma / self.dist
+
+
+@dataclass
+class _Event:
+    sigma: float
+    kind: str
+    state: State
+    tangent: Tangent | None
+    residual: float = float("nan")
+    note: str = ""
+
+
+def _secant_fold(branch: Branch, step: _Step, t_in: Tangent, dist_in: float,
+                 opt: ContinuationOptions) -> _Event:
+    """The fold near a, where the parameter components of the secants into and out of a
+    differ in sign; an extended solve that fails gives an LP marked as not located."""
+    problem, name, a = branch.problem, branch.parameter, step.a
+    res, offset = locate_fold(problem, a, t_in, step.secant, name, 2 * (dist_in + step.dist),
+                              opt.fold_tol, opt.max_nodes)
+    if res.success:
+        return _Event(offset, "LP", res.state, _null_tangent(res, step.secant), res.residual)
+    branch.warnings.append(f"fold near {name} = {a.params[name]:.6g} not located: {res.message}")
+    return _Event(0.0, "LP", a, t_in, note=f"fold not located: {res.message}")
+
+
+def _null_tangent(res, direction: Tangent) -> Tangent:
+    """The fold's null vector as a tangent (phi, 0), oriented along ``direction``."""
+    phi = res.extra["phi"]
+    sign = 1.0 if inner(Tangent(phi.s, phi.y, phi.yp, 0.0), direction, phi.s) >= 0 else -1.0
+    return Tangent(phi.s, sign * phi.y, sign * phi.yp, 0.0)
+
+
+def _index_change(branch: Branch, step: _Step, index_a: int, index_b: int,
+                  opt: ContinuationOptions) -> _Event | None:
+    """The branch point between a and b, where the direct index changes and no fold is seen:
+    the zero of the Jacobi-field test function along the step. (If its parameter lies beyond
+    both ends after all, it is a fold that even a step of ds_min passes: labelled LP.)"""
+    problem, name = branch.problem, branch.parameter
+    a, b = step.a, step.b
+    res, sigma, g = locate_branch_point(problem, a, step.secant, name, step.dist,
                                         opt.fold_tol, opt.max_nodes)
-    name = branch.parameter
     if res is None:
         branch.warnings.append(f"index changes {index_a} -> {index_b} between {name} = "
-                               f"{a.params[name]:.6g} and {b.params[name]:.6g} without a fold, "
-                               f"but no branch point was located: {sigma}")
-        return
-    branch.add(res.state, type="BP", arclength=arclength + sigma, tangent=t_out,
-               fold_residual=abs(g))
-
-
-def _events(branch: Branch, a: State, b: State, t_in: Tangent, t_out: Tangent, dist_in: float,
-            dist: float, arclength: float, ds: float, opt: ContinuationOptions, stops: Stops,
-            user_values) -> bool:
-    """Add the LP, UZ and bound EP points between accepted points a and b (in order of
-    arclength); return True if the branch ends here. ``t_in`` and ``dist_in`` are the unit
-    secant into a and its length, ``t_out`` and ``dist`` those from a to b."""
-    problem, name = branch.problem, branch.parameter
+                               f"{a.params[name]:.6g} and {b.params[name]:.6g} without a "
+                               f"detected fold, and no singular point was located: {sigma}")
+        return None
+    lam = res.state.params[name]
     la, lb = a.params[name], b.params[name]
-    found = []
-    if t_in.lam * t_out.lam < 0:
-        res, offset = locate_fold(problem, a, t_in, t_out, name, 2 * (dist_in + dist),
-                                  opt.fold_tol, opt.max_nodes)
-        if res.success:
-            phi = res.extra["phi"]
-            sign = 1.0 if inner(Tangent(phi.s, phi.y, phi.yp, 0.0), t_out, phi.s) >= 0 else -1.0
-            null = Tangent(phi.s, sign * phi.y, sign * phi.yp, 0.0)
-            found.append((offset, "LP", res.state, res.residual, "", null))
-        else:
-            found.append((0.0, "LP", a, float("nan"), f"fold not located: {res.message}", t_in))
-            branch.warnings.append(f"fold near {name} = {la:.6g} not located: {res.message}")
-    for spec in user_values:
-        for c in crossings(la, lb, spec):
-            res, w = locate_value(problem, a, b, name, c, opt.tol, opt.max_nodes)
-            if res.success:
-                found.append((w * ds, "UZ", res.state, float("nan"), "", t_out))
-            else:
-                branch.warnings.append(f"user point {name} = {c:.6g} not located: {res.message}")
-    bound = stops.upper if lb > stops.upper else stops.lower if lb < stops.lower else None
-    if bound is not None:
-        res, w = locate_value(problem, a, b, name, bound, opt.tol, opt.max_nodes)
-        end_state = res.state if res.success else b
-        found = [f for f in found if f[0] < w * ds]
-        found.append((w * ds, "EP", end_state, float("nan"), "" if res.success else
-                      f"bound not located: {res.message}", t_out))
-    found.sort(key=lambda f: f[0])
+    if min(la, lb) <= lam <= max(la, lb):
+        return _Event(sigma, "BP", res.state, step.secant, abs(g))
+    return _Event(sigma, "LP", res.state, step.secant,
+                  note="fold inside a step of ds_min, located by the test function only")
+
+
+def _add_events(branch: Branch, step: _Step, found: list[_Event], opt: ContinuationOptions,
+                stops: Stops, user_values) -> bool:
+    """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
+    return True if the branch ends in this step.
+
+    Folds inside the step split it: a value between the parameter at an end and at a fold is
+    crossed on each side of the fold, and each crossing is solved from the two solutions that
+    bracket it, so it cannot converge to the other side."""
+    problem, name = branch.problem, branch.parameter
+    inside = sorted((e for e in found if e.kind == "LP" and 0.0 < e.sigma < step.dist),
+                    key=lambda e: e.sigma)
+    knots = [(0.0, step.a)] + [(e.sigma, e.state) for e in inside] + [(step.dist, step.b)]
+    events = list(found)
+    bound_hit = None
+    for (s0, x), (s1, y) in zip(knots, knots[1:]):
+        lx, ly = x.params[name], y.params[name]
+        for spec in user_values:
+            for c in crossings(lx, ly, spec):
+                ev = _value_point(branch, step, x, y, s0, s1, c, "UZ", opt)
+                if ev is not None:
+                    events.append(ev)
+        bound = stops.upper if lx <= stops.upper < ly else \
+            stops.lower if ly < stops.lower <= lx else None
+        if bound is not None:
+            bound_hit = _value_point(branch, step, x, y, s0, s1, bound, "EP", opt)
+            if bound_hit is None:
+                bound_hit = _Event(s1, "EP", y, step.secant, note="bound not located")
+            break
+    if bound_hit is not None:
+        events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
+    events.sort(key=lambda e: e.sigma)
     nfolds = len(branch.folds)
-    for offset, kind, state, residual, note, tangent in found:
-        branch.add(state, type=kind, arclength=arclength + offset, tangent=tangent,
-                   fold_residual=residual, note=note)
-        if kind == "LP":
+    for e in events:
+        branch.add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
+                   fold_residual=e.residual, note=e.note)
+        if e.kind == "LP":
             nfolds += 1
             if stops.at_fold is not None and nfolds >= stops.at_fold:
-                # The fold may lie just before the last accepted point: the branch ends at it.
-                cut = arclength + offset
+                # The fold may lie before the last accepted point: the branch ends at it.
+                cut = step.position(e.sigma)
                 branch.points[:] = [p for p in branch.points if p.arclength <= cut]
                 branch.end, branch.message = "LP", f"stopped at fold {nfolds} (stop = LP{nfolds})"
                 return True
-        if kind == "EP":
-            branch.end, branch.message = "EP", f"reached {name} = {bound:g}"
+        if e.kind == "EP":
+            branch.end = "EP"
+            branch.message = f"reached {name} = {e.state.params[name]:g}"
             return True
     return False
+
+
+def _value_point(branch: Branch, step: _Step, x: State, y: State, s0: float, s1: float,
+                 value: float, kind: str, opt: ContinuationOptions) -> _Event | None:
+    """The solution with the continued parameter equal to ``value`` between the solutions x
+    and y (secant coordinates s0 < s1) of one step: solved from their interpolation, checked to
+    lie between them, else found by bisection along the arclength hyperplanes."""
+    problem, name = branch.problem, branch.parameter
+    res, _ = locate_value(problem, x, y, name, value, opt.tol, opt.max_nodes)
+    margin = 0.05 * (s1 - s0) + 1e-12
+    if res.success:
+        sigma = step.sigma(res.state)
+        if s0 - margin <= sigma <= s1 + margin:
+            return _Event(min(max(sigma, s0), s1), kind, res.state, step.secant)
+    res, sigma = locate_value_on_step(problem, step.a, step.secant, name, value, s0, s1,
+                                      opt.tol, opt.max_nodes)
+    if res is None:
+        branch.warnings.append(f"{'user point' if kind == 'UZ' else 'bound'} {name} = "
+                               f"{value:.6g} not located: {sigma}")
+        return None
+    return _Event(sigma, kind, res.state, step.secant)

@@ -33,12 +33,6 @@ def _run(tmp_path, **kw):
     return run_plan(runfile.load(path), tmp_path / "out").result.branches[0]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "engine bug: events.crossings() only looks at the end values (la, lb] of a step, so in a "
-    "step through a fold it misses user values between max(la, lb) and the fold (crossed "
-    "twice), and events.locate_value() interpolates between the two ends, converging to the "
-    "solution on the wrong side of the fold: the branch gets a second UZ identical to the "
-    "first (stepper._events, events.crossings/locate_value)"))
 def test_user_values_next_to_a_fold_are_labelled_on_both_sides(tmp_path, the_fold):
     k0_fold, psi_fold = the_fold
     values = [0.80, 0.81, 0.815, 0.817]
@@ -53,11 +47,6 @@ def test_user_values_next_to_a_fold_are_labelled_on_both_sides(tmp_path, the_fol
         np.testing.assert_allclose(got, [lower, upper], rtol=0, atol=1e-5)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "engine bug: the bound test in stepper._events compares only the step's end value lb "
-    "with the bounds, so a branch whose fold lies beyond a bound (step from below the bound "
-    "to below the bound through the fold) neither stops nor labels EP, and keeps an LP outside "
-    "the bounds"))
 def test_a_branch_never_leaves_its_bounds(tmp_path, the_fold):
     _, psi_fold = the_fold
     upper = 0.815

@@ -89,13 +89,6 @@ def _eps_of_k0(k0):
     return -k1 / (P * s), s
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "engine bug: from psi = pi/6 (eps = 0.25, P = pi^2/4) continuing eps downward, the stepper "
-    "jumps over the pole of eps(k0) at k0 = 0.8134 (eps -> +inf) from k0 = 1.12 to k0 = 0.55 "
-    "(eps 0.112 -> -0.016): it misses the true fold at eps = 0.109691 (k0 = 1.2147) and then "
-    "labels as LP the vertical inflection at eps = 0, k0 = 0 (no sign change of d eps/dtau), "
-    "which satisfies the fold extended system too; the angle guard cannot see the jump because "
-    "the secant is dominated by the state"))
 def test_eps_branch_follows_the_solution_curve(small_cli_run, tmp_path):
     out, h5, _ = small_cli_run
     src = BranchFile(h5)
