@@ -1,4 +1,4 @@
-"""The ``elastica-auto`` command line: run, list, show, export, plot.
+"""The ``elastica-auto`` command line: run, list, show, snaps, export, plot.
 
 User errors (a bad run file, a missing or foreign branch file) print one line and exit with
 status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
@@ -139,6 +139,10 @@ def run(name_or_path, out_dir, jobs, quiet):
         click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
                    err=True)
         sys.exit(EXIT_INTERRUPTED)
+    if result.snaps:
+        lps = len({(r["branch"], r["lp"]) for r in result.snaps})
+        click.echo(f"snap-back: {len(result.snaps)} stable targets at {lps} folds ending a "
+                   f"stable branch (elastica-auto snaps {result.path})")
     click.echo(f"{plan.name}: {len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
                f"{sum(len(b.folds) for b in result.branches)} folds, {result.seconds:.2f} s "
@@ -179,6 +183,28 @@ def show(file, all_points):
     for b in bf.branches:
         if b.attrs["end"] == "MX" or b.attrs.get("warnings", "[]") != "[]":
             click.echo(f"branch {b.number}: {b.attrs['end']}: {b.attrs['message']}")
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+def snaps(file):
+    """Snap-back targets of FILE.h5: at each fold where a stable branch ends, every stable
+    equilibrium at the same parameters (all of them, by a shooting scan) and the branch, if
+    any, that passes through it."""
+    bf = _open(file)
+    if not bf.snaps:
+        click.echo("no snap-back targets (no fold bounds a stable segment, or the equation "
+                   "module has no shooting/second_variation hooks)")
+        return
+    ords = [c[len("target_"):] for c in bf.snaps[0] if c.startswith("target_")]
+    click.echo(f"{'LP':>6} {'BR':>3} {'param':>6} {'value':>12} {'stable':>7} "
+               + " ".join(f"{o:>11}" for o in ords) + f" {'index':>5} {'on branch':>9}")
+    for r in bf.snaps:
+        on = int(r["on_branch"])
+        click.echo(f"{r['lp']:>6} {int(r['branch']):>3} {r['parameter']:>6} {r['value']:>12.7g} "
+                   f"{r['stable_side']:>7} "
+                   + " ".join(f"{r['target_' + o]:>11.6g}" for o in ords)
+                   + f" {int(r['index']):>5} {on if on else 'none':>9}")
 
 
 @main.command()

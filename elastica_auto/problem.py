@@ -28,6 +28,10 @@ and optionally
     the second variation in scalar form ``int_0^1 (a h'^2 + b h^2) ds + c h(1)^2`` with
     ``h(0) = 0`` (a > 0; a, b arrays on s or scalars, c a scalar); enables the stability index
     (see `elastica_auto.stability`).
+``shooting(p)`` -> ``(k_lo, k_hi, initial, residual)``
+    a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
+    [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
+    (see `elastica_auto.snaps`).
 
 Only equation modules know any physics; everything in `elastica_auto` is generic.
 """
@@ -121,6 +125,7 @@ class Problem:
         self._bc_dp = getattr(module, "bc_dp", None)
         self._exact_start = getattr(module, "exact_start", None)
         self._second_variation = getattr(module, "second_variation", None)
+        self._shooting = getattr(module, "shooting", None)
         self._check_shapes()
 
     # -- names ---------------------------------------------------------------------------------
@@ -195,6 +200,14 @@ class Problem:
     def second_variation(self, s, y, p):
         """(a(s), b(s), c) of delta^2 E[h] = int a h'^2 + b h^2 ds + c h(1)^2, h(0) = 0."""
         return self._second_variation(s, y, p)
+
+    @property
+    def has_shooting(self) -> bool:
+        return self._shooting is not None
+
+    def shooting(self, p):
+        """(k_lo, k_hi, initial(k) -> y(0), residual(y(0), y(1))) for enumerating equilibria."""
+        return self._shooting(p)
 
     def exact_start(self, s, p):
         """An exact solution on mesh ``s`` for parameters ``p``, or None if the module has none."""

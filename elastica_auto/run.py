@@ -11,7 +11,7 @@ import multiprocessing as mp
 import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -21,6 +21,7 @@ from . import store
 from .branch import Branch
 from .corrector import State, Tangent, solve_fixed
 from .runfile import BranchSpec, Plan, RunFileError, Start
+from .snaps import snap_targets
 from .stability import label_stability
 from .stepper import continue_branch
 from .switching import switch_direction
@@ -36,6 +37,7 @@ class RunResult:
     branches: list[Branch]
     seconds: float
     interrupted: bool = False
+    snaps: list = field(default_factory=list)
 
     @property
     def failed(self) -> list[int]:
@@ -187,7 +189,12 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     if not interrupted and plan.switch_count:
         second = switch_jobs(plan, list(branches))
         interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
-    return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted)
+    snaps = []
+    if not interrupted:
+        snaps = snap_targets(plan.problem, branches)
+        writer.save(branches, snaps)
+    return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted,
+                     snaps=snaps)
 
 
 def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:

@@ -17,6 +17,10 @@ Layout of ``out/<run>.h5``::
                             tangent_s, tangent_y, tangent_yp and attr tangent_lam; attrs
                             params (JSON) and pt
 
+    /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
+                            parameters): lp, branch, parameter, value, stable_side, k,
+                            index, target_<ordinate>..., on_branch (0: no computed branch)
+
 Files are written to a temporary name in the same folder, then renamed over the target, so a
 reader never sees a half-written file.
 """
@@ -72,8 +76,9 @@ class Writer:
         self.written = 0
         self.labels: dict[str, list[int]] = {}
 
-    def save(self, branches: list[Branch]):
-        """Write ``branches`` (labels already numbered); earlier ones are kept as written."""
+    def save(self, branches: list[Branch], snaps: list[dict] | None = None):
+        """Write ``branches`` (labels already numbered); earlier ones are kept as written.
+        ``snaps``: the snap-back target table (replaces any stored one)."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp",
                                    dir=self.path.parent)
@@ -91,6 +96,8 @@ class Writer:
                         if p.type:
                             self.labels[p.name] = [k, pt]
                 f.attrs["labels"] = json.dumps(self.labels)
+                if snaps is not None:
+                    _write_snaps(f, snaps)
             os.replace(tmp, self.path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
@@ -109,6 +116,21 @@ class Writer:
                        periods=json.dumps({k: q.period for k, q in problem.parameters.items()
                                            if q.period is not None}))
         f["profile_grid"] = PROFILE_GRID
+
+
+def _write_snaps(f, snaps: list[dict]):
+    """/snaps: one row per (LP, stable target); numbers as float columns, names as strings."""
+    if "snaps" in f:
+        del f["snaps"]
+    g = f.create_group("snaps")
+    keys = list(snaps[0]) if snaps else []
+    g.attrs["columns"] = json.dumps(keys)
+    for k in keys:
+        values = [row[k] for row in snaps]
+        if isinstance(values[0], str):
+            g.create_dataset(k, data=values, dtype=h5py.string_dtype())
+        else:
+            g[k] = np.asarray(values, dtype=float)
 
 
 def _write_branch(g, problem, br: Branch):
@@ -199,6 +221,12 @@ class BranchFile:
                 self.periods = json.loads(self.attrs.get("periods", "{}"))
                 self.labels = {k: tuple(v) for k, v in json.loads(self.attrs["labels"]).items()}
                 self.profile_grid = f["profile_grid"][()]
+                self.snaps = []
+                if "snaps" in f:
+                    keys = json.loads(f["snaps"].attrs["columns"])
+                    cols = {k: [x.decode() if isinstance(x, bytes) else x
+                                for x in f["snaps"][k][()]] for k in keys}
+                    self.snaps = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
                 self.branches = []
                 for key in sorted(f.get("branches", {})):
                     g = f["branches"][key]

@@ -144,3 +144,19 @@ def second_variation(s, y, p):
     theta(1)) h(1)^2 with h(0) = 0 (DESIGN 3.2): a = 1, b = -P cos(theta - alpha), c = -eps P
     cos(psi + alpha - theta(1)); natural end condition h'(1) = eps P cos(.) h(1)."""
     return 1.0, -p["P"] * np.cos(y[0] - p["alpha"]), -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p))
+
+
+def shooting(p):
+    """Equilibria are the roots k = theta'(0) of the free-end residual kappa(1) + eps P
+    sin(psi + alpha - theta(1)). The first integral kappa^2/2 - P cos(theta - alpha) = const
+    and |kappa(1)| <= |eps P| bound |k| <= sqrt((eps P)^2 + 4 |P|) (DESIGN section 3)."""
+    bound = math.sqrt((p["eps"] * p["P"]) ** 2 + 4 * abs(p["P"]))
+
+    def initial(k):
+        k = np.asarray(k, dtype=float)
+        return np.vstack((np.full_like(k, p["theta0"]), k, np.zeros_like(k), np.zeros_like(k)))
+
+    def residual(ya, yb):
+        return yb[1] + p["eps"] * p["P"] * np.sin(p["psi"] + p["alpha"] - yb[0])
+
+    return -bound, bound, initial, residual

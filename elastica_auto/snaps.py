@@ -1,0 +1,168 @@
+"""Snap-back targets: where a stable branch ends at a fold, which stable equilibria remain?
+
+At an LP next to an index-0 segment a stable equilibrium stops existing as the parameter moves
+past the fold value, and the structure snaps to another stable equilibrium at the same
+parameter values. The candidates are found by enumerating *all* equilibria there with a
+bounded shooting scan (DESIGN section 3), through the optional equation-module hook
+
+``shooting(p) -> (k_lo, k_hi, initial, residual)``
+    equilibria at parameters ``p`` are the roots ``k`` in ``[k_lo, k_hi]`` of
+    ``residual(y(0), y(1))`` with ``y(0) = initial(k)`` and y integrated by the module's ``rhs``
+    (both vectorised over columns). For the elastica k = theta'(0), the residual is the
+    free-end moment balance and the first integral bounds |k|.
+
+The scan integrates all grid values of k at once, brackets every sign change, refines all
+brackets together (Illinois regula falsi), and computes each root's index by the direct
+count. Each target records whether a computed branch of the same file passes through it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .corrector import State
+from .stability import direct_index
+
+SCAN_POINTS = 1201
+IVP_TOL = 1e-11
+PROFILE_NODES = 201
+
+
+@dataclass
+class Equilibrium:
+    """One equilibrium found by the scan: shooting value, solution, index, ordinates."""
+
+    k: float
+    state: State
+    index: int
+    ordinates: dict
+
+
+def _integrate(problem, params, y0, s_eval=None):
+    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together; y at s = 1 (or at
+    ``s_eval``), shape (n, m) (or (n, m, len(s_eval)))."""
+    n, m = y0.shape
+
+    def f(s, z):
+        return problem.rhs(np.full(m, s), z.reshape(n, m), params).ravel()
+
+    sol = solve_ivp(f, (0.0, 1.0), y0.ravel(), method="DOP853", rtol=IVP_TOL, atol=IVP_TOL,
+                    t_eval=s_eval)
+    if not sol.success:
+        raise RuntimeError(f"shooting integration failed: {sol.message}")
+    if s_eval is None:
+        return sol.y[:, -1].reshape(n, m)
+    return sol.y.reshape(n, m, len(s_eval))
+
+
+def enumerate_equilibria(problem, params) -> list[Equilibrium]:
+    """Every equilibrium at ``params`` (a root of the shooting residual in the module's bounds),
+    sorted by k. Requires the module hooks ``shooting`` and (for the index) ``second_variation``."""
+    lo, hi, initial, residual = problem.shooting(params)
+
+    def r(k):
+        k = np.atleast_1d(np.asarray(k, dtype=float))
+        y0 = initial(k)
+        return residual(y0, _integrate(problem, params, y0))
+
+    ks = np.linspace(lo, hi, SCAN_POINTS)
+    rs = r(ks)
+    exact = ks[rs == 0.0]
+    idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
+    a, b, fa, fb = ks[idx], ks[idx + 1], rs[idx], rs[idx + 1]
+    for _ in range(60):  # Illinois regula falsi on all brackets at once
+        if len(a) == 0 or np.all(np.abs(b - a) < 1e-13 * (1 + np.abs(a))):
+            break
+        c = b - fb * (b - a) / (fb - fa)
+        fc = r(c)
+        same = fc * fb > 0
+        a = np.where(same, a, b)
+        fa = np.where(same, fa / 2, fb)
+        b, fb = c, fc
+    roots = np.sort(np.concatenate((exact, b)))
+    if len(roots) == 0:
+        return []
+    s = np.linspace(0.0, 1.0, PROFILE_NODES)
+    ys = _integrate(problem, params, initial(roots), s)
+    out = []
+    for j, k in enumerate(roots):
+        state = State.from_values(problem, s, ys[:, j, :], params)
+        out.append(Equilibrium(float(k), state, direct_index(problem, state)[0],
+                               problem.ordinate_values(s, state.y, params)))
+    return out
+
+
+def snap_lps(branch):
+    """LPs of ``branch`` that bound an index-0 segment: (point, stable side 'before'/'after')."""
+    out = []
+    for k, p in enumerate(branch.points):
+        if p.type != "LP" or k == 0 or k + 1 >= len(branch.points):
+            continue
+        before, after = p.index, branch.points[k + 1].index
+        if before == 0 and after > 0:
+            out.append((p, "before"))
+        elif after == 0 and before > 0:
+            out.append((p, "after"))
+    return out
+
+
+def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.05):
+    """Number (1-based) of a branch with the target's fixed parameters that passes through the
+    target (its y(0) within ``tol`` of the branch interpolated at the target's parameter
+    value, modulo the period), or 0."""
+    value = target.state.params[parameter]
+    y0 = target.state.y[:, 0]
+    for nb, br in enumerate(branches, start=1):
+        p0 = br.points[0].params
+        if br.parameter != parameter or any(
+                abs(p0[q] - target.state.params[q]) > 1e-12
+                for q in p0 if q != parameter):
+            continue
+        lam = br.column(parameter)
+        if period:
+            lam = value + np.remainder(lam - value + period / 2, period) - period / 2
+        starts = np.array([p.profile[:, 0] for p in br.points])
+        for i in np.flatnonzero((lam[:-1] - value) * (lam[1:] - value) <= 0):
+            if lam[i + 1] == lam[i] or abs(lam[i + 1] - lam[i]) > (period or np.inf) / 2:
+                continue
+            w = (value - lam[i]) / (lam[i + 1] - lam[i])
+            y = (1 - w) * starts[i] + w * starts[i + 1]
+            if np.max(np.abs(y - y0)) < tol * (1 + np.max(np.abs(y0))):
+                return nb
+    return 0
+
+
+def snap_targets(problem, branches) -> list[dict]:
+    """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
+    values (excluding the fold's own solution), with the branch that passes through it."""
+    if not (problem.has_shooting and problem.has_second_variation):
+        return []
+    cache = {}
+    rows = []
+    for nb, br in enumerate(branches, start=1):
+        name = br.parameter
+        period = problem.parameters[name].period
+        for p, side in snap_lps(br):
+            params = dict(p.params)
+            key = tuple(sorted((q, round(v if q != name or not period
+                                         else float(np.remainder(v, period)), 10))
+                               for q, v in params.items()))
+            if key not in cache:
+                cache[key] = enumerate_equilibria(problem, params)
+            k_fold = p.state.y[:, 0]
+            for eq in cache[key]:
+                if eq.index != 0:
+                    continue
+                shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
+                if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
+                    continue  # the fold's own (vanishing, numerically a near-double) root
+                target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
+                rows.append({"lp": p.name, "branch": nb, "parameter": name,
+                             "value": params[name], "stable_side": side, "k": eq.k,
+                             "index": eq.index, **{f"target_{o}": v
+                                                   for o, v in eq.ordinates.items()},
+                             "on_branch": _on_branch(branches, name, period, target)})
+    return rows
