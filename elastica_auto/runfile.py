@@ -4,7 +4,10 @@ A run file (``runs/<name>.toml``)::
 
     description = "what this run reproduces"
     equation = "elastica_lever_arm"     # shipped module name, or path to a .py file
-    start = "trivial"                   # or "FILE.h5:LABEL", or a list of either
+    start = "trivial"                   # or "FILE.h5:LABEL", or a selector (below), or a list
+    # start = { file = "rotating_arm.h5", type = "UZ", where = { eps = 0.5, psi = "pi/2" } }
+    #   every UZ label of the file at those parameter values (angles modulo their period), in
+    #   label order, one per distinct equilibrium (distinct = false keeps periodic copies)
     switch = 2                          # optional: also follow the other branch, both ways,
                                         # at the first 2 BPs of each branch (AUTO's ISW=-1);
                                         # or a list of "FILE.h5:BPn" labels to switch at
@@ -134,6 +137,7 @@ class Plan:
 
 
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
+_SELECT = {"file", "type", "where", "distinct"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
 _DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
 
@@ -260,10 +264,9 @@ def load(path, out_dir: Path | None = None) -> Plan:
             fail(f"[parameters] {key}", "empty list")
         grid[key] = [number(f"[parameters] {key}", x) for x in vals]
 
-    def file_label(key, s):
-        if ":" not in s:
-            fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
-        fname, label = s.rsplit(":", 1)
+    from .store import BranchFile, StoreError
+
+    def branch_file(key, fname):
         candidates = [Path(fname)] if Path(fname).is_absolute() else (
             ([out_dir / fname] if out_dir is not None else []) + [path.parent / fname, Path(fname)])
         file = next((c for c in candidates if c.is_file()), None)
@@ -271,15 +274,76 @@ def load(path, out_dir: Path | None = None) -> Plan:
             folders = ", ".join(dict.fromkeys(str(c.parent) for c in candidates))
             fail(key, f"restart file {fname!r} not found (looked in {folders}); "
                  "run the run that writes it first")
-        from .store import BranchFile, StoreError
         try:
             bf = BranchFile(file)
-            bf.label(label)
         except StoreError as exc:
             fail(key, str(exc))
         if Path(bf.equation).stem != problem.name:
             fail(key, f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
+        return file, bf
+
+    def file_label(key, s):
+        if ":" not in s:
+            fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
+        fname, label = s.rsplit(":", 1)
+        file, bf = branch_file(key, fname)
+        try:
+            bf.label(label)
+        except StoreError as exc:
+            fail(key, str(exc))
         return file, label
+
+    def selected(key, sel):
+        """Labels of one type in a file whose parameters match ``where`` (periodic parameters
+        modulo their period), in label order; with ``distinct``, one per equilibrium."""
+        for k in sel:
+            if k not in _SELECT:
+                fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
+        if "file" not in sel:
+            fail(key, "a start selector needs file = \"FILE.h5\"")
+        file, bf = branch_file(f"{key}.file", string(f"{key}.file", sel["file"]))
+        kind = string(f"{key}.type", sel.get("type", "UZ"))
+        where = sel.get("where", {})
+        if not isinstance(where, dict):
+            fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")
+        want = {}
+        for q, v in where.items():
+            if q not in problem.parameters:
+                fail(f"{key}.where.{q}", f"unknown parameter; {problem.source} declares "
+                     f"{', '.join(problem.parameter_names)}")
+            want[q] = number(f"{key}.where.{q}", v)
+        distinct = sel.get("distinct", True)
+        if not isinstance(distinct, bool):
+            fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
+        names = sorted((n for n in bf.labels if n[:2] == kind), key=lambda n: int(n[2:]))
+        out, seen = [], []
+        for n in names:
+            br, pt = bf.labels[n]
+            cols = bf.branches[br - 1].columns
+            ok = True
+            for q, v in want.items():
+                d = cols[q][pt - 1] - v
+                T = problem.parameters[q].period
+                if T:
+                    d = math.remainder(d, T)
+                ok &= abs(d) <= 1e-9 * (1 + abs(v))
+            if not ok:
+                continue
+            if distinct:
+                st = bf.label(n).state
+                y0 = st.y[:, 0]
+                key_params = {q: (math.remainder(v, problem.parameters[q].period)
+                                  if problem.parameters[q].period else v)
+                              for q, v in st.params.items()}
+                if any(max(abs(y0 - y)) < 1e-7 and all(abs(key_params[q] - kp[q]) < 1e-9
+                                                        for q in kp)
+                       for y, kp in seen):
+                    continue
+                seen.append((y0, key_params))
+            out.append(Start("label", file, n))
+        if not out:
+            fail(key, f"no {kind} label of {file.name} matches {where}")
+        return out
 
     parsed = []
     switch = doc.get("switch", [])
@@ -301,6 +365,9 @@ def load(path, out_dir: Path | None = None) -> Plan:
     if not starts and not parsed:
         fail("start", "empty list")
     for s in starts:
+        if isinstance(s, dict):
+            parsed.extend(selected("start", s))
+            continue
         s = string("start", s)
         if s == "trivial":
             parsed.append(Start("trivial"))
