@@ -7,7 +7,8 @@ A run file (``runs/<name>.toml``)::
     start = "trivial"                   # or "FILE.h5:LABEL", or a selector (below), or a list
     # start = { file = "rotating_arm.h5", type = "UZ", where = { eps = 0.5, psi = "pi/2" } }
     #   every UZ label of the file at those parameter values (angles modulo their period), in
-    #   label order, one per distinct equilibrium (distinct = false keeps periodic copies)
+    #   label order, one per distinct equilibrium (distinct = false keeps periodic copies);
+    #   index = 0 keeps only stable ones
     switch = 2                          # optional: also follow the other branch, both ways,
                                         # at the first 2 BPs of each branch (AUTO's ISW=-1);
                                         # or a list of "FILE.h5:BPn" labels to switch at
@@ -137,7 +138,7 @@ class Plan:
 
 
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
-_SELECT = {"file", "type", "where", "distinct"}
+_SELECT = {"file", "type", "where", "index", "distinct"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
 _DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
 
@@ -295,7 +296,8 @@ def load(path, out_dir: Path | None = None) -> Plan:
 
     def selected(key, sel):
         """Labels of one type in a file whose parameters match ``where`` (periodic parameters
-        modulo their period), in label order; with ``distinct``, one per equilibrium."""
+        modulo their period) and, if given, whose stability index is ``index``, in label
+        order; with ``distinct``, one per equilibrium."""
         for k in sel:
             if k not in _SELECT:
                 fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
@@ -312,6 +314,9 @@ def load(path, out_dir: Path | None = None) -> Plan:
                 fail(f"{key}.where.{q}", f"unknown parameter; {problem.source} declares "
                      f"{', '.join(problem.parameter_names)}")
             want[q] = number(f"{key}.where.{q}", v)
+        index = sel.get("index")
+        if index is not None and (isinstance(index, bool) or not isinstance(index, int)):
+            fail(f"{key}.index", f"expected an integer stability index, got {index!r}")
         distinct = sel.get("distinct", True)
         if not isinstance(distinct, bool):
             fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
@@ -327,7 +332,7 @@ def load(path, out_dir: Path | None = None) -> Plan:
                 if T:
                     d = math.remainder(d, T)
                 ok &= abs(d) <= 1e-9 * (1 + abs(v))
-            if not ok:
+            if not ok or (index is not None and cols["index"][pt - 1] != index):
                 continue
             if distinct:
                 st = bf.label(n).state
