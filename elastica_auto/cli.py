@@ -139,6 +139,8 @@ def run(name_or_path, out_dir, jobs, quiet):
         click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
                    err=True)
         sys.exit(EXIT_INTERRUPTED)
+    for w in result.warnings:
+        click.echo(f"warning: {w}")
     if result.snaps:
         lps = len({(r["branch"], r["lp"]) for r in result.snaps})
         click.echo(f"snap-back: {len(result.snaps)} stable targets at {lps} folds ending a "

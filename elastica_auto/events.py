@@ -114,9 +114,13 @@ def locate_branch_point(problem: Problem, a: State, t_out: Tangent, name: str, d
 
     try:
         g0, g1 = g(0.0), g(dist)
+        if g0 == 0.0:
+            return None, "the step starts at a singular point", float("nan")
         if g0 * g1 > 0:
             return None, "the test function does not change sign", float("nan")
         sigma = brentq(g, 0.0, dist, xtol=1e-13, rtol=4 * np.finfo(float).eps)
+        if sigma == 0.0:
+            return None, "the step starts at a singular point", float("nan")
         value = g(sigma)
     except RuntimeError as exc:
         return None, str(exc), float("nan")

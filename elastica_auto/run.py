@@ -38,6 +38,7 @@ class RunResult:
     seconds: float
     interrupted: bool = False
     snaps: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
 
     @property
     def failed(self) -> list[int]:
@@ -48,13 +49,15 @@ class RunResult:
 class Job:
     """One branch to compute: its spec and its start (state, tangent).
 
-    ``singular`` marks a start at a branch point, where ``tangent`` is the direction of the
-    other branch (used as it is: the bordered tangent system is singular there)."""
+    ``singular`` marks a start at a fold or branch point (a restart from an LP or BP label, or
+    a switch); ``exact`` marks a switch, where ``tangent`` is the direction of the other branch,
+    used as it is (the bordered tangent system is singular there)."""
 
     spec: BranchSpec
     state: State
     tangent: Tangent | None
     singular: bool = False
+    exact: bool = False
 
 
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
@@ -84,7 +87,8 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
             raise StartError(f"{spec.start}: no solution at the changed parameters "
                              f"({res.message})")
         state, tangent = res.state, None
-    return _checked(plan, Job(spec, state, tangent))
+    singular = spec.start.label[:2] in ("LP", "BP") and params == stored.state.params
+    return _checked(plan, Job(spec, state, tangent, singular=singular))
 
 
 def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
@@ -95,8 +99,9 @@ def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | N
         raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
                          "of the linearised problem not found)")
     d = spec.direction
-    return Job(spec, state, Tangent(direction.s, d * direction.y, d * direction.yp,
-                                    d * direction.lam), singular=True)
+    return _checked(plan, Job(spec, state, Tangent(direction.s, d * direction.y,
+                                                   d * direction.yp, d * direction.lam),
+                              singular=True, exact=True))
 
 
 def _checked(plan: Plan, job: Job) -> Job:
@@ -141,18 +146,23 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     t0 = time.perf_counter()
     try:
         continue_branch(br, job.state, plan.options, plan.stops, plan.user_values, job.tangent,
-                        on_step, singular_start=job.singular)
+                        on_step, singular_start=job.singular, exact_tangent=job.exact)
     except KeyboardInterrupt:
         br.end, br.message, br.interrupted = "MX", "interrupted by the user", True
-        if br.points and not br.points[-1].type and br.last is not None:
-            br.relabel(br.points[-1], "MX", *br.last)
+        if br.points and br.last is not None:
+            last = br.points[-1]
+            if last.type:  # keep its label (the start's EP, say); end with an MX of its own
+                br.add(br.last[0], type="MX", arclength=last.arclength, tangent=br.last[1])
+            else:
+                br.relabel(last, "MX", *br.last)
     label_stability(br)
     br.seconds = time.perf_counter() - t0
     return br
 
 
-def switch_jobs(plan: Plan, branches: list[Branch]) -> list[Job]:
-    """``switch = N``: both directions of the other branch at the first N BPs of each branch."""
+def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
+    """``switch = N``: both directions of the other branch at the first N BPs of each branch;
+    BPs where that fails are reported in ``warnings``."""
     jobs = []
     for br in branches:
         for p in [q for q in br.points if q.type == "BP"][: plan.switch_count]:
@@ -161,7 +171,7 @@ def switch_jobs(plan: Plan, branches: list[Branch]) -> list[Job]:
                 try:
                     jobs.append(_switch_job(plan, spec, p.state, p.tangent))
                 except StartError as exc:
-                    br.warnings.append(str(exc))
+                    warnings.append(str(exc))
     return jobs
 
 
@@ -186,15 +196,16 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
         writer.save(branches)
 
     interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
+    warnings: list[str] = []
     if not interrupted and plan.switch_count:
-        second = switch_jobs(plan, list(branches))
+        second = switch_jobs(plan, list(branches), warnings)
         interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
     snaps = []
     if not interrupted:
         snaps = snap_targets(plan.problem, branches)
         writer.save(branches, snaps)
     return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted,
-                     snaps=snaps)
+                     snaps=snaps, warnings=warnings)
 
 
 def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
@@ -224,8 +235,10 @@ def _init_worker(plan, jobs_list, offset, queue, stop):
     _WORKER.update(plan=plan, jobs=jobs_list, offset=offset, queue=queue, stop=stop)
 
 
-def _worker_branch(i: int) -> Branch:
+def _worker_branch(i: int) -> Branch | None:
     plan, queue, stop = _WORKER["plan"], _WORKER["queue"], _WORKER["stop"]
+    if stop.is_set():  # queued before the interruption: not started
+        return None
     last = [0.0]
 
     def progress(k, npts, nfolds, lam):
@@ -268,7 +281,7 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
                     f.cancel()
                 finished, pending = wait(pending)
             for f in finished:
-                if f.cancelled():
+                if f.cancelled() or f.result() is None:
                     continue
                 br = f.result()
                 br.problem = plan.problem

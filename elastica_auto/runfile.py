@@ -203,7 +203,7 @@ def load(path, out_dir: Path | None = None) -> Plan:
              f"{problem.source} declares {', '.join(problem.parameter_names)}")
 
     directions = cont.get("directions", "both")
-    if directions not in _DIRECTIONS:
+    if not isinstance(directions, str) or directions not in _DIRECTIONS:
         fail("[continuation] directions", f"expected one of {sorted(_DIRECTIONS)}, got {directions!r}")
 
     lower, upper = -math.inf, math.inf
@@ -383,9 +383,17 @@ def load(path, out_dir: Path | None = None) -> Plan:
                 parameter=parameter, options=options, stops=Stops(lower, upper, at_fold),
                 user_values=user_values, varying=[k for k, v in grid.items() if len(v) > 1],
                 switch_count=switch_count)
+    switches = [st for st in parsed if st.kind == "switch"]
+    others = [st for st in parsed if st.kind != "switch"]
+    if switches and grid and not others:
+        fail("switch", "a branch switched at a stored BP has that point's parameters; "
+             "remove [parameters]")
+    for start in switches:  # both directions of the other branch, at the BP's parameters
+        for d in (1, -1):
+            plan.branches.append(BranchSpec(start, {}, d))
     keys = list(grid)
     for combo in itertools.product(*(grid[k] for k in keys)):
-        for start in parsed:
-            for d in (1, -1) if start.kind == "switch" else _DIRECTIONS[directions]:
+        for start in others:
+            for d in _DIRECTIONS[directions]:
                 plan.branches.append(BranchSpec(start, dict(zip(keys, combo)), d))
     return plan

@@ -124,8 +124,10 @@ def fold_rule(branch, start_index: int) -> list[int]:
     """Index at every point of ``branch`` from ``start_index`` and the sign rule at each LP.
 
     The index of a point that is itself an LP is the value on the side it is approached from.
-    Where the rule cannot apply (a fold with no ordinate, an unlocated fold, a branch point)
-    it takes the direct count after the special point, if there is one, else -1.
+    The sign needs only the neighbouring points, so it also applies at a fold whose extended
+    system failed. Where the rule cannot apply (a fold of a parameter without a distinguished
+    ordinate, a branch point) it takes the direct count after the special point, if there is
+    one, else -1.
     """
     problem, name = branch.problem, branch.parameter
     ordinate = next((o.name for o in problem.ordinates.values() if o.parameter == name), None)

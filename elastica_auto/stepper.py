@@ -67,17 +67,18 @@ def initial_tangent(branch: Branch, start: State, direction: int, guess: Tangent
 def continue_branch(branch: Branch, start: State, options: ContinuationOptions, stops: Stops,
                     user_values: list[UserValues] = (), start_tangent: Tangent | None = None,
                     progress: Callable[[Branch, float], None] | None = None,
-                    singular_start: bool = False) -> Branch:
+                    singular_start: bool = False, exact_tangent: bool = False) -> Branch:
     """Continue ``start`` in ``branch.parameter`` in ``branch.direction``; fills ``branch``.
 
-    ``singular_start``: the start is a branch point and ``start_tangent`` the (already
-    oriented) direction of the branch to follow; it is used as it is, and no fold or branch
-    point is sought in the first step, where the start's own singularity would be found.
+    ``singular_start``: the start is a fold or a branch point; no fold or branch point is
+    sought in the first step, where the start's own singularity would be found.
+    ``exact_tangent``: ``start_tangent`` is the (already oriented) direction to follow, used as
+    it is (the other branch at a branch point, where the bordered tangent system is singular).
     Points are appended as they are accepted, so an interrupted call leaves every completed
     point in ``branch``.
     """
     problem, name, opt = branch.problem, branch.parameter, options
-    if singular_start:
+    if exact_tangent:
         t = start_tangent
     else:
         t = initial_tangent(branch, start, branch.direction, start_tangent, opt)
@@ -89,6 +90,8 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
     base, arclength, ds = start, 0.0, abs(opt.ds)
     # secant into base (start: the tangent); folds are sign changes of its parameter component
     t_in = Tangent(t.s, t.y, t.yp, 0.0) if singular_start else t
+    if singular_start:
+        branch.points[-1].note = ""  # the direct counts may differ at a singular point
     dist_in = abs(opt.ds)
     exact = True        # t is the true tangent at base, not a secant
     mesh = start.s

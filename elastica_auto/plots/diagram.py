@@ -62,7 +62,8 @@ def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
     for b in bf.branches:
         x, y, index = b.columns[xname], b.columns[yname], b.columns["index"]
         for xs, ys, k in _segments(x, y, index, period):
-            color, ls = INDEX_STYLE.get(k, UNKNOWN_STYLE) if k >= 0 else UNKNOWN_STYLE
+            color, ls = (INDEX_STYLE.get(k, (f"C{k % 10}", (0, (1, 1, 3, 1))))
+                         if k >= 0 else UNKNOWN_STYLE)
             label = None
             key = k if k >= 0 else "unknown"
             if key not in seen:
