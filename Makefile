@@ -24,6 +24,7 @@ test: install
 
 bench: install
 	$(BIN)/python benchmarks/bench_rotating_arm.py
+	$(BIN)/python benchmarks/bench_rotating_arm.py --memory
 
 clean:
 	rm -rf $(OUT) $(FIG) .pytest_cache

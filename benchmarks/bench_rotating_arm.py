@@ -1,4 +1,5 @@
-"""Benchmark: the rotating_arm run (8 branches to |psi| = 6 pi), as `make bench` prints it.
+"""Benchmark: the rotating_arm run (8 branches to |psi| = 6 pi), as `make bench` prints it;
+with ``--memory``, the peak memory of branches of 2500 and 10^4 points.
 
 Prints, per branch: points, median ms per continuation step (wall time between accepted
 points, so rejected attempts and the location of LP/UZ/EP points are included), seconds,
@@ -57,5 +58,54 @@ def main(run="rotating_arm"):
           f"({cores} cores)")
 
 
+LONG_RUN = """\
+equation = "elastica_lever_arm"
+[parameters]
+eps = 0.25
+P = "pi^2/4"
+[continuation]
+parameter = "psi"
+directions = "+"
+bounds = ["-1000", "1000"]
+[options]
+ds_max = 0.05
+max_points = {n}
+"""
+
+MEMORY_PROBE = """\
+import resource, sys
+from pathlib import Path
+from elastica_auto.run import execute
+from elastica_auto.runfile import load
+r = execute(load(Path(sys.argv[1])), Path(sys.argv[2]), jobs=1)
+print(len(r.branches[0].points), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def memory(sizes=(2500, 10000)):
+    """Peak resident memory of one branch of n points, each in a fresh process: it grows in
+    proportion to the points stored (profiles on a 101-point grid, columns), not faster."""
+    import subprocess
+    print("memory of one long branch (fresh process each, one psi-branch, ds_max = 0.05):")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            run = Path(tmp) / f"long{n}.toml"
+            run.write_text(LONG_RUN.format(n=n))
+            t0 = time.perf_counter()
+            out = subprocess.run([sys.executable, "-c", MEMORY_PROBE, str(run), tmp],
+                                 capture_output=True, text=True, check=True).stdout.split()
+            pts, kib = int(out[0]), int(out[1])
+            rows.append((pts, kib))
+            print(f"  {pts:>6} points: peak RSS {kib / 1024:7.1f} MiB, "
+                  f"{time.perf_counter() - t0:6.1f} s")
+    (p1, m1), (p2, m2) = rows[0], rows[-1]
+    print(f"  growth: {(m2 - m1) / (p2 - p1):.2f} KiB per point "
+          f"(a profile alone is {4 * 101 * 8 / 1024:.2f} KiB)")
+
+
 if __name__ == "__main__":
-    main(*sys.argv[1:])
+    if sys.argv[1:] == ["--memory"]:
+        memory()
+    else:
+        main(*sys.argv[1:])
