@@ -55,3 +55,22 @@ def test_a_branch_never_leaves_its_bounds(tmp_path, the_fold):
     psi = np.array([p.params["psi"] for p in br.points])
     assert np.all(psi <= upper + 1e-12), psi.max()
     assert br.end == "EP" and br.points[-1].params["psi"] == pytest.approx(upper, abs=1e-12)
+
+
+def test_stop_at_the_second_fold(tmp_path, the_fold):
+    """stop = ["LP2"] ends the branch at its second fold: the last point is that LP, at the
+    mirror image of the first fold translated by one period, psi2 = -psi1 - 2 pi (mirror
+    symmetry psi -> -psi and 2 pi periodicity), computed here by shooting."""
+    br = _run(tmp_path, bounds=("-4*pi", "4*pi"), extra='stop = ["LP2"]\n')
+    assert br.end == "LP" and "LP2" in br.message
+    assert [p.type for p in br.points].count("LP") == 2
+    last = br.points[-1]
+    assert last.type == "LP"
+    assert all(p.arclength <= last.arclength for p in br.points)
+    assert abs(last.params["psi"] - (-the_fold[1] - 2 * math.pi)) < 1e-8
+
+
+def test_max_points_ends_with_an_end_point(tmp_path):
+    br = _run(tmp_path, bounds=("-4*pi", "4*pi"), extra="[options]\nmax_points = 12\n")
+    assert len(br.points) == 12
+    assert br.points[-1].type == "EP" and br.end == "EP" and "max_points" in br.message
