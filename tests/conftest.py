@@ -46,3 +46,17 @@ def small_cli_run(tmp_path_factory, cli_exe):
     out = root / "out"
     proc = run_cli(cli_exe, "run", toml, "--out", out)
     return out, out / "small.h5", proc
+
+
+@pytest.fixture(scope="session")
+def trivial_buckling(tmp_path_factory) -> RunOutput:
+    """The shipped trivial_buckling run (P from the straight rod, switching at its first two
+    branch points), computed once (about 5 s on two processes)."""
+    from helpers import REPO
+    plan = runfile.load(REPO / "runs" / "trivial_buckling.toml")
+    # The tests assume the shipped configuration: straight rods with psi = alpha = theta0 = 0.
+    assert plan.parameter == "P" and plan.switch_count == 2
+    for spec in plan.branches:
+        assert spec.start.kind == "trivial"
+        assert all(spec.params.get(k, 0.0) == 0.0 for k in ("psi", "alpha", "theta0", "P"))
+    return run_plan(plan, tmp_path_factory.mktemp("trivial_buckling"), jobs=2)
