@@ -1,0 +1,600 @@
+"""Distinguished bifurcation diagrams with configuration insets, read from branch files.
+
+A :class:`Panel` says what one diagram shows: the branches (ordinate against the continued
+parameter, line style by stability index), the numbered equilibria drawn as configurations
+along the top, and the snap-back arrows with their before/after configurations at the side.
+:func:`draw_panel` lays it out in a matplotlib (sub)figure. The helpers here only select,
+interpolate and place what the files hold; nothing is solved.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import ConnectionPatch, FancyArrowPatch  # noqa: E402
+from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: E402
+
+from ..store import BranchFile, StoredBranch  # noqa: E402
+from . import config  # noqa: E402
+from .style import (BP_COLOR, FOLD_COLOR, LABEL_COLOR, SNAP_COLOR, index_label,  # noqa: E402
+                    index_style)
+
+TWO_PI = 2 * math.pi
+
+
+# ----------------------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class Pt:
+    """One stored point: file, branch, row."""
+
+    bf: BranchFile
+    br: StoredBranch
+    i: int
+
+    def __getitem__(self, name) -> float:
+        return float(self.br.columns[name][self.i])
+
+    @property
+    def params(self) -> dict:
+        return {q: self[q] for q in self.bf.parameters}
+
+    @property
+    def index(self) -> int:
+        return int(self.br.columns["index"][self.i])
+
+    @property
+    def label(self) -> str:
+        return self.br.label_names()[self.i]
+
+    def geometry(self, trace=None) -> config.Geometry:
+        return config.geometry(self.br.profiles[self.i], self.params, trace)
+
+
+def label_point(bf: BranchFile, name: str) -> Pt:
+    br, pt = bf.labels[name]
+    return Pt(bf, bf.branches[br - 1], pt - 1)
+
+
+def same_value(a, b, period=None, tol=1e-9) -> bool:
+    d = a - b
+    if period:
+        d = math.remainder(d, period)
+    return abs(d) <= tol * (1 + abs(b))
+
+
+def branches_where(bf: BranchFile, **fixed) -> list[StoredBranch]:
+    """Branches of ``bf`` whose first point has the given parameter values (angles modulo
+    their period)."""
+    out = []
+    for b in bf.branches:
+        if all(same_value(float(b.columns[q][0]), float(v), bf.periods.get(q))
+               for q, v in fixed.items()):
+            out.append(b)
+    return out
+
+
+def start_point(bf: BranchFile, b: StoredBranch) -> Pt:
+    return Pt(bf, b, 0)
+
+
+def distinct_starts(bf: BranchFile, branches, key="m0", tol=1e-5):
+    """The branches' start points, one per distinct equilibrium (the value of ``key``, which
+    with everything else fixed tells equilibria apart), in branch order; copies (the same
+    equilibrium started twice) are dropped."""
+    out = []
+    for b in branches:
+        p = start_point(bf, b)
+        if not any(abs(p[key] - q[key]) <= tol * (1 + abs(q[key])) for q in out):
+            out.append(p)
+    return out
+
+
+def crossings(bf: BranchFile, branch: StoredBranch, name: str, value: float, period=None):
+    """Rows (i, w) where the branch's ``name`` passes ``value`` (mod period) between points i
+    and i + 1, at fraction w; stored points exactly at the value give w = 0."""
+    lam = branch.columns[name].astype(float)
+    if period:
+        lam = value + np.remainder(lam - value + period / 2, period) - period / 2
+    out = []
+    for i in range(len(lam) - 1):
+        a, b = lam[i] - value, lam[i + 1] - value
+        if a == 0:
+            out.append((i, 0.0))
+        elif a * b < 0 and abs(lam[i + 1] - lam[i]) < (period or np.inf) / 2:
+            out.append((i, a / (a - b)))
+    if len(lam) and lam[-1] == value:
+        out.append((len(lam) - 1, 0.0))
+    return out
+
+
+def interpolated(bf, br, i, w, name, value):
+    """Parameters, ordinate columns and profile between points i and i + 1 (fraction w)."""
+    j = min(i + 1, len(br) - 1)
+    cols = {k: (1 - w) * float(br.columns[k][i]) + w * float(br.columns[k][j])
+            for k in bf.parameters + bf.ordinates}
+    cols[name] = value
+    prof = (1 - w) * br.profiles[i] + w * br.profiles[j]
+    return cols, prof
+
+
+def find_equilibrium(sources, name, value, key, target, fixed, tol=0.03):
+    """A stored branch point (interpolated) at parameter ``name`` = ``value`` (mod period) whose
+    ``key`` column is ``target``, among branches with the ``fixed`` parameter values; returns
+    (columns, profile) or None. Used for snap-back targets: at fixed parameters ``m0`` =
+    theta'(0) tells equilibria apart."""
+    best = None
+    for bf in sources:
+        period = bf.periods.get(name)
+        fixed_here = {q: v for q, v in fixed.items() if q != name}
+        for br in branches_where(bf, **fixed_here):
+            if br.parameter != name:
+                continue
+            for i, w in crossings(bf, br, name, value, period):
+                cols, prof = interpolated(bf, br, i, w, name, value)
+                err = abs(cols[key] - target)
+                if err <= tol * (1 + abs(target)) and (best is None or err < best[0]):
+                    best = (err, cols, prof)
+    return None if best is None else best[1:]
+
+
+def segments_of(br: StoredBranch, lo: int, hi: int):
+    """Index-0 run of points containing row ``lo``..``hi`` extended as far as it goes."""
+    idx = br.columns["index"]
+    while lo > 0 and idx[lo - 1] == 0:
+        lo -= 1
+    while hi < len(br) - 1 and idx[hi + 1] == 0:
+        hi += 1
+    return lo, hi
+
+
+def tip_trace(bf: BranchFile, br: StoredBranch, lp: int, side: str,
+              span: float | None = None) -> np.ndarray:
+    """Path of the arm's end along the stable segment that ends at the fold in row ``lp``
+    (``side``: 'before' or 'after' it in the branch's point order), ending at the fold; with
+    ``span``, only the part within ``span`` of the fold's parameter value."""
+    idx = br.columns["index"]
+    if side == "before":
+        hi = lp
+        lo = lp
+        while lo > 0 and idx[lo - 1] == 0:
+            lo -= 1
+        rows = range(lo, hi + 1)
+    else:
+        lo = lp
+        hi = lp
+        while hi < len(br) - 1 and idx[hi + 1] == 0:
+            hi += 1
+        rows = range(hi, lo - 1, -1)
+    pts = []
+    lam = br.columns[br.parameter]
+    for i in rows:
+        if span is not None and abs(lam[i] - lam[lp]) > span:
+            continue
+        p = Pt(bf, br, i)
+        prof = br.profiles[i]
+        pts.append(config.arm_end(prof[0, -1], prof[2, -1], prof[3, -1], p.params))
+    return np.array(pts).T
+
+
+# --------------------------------------------------------------------------- diagram parts
+def _pi_ticks(ax, axis="x", step=None, span=None):
+    """Ticks at multiples of pi (or pi/2) labelled as such."""
+    if step is None:
+        step = math.pi if (span or TWO_PI) > 3 * math.pi else math.pi / 2
+
+    def fmt(v, _):
+        k = v / (math.pi / 2)
+        n = int(round(k))
+        if abs(k - n) > 1e-6:
+            return ""
+        if n == 0:
+            return "0"
+        if n % 2 == 0:
+            m = n // 2
+            return {1: r"$\pi$", -1: r"$-\pi$"}.get(m, rf"${m}\pi$")
+        return {1: r"$\pi/2$", -1: r"$-\pi/2$"}.get(n, rf"${n}\pi/2$")
+
+    a = ax.xaxis if axis == "x" else ax.yaxis
+    a.set_major_locator(MultipleLocator(step))
+    a.set_major_formatter(FuncFormatter(fmt))
+    if step >= math.pi:
+        a.set_minor_locator(MultipleLocator(math.pi / 2))
+
+
+def _segments(x, y, index, period):
+    """Runs of equal index (joined at the change); with a period, x is folded into
+    [0, period) and runs break where it wraps."""
+    if period:
+        x = np.mod(x, period)
+        wrap = np.abs(np.diff(x)) > period / 2
+    else:
+        wrap = np.zeros(len(x) - 1, bool)
+    change = np.diff(index) != 0
+    start = 0
+    for i in range(len(x) - 1):
+        if wrap[i] or change[i]:
+            stop = i + 1 if wrap[i] else i + 2
+            yield x[start:stop], y[start:stop], int(index[start])
+            start = i + 1
+    yield x[start:], y[start:], int(index[start])
+
+
+def _distance_to_segments(P, A, B, chunk=256):
+    """Distance of each point of P (n, 2) to the nearest of the segments A[j]-B[j]."""
+    if len(A) == 0:
+        return np.full(len(P), np.inf)
+    AB = B - A
+    L2 = np.einsum("ij,ij->i", AB, AB) + 1e-300
+    out = np.empty(len(P))
+    for k in range(0, len(P), chunk):
+        Q = P[k:k + chunk, None, :] - A[None]
+        t = np.clip(np.einsum("nmj,mj->nm", Q, AB) / L2, 0.0, 1.0)
+        D = Q - t[..., None] * AB[None]
+        out[k:k + chunk] = np.sqrt(np.einsum("nmj,nmj->nm", D, D).min(axis=1))
+    return out
+
+
+def _fold(x, y, index, period):
+    """Fold x into [0, period]: a step across a multiple of the period is cut there, with
+    points inserted at both edges (so lines reach them); returns x, y, index and, per
+    segment, whether it is the jump from one edge to the other."""
+    k = np.floor(x / period)
+    xs, ys, ks, wraps = [x[0] - k[0] * period], [y[0]], [index[0]], []
+    for i in range(len(x) - 1):
+        if k[i + 1] != k[i] and abs(k[i + 1] - k[i]) == 1:
+            up = k[i + 1] > k[i]
+            edge = period * max(k[i], k[i + 1])
+            w = (edge - x[i]) / (x[i + 1] - x[i])
+            yb = y[i] + w * (y[i + 1] - y[i])
+            xs += [period if up else 0.0, 0.0 if up else period]
+            ys += [yb, yb]
+            ks += [index[i], index[i]]
+            wraps += [False, True]
+            wraps.append(False)
+        else:
+            wraps.append(bool(k[i + 1] != k[i]))
+        xs.append(x[i + 1] - k[i + 1] * period)
+        ys.append(y[i + 1])
+        ks.append(index[i + 1])
+    return np.array(xs), np.array(ys), np.array(ks), np.array(wraps, bool)
+
+
+def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
+                  zorder=2, xlim=None, dedupe=True, tol=5e-3) -> set:
+    """Every branch of ``items`` [(file, branch)], styled by index; returns the indices drawn.
+
+    With ``period``, x is folded into [0, period) and lines break where it wraps. With
+    ``dedupe``, a stretch of a branch that retraces one drawn before (the same equilibria
+    reached from another start, or a periodic copy in a folded diagram) is not drawn again:
+    two dashed copies out of phase would look like a solid line."""
+    data = []
+    for bf, br in items:
+        x = br.columns[xname].astype(float)
+        y = br.columns[yname].astype(float)
+        index = np.asarray(br.columns["index"])
+        if period:
+            x, y, index, wrap = _fold(x, y, index, period)
+        else:
+            wrap = np.zeros(max(len(x) - 1, 0), bool)
+        data.append((x, y, index, wrap))
+    if not data:
+        return set()
+    allx = np.concatenate([d[0] for d in data])
+    ally = np.concatenate([d[1] for d in data])
+    sx = (xlim[1] - xlim[0]) if xlim else (np.ptp(allx) or 1.0)
+    sy = np.ptp(ally) or 1.0
+    drawn_a, drawn_b = [np.zeros((0, 2))], [np.zeros((0, 2))]
+    seen = set()
+    for x, y, index, wrap in data:
+        n = len(x)
+        if n < 2:
+            continue
+        P = np.column_stack((x / sx, y / sy))
+        dup = np.zeros(n, bool)
+        if dedupe:
+            # against the branches drawn before, and against this branch's own earlier
+            # points (a branch can pass the same equilibria again, a period later)
+            others_a, others_b = np.vstack(drawn_a), np.vstack(drawn_b)
+            own_a, own_b = P[:-1][~wrap], P[1:][~wrap]
+            own_i = np.flatnonzero(~wrap)
+            for a in range(0, n, 32):
+                b = min(a + 32, n)
+                keep = own_i < a - 8
+                dup[a:b] = _distance_to_segments(
+                    P[a:b], np.vstack((others_a, own_a[keep])),
+                    np.vstack((others_b, own_b[keep]))) < tol
+        hidden = dup[:-1] & dup[1:]
+        if hidden.any():
+            # short visible pieces between hidden stretches are the same curve sampled at
+            # other points (chords bend away from it by more than tol): hide them too
+            edges = np.flatnonzero(np.diff(np.concatenate(([1], hidden.astype(int), [1]))))
+            for a, b in zip(edges[::2], edges[1::2]):      # visible runs [a, b)
+                if b - a <= 3 and (a == 0 or hidden[a - 1]) and (b == len(hidden)
+                                                                 or hidden[b]):
+                    hidden[a:b] = True
+        visible = ~hidden & ~wrap
+        i = 0
+        while i < n - 1:
+            if not visible[i]:
+                i += 1
+                continue
+            k = int(index[i])
+            j = i
+            while j < n - 1 and visible[j] and index[j] == k:
+                j += 1
+            color, dash, lw = index_style(k)
+            ax.plot(x[i:j + 1], y[i:j + 1], color=color, ls=dash, lw=lw * lw_scale,
+                    alpha=alpha, zorder=zorder + (1 if k == 0 else 0) - (1 if k < 0 else 0),
+                    solid_capstyle="round", dash_capstyle="butt")
+            seen.add(k if k >= 0 else -1)
+            i = j
+        drawn_a.append(P[:-1][~wrap])
+        drawn_b.append(P[1:][~wrap])
+    return seen
+
+
+def place_labels(ax, insets, step=13.0, min_gap=11.0):
+    """Shift the numbered markers' offsets (points) so that no two labels overlap."""
+    scale = 72.0 / ax.figure.dpi
+    placed = []
+    for ins in insets:
+        if ins.xy is None:
+            continue
+        base = ax.transData.transform(ins.xy) * scale
+        ox, oy = ins.offset
+        for k in (0, 1, 2, 3, -1, -2, 4, 5, 6):
+            pos = base + (ox + k * step * (1 if ox >= 0 else -1), oy)
+            if all(np.hypot(*(pos - q)) >= min_gap for q in placed):
+                break
+        placed.append(pos)
+        ins.offset = (float(pos[0] - base[0]), float(pos[1] - base[1]))
+
+
+def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fontsize=6.5,
+               types=("LP", "BP")):
+    """Mark folds (and branch points) with the index change, read in the direction of
+    increasing ordinate (below -> above; at a branch point, along the branch)."""
+    placed = []
+    for bf, br in items:
+        c = br.columns
+        x = c[xname].astype(float)
+        y = c[yname].astype(float)
+        for i in np.flatnonzero(np.isin(c["type"], types)):
+            xi = float(np.mod(x[i], period)) if period else float(x[i])
+            if xlim is not None and not xlim[0] - 1e-9 <= xi <= xlim[1] + 1e-9:
+                continue
+            t = c["type"][i]
+            tr = str(c["transition"][i]).replace(" ", "")
+            a, _, b = tr.partition("->")
+            if t == "LP":
+                ax.plot(xi, y[i], "o", ms=3.4, mfc="white", mec=FOLD_COLOR, mew=0.9,
+                        zorder=6)
+                i0, i1 = max(i - 1, 0), min(i + 1, len(x) - 1)
+                if y[i1] < y[i0]:
+                    a, b = b, a
+                right = x[i] >= max(x[i0], x[i1])
+            else:
+                ax.plot(xi, y[i], "s", ms=3.6, mfc="white", mec=BP_COLOR, mew=1.0, zorder=6)
+                right = True
+            if not text or not a or not b or a == b:
+                continue
+            key = ax.transData.transform((xi, float(y[i]))) * 72.0 / ax.figure.dpi
+            if any(np.hypot(*(key - q)) < 9.0 for q in placed):
+                continue  # a fold at (almost) the same place is labelled already
+            placed.append(key)
+            ax.annotate(f"{a}\u2192{b}", (xi, y[i]), xytext=(4 if right else -4, 0),
+                        textcoords="offset points", ha="left" if right else "right",
+                        va="center", fontsize=fontsize,
+                        color=FOLD_COLOR if t == "LP" else BP_COLOR, zorder=7,
+                        bbox=dict(boxstyle="round,pad=0.08", fc="white", ec="none",
+                                  alpha=0.75))
+
+
+def mark_number(ax, x, y, label, offset=(5, 6), fontsize=7.5):
+    ax.plot(x, y, "o", ms=3.2, color=LABEL_COLOR, zorder=8)
+    ax.annotate(str(label), (x, y), xytext=offset, textcoords="offset points",
+                fontsize=fontsize, color=LABEL_COLOR, weight="bold", ha="center", va="center",
+                zorder=9, bbox=dict(boxstyle="circle,pad=0.12", fc="white", ec=LABEL_COLOR,
+                                    lw=0.6, alpha=0.95))
+
+
+def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
+    ax.add_patch(FancyArrowPatch((x, y0), (x, y1), arrowstyle="-|>", mutation_scale=9,
+                                 color=SNAP_COLOR, lw=lw, zorder=7, shrinkA=1.5, shrinkB=1.0))
+    if tag:
+        ax.annotate(tag, (x, y0 + 0.5 * (y1 - y0)), fontsize=7, color=SNAP_COLOR,
+                    weight="bold", ha="center", va="center", zorder=9,
+                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=SNAP_COLOR, lw=0.7))
+
+
+def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False, unknown=False):
+    hs = []
+    for k in sorted(i for i in indices if i >= 0):
+        color, dash, lw = index_style(k)
+        hs.append(Line2D([], [], color=color, ls=dash, lw=lw, label=index_label(k)))
+    if unknown or -1 in indices:
+        color, dash, lw = index_style(-1)
+        hs.append(Line2D([], [], color=color, ls=dash, lw=lw,
+                         label="index undetermined\n(fold rule \u2260 direct count)"))
+    if folds:
+        hs.append(Line2D([], [], ls="none", marker="o", ms=3.6, mfc="white", mec=FOLD_COLOR,
+                         label="fold: index below\u2192above"))
+    if bps:
+        hs.append(Line2D([], [], ls="none", marker="s", ms=3.6, mfc="white", mec=BP_COLOR,
+                         label="branch point"))
+    if snaps:
+        hs.append(Line2D([], [], color=SNAP_COLOR, lw=1.3, marker=">", ms=4,
+                         label="snap-back"))
+    if labels:
+        hs.append(Line2D([], [], ls="none", marker="o", ms=3.4, color=LABEL_COLOR,
+                         label="configuration shown"))
+    return hs
+
+
+# ------------------------------------------------------------------------------------ panel
+@dataclass
+class Inset:
+    """A numbered configuration along the top; ``xy`` is its place in the diagram."""
+
+    label: str
+    geom: config.Geometry
+    xy: tuple[float, float] | None = None
+    offset: tuple[float, float] = (5, 6)
+
+
+@dataclass
+class Snap:
+    """A snap-back arrow at parameter ``x`` from ordinate ``y0`` (the fold) to ``y1``; with
+    ``before``/``after`` configurations it is also drawn at the side under ``tag``."""
+
+    x: float
+    y0: float
+    y1: float
+    tag: str | None = None
+    before: config.Geometry | None = None
+    after: config.Geometry | None = None
+
+
+@dataclass
+class Panel:
+    items: list                      # [(BranchFile, StoredBranch)]
+    xname: str
+    yname: str
+    xlabel: str
+    ylabel: str
+    title: str = ""
+    period: float | None = None      # fold x into [0, period)
+    xlim: tuple | None = None
+    ylim: tuple | None = None
+    xpi: bool = False                # ticks at multiples of pi
+    insets: list[Inset] = field(default_factory=list)
+    snaps: list[Snap] = field(default_factory=list)
+    legend_loc: str = "best"
+    fold_text: bool = True
+    extra: Callable | None = None    # extra(ax) draws more on the diagram
+    legend_cols: int = 1
+    zoom: dict | None = None         # {"xlim", "ylim", "bounds" (axes fraction), "text"}
+    inset_scale: tuple | None = None  # common (w, h) of the configuration insets
+
+
+def _inset_row(fig, spec, insets: list[Inset], size):
+    n = max(len(insets), 1)
+    gs = spec.subgridspec(1, n, wspace=0.03)
+    for j, ins in enumerate(insets):
+        ax = fig.add_subplot(gs[0, j])
+        config.draw(ax, ins.geom, lw=1.4)
+        config.frame(ax, ins.geom, size)
+        ax.set_title(ins.label, fontsize=8, color=LABEL_COLOR, weight="bold", pad=1.0)
+
+
+def _snap_column(fig, spec, snaps: list[Snap]):
+    """Before (top) and after (bottom) configurations of each tagged snap, side by side."""
+    shown = [s for s in snaps if s.before is not None]
+    gs = spec.subgridspec(2, len(shown), wspace=0.12, hspace=0.3)
+    for c, s in enumerate(shown):
+        size = config.extent([g for g in (s.before, s.after) if g is not None], margin=0.06)
+        a0 = fig.add_subplot(gs[0, c])
+        config.draw(a0, s.before, lw=1.3)
+        config.frame(a0, s.before, size)
+        a0.set_title(f"{s.tag}: before", fontsize=7.5, color=SNAP_COLOR, pad=1.0)
+        a1 = fig.add_subplot(gs[1, c])
+        if s.after is not None:
+            config.draw(a1, s.after, lw=1.3)
+            config.frame(a1, s.after, size)
+            a1.set_title(f"{s.tag}: after", fontsize=7.5, color=SNAP_COLOR, pad=1.0)
+        else:
+            a1.axis("off")
+            a1.text(0.5, 0.5, "target not on a\ncomputed branch", ha="center", va="center",
+                    fontsize=6.5, transform=a1.transAxes, color=SNAP_COLOR)
+        fig.add_artist(ConnectionPatch((0.5, -0.02), (0.5, 1.16), "axes fraction",
+                                       "axes fraction", axesA=a0, axesB=a1, arrowstyle="-|>",
+                                       color=SNAP_COLOR, lw=1.3, mutation_scale=10))
+
+
+def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
+               side_width=0.27):
+    """Lay ``panel`` out in ``fig`` (a Figure or SubFigure), or in ``spec`` of it: the
+    configuration insets along the top, the diagram below; with snap-backs, a column at the
+    right holding the legend and the before/after configurations."""
+    has_side = any(s.before is not None for s in panel.snaps)
+    rows = [inset_height, main_height] if panel.insets else [main_height]
+    kw = dict(width_ratios=[1 - side_width, side_width], wspace=0.04) if has_side else {}
+    outer = (spec.subgridspec if spec is not None else fig.add_gridspec)(
+        len(rows), 2 if has_side else 1, height_ratios=rows, hspace=0.06, **kw)
+    size = panel.inset_scale or config.extent([i.geom for i in panel.insets], trace=False)
+    if panel.insets:
+        _inset_row(fig, outer[0, 0], panel.insets, size)
+    ax = fig.add_subplot(outer[-1, 0])
+    xlim = panel.xlim or ((0, panel.period) if panel.period else None)
+    seen = draw_branches(ax, panel.items, panel.xname, panel.yname, panel.period, xlim=xlim)
+    if xlim:
+        ax.set_xlim(*xlim)
+    if panel.ylim:
+        ax.set_ylim(*panel.ylim)
+    ax.autoscale_view()
+    draw_folds(ax, panel.items, panel.xname, panel.yname, panel.period, xlim,
+               text=panel.fold_text)
+    for s in panel.snaps:
+        snap_arrow(ax, s.x, s.y0, s.y1, s.tag if s.before is not None else None)
+    place_labels(ax, panel.insets)
+    for ins in panel.insets:
+        if ins.xy is not None:
+            mark_number(ax, *ins.xy, ins.label, offset=ins.offset)
+    if panel.extra is not None:
+        panel.extra(ax)
+    if panel.xpi:
+        lo, hi = ax.get_xlim()
+        _pi_ticks(ax, "x", span=hi - lo)
+    ax.set_xlabel(panel.xlabel, labelpad=1)
+    ax.set_ylabel(panel.ylabel, labelpad=2)
+    has_bp = any(np.any(br.columns["type"] == "BP") for _, br in panel.items)
+    has_lp = any(np.any(br.columns["type"] == "LP") for _, br in panel.items)
+    handles = legend_handles(seen, folds=has_lp, bps=has_bp, snaps=bool(panel.snaps),
+                             labels=bool(panel.insets))
+    if has_side:
+        lax = fig.add_subplot(outer[0, 1]) if panel.insets else ax.inset_axes((1.02, 0, .3, 1))
+        lax.axis("off")
+        lax.legend(handles=handles, loc="center", handlelength=2.6, borderaxespad=0.2)
+        _snap_column(fig, outer[-1, 1], panel.snaps)
+    else:
+        ax.legend(handles=handles, loc=panel.legend_loc, handlelength=2.6, borderaxespad=0.4,
+                  ncol=panel.legend_cols, columnspacing=1.0)
+    if panel.zoom:
+        _zoom(ax, panel)
+    if panel.title:
+        ax.set_title(panel.title, loc="left", fontsize=9.5, pad=3)
+    return ax
+
+
+def _zoom(ax, panel: Panel):
+    z = panel.zoom
+    sub = ax.inset_axes(z["bounds"])
+    draw_branches(sub, panel.items, panel.xname, panel.yname, panel.period, xlim=z["xlim"])
+    draw_folds(sub, panel.items, panel.xname, panel.yname, panel.period, z["xlim"],
+               text=z.get("text", True), fontsize=6)
+    for s in panel.snaps:
+        snap_arrow(sub, s.x, s.y0, s.y1)
+    sub.set_xlim(*z["xlim"])
+    sub.set_ylim(*z["ylim"])
+    sub.tick_params(labelsize=6.5)
+    ax.indicate_inset_zoom(sub, edgecolor="0.4", lw=0.7)
+
+
+def save(fig, out_dir, name) -> list:
+    """Write ``name``.png and ``name``.pdf into ``out_dir``; return the paths."""
+    from pathlib import Path
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / f"{name}.png", out_dir / f"{name}.pdf"]
+    for p in paths:
+        fig.savefig(p, dpi=200 if p.suffix == ".png" else None)
+    plt.close(fig)
+    return paths

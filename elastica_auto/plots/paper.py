@@ -1,0 +1,548 @@
+"""The paper's figures 3-12 (and the stable family it leaves out), from the runs' branch files.
+
+Each figure is a function ``(data_dir, out_dir) -> [png, pdf]`` registered in :data:`FIGURES`
+under its make target name, with the branch files it reads. ``python -m elastica_auto.plots
+NAME --data out --out figures`` draws one; the Makefile has one target per figure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import matplotlib
+import matplotlib.patches
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..store import BranchFile  # noqa: E402
+from . import config  # noqa: E402
+from .layout import (Inset, Panel, Pt, Snap, branches_where, crossings,  # noqa: E402
+                     distinct_starts, draw_panel, find_equilibrium, interpolated, label_point,
+                     mark_number, same_value, save, tip_trace)
+from .style import RC  # noqa: E402
+
+PI = math.pi
+P1, P2 = PI ** 2 / 4, 9 * PI ** 2 / 4
+LOADS = ((P1, r"P=\pi^2/4"), (P2, r"P=9\pi^2/4"))
+TEX = {"psi": r"$\psi$", "eps": r"$\epsilon$", "alpha": r"$\alpha$", "P": r"$P$",
+       "theta0": r"$\theta_0$",
+       "m1": r"$\mathbf{m}(1)\cdot\mathbf{e}_z$", "beta": r"$\beta$",
+       "mA": r"$(\mathbf{m}(1)+\mathbf{r}(1)\times\mathbf{n}(1))\cdot\mathbf{e}_z$",
+       "gamma": r"$\gamma$", "m0": r"$\mathbf{m}(0)\cdot\mathbf{e}_z$"}
+
+
+@dataclass
+class Figure:
+    name: str                    # make target fig-<name>; files <name>.png/.pdf
+    paper: str                   # the paper figure it reproduces
+    shows: str                   # one line for docs/figures.md
+    runs: tuple[str, ...]        # branch files read (out/<run>.h5)
+    draw: Callable
+
+
+FIGURES: dict[str, Figure] = {}
+
+
+def figure(name, paper, shows, runs):
+    def register(fn):
+        FIGURES[name] = Figure(name, paper, shows, tuple(runs), fn)
+        return fn
+    return register
+
+
+def _open(data_dir, run) -> BranchFile:
+    return BranchFile(Path(data_dir) / f"{run}.h5")
+
+
+# ------------------------------------------------------------------------ family diagrams
+def _in_window(x, window, period=None):
+    if period:
+        x = np.mod(x, period)
+    return (x >= window[0] - 1e-9) & (x <= window[1] + 1e-9)
+
+
+def main_branch(bf, branches, xname, window):
+    """The branch with the most points inside ``window``."""
+    return max(branches, key=lambda b: int(np.sum(_in_window(b.columns[xname], window))))
+
+
+def family_insets(bf, br, xname, yname, window, n, index=0, numbering=1):
+    """``n`` configurations spread along the index-``index`` points of ``br`` inside
+    ``window``, evenly in the diagram's (scaled) arclength, numbered in branch order."""
+    x = br.columns[xname].astype(float)
+    y = br.columns[yname].astype(float)
+    ok = _in_window(x, window) & (br.columns["index"] == index)
+    rows = np.flatnonzero(ok)
+    if len(rows) == 0:
+        return []
+    sx = (window[1] - window[0]) or 1.0
+    sy = (np.ptp(y[rows]) or 1.0)
+    d = np.zeros(len(rows))
+    for j in range(1, len(rows)):
+        a, b = rows[j - 1], rows[j]
+        d[j] = d[j - 1] + (math.hypot((x[b] - x[a]) / sx, (y[b] - y[a]) / sy)
+                           if b == a + 1 else 0.02)
+    picks = []
+    for t in np.linspace(0, d[-1], n):
+        j = rows[int(np.argmin(np.abs(d - t)))]
+        if j not in picks:
+            picks.append(j)
+    out = []
+    for k, j in enumerate(picks):
+        p = Pt(bf, br, j)
+        out.append(Inset(str(numbering + k), p.geometry(), (p[xname], p[yname])))
+    return out
+
+
+def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_arrows=None,
+                 trace_span=PI / 2, exclude=()):
+    """Snap-back arrows for the folds of ``br`` inside ``window`` that end a stable segment
+    (the file's /snaps table), one to every stable target. The first ``len(tags)`` distinct
+    folds (``exclude``: fold keys tagged elsewhere) also get before/after configurations: the
+    configuration at the fold with the tip trace along the stable segment leading to it
+    (the last ``trace_span`` of the parameter), and the nearest target (in the ordinate) that
+    lies on a computed branch."""
+    period = bf.periods.get(xname)
+    by_lp: dict[str, list] = {}
+    for r in sorted(bf.snaps, key=lambda r: r["value"]):
+        if int(r["branch"]) == br.number and _in_window(np.array([r["value"]]), window)[0]:
+            by_lp.setdefault(r["lp"], []).append(r)
+    snaps, shown = [], list(exclude)
+    for name, rows in by_lp.items():
+        lp = label_point(bf, name)
+        y0 = lp[yname]
+        x = float(rows[0]["value"])
+        rows.sort(key=lambda r: abs(float(r[f"target_{yname}"]) - y0))
+        key = (round(math.remainder(x, period) if period else x, 4), round(y0, 4))
+        tagged = False
+        for r in rows:
+            s = Snap(x, y0, float(r[f"target_{yname}"]))
+            if not tagged and len(shown) - len(exclude) < len(tags) and key not in shown:
+                hit = find_equilibrium(sources, xname, x, "m0", float(r["k"]), fixed)
+                if hit is not None:
+                    tagged = True
+                    shown.append(key)
+                    s.tag = tags[len(shown) - len(exclude) - 1]
+                    trace = tip_trace(bf, br, lp.i, r["stable_side"], trace_span)
+                    s.before = lp.geometry(trace)
+                    s.after = config.geometry(hit[1], hit[0])
+            snaps.append(s)
+        if max_arrows and len(snaps) >= max_arrows:
+            break
+    return snaps
+
+
+def _fixed(**kw):
+    return kw
+
+
+# ------------------------------------------------------------------ figures 4, 5, 8 and 11
+def _family_figure(out_dir, name, bf, xname, yname, window, fixed_by_load, title_by_load,
+                   extra_bf=None, n_insets=7):
+    """Two stacked diagrams (the two loads) of ``yname`` against ``xname`` over ``window``,
+    with configurations along the stable family, snap-backs and before/after configurations.
+    ``extra_bf``: a file with a further (stable) family for the higher load."""
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(10.0, 8.6), layout="constrained")
+        subs = fig.subfigures(2, 1, hspace=0.02)
+        for sub, (P, ptex), tag in zip(subs, LOADS, "ab"):
+            fixed = dict(fixed_by_load, P=P)
+            items = [(bf, b) for b in branches_where(bf, **fixed)]
+            fam_bf, fam = bf, [b for _, b in items]
+            sources = [bf]
+            title = rf"({tag}) {title_by_load}, ${ptex}$"
+            if extra_bf is not None and P == P2:
+                more = branches_where(extra_bf, **fixed)
+                items += [(extra_bf, b) for b in more]
+                fam_bf, fam = extra_bf, more
+                sources.append(extra_bf)
+                title += "; with the stable family from the buckled rod (beyond the paper)"
+            br = main_branch(fam_bf, fam, xname, window)
+            insets = family_insets(fam_bf, br, xname, yname, window, n_insets)
+            if not insets:  # no stable family: configurations along the branch
+                insets = family_insets(fam_bf, br, xname, yname, window, n_insets, index=1)
+            snaps = family_snaps(fam_bf, br, xname, yname, window, sources, fixed)
+            panel = Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=window,
+                          xpi=True, insets=insets, snaps=snaps, legend_loc="lower right")
+            draw_panel(sub, panel)
+        return save(fig, out_dir, name)
+
+
+@figure("rotating-arm-short", "4",
+        "rotating arm, eps = 0.25: m(1).e_z against psi for P = pi^2/4 (a) and 9 pi^2/4 (b), "
+        "with the stable family of (b) that the straight rod's branch does not reach",
+        ["rotating_arm", "rotating_arm_stable"])
+def fig_rotating_arm_short(data_dir, out_dir):
+    return _family_figure(out_dir, "rotating_arm_short", _open(data_dir, "rotating_arm"), "psi",
+                          "m1", (0.0, 6 * PI), dict(eps=0.25), r"$\epsilon=0.25$",
+                          extra_bf=_open(data_dir, "rotating_arm_stable"))
+
+
+@figure("rotating-arm-long", "5",
+        "rotating arm, eps = 0.5: m(1).e_z against psi for P = pi^2/4 (a) and 9 pi^2/4 (b)",
+        ["rotating_arm"])
+def fig_rotating_arm_long(data_dir, out_dir):
+    return _family_figure(out_dir, "rotating_arm_long", _open(data_dir, "rotating_arm"), "psi",
+                          "m1", (0.0, 6 * PI), dict(eps=0.5), r"$\epsilon=0.5$")
+
+
+@figure("rotating-load", "8",
+        "rotating load, eps = 0.5, psi = pi/2: (m(1) + r(1) x n(1)).e_z against alpha for "
+        "P = pi^2/4 (a) and 9 pi^2/4 (b)",
+        ["rotating_load"])
+def fig_rotating_load(data_dir, out_dir):
+    return _family_figure(out_dir, "rotating_load", _open(data_dir, "rotating_load"), "alpha",
+                          "mA", (0.0, 6 * PI), dict(eps=0.5, psi=PI / 2),
+                          r"$\epsilon=0.5$, $\psi=\pi/2$")
+
+
+@figure("rotating-base", "11",
+        "rotating base, eps = 0.5, psi = pi/2: m(0).e_z against theta0 for P = pi^2/4 (a) and "
+        "9 pi^2/4 (b); the mirror image of the rotating load (alpha -> -theta0)",
+        ["rotating_base"])
+def fig_rotating_base(data_dir, out_dir):
+    return _family_figure(out_dir, "rotating_base", _open(data_dir, "rotating_base"), "theta0",
+                          "m0", (-6 * PI, 0.0), dict(eps=0.5, psi=PI / 2),
+                          r"$\epsilon=0.5$, $\psi=\pi/2$")
+
+
+# --------------------------------------------------------------------------------- figure 3
+def _critical_curves(n_modes=4, eps_lim=1.0):
+    """The roots of cot(sqrt P) = eps sqrt P as curves (eps(q), P = q^2), q = sqrt P in
+    (n pi, (n + 1) pi): eps = cot(q) / q, explicit in q (DESIGN 3, paper section 3.2)."""
+    out = []
+    for n in range(n_modes):
+        q = np.linspace(n * PI + 1e-4, (n + 1) * PI - 1e-4, 4000)
+        eps = np.cos(q) / np.sin(q) / q
+        keep = np.abs(eps) <= eps_lim * 1.05
+        out.append((eps[keep], q[keep] ** 2))
+    return out
+
+
+def _pitchfork_panel(tb, eps, title):
+    items = [(tb, b) for b in branches_where(tb, eps=eps)]
+    insets = []
+    trivial = [b for _, b in items if np.all(b.columns["m0"] == 0)]
+    bps = [Pt(tb, b, i) for b in trivial for i in np.flatnonzero(b.columns["type"] == "BP")]
+    k = 1
+    for bp in sorted(bps, key=lambda p: p["P"]):
+        others = [b for _, b in items if b.columns["m0"].any()
+                  and same_value(float(b.columns["P"][0]), bp["P"])]
+        for b in sorted(others, key=lambda b: -float(b.columns["m0"][-1])):
+            P = b.columns["P"].astype(float)
+            target = bp["P"] + 0.45 * (P.max() - bp["P"])
+            i = int(np.argmin(np.abs(P - target)))
+            p = Pt(tb, b, i)
+            off = (8, 7) if p["m0"] > 0 else (8, -8)
+            insets.append(Inset(str(k), p.geometry(), (p["P"], p["m0"]), off))
+            k += 1
+    top = max(float(np.max(b.columns["m0"])) for _, b in items)
+    return Panel(items, "P", "m0", TEX["P"], r"$\mathbf{m}(0)\cdot\mathbf{e}_z=\theta'(0)$",
+                 title, insets=insets, legend_loc="upper left", ylim=(-1.1 * top, 2.1 * top),
+                 legend_cols=2)
+
+
+@figure("critical-loads", "3",
+        "critical loads of the straight rod, cot sqrt(P) = eps sqrt(P), against eps, with the "
+        "pitchforks at eps = 0.25 and -0.25 and the buckled configurations",
+        ["trivial_buckling"])
+def fig_critical_loads(data_dir, out_dir):
+    tb = _open(data_dir, "trivial_buckling")
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(10.0, 8.4), layout="constrained")
+        top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 0.95], hspace=0.03)
+        left, right = top.subfigures(1, 2, wspace=0.03)
+        for sub, eps, tag in ((left, 0.25, "a"), (right, -0.25, "b")):
+            panel = _pitchfork_panel(tb, eps, rf"({tag}) $\epsilon={eps:g}$, $\psi=\alpha=0$")
+            draw_panel(sub, panel, inset_height=1.0, main_height=2.2)
+        ax = bottom.subplots()
+        ax.set_yscale("function", functions=(lambda P: np.sqrt(np.maximum(P, 0)),
+                                             lambda q: q ** 2))
+        shade = ["#f7f7f7", "#e4e4e4", "#d0d0d0", "#bdbdbd"]
+        curves = _critical_curves()
+        eg = np.linspace(-1, 1, 801)
+        lo = np.zeros_like(eg)
+        for n, (e, P) in enumerate(curves):
+            ax.plot(e, P, color="black", lw=1.4, zorder=3)
+            # the straight rod's index is the number of critical loads below P
+            hi = np.interp(eg, e[::-1], P[::-1])
+            ax.fill_between(eg, lo, hi, color=shade[n], zorder=1, lw=0)
+            lo = hi
+        ax.fill_between(eg, lo, 100, color=shade[-1], zorder=1, lw=0)
+        for n, (x, y) in enumerate(((-0.78, 3.9), (-0.78, 17.0), (0.75, 28.0), (0.55, 49.3))):
+            ax.text(x, y, f"straight rod: index {n}", fontsize=8, ha="center", va="center",
+                    color="0.2", zorder=4, style="italic")
+        for P, s in ((P1, r"$P=\pi^2/4=P^o_{cr,1}$"), (P2, r"$P=9\pi^2/4=P^o_{cr,2}$")):
+            ax.axhline(P, color="0.35", lw=0.8, ls=(0, (2, 2)), zorder=2)
+            ax.text(-0.3, P * 1.02, s, fontsize=7.5, va="bottom", ha="right", color="0.25",
+                    zorder=4)
+        for e in (-0.25, 0.25):
+            ax.axvline(e, color="#2c6fbb", lw=0.8, ls=(0, (4, 2)), zorder=2)
+            ax.text(e, 51, f" (a)" if e > 0 else " (b)", color="#2c6fbb", fontsize=8,
+                    va="top", ha="left")
+        # the branch points the continuation found on the straight rod
+        bp_eps, bp_P = [], []
+        for b in tb.branches:
+            for i in np.flatnonzero(b.columns["type"] == "BP"):
+                bp_eps.append(float(b.columns["eps"][i]))
+                bp_P.append(float(b.columns["P"][i]))
+        ax.plot(bp_eps, bp_P, "s", ms=5, mfc="white", mec="#008837", mew=1.3, zorder=5,
+                label="branch points of the straight rod's\nP-branches (trivial_buckling run)")
+        ax.plot([], [], color="black", lw=1.4,
+                label=r"$\cot\sqrt{P}=\epsilon\sqrt{P}$, $\sqrt{P}\neq n\pi$")
+        for x, y, s in ((0.6, 1.5, r"$P^+_{cr,1}$"), (-0.6, 6.4, r"$P^-_{cr,1}$"),
+                        (0.6, 14.0, r"$P^+_{cr,2}$"), (-0.6, 36.0, r"$P^-_{cr,2}$"),
+                        (0.9, 40.6, r"$P^+_{cr,3}$")):
+            ax.text(x, y, s, fontsize=9, ha="center", va="bottom", zorder=6,
+                    bbox=dict(fc="white", ec="none", alpha=0.75, pad=0.6))
+        ax.set_xlim(-1, 1)
+        ax.set_ylim(0, 52)
+        ax.set_yticks([0, 1, 2.5, 5, 10, 20, 30, 40, 50])
+        ax.set_yticklabels(["0", "1", "2.5", "5", "10", "20", "30", "40", "50"])
+        ax.set_xlabel(r"$\epsilon$", labelpad=1)
+        ax.set_ylabel(r"$P$ (square-root scale)")
+        ax.set_title(r"(c) critical loads of the straight rod ($\psi=\alpha=\theta_0=0$)",
+                     loc="left", fontsize=9.5, pad=3)
+        ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7.5, ncol=2,
+                  borderaxespad=0.2)
+        return save(fig, out_dir, "critical_loads")
+
+
+# ------------------------------------------------------------- families from labelled starts
+def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc="best"):
+    """The branches of ``bf`` with the ``fixed`` parameter values, their distinct start
+    equilibria numbered in run order (the order the parent continuation crossed the
+    parameter value) and drawn along the top, and the snap-backs at their folds."""
+    brs = branches_where(bf, **fixed)
+    items = [(bf, b) for b in brs]
+    starts = distinct_starts(bf, brs)
+    insets, used = [], []
+    for k, p in enumerate(starts):
+        xy = (p[xname], p[yname])
+        n = sum(1 for q in used if abs(q[0] - xy[0]) < 1e-9 and abs(q[1] - xy[1]) <= 1e-6 * (
+            1 + abs(xy[1])))
+        used.append(xy)
+        insets.append(Inset(str(k + 1), p.geometry(), xy, (8 + 13 * n, 0)))
+    snaps, tagged = [], []
+    lo, hi = xlim if xlim else (-np.inf, np.inf)
+    for b in brs:
+        found = family_snaps(bf, b, xname, yname, (lo, hi), [bf], fixed,
+                             tags=tags[len(tagged):], trace_span=None,
+                             exclude=[(round(t.x, 4), round(t.y0, 4)) for t in tagged])
+        for s in found:
+            key = (round(s.x, 6), round(s.y0, 6), round(s.y1, 6))
+            if any((round(t.x, 6), round(t.y0, 6), round(t.y1, 6)) == key for t in snaps):
+                continue  # the same snap, from a branch computed twice
+            if s.tag:
+                tagged.append(s)
+            snaps.append(s)
+    return Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=xlim, insets=insets,
+                 snaps=snaps, legend_loc=legend_loc)
+
+
+def folded_panel(bf, fixed, xname, yname, marks, title):
+    """A periodic parameter's branches folded into [0, 2 pi), the crossings of the values in
+    ``marks`` {value: label text or None} marked (numbered in run order where labelled)."""
+    items = [(bf, b) for b in branches_where(bf, **fixed)]
+    period = bf.periods.get(xname, 2 * PI)
+
+    def extra(ax):
+        for v, numbered in marks.items():
+            ax.axvline(v, color="0.55", lw=0.6, ls=(0, (1, 2)), zorder=1)
+    return Panel(items, xname, yname, TEX[xname], TEX[yname], title, period=period,
+                 xpi=True, extra=extra, fold_text=False, legend_loc="lower right")
+
+
+def _numbered_crossings(src, starts_bf, fixed, xname, value):
+    """Insets marking the distinct start equilibria of ``starts_bf`` at ``xname`` = ``value``
+    in the folded diagram of ``src``: (x, ordinate of the folded diagram)."""
+    out = []
+    brs = branches_where(starts_bf, **{xname: value}, **fixed)
+    for k, p in enumerate(distinct_starts(starts_bf, brs)):
+        out.append((k + 1, p))
+    return out
+
+
+def _folded_with_starts(src, starts_bf, fixed, xname, yname, number_at, other_values, title):
+    """Panel: ``src``'s branches (``fixed``) folded into [0, 2 pi) in ``xname``; the distinct
+    start equilibria of ``starts_bf`` at ``xname`` = ``number_at`` numbered in run order (the
+    order the continuation crossed that value), the starts at ``other_values`` marked."""
+    panel = folded_panel(src, fixed, xname, yname, {}, title)
+    pick = {q: v for q, v in fixed.items() if q == "P"}
+    numbered = _numbered_crossings(src, starts_bf, pick, xname, number_at)
+    others = [p for v in other_values
+              for _, p in _numbered_crossings(src, starts_bf, pick, xname, v)]
+
+    def extra(ax):
+        for v in (number_at, *other_values):
+            ax.axvline(v, color="0.55", lw=0.6, ls=(0, (1, 2)), zorder=1)
+        for p in others:
+            ax.plot(np.mod(p[xname], 2 * PI), p[yname], "o", ms=2.6, color="0.45", zorder=7)
+        lo, hi = ax.get_ylim()
+        used = []
+        for k, p in numbered:
+            xy = (float(np.mod(p[xname], 2 * PI)), p[yname])
+            n = sum(1 for q in used if abs(q[1] - xy[1]) < 0.035 * (hi - lo))
+            used.append(xy)
+            mark_number(ax, *xy, k, offset=(-9 - 12 * n, 0))
+    panel.extra = extra
+    panel.xlim = (-0.1 * 2 * PI, 2 * PI)   # a margin left of 0 for the numbers
+    return panel
+
+
+@figure("arm-length-straight", "6",
+        "(a) the eps = 0.5 psi-branches folded into [0, 2 pi) with the equilibria at psi = 0 "
+        "numbered in the order the continuation crosses psi = 0; (b) beta against eps from "
+        "each of them (psi = 0), both loads",
+        ["rotating_arm", "arm_length"])
+def fig_arm_length_straight(data_dir, out_dir):
+    ra, al = _open(data_dir, "rotating_arm"), _open(data_dir, "arm_length")
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(13.0, 10.2), layout="constrained")
+        top, bottom = fig.subfigures(2, 1, height_ratios=[0.62, 1.0], hspace=0.03)
+        for sub, (P, ptex), tag in zip(top.subfigures(1, 2, wspace=0.03), LOADS, "ab"):
+            panel = _folded_with_starts(
+                ra, al, dict(eps=0.5, P=P), "psi", "m1", 0.0, (PI / 12, PI / 6, PI / 2),
+                rf"(a{'12'[tag == 'b']}) $\epsilon=0.5$, ${ptex}$: $\psi$ folded into "
+                r"$[0,2\pi)$; numbered: the starts at $\psi=0$")
+            draw_panel(sub, panel, main_height=2.6)
+        for sub, (P, ptex), tag in zip(bottom.subfigures(1, 2, wspace=0.03), LOADS, "12"):
+            panel = starts_panel(al, dict(P=P, psi=0.0), "eps", "beta",
+                                 rf"(b{tag}) $\psi=0$, ${ptex}$", xlim=(-0.55, 0.62))
+            draw_panel(sub, panel, side_width=0.3)
+        return save(fig, out_dir, "arm_length_straight")
+
+
+@figure("arm-length-tilted", "7",
+        "beta against eps from every eps = 0.5 equilibrium at psi = pi/12 (a), pi/6 (b) and "
+        "pi/2 (c), both loads",
+        ["arm_length"])
+def fig_arm_length_tilted(data_dir, out_dir):
+    al = _open(data_dir, "arm_length")
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(13.0, 14.5), layout="constrained")
+        rows = fig.subfigures(3, 1, hspace=0.03)
+        for row, (psi, stex), tag in zip(rows, ((PI / 12, r"\pi/12"), (PI / 6, r"\pi/6"),
+                                                (PI / 2, r"\pi/2")), "abc"):
+            for sub, (P, ptex), k in zip(row.subfigures(1, 2, wspace=0.03), LOADS, "12"):
+                panel = starts_panel(al, dict(P=P, psi=psi), "eps", "beta",
+                                     rf"({tag}{k}) $\psi={stex}$, ${ptex}$",
+                                     xlim=(-0.55, 0.62))
+                draw_panel(sub, panel, side_width=0.3)
+        return save(fig, out_dir, "arm_length_tilted")
+
+
+# ----------------------------------------------------------------------- figures 9 and 10
+@figure("load-magnitude-vertical", "9",
+        "(a) the P = 9 pi^2/4 alpha-branch folded into [0, 2 pi) with the equilibria at "
+        "alpha = 0 numbered in the order the continuation crosses alpha = 0; (b) gamma against "
+        "P from each of them (alpha = 0)",
+        ["rotating_load", "load_magnitude"])
+def fig_load_magnitude_vertical(data_dir, out_dir):
+    rl, lm = _open(data_dir, "rotating_load"), _open(data_dir, "load_magnitude")
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(10.0, 9.4), layout="constrained")
+        top, bottom = fig.subfigures(2, 1, height_ratios=[0.72, 1.0], hspace=0.03)
+        panel = _folded_with_starts(
+            rl, lm, dict(eps=0.5, psi=PI / 2, P=P2), "alpha", "mA", 0.0,
+            (PI / 2, PI, 3 * PI / 2),
+            r"(a) $\epsilon=0.5$, $\psi=\pi/2$, $P=9\pi^2/4$: $\alpha$ folded into "
+            r"$[0,2\pi)$; numbered: the starts at $\alpha=0$")
+        draw_panel(top, panel, main_height=2.6)
+        panel = starts_panel(lm, dict(alpha=0.0), "P", "gamma",
+                             r"(b) $\alpha=0$, $\epsilon=0.5$, $\psi=\pi/2$",
+                             xlim=(-P2 * 1.05, P2 * 1.16), tags="AB")
+        draw_panel(bottom, panel)
+        return save(fig, out_dir, "load_magnitude_vertical")
+
+
+@figure("load-magnitude-tilted", "10",
+        "gamma against P from every equilibrium of the P = 9 pi^2/4 alpha-branch at "
+        "alpha = pi/2 (a), pi (b) and 3 pi/2 (c)",
+        ["load_magnitude"])
+def fig_load_magnitude_tilted(data_dir, out_dir):
+    lm = _open(data_dir, "load_magnitude")
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(10.0, 13.0), layout="constrained")
+        for sub, (a, atex), tag in zip(fig.subfigures(3, 1, hspace=0.02),
+                                       ((PI / 2, r"\pi/2"), (PI, r"\pi"),
+                                        (3 * PI / 2, r"3\pi/2")), "abc"):
+            panel = starts_panel(lm, dict(alpha=a), "P", "gamma",
+                                 rf"({tag}) $\alpha={atex}$, $\epsilon=0.5$, $\psi=\pi/2$",
+                                 xlim=(-P2 * 1.05, P2 * 1.16), tags="AB")
+            draw_panel(sub, panel)
+        return save(fig, out_dir, "load_magnitude_tilted")
+
+
+# -------------------------------------------------------------------------------- figure 12
+@figure("rotating-base-snaps", "12",
+        "rotating base, P = 9 pi^2/4: every snap-back of one period, the configuration at the "
+        "fold with its tip trace (green) and every stable configuration it can snap to",
+        ["rotating_base"])
+def fig_rotating_base_snaps(data_dir, out_dir):
+    rb = _open(data_dir, "rotating_base")
+    fixed = dict(eps=0.5, psi=PI / 2, P=P2)
+    numbers = {b.number for b in branches_where(rb, **fixed)}
+    rows: dict = {}
+    for r in sorted(rb.snaps, key=lambda r: abs(r["value"] + PI)):  # nearest [-2 pi, 0] first
+        if int(r["branch"]) not in numbers:
+            continue
+        lp = label_point(rb, r["lp"])
+        key = (round(float(np.mod(r["value"], 2 * PI)), 3), round(lp["m0"], 3))
+        row = rows.setdefault(key, (lp, r["stable_side"], []))
+        if row[0].label == lp.label:   # periodic copies of a fold: the first one only
+            row[2].append(r)
+    snaps = []
+    for (lp, side, targets) in sorted(rows.values(), key=lambda t: -np.mod(t[0]["theta0"],
+                                                                          2 * PI)):
+        trace = tip_trace(rb, lp.br, lp.i, side, PI)
+        after = []
+        for r in sorted(targets, key=lambda r: abs(r["target_m0"] - lp["m0"])):
+            hit = find_equilibrium([rb], "theta0", float(r["value"]), "m0", float(r["k"]),
+                                   fixed)
+            after.append((r, None if hit is None else config.geometry(hit[1], hit[0])))
+        nb = lp.i - 1 if side == "before" else lp.i + 1
+        way = "increases" if lp.br.columns["theta0"][nb] < lp["theta0"] else "decreases"
+        snaps.append((lp, lp.geometry(trace), after, way))
+    ncol = 1 + max(len(a) for _, _, a, _ in snaps)
+    geoms = [g for _, b, a, _ in snaps for g in [b] + [x for _, x in a if x is not None]]
+    size = config.extent(geoms, margin=0.08)
+    with plt.rc_context(RC):
+        fig = plt.figure(figsize=(1.75 * ncol + 0.6, 1.95 * len(snaps) + 0.5),
+                         layout="constrained")
+        subs = np.atleast_1d(fig.subfigures(len(snaps), 1, hspace=0.0))
+        for k, (sub, (lp, before, after, way)) in enumerate(zip(subs, snaps)):
+            axs = sub.subplots(1, ncol, gridspec_kw=dict(wspace=0.05))
+            sub.suptitle(rf"S{k + 1}: fold at $\theta_0={lp['theta0']:.3f}$ "
+                         rf"($\equiv{np.mod(lp['theta0'], 2 * PI):.3f}$ mod $2\pi$), "
+                         rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={lp['m0']:.2f}$; as "
+                         rf"$\theta_0$ {way} past it, the rod snaps to one of "
+                         rf"{len(after)} stable configurations", fontsize=8.5, x=0.01,
+                         ha="left")
+            config.draw(axs[0], before, lw=1.4)
+            config.frame(axs[0], before, size)
+            axs[0].set_title("at the fold", fontsize=8, color="0.2", pad=1)
+            for j in range(1, ncol):
+                ax = axs[j]
+                if j - 1 >= len(after):
+                    ax.axis("off")
+                    continue
+                r, g = after[j - 1]
+                if g is None:
+                    ax.axis("off")
+                    ax.text(0.5, 0.5, "not on a\ncomputed branch", ha="center", va="center",
+                            transform=ax.transAxes, fontsize=7)
+                else:
+                    config.draw(ax, g, lw=1.4)
+                    config.frame(ax, g, size)
+                ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={r['target_m0']:.2f}$",
+                             fontsize=8, color="#d7191c", pad=1)
+            sub.add_artist(matplotlib.patches.ConnectionPatch(
+                (1.0, 0.5), (0.0, 0.5), "axes fraction", "axes fraction", axesA=axs[0],
+                axesB=axs[1], arrowstyle="-|>", color="#d7191c", lw=1.4, mutation_scale=11))
+        return save(fig, out_dir, "rotating_base_snaps")
