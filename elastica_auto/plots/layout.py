@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import ConnectionPatch, FancyArrowPatch  # noqa: E402
 from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: E402
+from scipy.interpolate import PchipInterpolator  # noqa: E402
 
 from ..store import BranchFile, StoredBranch  # noqa: E402
 from . import config  # noqa: E402
@@ -228,7 +229,7 @@ def _segments(x, y, index, period):
 
 
 def _distance_to_segments(P, A, B, chunk=256):
-    """Distance of each point of P (n, 2) to the nearest of the segments A[j]-B[j]."""
+    """Distance of each point of P (n, d) to the nearest of the segments A[j]-B[j]."""
     if len(A) == 0:
         return np.full(len(P), np.inf)
     AB = B - A
@@ -242,62 +243,86 @@ def _distance_to_segments(P, A, B, chunk=256):
     return out
 
 
-def _fold(x, y, index, period):
+def _fold(x, F, index, period):
     """Fold x into [0, period]: a step across a multiple of the period is cut there, with
-    points inserted at both edges (so lines reach them); returns x, y, index and, per
-    segment, whether it is the jump from one edge to the other."""
+    points inserted at both edges (so lines reach them; the rows of F, shape (k, n), are
+    interpolated there); returns x, F, index and, per segment, whether it is the jump from
+    one edge to the other."""
     k = np.floor(x / period)
-    xs, ys, ks, wraps = [x[0] - k[0] * period], [y[0]], [index[0]], []
+    xs, fs, ks, wraps = [x[0] - k[0] * period], [F[:, 0]], [index[0]], []
     for i in range(len(x) - 1):
         if k[i + 1] != k[i] and abs(k[i + 1] - k[i]) == 1:
             up = k[i + 1] > k[i]
             edge = period * max(k[i], k[i + 1])
             w = (edge - x[i]) / (x[i + 1] - x[i])
-            yb = y[i] + w * (y[i + 1] - y[i])
+            fb = F[:, i] + w * (F[:, i + 1] - F[:, i])
             xs += [period if up else 0.0, 0.0 if up else period]
-            ys += [yb, yb]
+            fs += [fb, fb]
             ks += [index[i], index[i]]
             wraps += [False, True]
             wraps.append(False)
         else:
             wraps.append(bool(k[i + 1] != k[i]))
         xs.append(x[i + 1] - k[i + 1] * period)
-        ys.append(y[i + 1])
+        fs.append(F[:, i + 1])
         ks.append(index[i + 1])
-    return np.array(xs), np.array(ys), np.array(ks), np.array(wraps, bool)
+    return np.array(xs), np.array(fs).T, np.array(ks), np.array(wraps, bool)
+
+
+def _smooth(x, y, sx, sy, per_segment=8):
+    """Points on the PCHIP curve through (x, y), parameterised by the scaled chord length."""
+    if len(x) < 3:
+        return x, y
+    t = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(x) / sx, np.diff(y) / sy))))
+    keep = np.concatenate(([True], np.diff(t) > 0))
+    t, x, y = t[keep], x[keep], y[keep]
+    if len(t) < 3:
+        return x, y
+    u = np.concatenate([np.linspace(t[k], t[k + 1], per_segment, endpoint=False)
+                        for k in range(len(t) - 1)] + [t[-1:]])
+    return PchipInterpolator(t, x)(u), PchipInterpolator(t, y)(u)
 
 
 def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
-                  zorder=2, xlim=None, dedupe=True, tol=5e-3) -> set:
+                  zorder=2, xlim=None, dedupe=True, tol=5e-3, smooth=True) -> set:
     """Every branch of ``items`` [(file, branch)], styled by index; returns the indices drawn.
 
     With ``period``, x is folded into [0, period) and lines break where it wraps. With
     ``dedupe``, a stretch of a branch that retraces one drawn before (the same equilibria
     reached from another start, or a periodic copy in a folded diagram) is not drawn again:
-    two dashed copies out of phase would look like a solid line."""
+    two dashed copies out of phase would look like a solid line. With ``smooth``, the line
+    through the points is a monotone (PCHIP) cubic in each coordinate against the chord length,
+    not a polygon: it passes through every point and adds no turning point between two."""
     data = []
     for bf, br in items:
         x = br.columns[xname].astype(float)
-        y = br.columns[yname].astype(float)
+        # the ordinate first, then every other ordinate: copies of the same equilibria
+        # coincide in all of them, distinct equilibria that look alike in one do not
+        names = [yname] + [o for o in bf.ordinates if o != yname]
+        F = np.array([br.columns[o].astype(float) for o in names])
         index = np.asarray(br.columns["index"])
         if period:
-            x, y, index, wrap = _fold(x, y, index, period)
+            x, F, index, wrap = _fold(x, F, index, period)
         else:
             wrap = np.zeros(max(len(x) - 1, 0), bool)
-        data.append((x, y, index, wrap))
+        data.append((x, F, index, wrap))
     if not data:
         return set()
     allx = np.concatenate([d[0] for d in data])
-    ally = np.concatenate([d[1] for d in data])
+    allF = np.hstack([d[1] for d in data])
     sx = (xlim[1] - xlim[0]) if xlim else (np.ptp(allx) or 1.0)
-    sy = np.ptp(ally) or 1.0
-    drawn_a, drawn_b = [np.zeros((0, 2))], [np.zeros((0, 2))]
+    sF = np.ptp(allF, axis=1)
+    sF[sF == 0] = 1.0
+    sy = sF[0]
+    dim = 1 + len(sF)
+    drawn_a, drawn_b = [np.zeros((0, dim))], [np.zeros((0, dim))]
     seen = set()
-    for x, y, index, wrap in data:
+    for x, F, index, wrap in data:
+        y = F[0]
         n = len(x)
         if n < 2:
             continue
-        P = np.column_stack((x / sx, y / sy))
+        P = np.column_stack((x / sx, (F / sF[:, None]).T))
         dup = np.zeros(n, bool)
         if dedupe:
             # against the branches drawn before, and against this branch's own earlier
@@ -331,7 +356,9 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
             while j < n - 1 and visible[j] and index[j] == k:
                 j += 1
             color, dash, lw = index_style(k)
-            ax.plot(x[i:j + 1], y[i:j + 1], color=color, ls=dash, lw=lw * lw_scale,
+            xs, ys = _smooth(x[i:j + 1], y[i:j + 1], sx, sy) if smooth else (x[i:j + 1],
+                                                                             y[i:j + 1])
+            ax.plot(xs, ys, color=color, ls=dash, lw=lw * lw_scale,
                     alpha=alpha, zorder=zorder + (1 if k == 0 else 0) - (1 if k < 0 else 0),
                     solid_capstyle="round", dash_capstyle="butt")
             seen.add(k if k >= 0 else -1)
@@ -341,10 +368,11 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
     return seen
 
 
-def place_labels(ax, insets, step=13.0, min_gap=11.0):
-    """Shift the numbered markers' offsets (points) so that no two labels overlap."""
+def place_labels(ax, insets, step=13.0, min_gap=11.0, taken=()):
+    """Shift the numbered markers' offsets (points) so that no two labels overlap, nor a
+    label and the data points ``taken`` (e.g. the snap tags)."""
     scale = 72.0 / ax.figure.dpi
-    placed = []
+    placed = [ax.transData.transform(xy) * scale for xy in taken]
     for ins in insets:
         if ins.xy is None:
             continue
@@ -374,6 +402,10 @@ def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fonts
             t = c["type"][i]
             tr = str(c["transition"][i]).replace(" ", "")
             a, _, b = tr.partition("->")
+            if t == "LP" and not np.isfinite(c["fold_residual"][i]):
+                # the engine saw the parameter turn but could not locate a fold here
+                ax.plot(xi, y[i], "x", ms=4, color="0.4", mew=1.0, zorder=6)
+                continue
             if t == "LP":
                 ax.plot(xi, y[i], "o", ms=3.4, mfc="white", mec=FOLD_COLOR, mew=0.9,
                         zorder=6)
@@ -394,8 +426,7 @@ def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fonts
                         textcoords="offset points", ha="left" if right else "right",
                         va="center", fontsize=fontsize,
                         color=FOLD_COLOR if t == "LP" else BP_COLOR, zorder=7,
-                        bbox=dict(boxstyle="round,pad=0.08", fc="white", ec="none",
-                                  alpha=0.75))
+                        bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none"))
 
 
 def mark_number(ax, x, y, label, offset=(5, 6), fontsize=7.5):
@@ -411,11 +442,12 @@ def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
                                  color=SNAP_COLOR, lw=lw, zorder=7, shrinkA=1.5, shrinkB=1.0))
     if tag:
         ax.annotate(tag, (x, y0 + 0.5 * (y1 - y0)), fontsize=7, color=SNAP_COLOR,
-                    weight="bold", ha="center", va="center", zorder=9,
+                    weight="bold", ha="center", va="center", zorder=10,
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=SNAP_COLOR, lw=0.7))
 
 
-def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False, unknown=False):
+def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False, unknown=False,
+                   unlocated=False):
     hs = []
     for k in sorted(i for i in indices if i >= 0):
         color, dash, lw = index_style(k)
@@ -427,6 +459,9 @@ def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False, un
     if folds:
         hs.append(Line2D([], [], ls="none", marker="o", ms=3.6, mfc="white", mec=FOLD_COLOR,
                          label="fold: index below\u2192above"))
+    if unlocated:
+        hs.append(Line2D([], [], ls="none", marker="x", ms=4, color="0.4",
+                         label="turning point not located\n(at a branch point)"))
     if bps:
         hs.append(Line2D([], [], ls="none", marker="s", ms=3.6, mfc="white", mec=BP_COLOR,
                          label="branch point"))
@@ -544,7 +579,8 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
                text=panel.fold_text)
     for s in panel.snaps:
         snap_arrow(ax, s.x, s.y0, s.y1, s.tag if s.before is not None else None)
-    place_labels(ax, panel.insets)
+    place_labels(ax, panel.insets, taken=[(t.x, t.y0 + 0.5 * (t.y1 - t.y0))
+                                          for t in panel.snaps if t.tag and t.before])
     for ins in panel.insets:
         if ins.xy is not None:
             mark_number(ax, *ins.xy, ins.label, offset=ins.offset)
@@ -556,9 +592,12 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
     ax.set_xlabel(panel.xlabel, labelpad=1)
     ax.set_ylabel(panel.ylabel, labelpad=2)
     has_bp = any(np.any(br.columns["type"] == "BP") for _, br in panel.items)
-    has_lp = any(np.any(br.columns["type"] == "LP") for _, br in panel.items)
+    lps = [np.isfinite(br.columns["fold_residual"][br.columns["type"] == "LP"])
+           for _, br in panel.items]
+    has_lp = any(np.any(f) for f in lps)
+    has_unlocated = any(np.any(~f) for f in lps)
     handles = legend_handles(seen, folds=has_lp, bps=has_bp, snaps=bool(panel.snaps),
-                             labels=bool(panel.insets))
+                             labels=bool(panel.insets), unlocated=has_unlocated)
     if has_side:
         lax = fig.add_subplot(outer[0, 1]) if panel.insets else ax.inset_axes((1.02, 0, .3, 1))
         lax.axis("off")

@@ -27,6 +27,7 @@ from .layout import (Inset, Panel, Pt, Snap, branches_where, crossings,  # noqa:
 from .style import RC  # noqa: E402
 
 PI = math.pi
+TWO_PI = 2 * PI
 P1, P2 = PI ** 2 / 4, 9 * PI ** 2 / 4
 LOADS = ((P1, r"P=\pi^2/4"), (P2, r"P=9\pi^2/4"))
 TEX = {"psi": r"$\psi$", "eps": r"$\epsilon$", "alpha": r"$\alpha$", "P": r"$P$",
@@ -166,7 +167,18 @@ def _family_figure(out_dir, name, bf, xname, yname, window, fixed_by_load, title
             insets = family_insets(fam_bf, br, xname, yname, window, n_insets)
             if not insets:  # no stable family: configurations along the branch
                 insets = family_insets(fam_bf, br, xname, yname, window, n_insets, index=1)
+            # snap-backs at the folds of every branch of the family, the main branch's first
             snaps = family_snaps(fam_bf, br, xname, yname, window, sources, fixed)
+            for other in fam:
+                if other is br:
+                    continue
+                tagged = [(round(math.remainder(t.x, TWO_PI), 4), round(t.y0, 4))
+                          for t in snaps if t.tag]
+                more = family_snaps(fam_bf, other, xname, yname, window, sources, fixed,
+                                    tags="AB"[len(tagged):], exclude=tagged)
+                snaps += [t for t in more if not any(
+                    abs(t.x - u.x) < 1e-6 and abs(t.y0 - u.y0) < 1e-6 and abs(t.y1 - u.y1)
+                    < 1e-6 for u in snaps)]
             panel = Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=window,
                           xpi=True, insets=insets, snaps=snaps, legend_loc="lower right")
             draw_panel(sub, panel)
@@ -314,7 +326,8 @@ def fig_critical_loads(data_dir, out_dir):
 
 
 # ------------------------------------------------------------- families from labelled starts
-def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc="best"):
+def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc="best",
+                 trace_span=None, zoom=None):
     """The branches of ``bf`` with the ``fixed`` parameter values, their distinct start
     equilibria numbered in run order (the order the parent continuation crossed the
     parameter value) and drawn along the top, and the snap-backs at their folds."""
@@ -332,7 +345,7 @@ def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc
     lo, hi = xlim if xlim else (-np.inf, np.inf)
     for b in brs:
         found = family_snaps(bf, b, xname, yname, (lo, hi), [bf], fixed,
-                             tags=tags[len(tagged):], trace_span=None,
+                             tags=tags[len(tagged):], trace_span=trace_span,
                              exclude=[(round(t.x, 4), round(t.y0, 4)) for t in tagged])
         for s in found:
             key = (round(s.x, 6), round(s.y0, 6), round(s.y1, 6))
@@ -342,7 +355,7 @@ def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc
                 tagged.append(s)
             snaps.append(s)
     return Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=xlim, insets=insets,
-                 snaps=snaps, legend_loc=legend_loc)
+                 snaps=snaps, legend_loc=legend_loc, zoom=zoom)
 
 
 def folded_panel(bf, fixed, xname, yname, marks, title):
@@ -430,9 +443,13 @@ def fig_arm_length_tilted(data_dir, out_dir):
         for row, (psi, stex), tag in zip(rows, ((PI / 12, r"\pi/12"), (PI / 6, r"\pi/6"),
                                                 (PI / 2, r"\pi/2")), "abc"):
             for sub, (P, ptex), k in zip(row.subfigures(1, 2, wspace=0.03), LOADS, "12"):
+                zoom = None
+                if psi == PI / 2 and P == P2:   # the paper enlarges the folds of (c)
+                    zoom = dict(xlim=(0.27, 0.52), ylim=(-22.5, 6.0),
+                                bounds=(0.13, 0.08, 0.36, 0.48), text=True)
                 panel = starts_panel(al, dict(P=P, psi=psi), "eps", "beta",
                                      rf"({tag}{k}) $\psi={stex}$, ${ptex}$",
-                                     xlim=(-0.55, 0.62))
+                                     xlim=(-0.55, 0.62), zoom=zoom)
                 draw_panel(sub, panel, side_width=0.3)
         return save(fig, out_dir, "arm_length_tilted")
 
@@ -456,7 +473,7 @@ def fig_load_magnitude_vertical(data_dir, out_dir):
         draw_panel(top, panel, main_height=2.6)
         panel = starts_panel(lm, dict(alpha=0.0), "P", "gamma",
                              r"(b) $\alpha=0$, $\epsilon=0.5$, $\psi=\pi/2$",
-                             xlim=(-P2 * 1.05, P2 * 1.16), tags="AB")
+                             xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 3)
         draw_panel(bottom, panel)
         return save(fig, out_dir, "load_magnitude_vertical")
 
@@ -474,7 +491,7 @@ def fig_load_magnitude_tilted(data_dir, out_dir):
                                         (3 * PI / 2, r"3\pi/2")), "abc"):
             panel = starts_panel(lm, dict(alpha=a), "P", "gamma",
                                  rf"({tag}) $\alpha={atex}$, $\epsilon=0.5$, $\psi=\pi/2$",
-                                 xlim=(-P2 * 1.05, P2 * 1.16), tags="AB")
+                                 xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 3)
             draw_panel(sub, panel)
         return save(fig, out_dir, "load_magnitude_tilted")
 
