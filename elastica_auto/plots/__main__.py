@@ -59,7 +59,7 @@ def gallery(fig_dir, dest, width=1500) -> int:
             if im.width > width:
                 im = im.resize((width, round(im.height * width / im.width)), Image.LANCZOS)
             # a 256-colour palette keeps the line art and text crisp at a third of the size
-            im.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(dest / src.name,
+            im.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(dest / src.name,
                                                                            optimize=True)
         print(f"{src} -> {dest / src.name}")
     if missing:

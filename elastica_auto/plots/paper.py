@@ -21,9 +21,9 @@ import numpy as np  # noqa: E402
 
 from ..store import BranchFile  # noqa: E402
 from . import config  # noqa: E402
-from .layout import (Inset, Panel, Pt, Snap, branches_where, crossings,  # noqa: E402
-                     distinct_starts, draw_panel, find_equilibrium, interpolated, label_point,
-                     mark_number, same_value, save, tip_trace)
+from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,  # noqa: E402
+                     draw_panel, find_equilibrium, label_point, mark_number, same_value, save,
+                     tip_trace)
 from .style import RC  # noqa: E402
 
 PI = math.pi
@@ -136,10 +136,6 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
         if max_arrows and len(snaps) >= max_arrows:
             break
     return snaps
-
-
-def _fixed(**kw):
-    return kw
 
 
 # ------------------------------------------------------------------ figures 4, 5, 8 and 11
@@ -473,7 +469,7 @@ def fig_load_magnitude_vertical(data_dir, out_dir):
         draw_panel(top, panel, main_height=2.6)
         panel = starts_panel(lm, dict(alpha=0.0), "P", "gamma",
                              r"(b) $\alpha=0$, $\epsilon=0.5$, $\psi=\pi/2$",
-                             xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 3)
+                             xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 10)
         draw_panel(bottom, panel)
         return save(fig, out_dir, "load_magnitude_vertical")
 
@@ -491,7 +487,7 @@ def fig_load_magnitude_tilted(data_dir, out_dir):
                                         (3 * PI / 2, r"3\pi/2")), "abc"):
             panel = starts_panel(lm, dict(alpha=a), "P", "gamma",
                                  rf"({tag}) $\alpha={atex}$, $\epsilon=0.5$, $\psi=\pi/2$",
-                                 xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 3)
+                                 xlim=(-P2 * 1.05, P2 * 1.16), tags="AB", trace_span=P2 / 10)
             draw_panel(sub, panel)
         return save(fig, out_dir, "load_magnitude_tilted")
 
