@@ -76,3 +76,29 @@ def test_changed_plotting_code_redraws_every_figure_and_recomputes_nothing(drawn
     out = _commands(drawn, "figures", "-W", "elastica_auto/plots/layout.py")
     assert "elastica-auto run" not in out
     assert sorted(re.findall(r"elastica_auto\.plots ([a-z0-9-]+)", out)) == sorted(FIGURES)
+
+
+@pytest.mark.parametrize("run", ["rotating_arm", "arm_length", "rotating_load",
+                                 "load_magnitude", "rotating_base"])
+def test_drawn_lever_arm_and_load_balance_the_tip_moment(drawn, run):
+    """The configurations are drawn the right way round: the lever arm and the load arrow as
+    drawn (elastica_auto.plots.config) satisfy the free-end moment balance of the paper,
+    m(1).e_z = (Psi x F).e_z, on every stored point; an arm drawn at theta(1) + psi, or a
+    reversed load, would not."""
+    from elastica_auto.plots.config import geometry
+    from elastica_auto.store import BranchFile
+    import numpy as np
+
+    bf = BranchFile(drawn / "out" / f"{run}.h5")
+    n = 0
+    for b in bf.branches:
+        for i in range(0, len(b), 7):
+            p = {q: float(b.columns[q][i]) for q in bf.parameters}
+            g = geometry(b.profiles[i], p)
+            arm = g.arm_end - g.tip
+            F = abs(p["P"]) * g.load
+            moment = arm[0] * F[1] - arm[1] * F[0]
+            assert abs(np.hypot(*arm) - abs(p["eps"])) < 1e-12
+            assert moment == pytest.approx(b.profiles[i][1, -1], abs=1e-5 * (1 + abs(p["P"])))
+            n += 1
+    assert n > 20
