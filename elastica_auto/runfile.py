@@ -8,7 +8,7 @@ A run file (``runs/<name>.toml``)::
     # start = { file = "rotating_arm.h5", type = "UZ", where = { eps = 0.5, psi = "pi/2" } }
     #   every UZ label of the file at those parameter values (angles modulo their period), in
     #   label order, one per distinct equilibrium (distinct = false keeps periodic copies);
-    #   index = 0 keeps only stable ones
+    #   index = 0 keeps only stable ones; limit = 1 takes the first
     switch = 2                          # optional: also follow the other branch, both ways,
                                         # at the first 2 BPs of each branch (AUTO's ISW=-1);
                                         # or a list of "FILE.h5:BPn" labels to switch at
@@ -138,7 +138,7 @@ class Plan:
 
 
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
-_SELECT = {"file", "type", "where", "index", "distinct"}
+_SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
 _DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
 
@@ -294,10 +294,26 @@ def load(path, out_dir: Path | None = None) -> Plan:
             fail(key, str(exc))
         return file, label
 
+    seen = []  # (parameters, ordinates) of the equilibria selected so far, by any selector
+
+    def same_equilibrium(params, ords, other):
+        """Equal parameters (angles modulo their period) and equal ordinates: the ordinates
+        are physical, so periodic copies of one equilibrium have the same ones."""
+        p2, o2 = other
+        for q, v in params.items():
+            d = v - p2[q]
+            T = problem.parameters[q].period
+            if T:
+                d = math.remainder(d, T)
+            if abs(d) > 1e-7 * (1 + abs(v)):
+                return False
+        return all(abs(a - b) <= 1e-5 * (1 + abs(a)) for a, b in zip(ords, o2))
+
     def selected(key, sel):
         """Labels of one type in a file whose parameters match ``where`` (periodic parameters
         modulo their period) and, if given, whose stability index is ``index``, in label
-        order; with ``distinct``, one per equilibrium."""
+        order; with ``distinct``, one per equilibrium (also across selectors: periodic copies
+        and the same equilibrium reached by two selectors count once); at most ``limit``."""
         for k in sel:
             if k not in _SELECT:
                 fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
@@ -320,8 +336,12 @@ def load(path, out_dir: Path | None = None) -> Plan:
         distinct = sel.get("distinct", True)
         if not isinstance(distinct, bool):
             fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
+        limit = sel.get("limit")
+        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int)
+                                  or limit < 1):
+            fail(f"{key}.limit", f"expected a positive integer, got {limit!r}")
         names = sorted((n for n in bf.labels if n[:2] == kind), key=lambda n: int(n[2:]))
-        out, seen = [], []
+        out = []
         for n in names:
             br, pt = bf.labels[n]
             cols = bf.branches[br - 1].columns
@@ -335,17 +355,14 @@ def load(path, out_dir: Path | None = None) -> Plan:
             if not ok or (index is not None and cols["index"][pt - 1] != index):
                 continue
             if distinct:
-                st = bf.label(n).state
-                y0 = st.y[:, 0]
-                key_params = {q: (math.remainder(v, problem.parameters[q].period)
-                                  if problem.parameters[q].period else v)
-                              for q, v in st.params.items()}
-                if any(max(abs(y0 - y)) < 1e-7 and all(abs(key_params[q] - kp[q]) < 1e-9
-                                                        for q in kp)
-                       for y, kp in seen):
+                params = {q: cols[q][pt - 1] for q in problem.parameter_names}
+                ords = [cols[o][pt - 1] for o in problem.ordinate_names]
+                if any(same_equilibrium(params, ords, other) for other in seen):
                     continue
-                seen.append((y0, key_params))
+                seen.append((params, ords))
             out.append(Start("label", file, n))
+            if limit is not None and len(out) == limit:
+                break
         if not out:
             fail(key, f"no {kind} label of {file.name} matches {where}")
         return out

@@ -13,7 +13,8 @@ bounded shooting scan (DESIGN section 3), through the optional equation-module h
 
 The scan integrates all grid values of k at once, brackets every sign change, refines all
 brackets together (Illinois regula falsi), and computes each root's index by the direct
-count. Each target records whether a computed branch of the same file passes through it.
+count. Each target records whether a computed branch of the same file passes through it, and
+its profile on the branch files' fixed grid (for drawing the configuration after the snap).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .branch import PROFILE_GRID
 from .corrector import State
 from .stability import direct_index
 
@@ -109,12 +111,13 @@ def snap_lps(branch):
     return out
 
 
-def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.05):
+def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     """Number (1-based) of a branch with the target's fixed parameters that passes through the
-    target (its y(0) within ``tol`` of the branch interpolated at the target's parameter
-    value, modulo the period), or 0."""
+    target, or 0: the branch, interpolated at the target's parameter value (modulo the
+    period), has the target's ordinates within ``tol`` (relative). Ordinates are physical, so
+    they match on every periodic copy of a solution, whose states may differ by 2 pi."""
     value = target.state.params[parameter]
-    y0 = target.state.y[:, 0]
+    want = np.array(list(target.ordinates.values()))
     for nb, br in enumerate(branches, start=1):
         p0 = br.points[0].params
         if br.parameter != parameter or any(
@@ -124,13 +127,13 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.05):
         lam = br.column(parameter)
         if period:
             lam = value + np.remainder(lam - value + period / 2, period) - period / 2
-        starts = np.array([p.profile[:, 0] for p in br.points])
+        ords = np.array([[p.ordinates[o] for o in target.ordinates] for p in br.points])
         for i in np.flatnonzero((lam[:-1] - value) * (lam[1:] - value) <= 0):
             if lam[i + 1] == lam[i] or abs(lam[i + 1] - lam[i]) > (period or np.inf) / 2:
                 continue
             w = (value - lam[i]) / (lam[i + 1] - lam[i])
-            y = (1 - w) * starts[i] + w * starts[i + 1]
-            if np.max(np.abs(y - y0)) < tol * (1 + np.max(np.abs(y0))):
+            got = (1 - w) * ords[i] + w * ords[i + 1]
+            if np.max(np.abs(got - want)) < tol * (1 + np.max(np.abs(want))):
                 return nb
     return 0
 
@@ -164,5 +167,6 @@ def snap_targets(problem, branches) -> list[dict]:
                              "value": params[name], "stable_side": side, "k": eq.k,
                              "index": eq.index, **{f"target_{o}": v
                                                    for o, v in eq.ordinates.items()},
-                             "on_branch": _on_branch(branches, name, period, target)})
+                             "on_branch": _on_branch(branches, name, period, target),
+                             "profile": eq.state(PROFILE_GRID)})
     return rows

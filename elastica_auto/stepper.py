@@ -147,7 +147,12 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
         direct_new = direct_index(problem, new)
         found = []
         if t_in.lam * sec.lam < 0:
-            found.append(_secant_fold(branch, step, t_in, dist_in, opt))
+            # A simple fold changes the index; a turn of the parameter without a change is the
+            # branch point of a pitchfork met along its bifurcating branch (or a degenerate fold)
+            simple = (direct_new[0] < 0 or base_point.index_direct < 0
+                      or direct_new[0] != base_point.index_direct
+                      or (singular_start and base is start))
+            found.append(_secant_fold(branch, step, t_in, dist_in, opt, simple))
         elif (direct_new[0] >= 0 and base_point.index_direct >= 0
               and direct_new[0] != base_point.index_direct
               and not (singular_start and base is start)):
@@ -214,16 +219,26 @@ class _Event:
 
 
 def _secant_fold(branch: Branch, step: _Step, t_in: Tangent, dist_in: float,
-                 opt: ContinuationOptions) -> _Event:
+                 opt: ContinuationOptions, simple: bool = True) -> _Event:
     """The fold near a, where the parameter components of the secants into and out of a
-    differ in sign; an extended solve that fails gives an LP marked as not located."""
+    differ in sign; an extended solve that fails gives an LP marked as not located.
+
+    With ``simple = False`` (the direct index is the same on both sides) the turning point is
+    labelled BP: where a pitchfork's bifurcating branch meets the branch it bifurcates from,
+    the parameter turns back without any change of stability, and the fold rule must not
+    apply. The extended system, singular there, is given a small mesh budget."""
     problem, name, a = branch.problem, branch.parameter, step.a
+    kind = "LP" if simple else "BP"
+    nodes = opt.max_nodes if simple else min(opt.max_nodes, 4 * len(a.s))
     res, offset = locate_fold(problem, a, t_in, step.secant, name, 2 * (dist_in + step.dist),
-                              opt.fold_tol, opt.max_nodes)
+                              opt.fold_tol, nodes)
     if res.success:
-        return _Event(offset, "LP", res.state, _null_tangent(res, step.secant), res.residual)
-    branch.warnings.append(f"fold near {name} = {a.params[name]:.6g} not located: {res.message}")
-    return _Event(0.0, "LP", a, t_in, note=f"fold not located: {res.message}")
+        return _Event(offset, kind, res.state, _null_tangent(res, step.secant), res.residual,
+                      note="" if simple else "turning point without index change")
+    what = "fold" if simple else "turning point without index change (branch point)"
+    branch.warnings.append(f"{what} near {name} = {a.params[name]:.6g} not located: "
+                           f"{res.message}")
+    return _Event(0.0, kind, a, t_in, note=f"{what} not located: {res.message}")
 
 
 def _null_tangent(res, direction: Tangent) -> Tangent:

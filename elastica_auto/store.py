@@ -19,7 +19,8 @@ Layout of ``out/<run>.h5``::
 
     /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
                             parameters): lp, branch, parameter, value, stable_side, k,
-                            index, target_<ordinate>..., on_branch (0: no computed branch)
+                            index, target_<ordinate>..., on_branch (0: no computed branch);
+                            profiles (targets, states, grid): each target on /profile_grid
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
 reader never sees a half-written file.
@@ -123,8 +124,10 @@ def _write_snaps(f, snaps: list[dict]):
     if "snaps" in f:
         del f["snaps"]
     g = f.create_group("snaps")
-    keys = list(snaps[0]) if snaps else []
+    keys = [k for k in snaps[0] if k != "profile"] if snaps else []
     g.attrs["columns"] = json.dumps(keys)
+    if snaps:
+        g["profiles"] = np.array([row["profile"] for row in snaps])
     for k in keys:
         values = [row[k] for row in snaps]
         if isinstance(values[0], str):
@@ -227,6 +230,9 @@ class BranchFile:
                     cols = {k: [x.decode() if isinstance(x, bytes) else x
                                 for x in f["snaps"][k][()]] for k in keys}
                     self.snaps = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
+                    if "profiles" in f["snaps"]:
+                        for row, prof in zip(self.snaps, f["snaps/profiles"][()]):
+                            row["profile"] = prof
                 self.branches = []
                 for key in sorted(f.get("branches", {})):
                     g = f["branches"][key]
