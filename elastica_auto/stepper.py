@@ -24,8 +24,6 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-import numpy as np
-
 from .branch import Branch
 from .corrector import (State, Tangent, coarsen, inner, secant, solve_arclength,
                         solve_tangent)
@@ -278,7 +276,7 @@ def _add_events(branch: Branch, step: _Step, found: list[_Event], opt: Continuat
     Folds inside the step split it: a value between the parameter at an end and at a fold is
     crossed on each side of the fold, and each crossing is solved from the two solutions that
     bracket it, so it cannot converge to the other side."""
-    problem, name = branch.problem, branch.parameter
+    name = branch.parameter
     inside = sorted((e for e in found if e.kind == "LP" and 0.0 < e.sigma < step.dist),
                     key=lambda e: e.sigma)
     knots = [(0.0, step.a)] + [(e.sigma, e.state) for e in inside] + [(step.dist, step.b)]

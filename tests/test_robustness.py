@@ -13,7 +13,6 @@ import signal
 import subprocess
 import textwrap
 import time
-from pathlib import Path
 
 import h5py
 import numpy as np

@@ -74,7 +74,7 @@ def test_every_equilibrium_solves_the_bvp_and_none_is_missed(elastica, P, eps, p
 
 def test_no_equilibrium_lies_outside_the_first_integral_bound(elastica):
     """Beyond |k| = sqrt((eps P)^2 + 4|P|) the residual cannot vanish: |kappa(1)| > |eps P|."""
-    P, eps, psi = 22.0, 0.5, 1.3
+    P, eps = 22.0, 0.5
     bound = math.sqrt((eps * P) ** 2 + 4 * abs(P))
     for k in np.linspace(bound * 1.0001, bound * 3, 40):
         for sign in (1, -1):

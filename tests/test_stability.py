@@ -546,7 +546,6 @@ def test_stored_and_exported_index_columns(trivial_buckling, cli_exe, tmp_path):
         c = b.columns
         if b.attrs["start"] != "trivial":
             continue
-        eps = float(c["eps"][0])
         k = 0
         for i in np.nonzero(c["type"] == "BP")[0]:
             assert c["transition"][i] == f"{k} -> {k + 1}"

@@ -24,7 +24,7 @@ MARKERS = {"LP": ("o", "tab:red"), "BP": ("s", "tab:purple"), "UZ": ("^", "tab:g
            "EP": ("D", "0.3"), "MX": ("X", "black")}
 
 
-def _segments(x, y, index, period):
+def index_runs(x, y, index, period):
     """Split a branch into runs of equal index (joined at the change) and, when x is folded
     into [0, period), break it where x wraps around."""
     if period is not None:
@@ -61,7 +61,7 @@ def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
     seen = set()
     for b in bf.branches:
         x, y, index = b.columns[xname], b.columns[yname], b.columns["index"]
-        for xs, ys, k in _segments(x, y, index, period):
+        for xs, ys, k in index_runs(x, y, index, period):
             color, ls = (INDEX_STYLE.get(k, (f"C{k % 10}", (0, (1, 1, 3, 1))))
                          if k >= 0 else UNKNOWN_STYLE)
             label = None

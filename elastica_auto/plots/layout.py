@@ -210,24 +210,6 @@ def _pi_ticks(ax, axis="x", step=None, span=None):
         a.set_minor_locator(MultipleLocator(math.pi / 2))
 
 
-def _segments(x, y, index, period):
-    """Runs of equal index (joined at the change); with a period, x is folded into
-    [0, period) and runs break where it wraps."""
-    if period:
-        x = np.mod(x, period)
-        wrap = np.abs(np.diff(x)) > period / 2
-    else:
-        wrap = np.zeros(len(x) - 1, bool)
-    change = np.diff(index) != 0
-    start = 0
-    for i in range(len(x) - 1):
-        if wrap[i] or change[i]:
-            stop = i + 1 if wrap[i] else i + 2
-            yield x[start:stop], y[start:stop], int(index[start])
-            start = i + 1
-    yield x[start:], y[start:], int(index[start])
-
-
 def _distance_to_segments(P, A, B, chunk=256):
     """Distance of each point of P (n, d) to the nearest of the segments A[j]-B[j]."""
     if len(A) == 0:

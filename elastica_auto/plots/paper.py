@@ -291,7 +291,7 @@ def fig_critical_loads(data_dir, out_dir):
                     zorder=4)
         for e in (-0.25, 0.25):
             ax.axvline(e, color="#2c6fbb", lw=0.8, ls=(0, (4, 2)), zorder=2)
-            ax.text(e, 51, f" (a)" if e > 0 else " (b)", color="#2c6fbb", fontsize=8,
+            ax.text(e, 51, " (a)" if e > 0 else " (b)", color="#2c6fbb", fontsize=8,
                     va="top", ha="left")
         # the branch points the continuation found on the straight rod
         bp_eps, bp_P = [], []
