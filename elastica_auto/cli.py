@@ -59,14 +59,21 @@ def main():
 
 @main.command("list")
 def list_runs():
-    """List the shipped run files."""
-    from .runfile import load
+    """List the shipped run files (and the branch files each restarts from)."""
+    import tomllib
     for name, path in sorted(shipped_runs().items()):
         try:
-            desc = load(path).description
-        except USER_ERRORS:
-            desc = "(needs the output of another run first)"
-        click.echo(f"{name:<20} {desc}")
+            doc = tomllib.loads(path.read_text())
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            click.echo(f"{name:<20} (unreadable: {exc})")
+            continue
+        needs = sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
+                        for key in ("start", "switch")
+                        for ref in (doc.get(key) if isinstance(doc.get(key), list)
+                                    else [doc.get(key)])
+                        if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
+        after = f" [restarts from {', '.join(needs)}]" if needs else ""
+        click.echo(f"{name:<20} {doc.get('description', '')}{after}")
 
 
 def _fmt_params(params: dict, names) -> str:
