@@ -18,7 +18,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .corrector import (Curve, SolveResult, State, Tangent, inner, solve_arclength, solve_fixed,
-                        solve_fold)
+                        solve_fold, solve_tangent)
 from .problem import Problem
 from .stability import singularity_test
 
@@ -158,3 +158,39 @@ def locate_value_on_step(problem: Problem, a: State, direction: Tangent, name: s
     if not res.success:
         return None, res.message
     return res, sigma
+
+
+def locate_turning_point(problem: Problem, a: State, direction: Tangent, name: str,
+                         s0: float, s1: float, tol: float, max_nodes: int):
+    """The point where the continued parameter turns back (its tangent component vanishes)
+    between the arclength hyperplanes ``<u - u_a, direction> = s0`` and ``s1``, by Brent's
+    method on that component of the true tangent (oriented along ``direction``).
+
+    For a turning point where the fold extended system is singular: the branch point of a
+    pitchfork met along its bifurcating branch. Returns ``(state, sigma, lamdot)`` or
+    ``(None, reason, nan)``."""
+    states = {}
+
+    def lamdot(sigma):
+        if sigma == 0.0:
+            st = a
+        else:
+            res = solve_arclength(problem, a, direction, name, sigma, tol, max_nodes)
+            if not res.success:
+                raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
+            st = res.state
+        t = solve_tangent(problem, st, name, direction, tol, max_nodes)
+        if t is None:
+            raise RuntimeError(f"no tangent at sigma = {sigma:.3g}")
+        states[sigma] = st
+        return t.lam
+
+    try:
+        f0, f1 = lamdot(s0), lamdot(s1)
+        if f0 * f1 > 0:
+            return None, "the parameter does not turn in this interval", float("nan")
+        sigma = brentq(lamdot, s0, s1, xtol=1e-12)
+        value = lamdot(sigma)
+    except RuntimeError as exc:
+        return None, str(exc), float("nan")
+    return states[sigma], sigma, value

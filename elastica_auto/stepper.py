@@ -27,8 +27,8 @@ from typing import Callable
 from .branch import Branch
 from .corrector import (State, Tangent, coarsen, inner, secant, solve_arclength,
                         solve_tangent)
-from .events import (UserValues, crossings, locate_branch_point, locate_fold, locate_value,
-                     locate_value_on_step)
+from .events import (UserValues, crossings, locate_branch_point, locate_fold,
+                     locate_turning_point, locate_value, locate_value_on_step)
 from .options import ContinuationOptions
 from .stability import direct_index
 
@@ -224,8 +224,20 @@ def _secant_fold(branch: Branch, step: _Step, t_in: Tangent, dist_in: float,
     With ``simple = False`` (the direct index is the same on both sides) the turning point is
     labelled BP: where a pitchfork's bifurcating branch meets the branch it bifurcates from,
     the parameter turns back without any change of stability, and the fold rule must not
-    apply. The extended system, singular there, is given a small mesh budget."""
+    apply. It is located where the parameter component of the true tangent vanishes; only if
+    that fails is the (there singular) extended system tried, with a small mesh budget."""
     problem, name, a = branch.problem, branch.parameter, step.a
+    if not simple:
+        # the extended system is singular at a pitchfork: find where the parameter turns,
+        # after a (along the step) or before it (back along the secant into a)
+        reasons = []
+        for direction, s0, s1 in ((step.secant, 0.0, step.dist), (t_in, -dist_in, 0.0)):
+            state, sigma, lamdot = locate_turning_point(problem, a, direction, name, s0, s1,
+                                                        opt.fold_tol, opt.max_nodes)
+            if state is not None:
+                return _Event(sigma, "BP", state, step.secant, abs(lamdot),
+                              note="turning point without index change")
+            reasons.append(sigma)
     kind = "LP" if simple else "BP"
     nodes = opt.max_nodes if simple else min(opt.max_nodes, 4 * len(a.s))
     res, offset = locate_fold(problem, a, t_in, step.secant, name, 2 * (dist_in + step.dist),
@@ -234,9 +246,9 @@ def _secant_fold(branch: Branch, step: _Step, t_in: Tangent, dist_in: float,
         return _Event(offset, kind, res.state, _null_tangent(res, step.secant), res.residual,
                       note="" if simple else "turning point without index change")
     what = "fold" if simple else "turning point without index change (branch point)"
-    branch.warnings.append(f"{what} near {name} = {a.params[name]:.6g} not located: "
-                           f"{res.message}")
-    return _Event(0.0, kind, a, t_in, note=f"{what} not located: {res.message}")
+    why = res.message if simple else "; ".join(reasons + [res.message])
+    branch.warnings.append(f"{what} near {name} = {a.params[name]:.6g} not located: {why}")
+    return _Event(0.0, kind, a, t_in, note=f"{what} not located: {why}")
 
 
 def _null_tangent(res, direction: Tangent) -> Tangent:
