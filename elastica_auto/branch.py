@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .corrector import State, Tangent
 from .problem import Problem
-from .stability import direct_index
+from .solution import State, Tangent
+from .stability import index
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)
@@ -69,26 +69,25 @@ class Branch:
 
     def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
             niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),
-            note: str = "", direct: tuple[int, int] | None = None) -> Point:
+            note: str = "", direct: int | None = None) -> Point:
         """Insert a point at its place in arclength order; labelled points keep their solution.
 
-        ``direct`` is the (Jacobi, finite-element) index if the caller has computed it."""
+        ``direct`` is the stability index by direct count if the caller has computed it."""
         if type and type not in LABEL_TYPES:
             raise ValueError(f"unknown label type {type!r}")
-        jacobi, fem = direct if direct is not None else direct_index(self.problem, state)
-        if jacobi != fem and type not in ("LP", "BP"):
-            note = "; ".join(filter(None, (note, f"direct counts differ: Jacobi field {jacobi}, "
-                                                 f"finite elements {fem}")))
         point = Point(params=dict(state.params),
                       ordinates=self.problem.ordinate_values(state.s, state.y, state.params),
                       arclength=float(arclength), ds=float(ds), niter=int(niter),
-                      nodes=len(state.s), type=type, profile=state(PROFILE_GRID).copy(),
+                      nodes=len(state.s), type=type, profile=state(PROFILE_GRID),
                       fold_residual=float(fold_residual), note=note,
                       state=state if type else None, tangent=tangent if type else None,
-                      index_direct=jacobi)
+                      index_direct=index(self.problem, state) if direct is None else direct)
         self.last = (state, tangent)
-        keys = [p.arclength for p in self.points]
-        self.points.insert(bisect.bisect_right(keys, point.arclength), point)
+        if not self.points or point.arclength >= self.points[-1].arclength:
+            self.points.append(point)
+        else:
+            keys = [p.arclength for p in self.points]
+            self.points.insert(bisect.bisect_right(keys, point.arclength), point)
         return point
 
     def relabel(self, point: Point, type: str, state: State, tangent: Tangent | None):

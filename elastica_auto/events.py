@@ -1,12 +1,21 @@
-"""Detection and exact location of special points between two continuation points.
+"""Special points inside one continuation step, and their exact location.
 
-* LP (fold): the parameter component of the secant changes sign. Located by the extended
-  system of :func:`elastica_auto.corrector.solve_fold`; its residual is stored and a failed
-  solve is reported as an unlocated LP, never as a located one.
-* BP (branch point): the direct stability index changes between two points with no fold near
-  them; located as the zero of the Jacobi-field test function along the arclength hyperplanes.
+A step goes from a to b, both solutions with their unit tangents ``t`` (oriented along the
+direction of travel) and the sign of the determinant of their bordered Jacobians, on one mesh.
+
+* LP (fold): the parameter component of the tangent changes sign between a and b. Located by
+  bordered Newton on the minimally augmented system (the corrector's ``fold``), started from
+  the solution on the step where that component, interpolated linearly, vanishes.
+* BP (branch point): the determinant changes sign (it does not at a fold: AUTO-07p's test for
+  boundary value problems). Located as the zero of the determinant, scaled by its value at a,
+  on the hyperplanes ``<x - a, secant> = sigma`` by the Illinois method.
+* A fold pair inside one step leaves both test functions unchanged; :func:`pair_suspected`
+  reads it off the cubic that interpolates the parameter along the step (values and slopes at
+  both ends): a slope that dips toward zero, or changes sign twice, inside the step.
 * UZ (user point) and EP at a parameter bound: the parameter crosses a given value (for
-  periodic values, any value + k * period). Located by solving the BVP at that value.
+  periodic values, any value + k * period), between two knots (a, the folds, b) where it is
+  monotone. Solved at that value from the knots' interpolation, checked to lie between them,
+  else by the Illinois method on the parameter along the hyperplanes.
 """
 
 from __future__ import annotations
@@ -15,12 +24,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
-from .corrector import (Curve, SolveResult, State, Tangent, inner, solve_arclength, solve_fixed,
-                        solve_fold, solve_tangent)
-from .problem import Problem
-from .stability import singularity_test
+from .correctors import CorrectorFailure, FoldPoint, Solution
+from .newton import Linearization, Row, kernel
+from .solution import State, Tangent, difference, inner
 
 
 @dataclass(frozen=True)
@@ -50,147 +57,196 @@ def crossings(a: float, b: float, spec: UserValues) -> list[float]:
     return sorted(set(found), reverse=bool(b < a))
 
 
-def locate_value(problem: Problem, a: State, b: State, name: str, value: float, tol: float,
-                 max_nodes: int) -> tuple[SolveResult, float]:
-    """Solve the BVP at ``p[name] = value`` between points a and b.
+@dataclass
+class Step:
+    """An accepted step from a to b: the unit secant, its length, the arclength at a, ds."""
 
-    The initial guess interpolates a and b linearly in the parameter; returns the solve and
-    that interpolation weight (0 at a, 1 at b) as the position estimate.
-    """
-    la, lb = a.params[name], b.params[name]
-    w = (value - la) / (lb - la)
-    s = b.s
-    guess = Curve(s, (1 - w) * a(s) + w * b.y, (1 - w) * a.derivative(s) + w * b.yp)
-    return solve_fixed(problem, guess, {**b.params, name: value}, tol, max_nodes), w
+    a: Solution
+    b: Solution
+    secant: Tangent
+    dist: float
+    arclength: float
+    ds: float
+    name: str
 
+    def sigma(self, state: State) -> float:
+        """Coordinate of a solution along the secant from a (0 at a, dist at b)."""
+        return inner(difference(state, self.a.state, self.name, state.s), self.secant, state.s)
 
-def locate_fold(problem: Problem, base: State, t_in: Tangent, t_out: Tangent, name: str,
-                max_dist: float, tol: float, max_nodes: int) -> tuple[SolveResult, float]:
-    """Locate the fold near ``base``, where the parameter component of the incoming secant
-    ``t_in`` and the outgoing ``t_out`` differ in sign.
-
-    The null-vector guess is the mean of the two secants' state components. Returns the solve
-    and the fold's signed distance from ``base`` along ``t_out`` (its arclength offset). A
-    converged solve that lands farther than ``max_dist`` (the bracket's length) from ``base``
-    found some other fold and is reported as a failure.
-    """
-    s = base.s
-    phi = Curve(s, t_in(s) + t_out(s), t_in.derivative(s) + t_out.derivative(s))
-    res = solve_fold(problem, base, phi, name, tol, max_nodes)
-    if not res.success:
-        return res, 0.0
-    st = res.state
-    d = Tangent(st.s, st.y - base(st.s), st.yp - base.derivative(st.s),
-                st.params[name] - base.params[name])
-    offset = inner(d, t_out)
-    dist = math.sqrt(max(inner(d, d), 0.0))
-    if not np.isfinite(dist) or dist > max_dist:
-        res.success = False
-        res.message = (f"extended system converged {dist:.3g} away from the bracketing point "
-                       "(another fold?)")
-    return res, offset
+    def position(self, sigma: float) -> float:
+        """Pseudo-arclength of the point at coordinate sigma (for ordering the points)."""
+        return self.arclength + self.ds * sigma / self.dist
 
 
-def locate_branch_point(problem: Problem, a: State, t_out: Tangent, name: str, dist: float,
-                        tol: float, max_nodes: int):
-    """Locate a branch point between ``a`` and the next point, at distance ``dist`` along the
-    unit secant ``t_out``, as the zero of the Jacobi-field test function
-    (:func:`elastica_auto.stability.singularity_test`) on the arclength hyperplanes
-    ``<u - u_a, t_out> = sigma``, by Brent's method in sigma.
-
-    Returns ``(solve, sigma, g)`` for the located point, or ``(None, reason, nan)`` if the test
-    function does not change sign or a corrector fails.
-    """
-    solves = {}
-
-    def g(sigma):
-        if sigma == 0.0:
-            return singularity_test(problem, a)
-        res = solve_arclength(problem, a, t_out, name, sigma, tol, max_nodes)
-        if not res.success:
-            raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
-        solves[sigma] = res
-        return singularity_test(problem, res.state)
-
-    try:
-        g0, g1 = g(0.0), g(dist)
-        if g0 == 0.0:
-            return None, "the step starts at a singular point", float("nan")
-        if g0 * g1 > 0:
-            return None, "the test function does not change sign", float("nan")
-        sigma = brentq(g, 0.0, dist, xtol=1e-13, rtol=4 * np.finfo(float).eps)
-        if sigma == 0.0:
-            return None, "the step starts at a singular point", float("nan")
-        value = g(sigma)
-    except RuntimeError as exc:
-        return None, str(exc), float("nan")
-    return solves[sigma], sigma, value
-
-
-def locate_value_on_step(problem: Problem, a: State, direction: Tangent, name: str,
-                         value: float, s0: float, s1: float, tol: float, max_nodes: int):
-    """The solution with ``p[name] = value`` on the arclength hyperplanes
-    ``<u - u_a, direction> = sigma``, sigma in [s0, s1], by Brent's method on the parameter's
-    value along them, then solved at exactly that value. The robust fallback of a plain solve
-    at fixed parameter, which may converge to a solution beyond a nearby fold.
-
-    Returns ``(solve, sigma)``, or ``(None, reason)``.
-    """
-    def lam(sigma):
-        if sigma == 0.0:
-            return a.params[name] - value
-        res = solve_arclength(problem, a, direction, name, sigma, tol, max_nodes)
-        if not res.success:
-            raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
-        solves[sigma] = res
-        return res.lam - value
-
-    solves = {}
-    try:
-        if lam(s0) * lam(s1) > 0:
-            return None, f"{name} does not cross {value:.6g} in this step"
-        sigma = brentq(lam, s0, s1, xtol=1e-12)
-        lam(sigma)
-    except RuntimeError as exc:
-        return None, str(exc)
-    near = solves[sigma].state
-    res = solve_fixed(problem, near, {**near.params, name: value}, tol, max_nodes)
-    if not res.success:
-        return None, res.message
-    return res, sigma
-
-
-def locate_turning_point(problem: Problem, a: State, direction: Tangent, name: str,
-                         s0: float, s1: float, tol: float, max_nodes: int):
-    """The point where the continued parameter turns back (its tangent component vanishes)
-    between the arclength hyperplanes ``<u - u_a, direction> = s0`` and ``s1``, by Brent's
-    method on that component of the true tangent (oriented along ``direction``).
-
-    For a turning point where the fold extended system is singular: the branch point of a
-    pitchfork met along its bifurcating branch. Returns ``(state, sigma, lamdot)`` or
-    ``(None, reason, nan)``."""
-    states = {}
-
-    def lamdot(sigma):
-        if sigma == 0.0:
-            st = a
+def _illinois(f, x0, x1, f0, f1, xtol, maxiter=60):
+    """A root of f in [x0, x1] with f0 f1 < 0 by the Illinois variant of regula falsi."""
+    for _ in range(maxiter):
+        x = x1 - f1 * (x1 - x0) / (f1 - f0)
+        fx = f(x)
+        if fx == 0.0 or abs(x1 - x0) < xtol:
+            return x
+        if fx * f1 < 0:
+            x0, f0 = x1, f1
         else:
-            res = solve_arclength(problem, a, direction, name, sigma, tol, max_nodes)
-            if not res.success:
-                raise RuntimeError(f"corrector failed at sigma = {sigma:.3g}: {res.message}")
-            st = res.state
-        t = solve_tangent(problem, st, name, direction, tol, max_nodes)
-        if t is None:
-            raise RuntimeError(f"no tangent at sigma = {sigma:.3g}")
-        states[sigma] = st
-        return t.lam
+            f0 /= 2
+        x1, f1 = x, fx
+        if abs(x1 - x0) < xtol:
+            return x1
+    return x1
 
+
+def locate_fold(corr, step: Step) -> FoldPoint:
+    """The fold between a and b, where the tangents' parameter components differ in sign.
+
+    Raises CorrectorFailure if it is not found, or is found outside the step (another fold)."""
+    la, lb = step.a.tangent.lam, step.b.tangent.lam
+    sigma = step.dist * la / (la - lb)
+    near = corr.on_plane(step.a, step.secant, sigma, step.b.mesh, regrid=False)
+    fold = corr.fold(near)
+    where = step.sigma(fold.state)
+    off = math.sqrt(max(inner(difference(fold.state, step.a.state, step.name, fold.state.s),
+                              difference(fold.state, step.a.state, step.name, fold.state.s),
+                              fold.state.s) - where * where, 0.0))
+    if not (-0.1 * step.dist <= where <= 1.1 * step.dist) or off > step.dist:
+        raise CorrectorFailure(f"the fold system converged off the step (at sigma = "
+                               f"{where:.3g} of {step.dist:.3g}, {off:.3g} beside it)")
+    return fold
+
+
+def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]:
+    """(sign, log|det|) of the bordered Jacobian at ``sol`` on mesh ``s`` with the border row
+    of ``row_direction``: a test function that varies smoothly along a step on one mesh."""
+    lin = sol.lin
+    t = row_direction.on(s)
+    if not (np.array_equal(lin.disc.s, s) and lin.row.d == t.lam
+            and np.array_equal(lin.row.c, lin.disc.weights * t.y)):
+        disc = corr.disc(s)
+        lin = Linearization(disc, corr.parameter, sol.state.params, sol.state(s), sol.lam,
+                            Row(disc.weights * t.y, t.lam, 0.0), corr.split)
+    return lin.sign, lin.fact.logdet
+
+
+def locate_branch_point(corr, step: Step) -> tuple[Solution, float, float]:
+    """The branch point between a and b, where the determinant changes sign: the root of
+    ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
+    and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
+    equidistributed ones. Returns (solution, sigma, |scaled determinant| there)."""
+    sec, a, name = step.secant, step.a, step.name
+    s, lo, hi = step.b.mesh, 0.0, step.dist
+    for _ in range(4):
+        sol, sigma, value = _branch_point_on(corr, step, s, lo, hi)
+        v, v_lam = kernel(sol.lin)
+        disc = sol.lin.disc
+        rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
+                                                           v, v_lam, name))
+        if rms.max() <= corr.options.fold_tol:
+            return sol, sigma, value
+        s = corr.regrid(s, rms, corr.options.fold_tol)
+        width = 0.02 * step.dist
+        lo, hi = max(sigma - width, 0.0), min(sigma + width, step.dist)
+    raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
+                           "4 meshes")
+
+
+def _branch_point_on(corr, step: Step, s, lo: float, hi: float):
+    """The root of the scaled determinant on mesh ``s``, bracketed in [lo, hi] if possible,
+    else in [0, dist]."""
+    sec, a = step.secant, step.a
+    found = {}
+
+    def det(sigma):
+        sol = corr.on_plane(a, sec, sigma, s, regrid=False) if sigma else None
+        sign, logdet = _det_on(corr, sol or a, sec, s)
+        found[sigma] = sol
+        return sign, logdet
+
+    (sign0, ref), (sign1, log1) = det(lo), det(hi)
+    if sign0 * sign1 >= 0 and (lo, hi) != (0.0, step.dist):
+        lo, hi = 0.0, step.dist
+        (sign0, ref), (sign1, log1) = det(lo), det(hi)
+    if sign0 * sign1 >= 0:
+        raise CorrectorFailure("the determinant does not change sign along the secant")
+
+    def tau(sigma):
+        sign, logdet = det(sigma)
+        return sign * math.exp(min(logdet - ref, 700.0))
+
+    sigma = _illinois(tau, lo, hi, float(sign0), sign1 * math.exp(min(log1 - ref, 700.0)),
+                      1e-12 * step.dist)
+    value = tau(sigma)
+    return found[sigma], sigma, abs(value)
+
+
+def pair_suspected(step: Step, dip: float = 0.5) -> float | None:
+    """Where inside the step a fold pair may hide, as a fraction of the step, or None.
+
+    The parameter along the step is modelled by the cubic with its values and slopes (the
+    tangents' parameter components, per unit arclength) at a and b; its slope is then the
+    quadratic ``q(u) = l_a + beta u + gamma u^2`` on u in [0, 1]. Suspected: q changes sign
+    inside (two folds the end tests cannot see), or dips below ``dip`` times the smaller end
+    slope (a near-cusp, where a pair can be narrower than the model)."""
+    la, lb = step.a.tangent.lam, step.b.tangent.lam
+    if la == 0.0 or la * lb <= 0:
+        return None
+    mean = (step.b.lam - step.a.lam) / step.dist
+    gamma = 3.0 * (la + lb - 2.0 * mean)
+    beta = lb - la - gamma
+    sign = math.copysign(1.0, la)
+    if sign * gamma <= 0:
+        return None         # q is concave in the direction of travel: no interior minimum
+    u = -beta / (2 * gamma)
+    if not 0.0 < u < 1.0:
+        return None
+    q_min = la + beta * u + gamma * u * u
+    if sign * q_min <= dip * min(abs(la), abs(lb)):
+        return u
+    return None
+
+
+def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
+                 value: float) -> tuple[State, float]:
+    """The solution with the continued parameter equal to ``value`` between the knots x and y
+    (secant coordinates s0 < s1): solved at that value from their interpolation (chord
+    iterations with b's Jacobian), checked to lie between them, else found by the Illinois
+    method on the parameter along the hyperplanes. Raises CorrectorFailure if neither
+    works."""
+    name = step.name
+    lx, ly = x.params[name], y.params[name]
+    w = (value - lx) / (ly - lx)
+    s = step.b.mesh
+    guess = State(s, (1 - w) * x(s) + w * y(s), (1 - w) * x.derivative(s) + w * y.derivative(s),
+                  {**y.params, name: value})
+    margin = 0.05 * (s1 - s0) + 1e-12
     try:
-        f0, f1 = lamdot(s0), lamdot(s1)
-        if f0 * f1 > 0:
-            return None, "the parameter does not turn in this interval", float("nan")
-        sigma = brentq(lamdot, s0, s1, xtol=1e-12)
-        value = lamdot(sigma)
-    except RuntimeError as exc:
-        return None, str(exc), float("nan")
-    return states[sigma], sigma, value
+        state = corr.at_value(guess, y.params, value, lin=step.b.lin)
+        sigma = step.sigma(state)
+        if s0 - margin <= sigma <= s1 + margin:
+            return state, min(max(sigma, s0), s1)
+    except CorrectorFailure:
+        pass
+    found = {}
+
+    def lam(sigma):
+        sol = corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
+        found[sigma] = sol
+        return sol.lam - value
+
+    f0 = lam(s0) if s0 > 0 else step.a.lam - value
+    f1 = lam(s1) if s1 < step.dist else step.b.lam - value
+    if f0 * f1 > 0:
+        raise CorrectorFailure(f"{name} does not cross {value:.6g} in this step")
+    sigma = _illinois(lam, s0, s1, f0, f1, 1e-12 * step.dist)
+    if sigma not in found:
+        lam(sigma)
+    return corr.at_value(found[sigma].state, y.params, value, lin=found[sigma].lin), sigma
+
+
+def tangent_between(step: Step, sigma: float) -> Tangent:
+    """The unit tangent at coordinate sigma of the step, interpolated between a's and b's
+    (for labelled points that are not located by a linearisation of their own)."""
+    u = min(max(sigma / step.dist, 0.0), 1.0)
+    s = step.b.mesh
+    ta, tb = step.a.tangent.on(s), step.b.tangent
+    t = Tangent(s, (1 - u) * ta.y + u * tb.y, (1 - u) * ta.yp + u * tb.yp,
+                (1 - u) * ta.lam + u * tb.lam)
+    return t.scaled(1.0 / max(float(np.sqrt(inner(t, t))), 1e-300))

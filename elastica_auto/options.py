@@ -6,6 +6,10 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 
+#: The correctors (:mod:`elastica_auto.correctors`).
+CORRECTORS = ("collocation", "solve_bvp")
+
+
 class OptionsError(ValueError):
     """Inconsistent continuation options."""
 
@@ -26,18 +30,24 @@ class ContinuationOptions:
     max_points : int
         Points per branch including the start (AUTO's NMX).
     ntst : int
-        Mesh intervals of the starting mesh; solve_bvp refines it where needed.
+        Mesh intervals of the starting mesh, and the fewest a mesh is coarsened to.
     max_nodes : int
-        Mesh size limit passed to solve_bvp.
+        Largest number of mesh nodes.
     tol : float
-        solve_bvp tolerance (relative collocation residual) for continuation points. The
-        residual of its cubic collocation scales like h^3 while the error scales like h^4, so
-        1e-5 gives points good to about 1e-7 (relative) on meshes of 50-250 nodes.
+        Error tolerance for continuation points: the largest rms relative collocation
+        residual on a mesh interval (solve_bvp's measure). The residual of the cubic
+        collocation scales like h^3 while the error scales like h^4, so 1e-5 gives points good
+        to about 1e-7 (relative) on meshes of 50-250 nodes.
     fold_tol : float
-        solve_bvp tolerance for locating folds (user and end points use ``tol``); 1e-7 puts folds
-        within ~1e-10 of an independent shooting solve (tests/test_folds.py checks 1e-8).
+        The same tolerance for located folds and branch points, applied to the solution and
+        its null vector (user and end points use ``tol``); 1e-7 puts folds within ~1e-10 of
+        an independent shooting solve (tests/test_folds.py checks 1e-9).
     max_angle : float
         Largest angle (radians) between successive tangents; a larger turn rejects the step.
+    corrector : str
+        ``"collocation"`` (the default: Newton on the collocation equations with one banded
+        LU per step and the mesh adapted between steps) or ``"solve_bvp"`` (the same
+        discretisation solved by `scipy.integrate.solve_bvp`, an independent check).
     """
 
     ds: float = 0.05
@@ -50,9 +60,15 @@ class ContinuationOptions:
     tol: float = 1e-5
     fold_tol: float = 1e-7
     max_angle: float = 0.35
+    corrector: str = "collocation"
 
     def __post_init__(self):
+        if self.corrector not in CORRECTORS:
+            raise OptionsError(f"corrector must be one of {', '.join(CORRECTORS)}, "
+                               f"got {self.corrector!r}")
         for f in fields(self):
+            if f.name == "corrector":
+                continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise OptionsError(f"{f.name} must be a finite number, got {v!r}")

@@ -19,8 +19,9 @@ import numpy as np
 
 from . import store
 from .branch import Branch
-from .corrector import State, Tangent, solve_fixed
+from .correctors import CorrectorFailure, make_corrector
 from .runfile import BranchSpec, Plan, RunFileError, Start
+from .solution import State, Tangent
 from .snaps import snap_targets
 from .stability import label_stability
 from .stepper import continue_branch
@@ -82,11 +83,13 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
         tangent = None
     params = {**state.params, **spec.params}
     if params != state.params:
-        res = solve_fixed(problem, state, params, opt.tol, opt.max_nodes)
-        if not res.success:
+        corr = make_corrector(problem, plan.parameter, opt)
+        try:
+            state = corr.at_value(state, params, params[plan.parameter])
+        except CorrectorFailure as exc:
             raise StartError(f"{spec.start}: no solution at the changed parameters "
-                             f"({res.message})")
-        state, tangent = res.state, None
+                             f"({exc})") from None
+        tangent = None
     singular = spec.start.label[:2] in ("LP", "BP") and params == stored.state.params
     return _checked(plan, Job(spec, state, tangent, singular=singular))
 

@@ -247,6 +247,8 @@ def load(path, out_dir: Path | None = None) -> Plan:
             if isinstance(v, bool) or not isinstance(v, int):
                 fail(f"[options] {key}", f"expected an integer, got {v!r}")
             values[key] = v
+        elif key == "corrector":
+            values[key] = string(f"[options] {key}", v)
         else:
             values[key] = number(f"[options] {key}", v)
     try:

@@ -25,8 +25,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .branch import PROFILE_GRID
-from .corrector import State
-from .stability import direct_index
+from .solution import State
+from .stability import index
 
 SCAN_POINTS = 1201
 IVP_TOL = 1e-11
@@ -92,7 +92,7 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     out = []
     for j, k in enumerate(roots):
         state = State.from_values(problem, s, ys[:, j, :], params)
-        out.append(Equilibrium(float(k), state, direct_index(problem, state)[0],
+        out.append(Equilibrium(float(k), state, index(problem, state),
                                problem.ordinate_values(s, state.y, params)))
     return out
 

@@ -1,21 +1,28 @@
-"""The pseudo-arclength loop: predictor, corrector, step control, angle guard, events, stops.
+"""The pseudo-arclength loop: predict, correct, check, detect, locate, accept.
 
 One call of :func:`continue_branch` fills one :class:`~elastica_auto.branch.Branch`: from a
 start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
 n-th fold (``stop = ["LP4"]``), or a corrector failure at ``ds_min`` (MX).
 
-Predictor: the unit tangent at the start (:func:`~elastica_auto.corrector.solve_tangent`),
-then the secant through the last two points; the true tangent replaces the secant when a step
-is rejected for turning too much (the secant lags a sharply turning curve). Corrector: Keller's arclength system
-(:func:`~elastica_auto.corrector.solve_arclength`). A step is rejected, and ds halved, when the
-corrector fails or the new secant turns by more than ``max_angle`` from the predictor
-direction (which would otherwise let the stepper reverse at a fold and retrace the branch).
-After a step that converged on the first mesh and turned by less than half the allowed angle,
-ds grows by ``growth`` up to ``ds_max``.
+Each step from a solution a (with its unit tangent t_a, oriented along the direction of
+travel):
 
-Mesh: each corrector starts on the previous point's mesh, coarsened where its residuals are
-far below ``tol`` (:func:`~elastica_auto.corrector.coarsen`). solve_bvp only ever adds nodes;
-carrying its meshes forward unpruned lets the mesh balloon as the solution's shape moves.
+1. **predict and correct**: Keller's system ``<x - a, t_a> = ds`` from ``a + ds t_a``
+   (:mod:`elastica_auto.correctors`), on a's mesh or a coarser one; the corrector regrids b
+   if its error estimate exceeds ``tol``;
+2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
+   the tangent turned by more than ``max_angle``, or the correction moved b farther than
+   ``ds / 2`` from the predictor (it would have jumped to another branch);
+3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
+   branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
+   parameter's slope dips inside the step (:func:`~elastica_auto.events.pair_suspected`;
+   the step is probed at the dip, and retried shorter if a fold is there);
+4. **locate** each, exactly (:mod:`elastica_auto.events`); a fold that cannot be located,
+   or a stability index at b that the fold rule does not predict, rejects the step (a fold
+   pair or a jump to another branch), down to ds / 64 and then with a warning;
+5. **accept**: the folds and branch points split the step into monotone pieces, on which user
+   points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
+   step.
 """
 
 from __future__ import annotations
@@ -25,12 +32,19 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .branch import Branch
-from .corrector import (State, Tangent, coarsen, inner, secant, solve_arclength,
-                        solve_tangent)
-from .events import (UserValues, crossings, locate_branch_point, locate_fold,
-                     locate_turning_point, locate_value, locate_value_on_step)
+from .correctors import CorrectorFailure, Solution, make_corrector
+from .events import (Step, UserValues, crossings, locate_branch_point, locate_fold,
+                     locate_value, pair_suspected, tangent_between)
+from .newton import Row
 from .options import ContinuationOptions
-from .stability import direct_index
+from .solution import State, Tangent, inner, norm, secant
+from .stability import fold_sign, index
+
+#: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
+RETRY_HALVINGS = 6
+#: ds grows after a step whose Newton iteration contracted at least this fast (and whose
+#: tangent turned by less than half of max_angle).
+EASY_CONTRACTION = 0.1
 
 
 @dataclass(frozen=True)
@@ -42,24 +56,52 @@ class Stops:
     at_fold: int | None = None
 
 
-def initial_tangent(branch: Branch, start: State, direction: int, guess: Tangent | None,
-                    options: ContinuationOptions) -> Tangent | None:
-    """Unit tangent at the start, oriented so the parameter moves in ``direction``.
+@dataclass
+class _Event:
+    sigma: float
+    kind: str
+    state: State
+    tangent: Tangent | None
+    residual: float = float("nan")
+    note: str = ""
 
-    With a stored tangent (restart) as ``guess`` the bordering is regular even at a fold; there
-    ``direction`` is taken along the stored tangent.
-    """
-    problem, name = branch.problem, branch.parameter
-    t = solve_tangent(problem, start, name, guess, options.tol, options.max_nodes)
-    if t is None and guess is not None:
-        t = solve_tangent(problem, start, name, None, options.tol, options.max_nodes)
-    if t is None:
-        return None
+
+class _Reject(Exception):
+    """The step is rejected: retry with ``ds``, for the reason in the message (``residual``:
+    the corrector's last Newton correction, if it failed)."""
+
+    def __init__(self, message: str, ds: float, residual: float = float("nan")):
+        super().__init__(message)
+        self.ds, self.residual = ds, residual
+
+
+def start_solution(corr, start: State, direction: int, guess: Tangent | None,
+                   exact: bool) -> Solution:
+    """The start as a linearised solution, its tangent oriented so that the parameter moves in
+    ``direction`` (along a stored tangent ``guess`` where the parameter is stationary).
+    ``exact``: ``guess`` is the direction to follow as it is (the other branch at a branch
+    point, where the bordered Jacobian is singular)."""
+    name = corr.parameter
+    disc = corr.disc(start.s)
+    lam = start.params[name]
+    if exact:
+        t = guess.on(disc.s)
+        sol = corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
+        sol.tangent = t
+        sol.extra["singular"] = True
+        return sol
+    if guess is not None:
+        g = guess.on(disc.s)
+        row = Row(disc.weights * g.y, g.lam, 0.0)
+    else:
+        row = Row.value(disc, 0.0)
+    t = corr.solution(disc, start.params, start.y, lam, row).tangent
     if abs(t.lam) > 1e-6:
         sign = 1.0 if t.lam * direction > 0 else -1.0
     else:
         sign = float(direction)
-    return Tangent(t.s, sign * t.y, sign * t.yp, sign * t.lam)
+    t = t.scaled(sign)
+    return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
 
 
 def continue_branch(branch: Branch, start: State, options: ContinuationOptions, stops: Stops,
@@ -75,277 +117,270 @@ def continue_branch(branch: Branch, start: State, options: ContinuationOptions, 
     Points are appended as they are accepted, so an interrupted call leaves every completed
     point in ``branch``.
     """
-    problem, name, opt = branch.problem, branch.parameter, options
-    if exact_tangent:
-        t = start_tangent
-    else:
-        t = initial_tangent(branch, start, branch.direction, start_tangent, opt)
-    if t is None:
+    corr = make_corrector(branch.problem, branch.parameter, options)
+    try:
+        a = start_solution(corr, start, branch.direction, start_tangent, exact_tangent)
+    except CorrectorFailure as exc:
         branch.add(start, type="MX", arclength=0.0, note="singular start")
-        branch.end, branch.message = "MX", "no tangent at the start point (singular bordered system)"
+        branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
         return branch
-    base_point = branch.add(start, type="EP", arclength=0.0, tangent=t)
-    base, arclength, ds = start, 0.0, abs(opt.ds)
-    # secant into base (start: the tangent); folds are sign changes of its parameter component
-    t_in = Tangent(t.s, t.y, t.yp, 0.0) if singular_start else t
-    if singular_start:
-        branch.points[-1].note = ""  # the direct counts may differ at a singular point
-    dist_in = abs(opt.ds)
-    exact = True        # t is the true tangent at base, not a secant
-    mesh = start.s
-    cos_max, cos_grow = math.cos(opt.max_angle), math.cos(opt.max_angle / 2)
-    history = []
+    _Walk(branch, corr, options, stops, list(user_values), progress,
+          singular_start or exact_tangent).run(a)
+    return branch
 
-    def end_at_base(kind):
-        if base_point.type:
-            branch.add(base, type=kind, arclength=arclength, tangent=t)
+
+class _Walk:
+    """The state of one continuation: the last accepted solution, ds, the arclength."""
+
+    def __init__(self, branch, corr, options, stops, user_values, progress, singular_start):
+        self.branch, self.corr, self.opt = branch, corr, options
+        self.stops, self.user_values, self.progress = stops, user_values, progress
+        self.singular_start = singular_start
+        self.name = branch.parameter
+        self.problem = branch.problem
+        self.ordinate = next((o for o in self.problem.ordinates.values()
+                              if o.parameter == self.name), None)
+        self.enters = self.problem.parameters[self.name].enters
+
+    # -- the loop ---------------------------------------------------------------------------
+    def run(self, a: Solution):
+        opt, branch = self.opt, self.branch
+        self.base_point = branch.add(a.state, type="EP", arclength=0.0, tangent=a.tangent,
+                                     direct=index(self.problem, a.state))
+        if self.singular_start:
+            self.base_point.note = ""
+        self.a, self.arclength, self.first = a, 0.0, True
+        self.curvature = None
+        ds = abs(opt.ds)
+        history = []
+        retries = 0
+        while True:
+            if len(branch.points) >= opt.max_points:
+                self._end_at_base("EP", f"reached max_points = {opt.max_points}")
+                return
+            try:
+                ds_next, ended = self._step(ds, retries)
+            except _Reject as rej:
+                history.append({"ds": ds, "residual": rej.residual,
+                                "nodes": len(self.a.mesh), "message": str(rej)})
+                retries += 1
+                ds = rej.ds
+                if ds < opt.ds_min:
+                    self._end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                                            f"after point {len(branch.points)}: {rej}")
+                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
+                                          "nodes": len(self.a.mesh), "history": history[-12:]}
+                    return
+                continue
+            if ended:
+                return
+            history.clear()
+            retries = 0
+            ds = ds_next
+
+    def _end_at_base(self, kind: str, message: str):
+        branch, a = self.branch, self.a
+        if self.base_point.type:
+            branch.add(a.state, type=kind, arclength=self.arclength, tangent=a.tangent,
+                       direct=self.base_point.index_direct)
         else:
-            branch.relabel(base_point, kind, base, t)
+            branch.relabel(self.base_point, kind, a.state, a.tangent)
+        branch.end, branch.message = kind, message
 
-    while True:
-        if len(branch.points) >= opt.max_points:
-            end_at_base("EP")
-            branch.end, branch.message = "EP", f"reached max_points = {opt.max_points}"
-            return branch
-        # A corrector that does not converge makes solve_bvp refine up to max_nodes before it
-        # gives up; a smaller step is the cheaper cure, so refinement is capped per step.
-        res = solve_arclength(problem, base, t, name, ds, opt.tol,
-                              min(opt.max_nodes, 3 * len(mesh)), mesh=mesh)
-        reason = res.message
-        cos_turn = -1.0
-        if res.success:
-            sec, dist = secant(base, res.state, name)
-            cos_turn = inner(sec, t, sec.s)
-            if cos_turn < cos_max:
-                reason = (f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f} "
-                          f"deg > max_angle")
-                if not exact:
-                    # The secant into base lags the curve by half the last step's turn, so a
-                    # smaller ds cannot cure this: predict along the true tangent instead.
-                    true = solve_tangent(problem, base, name, t, opt.tol, opt.max_nodes)
-                    if true is not None:
-                        t, exact = true, True
-                        continue
-        if not res.success or cos_turn < cos_max:
-            history.append({"ds": ds, "residual": res.residual, "nodes": res.nodes,
-                            "message": reason})
-            ds /= 2
-            if ds < opt.ds_min:
-                end_at_base("MX")
-                branch.end = "MX"
-                branch.message = (f"corrector failed at ds < ds_min = {opt.ds_min:g} after point "
-                                  f"{len(branch.points)}: {reason}")
-                branch.diagnostics = {"step": len(branch.points), "ds": ds * 2,
-                                      "nodes": res.nodes, "history": history[-12:]}
-                return branch
-            continue
-        history.clear()
-        new = res.state
-        step = _Step(base, new, sec, dist, arclength, ds, name)
-        direct_new = direct_index(problem, new)
+    def _step(self, ds: float, retries: int) -> tuple[float, bool]:
+        """One step of length ds from self.a: returns (next ds, whether the branch ended);
+        raises _Reject to retry with a smaller ds."""
+        opt, corr, a, name = self.opt, self.corr, self.a, self.name
+        first = self.first
+        mesh = corr.next_mesh(a)
+        if mesh is not a.mesh:  # the step's mesh: linearise a there once, for both uses
+            a = self.a = corr.relinearize(a, mesh)
+        try:
+            b = corr.step(a, ds, self.curvature)
+        except CorrectorFailure as exc:
+            raise _Reject(str(exc), ds / 2, exc.residual) from None
+        # -- checks: angle and distance from the predictor ------------------------------------
+        s = b.mesh
+        cos_turn = inner(a.tangent.on(s), b.tangent, s)
+        if cos_turn < math.cos(opt.max_angle):
+            raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
+                          " deg > max_angle", ds / 2)
+        sec, dist = secant(a.state, b.state, name)
+        if not first or not a.extra.get("singular"):
+            pred = Tangent(s, a.state(s) + ds * a.tangent.on(s).y - b.state.y,
+                           a.state.derivative(s) + ds * a.tangent.on(s).yp - b.state.yp,
+                           a.lam + ds * a.tangent.lam - b.lam)
+            jump = norm(pred)
+            if jump > 0.5 * ds:
+                raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
+                              f"(ds = {ds:.3g})", ds / 2)
+        step = Step(a, b, sec, dist, self.arclength, ds, name)
+        # -- detect, on one mesh ----------------------------------------------------------------
+        skip = first and self.singular_start
+        a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
+        fold = a.tangent.lam * b.tangent.lam < 0 and not skip
+        bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+        index_a, index_b = self.base_point.index_direct, index(self.problem, b.state)
+        can_retry = retries < RETRY_HALVINGS
+        if not (fold or bp) and can_retry and not skip:
+            u = pair_suspected(step)
+            if u is not None:
+                self._probe(step, u, ds, index_a)
         found = []
-        if t_in.lam * sec.lam < 0:
-            # A simple fold changes the index; a turn of the parameter without a change is the
-            # branch point of a pitchfork met along its bifurcating branch (or a degenerate fold)
-            simple = (direct_new[0] < 0 or base_point.index_direct < 0
-                      or direct_new[0] != base_point.index_direct
-                      or (singular_start and base is start))
-            found.append(_secant_fold(branch, step, t_in, dist_in, opt, simple))
-        elif (direct_new[0] >= 0 and base_point.index_direct >= 0
-              and direct_new[0] != base_point.index_direct
-              and not (singular_start and base is start)):
-            # The index changed with no fold seen by the secants: a branch point, or a fold
-            # passed within this one step. The parameter then turns back inside the step, so
-            # the true tangent at the new point disagrees in sign with the secant: retry with a
-            # smaller step, until the secants see the fold.
-            true = solve_tangent(problem, new, name, sec, opt.tol, opt.max_nodes)
-            if true is not None and true.lam * sec.lam < 0:
-                history.append({"ds": ds, "residual": res.residual, "nodes": res.nodes,
-                                "message": "a fold was passed within one step"})
-                ds /= 2
-                if ds >= opt.ds_min:
-                    continue
-                branch.warnings.append(f"fold inside a step of ds_min near {name} = "
-                                       f"{base.params[name]:.6g}; labelled by its test function")
-            event = _index_change(branch, step, base_point.index_direct, direct_new[0], opt)
+        if fold:
+            try:
+                found.append(self._fold_event(step, bp))
+            except CorrectorFailure as exc:
+                if can_retry:
+                    raise _Reject(f"fold not located ({exc})", ds / 2) from None
+                self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not located: {exc}")
+                found.append(_Event(dist / 2, "LP", b.state, b.tangent,
+                                    note=f"fold not located: {exc}"))
+        elif bp:
+            event = self._branch_point(step, index_a, index_b)
             if event is not None:
                 found.append(event)
-        if _add_events(branch, step, found, opt, stops, user_values):
-            return branch
-        arclength += ds
-        base_point = branch.add(new, arclength=arclength, ds=ds, niter=res.niter,
-                                direct=direct_new)
-        if progress is not None:
-            progress(branch, res.lam)
-        mesh = coarsen(new.s, res.extra["rms_residuals"], opt.tol, opt.ntst + 1)
-        if res.niter == 1 and cos_turn > cos_grow:
+        # -- the index at b against the fold rule ----------------------------------------------
+        if index_a >= 0 and index_b >= 0 and not skip:
+            expected = self._rule(step, found, index_a)
+            if expected is not None and expected != index_b:
+                if can_retry:
+                    raise _Reject(f"index {index_b} at the new point, the fold rule gives "
+                                  f"{expected}", ds / 2)
+                self.branch.warnings.append(
+                    f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
+                    f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
+        # -- accept ----------------------------------------------------------------------------
+        if self._add_events(step, found):
+            return ds, True
+        self.arclength += ds
+        self.base_point = self.branch.add(b.state, arclength=self.arclength, ds=ds,
+                                          niter=b.niter, direct=index_b)
+        self.curvature = b.tangent.on(b.mesh)
+        ta = a.tangent.on(b.mesh)
+        self.curvature = Tangent(b.mesh, (self.curvature.y - ta.y) / dist,
+                                 (self.curvature.yp - ta.yp) / dist,
+                                 (self.curvature.lam - ta.lam) / dist)
+        self.a, self.first = b, False
+        if self.progress is not None:
+            self.progress(self.branch, b.lam)
+        if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
+                and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
             ds = min(ds * opt.growth, opt.ds_max)
-        base, t, t_in, dist_in, exact = new, sec, sec, dist, False
+        return ds, False
 
+    # -- detection helpers ------------------------------------------------------------------
+    def _probe(self, step: Step, u: float, ds: float, index_a: int):
+        """The slope of the parameter dips inside the step: solve at the dip and look at the
+        tangent and index there; a sign change (or an index that differs from a's) means a
+        fold pair: retry with a step that ends before the dip."""
+        try:
+            mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
+        except CorrectorFailure:
+            raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
+        t = mid.tangent
+        if inner(t, step.secant, mid.mesh) < 0:
+            t = t.scaled(-1.0)
+        if t.lam * step.a.tangent.lam <= 0 or (
+                index_a >= 0 and index(self.problem, mid.state) != index_a):
+            raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
+                          max(u * ds / 2, ds / 8))
 
-@dataclass
-class _Step:
-    """An accepted step from a to b: unit secant, its length, arclength at a, and ds."""
+    def _fold_event(self, step: Step, bp: bool) -> _Event:
+        fp = locate_fold(self.corr, step)
+        phi = fp.phi
+        if inner(phi, step.secant, phi.s) < 0:
+            phi = phi.scaled(-1.0)
+        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
+        if bp:  # the parameter turns where the determinant changes sign: a branch point
+            return _Event(sigma, "BP", fp.state, step.secant, fp.residual,
+                          note="turning point without index change")
+        return _Event(sigma, "LP", fp.state, phi, fp.residual)
 
-    a: State
-    b: State
-    secant: Tangent
-    dist: float
-    arclength: float
-    ds: float
-    name: str
+    def _branch_point(self, step: Step, index_a: int, index_b: int) -> _Event | None:
+        name = self.name
+        try:
+            sol, sigma, value = locate_branch_point(self.corr, step)
+        except CorrectorFailure as exc:
+            self.branch.warnings.append(f"branch point between {name} = {step.a.lam:.6g} and "
+                                        f"{step.b.lam:.6g} not located: {exc}")
+            return None
+        note = ""
+        if index_a >= 0 and index_b >= 0 and abs(index_b - index_a) != 1:
+            note = f"index {index_a} -> {index_b} across the branch point"
+        return _Event(sigma, "BP", sol.state, step.secant, value, note=note)
 
-    def sigma(self, state: State) -> float:
-        """Coordinate of a solution along the secant from a (0 at a, dist at b)."""
-        d = Tangent(state.s, state.y - self.a(state.s), state.yp - self.a.derivative(state.s),
-                    state.params[self.name] - self.a.params[self.name])
-        return inner(d, self.secant, state.s)
+    def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
+        """The index at b by the fold rule from a's (None where the rule does not apply)."""
+        if self.ordinate is None:
+            return None
+        out = index_a
+        for e in sorted(found, key=lambda e: e.sigma):
+            if e.kind != "LP" or e.note:
+                return None
+            lam = [step.a.lam, e.state.params[self.name], step.b.lam]
+            ords = [self._ordinate(st) for st in (step.a.state, e.state, step.b.state)]
+            change = fold_sign(self.enters, lam, ords, 1)
+            if change == 0:
+                return None
+            out += change
+        return out
 
-    def position(self, sigma: float) -> float:
-        """Pseudo-arclength of the point at coordinate sigma (for ordering the points)."""
-        return self.arclength + self.ds * sigma / self.dist
+    def _ordinate(self, state: State) -> float:
+        return float(self.ordinate.fn(state.s, state.y, state.params))
 
-
-@dataclass
-class _Event:
-    sigma: float
-    kind: str
-    state: State
-    tangent: Tangent | None
-    residual: float = float("nan")
-    note: str = ""
-
-
-def _secant_fold(branch: Branch, step: _Step, t_in: Tangent, dist_in: float,
-                 opt: ContinuationOptions, simple: bool = True) -> _Event:
-    """The fold near a, where the parameter components of the secants into and out of a
-    differ in sign; an extended solve that fails gives an LP marked as not located.
-
-    With ``simple = False`` (the direct index is the same on both sides) the turning point is
-    labelled BP: where a pitchfork's bifurcating branch meets the branch it bifurcates from,
-    the parameter turns back without any change of stability, and the fold rule must not
-    apply. It is located where the parameter component of the true tangent vanishes; only if
-    that fails is the (there singular) extended system tried, with a small mesh budget."""
-    problem, name, a = branch.problem, branch.parameter, step.a
-    if not simple:
-        # the extended system is singular at a pitchfork: find where the parameter turns,
-        # after a (along the step) or before it (back along the secant into a)
-        reasons = []
-        for direction, s0, s1 in ((step.secant, 0.0, step.dist), (t_in, -dist_in, 0.0)):
-            state, sigma, lamdot = locate_turning_point(problem, a, direction, name, s0, s1,
-                                                        opt.fold_tol, opt.max_nodes)
-            if state is not None:
-                return _Event(sigma, "BP", state, step.secant, abs(lamdot),
-                              note="turning point without index change")
-            reasons.append(sigma)
-    kind = "LP" if simple else "BP"
-    nodes = opt.max_nodes if simple else min(opt.max_nodes, 4 * len(a.s))
-    res, offset = locate_fold(problem, a, t_in, step.secant, name, 2 * (dist_in + step.dist),
-                              opt.fold_tol, nodes)
-    if res.success:
-        return _Event(offset, kind, res.state, _null_tangent(res, step.secant), res.residual,
-                      note="" if simple else "turning point without index change")
-    what = "fold" if simple else "turning point without index change (branch point)"
-    why = res.message if simple else "; ".join(reasons + [res.message])
-    branch.warnings.append(f"{what} near {name} = {a.params[name]:.6g} not located: {why}")
-    return _Event(0.0, kind, a, t_in, note=f"{what} not located: {why}")
-
-
-def _null_tangent(res, direction: Tangent) -> Tangent:
-    """The fold's null vector as a tangent (phi, 0), oriented along ``direction``."""
-    phi = res.extra["phi"]
-    sign = 1.0 if inner(Tangent(phi.s, phi.y, phi.yp, 0.0), direction, phi.s) >= 0 else -1.0
-    return Tangent(phi.s, sign * phi.y, sign * phi.yp, 0.0)
-
-
-def _index_change(branch: Branch, step: _Step, index_a: int, index_b: int,
-                  opt: ContinuationOptions) -> _Event | None:
-    """The branch point between a and b, where the direct index changes and no fold is seen:
-    the zero of the Jacobi-field test function along the step. (If its parameter lies beyond
-    both ends after all, it is a fold that even a step of ds_min passes: labelled LP.)"""
-    problem, name = branch.problem, branch.parameter
-    a, b = step.a, step.b
-    res, sigma, g = locate_branch_point(problem, a, step.secant, name, step.dist,
-                                        opt.fold_tol, opt.max_nodes)
-    if res is None:
-        branch.warnings.append(f"index changes {index_a} -> {index_b} between {name} = "
-                               f"{a.params[name]:.6g} and {b.params[name]:.6g} without a "
-                               f"detected fold, and no singular point was located: {sigma}")
-        return None
-    lam = res.state.params[name]
-    la, lb = a.params[name], b.params[name]
-    if min(la, lb) <= lam <= max(la, lb):
-        return _Event(sigma, "BP", res.state, step.secant, abs(g))
-    return _Event(sigma, "LP", res.state, step.secant,
-                  note="fold inside a step of ds_min, located by the test function only")
-
-
-def _add_events(branch: Branch, step: _Step, found: list[_Event], opt: ContinuationOptions,
-                stops: Stops, user_values) -> bool:
-    """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
-    return True if the branch ends in this step.
-
-    Folds inside the step split it: a value between the parameter at an end and at a fold is
-    crossed on each side of the fold, and each crossing is solved from the two solutions that
-    bracket it, so it cannot converge to the other side."""
-    name = branch.parameter
-    inside = sorted((e for e in found if e.kind == "LP" and 0.0 < e.sigma < step.dist),
-                    key=lambda e: e.sigma)
-    knots = [(0.0, step.a)] + [(e.sigma, e.state) for e in inside] + [(step.dist, step.b)]
-    events = list(found)
-    bound_hit = None
-    for (s0, x), (s1, y) in zip(knots, knots[1:]):
-        lx, ly = x.params[name], y.params[name]
-        for spec in user_values:
-            for c in crossings(lx, ly, spec):
-                ev = _value_point(branch, step, x, y, s0, s1, c, "UZ", opt)
-                if ev is not None:
-                    events.append(ev)
-        bound = stops.upper if lx <= stops.upper < ly else \
-            stops.lower if ly < stops.lower <= lx else None
-        if bound is not None:
-            bound_hit = _value_point(branch, step, x, y, s0, s1, bound, "EP", opt)
-            if bound_hit is None:
-                bound_hit = _Event(s1, "EP", y, step.secant, note="bound not located")
-            break
-    if bound_hit is not None:
-        events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
-    events.sort(key=lambda e: e.sigma)
-    nfolds = len(branch.folds)
-    for e in events:
-        branch.add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
-                   fold_residual=e.residual, note=e.note)
-        if e.kind == "LP":
-            nfolds += 1
-            if stops.at_fold is not None and nfolds >= stops.at_fold:
-                # The fold may lie before the last accepted point: the branch ends at it.
-                cut = step.position(e.sigma)
-                branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                branch.end, branch.message = "LP", f"stopped at fold {nfolds} (stop = LP{nfolds})"
+    # -- user points, bounds, and adding the events -----------------------------------------
+    def _add_events(self, step: Step, found: list[_Event]) -> bool:
+        """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
+        return True if the branch ends in this step. Folds split the step: a value is solved
+        between the two knots that bracket it, so it cannot converge to the other side."""
+        branch, name, stops = self.branch, self.name, self.stops
+        inside = sorted((e for e in found if e.kind == "LP" and not e.note
+                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
+        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
+                 + [(step.dist, step.b.state)])
+        events = list(found)
+        bound_hit = None
+        for (s0, x), (s1, y) in zip(knots, knots[1:]):
+            lx, ly = x.params[name], y.params[name]
+            for spec in self.user_values:
+                for c in crossings(lx, ly, spec):
+                    ev = self._value_event(step, x, y, s0, s1, c, "UZ")
+                    if ev is not None:
+                        events.append(ev)
+            bound = stops.upper if lx <= stops.upper < ly else \
+                stops.lower if ly < stops.lower <= lx else None
+            if bound is not None:
+                bound_hit = self._value_event(step, x, y, s0, s1, bound, "EP")
+                if bound_hit is None:
+                    bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
+                break
+        if bound_hit is not None:
+            events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
+        events.sort(key=lambda e: e.sigma)
+        nfolds = len(branch.folds)
+        for e in events:
+            branch.add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
+                       fold_residual=e.residual, note=e.note)
+            if e.kind == "LP":
+                nfolds += 1
+                if stops.at_fold is not None and nfolds >= stops.at_fold:
+                    cut = step.position(e.sigma)
+                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
+                    branch.end, branch.message = "LP", f"stopped at fold {nfolds} (stop = LP{nfolds})"
+                    return True
+            if e.kind == "EP":
+                branch.end = "EP"
+                branch.message = f"reached {name} = {e.state.params[name]:g}"
                 return True
-        if e.kind == "EP":
-            branch.end = "EP"
-            branch.message = f"reached {name} = {e.state.params[name]:g}"
-            return True
-    return False
+        return False
 
+    def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
+        try:
+            state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
+        except CorrectorFailure as exc:
+            what = "user point" if kind == "UZ" else "bound"
+            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
+            return None
+        return _Event(sigma, kind, state, tangent_between(step, sigma))
 
-def _value_point(branch: Branch, step: _Step, x: State, y: State, s0: float, s1: float,
-                 value: float, kind: str, opt: ContinuationOptions) -> _Event | None:
-    """The solution with the continued parameter equal to ``value`` between the solutions x
-    and y (secant coordinates s0 < s1) of one step: solved from their interpolation, checked to
-    lie between them, else found by bisection along the arclength hyperplanes."""
-    problem, name = branch.problem, branch.parameter
-    res, _ = locate_value(problem, x, y, name, value, opt.tol, opt.max_nodes)
-    margin = 0.05 * (s1 - s0) + 1e-12
-    if res.success:
-        sigma = step.sigma(res.state)
-        if s0 - margin <= sigma <= s1 + margin:
-            return _Event(min(max(sigma, s0), s1), kind, res.state, step.secant)
-    res, sigma = locate_value_on_step(problem, step.a, step.secant, name, value, s0, s1,
-                                      opt.tol, opt.max_nodes)
-    if res is None:
-        branch.warnings.append(f"{'user point' if kind == 'UZ' else 'bound'} {name} = "
-                               f"{value:.6g} not located: {sigma}")
-        return None
-    return _Event(sigma, kind, res.state, step.secant)

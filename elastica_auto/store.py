@@ -42,7 +42,7 @@ import numpy as np
 
 from . import FORMAT_VERSION, __version__
 from .branch import INDEX_UNKNOWN, PROFILE_GRID, Branch
-from .corrector import State, Tangent
+from .solution import State, Tangent
 
 FORMAT = "elastica-auto"
 

@@ -35,9 +35,10 @@ from scipy.interpolate import CubicHermiteSpline
 from scipy.linalg import cholesky, solve_triangular
 from scipy.optimize import brentq
 
+import jacobi
 import shooting
 from elastica_auto import runfile, stability
-from elastica_auto.corrector import State
+from elastica_auto.solution import State
 from helpers import elastica_run_file, run_cli, run_plan
 
 TWO_PI = 2 * math.pi
@@ -239,7 +240,8 @@ def test_trivial_index_equals_the_number_of_critical_loads_below_P(elastica, eps
                  "theta0": angle}
             y = elastica.exact_start(s, p)
             state = State.from_values(elastica, s, y, p)
-            assert stability.direct_index(elastica, state) == (expected, expected), (P, psi, angle)
+            assert stability.index(elastica, state) == expected, (P, psi, angle)
+            assert jacobi.direct_index(elastica, state) == (expected, expected), (P, psi, angle)
             # the analysis of trivial_index, checked by the dense count (accurate to 1e-9)
             count, mu_min = dense_count(lambda x: 0 * x, 0.0, {**p, "eps": e, "psi": 0.0,
                                                                "alpha": 0.0})
@@ -298,8 +300,9 @@ def test_direct_counts_agree_with_a_dense_eigenvalue_count_on_random_states(elas
             continue
         compared += 1
         expected = int(np.sum(mu < 0))
-        jacobi, fem = stability.direct_index(elastica, state)
-        assert jacobi == fem == expected, (p, jacobi, fem, expected, mu[:4])
+        engine = stability.index(elastica, state)
+        field, fem = jacobi.direct_index(elastica, state)
+        assert engine == field == fem == expected, (p, engine, field, fem, expected, mu[:4])
         indices.append(expected)
         # teeth: the end term with the wrong sign (natural condition h'(1) = -c h(1))
         flipped = DENSE.eigenvalues(want_b, -want_c)

@@ -1,0 +1,314 @@
+"""The two correctors behind the stepper: solves at fixed parameters, pseudo-arclength steps,
+solves on a hyperplane, and fold location, each returning a :class:`Solution`.
+
+``corrector = "collocation"`` (the default, :class:`Collocation`): Newton's method on the
+collocation equations assembled directly (:mod:`elastica_auto.newton`), one banded LU per
+step reused for chord iterations, the mesh kept between steps while solve_bvp's error
+estimate stays under ``tol`` and regridded by equidistribution when it does not
+(:func:`~elastica_auto.collocation.equidistributed_mesh`); folds by bordered Newton on the
+minimally augmented system, on a mesh that resolves the solution and its null vector to
+``fold_tol``.
+
+``corrector = "solve_bvp"`` (:class:`SolveBVP`): the same discretisation solved by
+`scipy.integrate.solve_bvp` (:mod:`elastica_auto.bvp`), folds by its extended system: an
+independent check of the first.
+
+Either way a :class:`Solution` carries the factorised bordered Jacobian at the point, on the
+point's mesh, from which the stepper reads the unit tangent (the fold test function is its
+parameter component) and the sign of the determinant (the branch-point test function).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import bordered
+from .collocation import Discretisation, equidistributed_mesh
+from .newton import Linearization, Row, fold_newton, newton
+from .options import ContinuationOptions
+from .solution import State, Tangent, inner
+
+#: A regridded mesh aims at this fraction of the tolerance, so that it serves many steps;
+#: the next step gets one when a point's error estimate exceeds REFINE_ABOVE tol.
+REGRID_TARGET, REFINE_ABOVE = 0.125, 0.4
+#: The mesh is coarsened for the next step when the error is this far below the tolerance
+#: and the equidistributed mesh has at most COARSEN_SIZE of the nodes.
+COARSEN_BELOW, COARSEN_SIZE = 1 / 64, 0.7
+#: Regrid-and-resolve rounds before a solve is given up.
+MESH_ROUNDS = 4
+
+
+class CorrectorFailure(RuntimeError):
+    """A solve that did not converge; the message says why, ``residual`` is the size of the
+    last Newton correction (NaN where there was none)."""
+
+    def __init__(self, message: str, residual: float = float("nan")):
+        super().__init__(message)
+        self.residual = residual
+
+
+@dataclass
+class Solution:
+    """A solution on its mesh with its linearisation: ``lin`` is the bordered Jacobian at the
+    point with the border row of the condition that defined it (factorised), ``tangent`` the
+    unit tangent oriented along that row, ``rms`` the error estimate per interval."""
+
+    state: State
+    tangent: Tangent
+    lin: Linearization
+    rms: np.ndarray
+    niter: int = 0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def lam(self) -> float:
+        return self.lin.lam
+
+    @property
+    def sign(self) -> int:
+        return self.lin.sign
+
+    @property
+    def mesh(self) -> np.ndarray:
+        return self.state.s
+
+
+def _boundary_pattern(problem):
+    """Where the module's boundary Jacobian (dg/dy_0, dg/dy_1) is nonzero, at a few random
+    states and the default parameters: which boundary rows involve which end."""
+    rng = np.random.default_rng(7)
+    p = problem.defaults()
+    ga = np.zeros((problem.n, problem.n), dtype=bool)
+    gb = np.zeros((problem.n, problem.n), dtype=bool)
+    for _ in range(3):
+        da, db = problem.bc_jac(rng.standard_normal(problem.n), rng.standard_normal(problem.n), p)
+        ga |= np.asarray(da) != 0
+        gb |= np.asarray(db) != 0
+    return ga, gb
+
+
+class Collocation:
+    """The collocation corrector for continuing ``problem`` in ``parameter``."""
+
+    name = "collocation"
+
+    def __init__(self, problem, parameter: str, options: ContinuationOptions):
+        self.problem, self.parameter, self.options = problem, parameter, options
+        self._seen = _boundary_pattern(problem)
+        self.split = bordered.split_rows(*self._seen)
+        self._discs: dict[bytes, Discretisation] = {}
+
+    # -- meshes ---------------------------------------------------------------------------------
+    def disc(self, s) -> Discretisation:
+        key = np.asarray(s, dtype=float).tobytes()
+        d = self._discs.get(key)
+        if d is None:
+            if len(self._discs) > 8:
+                self._discs.clear()
+            d = self._discs[key] = Discretisation(self.problem, s)
+        return d
+
+    def _linearize(self, disc, params, Y, lam, row) -> Linearization:
+        lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split)
+        st, blocks = lin.fact.st, lin.blocks
+        if np.any(blocks.gb[st.left]) or np.any(blocks.ga[st.right]):
+            # a boundary row classified as one-sided involves the other end here (the module's
+            # Jacobian had structural zeros at the probes): it couples both ends from now on
+            self._seen = (self._seen[0] | (blocks.ga != 0), self._seen[1] | (blocks.gb != 0))
+            self.split = bordered.split_rows(*self._seen)
+            lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split)
+        return lin
+
+    def solution(self, disc, params, Y, lam, row, niter=0) -> Solution:
+        """Linearise at a converged (Y, lam) with border ``row``; tangent and error estimate."""
+        lin = self._linearize(disc, params, Y, lam, row)
+        rms = disc.rms_residuals(Y, lin.ev.f, lin.params, lin.ev)
+        return Solution(lin.state(), lin.tangent(), lin, rms, niter)
+
+    def relinearize(self, a: Solution, s) -> Solution:
+        """``a`` interpolated onto the mesh ``s`` and linearised there with its own tangent as
+        border row (for comparing test functions with a point on that mesh)."""
+        disc = self.disc(s)
+        t = a.tangent.on(disc.s)
+        row = Row(disc.weights * t.y, t.lam, 0.0)
+        out = self.solution(disc, a.state.params, a.state(disc.s), a.lam, row)
+        out.tangent = t
+        out.extra = dict(a.extra)
+        return out
+
+    def _solve(self, s, params, guess: State, lam: float, make_row, lin=None,
+               tol=None, regrid=True) -> Solution:
+        """Newton from ``guess`` on mesh ``s`` with the condition ``make_row(disc)``; then, if
+        ``regrid``, regrid and solve again until the error estimate is under ``tol``."""
+        tol = self.options.tol if tol is None else tol
+        disc = self.disc(s)
+        Y = guess(disc.s)
+        niter = 0
+        for _ in range(MESH_ROUNDS):
+            row = make_row(disc)
+            res = self._newton(disc, params, Y, lam, row, lin)
+            niter += res.niter
+            sol = self.solution(disc, params, res.Y, res.lam, row, niter)
+            sol.extra["contraction"] = res.contraction
+            worst = float(np.max(sol.rms))
+            if not regrid or worst <= tol:
+                return sol
+            disc = self.disc(self.regrid(disc.s, sol.rms))
+            Y, lam, lin = sol.state(disc.s), res.lam, None
+        raise CorrectorFailure(f"error estimate {worst:.2e} > tol after {MESH_ROUNDS} meshes")
+
+    def _newton(self, disc, params, Y, lam, row, lin):
+        res = newton(disc, self.parameter, params, Y, lam, row, lin, self.split)
+        if not res.converged:
+            raise CorrectorFailure(res.message, res.correction)
+        return res
+
+    def regrid(self, s, rms, tol=None):
+        opt = self.options
+        return equidistributed_mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
+                                    opt.ntst, opt.max_nodes - 1)
+
+    def next_mesh(self, a: Solution):
+        """The mesh for the step from ``a``: its own while its error estimate stays between
+        COARSEN_BELOW tol and REFINE_ABOVE tol, else an equidistributed one (a coarser one
+        only if it saves nodes)."""
+        opt = self.options
+        worst = float(a.rms.max())
+        if worst > REFINE_ABOVE * opt.tol:
+            return self.regrid(a.mesh, a.rms)
+        if worst > COARSEN_BELOW * opt.tol or len(a.mesh) - 1 <= opt.ntst:
+            return a.mesh
+        new = self.regrid(a.mesh, a.rms)
+        return new if len(new) <= COARSEN_SIZE * len(a.mesh) else a.mesh
+
+    # -- the solves the stepper asks for --------------------------------------------------------
+    def at_value(self, guess: State, params: dict, value: float, lin=None) -> State:
+        """The solution with the continued parameter at ``value`` on the guess's mesh, from
+        ``guess``; ``lin``: a factorisation nearby to start the chord iterations with."""
+        disc = self.disc(guess.s)
+        row = Row.value(disc, value)
+        res = self._newton(disc, params, guess.y, value, row, lin)
+        p = {**params, self.parameter: value}
+        return State(disc.s, res.Y, self.problem.rhs(disc.s, res.Y, p), p)
+
+    def step(self, a: Solution, ds: float, curvature: Tangent | None = None) -> Solution:
+        """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` on a's mesh (a's factorised
+        Jacobian serves for the chord iterations), predicted at ``a + ds t_a`` or, given the
+        curve's ``curvature`` (the derivative of its unit tangent in arclength), at
+        ``a + ds t_a + ds^2 / 2 curvature``."""
+        return self.on_plane(a, a.tangent, ds, curvature=curvature)
+
+    def on_plane(self, a: Solution, direction: Tangent, sigma: float, s=None,
+                 regrid: bool = True, curvature: Tangent | None = None) -> Solution:
+        """The solution on the hyperplane ``<x - a, direction> = sigma``, predicted at
+        ``a + sigma direction`` (``+ sigma^2 / 2 curvature``)."""
+        name = self.parameter
+        s = a.mesh if s is None else s
+        same = len(s) == len(a.mesh) and np.array_equal(s, a.mesh)
+        t = direction.on(s)
+        if curvature is not None:
+            k = curvature.on(s)
+            t = Tangent(s, t.y + sigma / 2 * k.y, t.yp + sigma / 2 * k.yp,
+                        t.lam + sigma / 2 * k.lam)
+        pred = State(s, a.state(s) + sigma * t.y, a.state.derivative(s) + sigma * t.yp,
+                     {**a.state.params, name: a.lam + sigma * t.lam})
+        return self._solve(s, a.state.params, pred, a.lam + sigma * t.lam,
+                           lambda disc: Row.hyperplane(disc, a.state, direction, name, sigma),
+                           lin=a.lin if same and not a.extra.get("singular") else None,
+                           regrid=regrid)
+
+    def fold(self, near: Solution) -> "FoldPoint":
+        """The fold near ``near`` (a solution on the branch close to it, whose tangent
+        approximates the null vector), on a mesh that resolves the solution and its null
+        vector to ``fold_tol``."""
+        opt, name = self.options, self.parameter
+        disc = self.disc(near.mesh)
+        Y, lam, t = near.state.y, near.lam, near.tangent
+        params = near.state.params
+        for _ in range(MESH_ROUNDS):
+            res = fold_newton(disc, name, params, Y, lam, t, self.split)
+            if not res.converged:
+                raise CorrectorFailure(f"fold not located: {res.message}")
+            p = {**params, name: res.lam}
+            ev = disc.evaluate(res.Y, p)
+            rms = np.maximum(disc.rms_residuals(res.Y, ev.f, p, ev),
+                             disc.linear_rms_residuals(res.Y, p, res.phi.y))
+            if rms.max() <= opt.fold_tol:
+                return FoldPoint(State(disc.s, res.Y, ev.f, p), res.phi,
+                                 max(float(rms.max()), abs(res.g)))
+            state = State(disc.s, res.Y, ev.f, p)
+            disc = self.disc(equidistributed_mesh(disc.s, rms, REGRID_TARGET * opt.fold_tol,
+                                                  opt.ntst, opt.max_nodes - 1))
+            Y, lam, t = state(disc.s), res.lam, res.phi
+        raise CorrectorFailure(f"fold: error estimate {rms.max():.2e} > fold_tol after "
+                               f"{MESH_ROUNDS} meshes")
+
+
+@dataclass
+class FoldPoint:
+    """A located fold: its solution, null vector (unit, parameter part 0) and residual (the
+    largest error estimate of the solution and null vector, or the fold test function)."""
+
+    state: State
+    phi: Tangent
+    residual: float
+
+
+class SolveBVP(Collocation):
+    """The solve_bvp corrector: steps, value solves and folds by `scipy.integrate.solve_bvp`;
+    tangents and test functions by the same linearisation as the collocation corrector, on
+    solve_bvp's mesh."""
+
+    name = "solve_bvp"
+
+    def _bvp_solution(self, res, row_of) -> Solution:
+        if not res.success:
+            raise CorrectorFailure(res.message)
+        st = res.state
+        disc = self.disc(st.s)
+        return self.solution(disc, st.params, st.y, st.params[self.parameter], row_of(disc),
+                             res.niter)
+
+    def at_value(self, guess: State, params: dict, value: float, lin=None) -> State:
+        from .bvp import solve_fixed
+        res = solve_fixed(self.problem, guess, {**params, self.parameter: value},
+                          self.options.tol, self.options.max_nodes)
+        if not res.success:
+            raise CorrectorFailure(res.message)
+        return res.state
+
+    def on_plane(self, a: Solution, direction: Tangent, sigma: float, s=None,
+                 regrid: bool = True) -> Solution:
+        from .bvp import solve_arclength
+        opt = self.options
+        mesh = a.mesh if s is None else s
+        # solve_bvp answers a failing Newton by refining; a smaller step is the cheaper cure
+        res = solve_arclength(self.problem, a.state, direction, self.parameter, sigma, opt.tol,
+                              min(opt.max_nodes, 3 * len(mesh)), mesh=mesh)
+        return self._bvp_solution(res, lambda disc: Row.hyperplane(
+            disc, a.state, direction, self.parameter, sigma))
+
+    def next_mesh(self, a: Solution):
+        from .bvp import coarsen
+        return coarsen(a.mesh, a.rms, self.options.tol, self.options.ntst + 1)
+
+    def fold(self, near: Solution) -> FoldPoint:
+        from .bvp import solve_fold
+        opt = self.options
+        res = solve_fold(self.problem, near.state, near.tangent, self.parameter, opt.fold_tol,
+                         opt.max_nodes)
+        if not res.success:
+            raise CorrectorFailure(f"fold not located: {res.message}")
+        phi = res.extra["phi"]
+        scale = np.sqrt(inner(phi, phi))
+        return FoldPoint(res.state, Tangent(phi.s, phi.y / scale, phi.yp / scale, 0.0),
+                         res.residual)
+
+
+CORRECTORS = {c.name: c for c in (Collocation, SolveBVP)}
+
+
+def make_corrector(problem, parameter: str, options: ContinuationOptions):
+    return CORRECTORS[options.corrector](problem, parameter, options)

@@ -1,0 +1,277 @@
+"""Newton's method on the collocation equations, bordered by one linear condition, and the
+bordered Newton method that locates folds.
+
+The unknowns are the node values Y (n, m) and one free parameter lam; the equations are the
+collocation equations and boundary conditions F(Y, lam) = 0 (:mod:`elastica_auto.collocation`)
+and one linear condition, the border row
+
+    <c, Y> + d lam = beta,
+
+which is the pseudo-arclength condition ``<x - x_0, t_0> = ds`` (c = quadrature weights times
+t_0's state part, d = t_0's parameter part), a hyperplane of a step, or ``lam = value``.
+
+The Jacobian is factorised as a banded matrix (:mod:`elastica_auto.bordered`); once factorised
+at one point it serves chord iterations at nearby points and, through a rank-one update, other
+border rows. Steps are accepted by the natural monotonicity test (Deuflhard): the next chord
+correction must be smaller than the last; if not, the Jacobian is refactorised at the current
+iterate, then the step is damped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import bordered
+from .collocation import Blocks, Discretisation
+from .solution import State, Tangent
+
+#: Newton stops when the scaled correction max |dY| / (1 + |Y|), |dlam| / (1 + |lam|) is
+#: below this: two orders below the discretisation error at the default tol.
+NEWTON_TOL = 1e-9
+#: The fold locator's stricter tolerance (folds are compared across methods to 1e-9).
+FOLD_NEWTON_TOL = 1e-12
+MAX_ITER = 12
+#: Chord iterations continue while at most this many more are predicted (from the last
+#: contraction) to reach the tolerance; otherwise the Jacobian is refactorised (about the
+#: cost of two or three chord iterations) for quadratic convergence.
+CHORD_AHEAD = 4
+
+
+@dataclass
+class Row:
+    """The border row ``<c, Y> + d lam = beta``; ``c`` (n, m) includes the quadrature weights."""
+
+    c: np.ndarray
+    d: float
+    beta: float
+
+    @classmethod
+    def hyperplane(cls, disc: Discretisation, origin: State, direction: Tangent, name: str,
+                   offset: float) -> "Row":
+        """``<x - origin, direction> = offset`` on the mesh of ``disc``."""
+        t = direction.on(disc.s)
+        c = disc.weights * t.y
+        beta = float(np.sum(c * origin(disc.s)) + t.lam * origin.params[name] + offset)
+        return cls(c, t.lam, beta)
+
+    @classmethod
+    def value(cls, disc: Discretisation, lam: float) -> "Row":
+        """``lam = value``: the parameter fixed."""
+        return cls(np.zeros((disc.n, disc.m)), 1.0, float(lam))
+
+    def residual(self, Y, lam) -> float:
+        return float(np.sum(self.c * Y) + self.d * lam - self.beta)
+
+
+class Linearization:
+    """The bordered Jacobian ``[[F_y, F_lam], [c, d]]`` at (Y, lam) on the mesh of ``disc``,
+    evaluated and factorised, with the border row of ``row``."""
+
+    def __init__(self, disc: Discretisation, name: str, params: dict, Y, lam: float, row: Row,
+                 split):
+        self.disc, self.name, self.row, self.split = disc, name, row, split
+        self.Y, self.lam = Y, float(lam)
+        self.params = {**params, name: self.lam}
+        self.ev = disc.evaluate(Y, self.params)
+        self.blocks = disc.blocks(self.ev, self.params, (name,))
+        self.fact = bordered.factor(self.blocks, (name,), [(row.c, [row.d])], split)
+
+    @property
+    def sign(self) -> int:
+        """sign det of the bordered matrix: the branch-point test function. It keeps its sign
+        through folds and changes it at simple branch points; for two border rows c with
+        ``<c, t> > 0`` (t the tangent) it is the same."""
+        return self.fact.sign
+
+    def state(self) -> State:
+        return State(self.disc.s, self.Y, self.ev.f, self.params)
+
+    def tangent(self) -> Tangent:
+        """The unit tangent: the kernel of ``[F_y, F_lam]``, ``<row, t> > 0``."""
+        u_y, u_p = self.fact.null_direction()
+        return unit(self.disc, self.blocks, u_y, float(u_p[0]), self.name)
+
+    def solve(self, row: Row, col, bc, g):
+        """The Newton correction for residuals (col, bc, g) with border row ``row``."""
+        if row is self.row:
+            dY, dp = self.fact.solve(col, bc, [g])
+        else:
+            dY, dp = self.fact.solve_with_border(row.c, [row.d], col, bc, [g])
+        return dY, float(dp[0])
+
+
+def unit(disc: Discretisation, blocks: Blocks, v, v_lam: float, name: str) -> Tangent:
+    """A solution (v, v_lam) of the linearised equations as a unit Tangent (its node slopes
+    from the linearised right-hand side)."""
+    scale = np.sqrt(float(np.sum(disc.weights * np.sum(v * v, axis=0))) + v_lam * v_lam)
+    v, v_lam = v / scale, v_lam / scale
+    return Tangent(disc.s, v, blocks.slopes(v, v_lam, name), v_lam)
+
+
+def scaled_norm(dY, dlam, Y, lam) -> float:
+    return max(float(np.max(np.abs(dY) / (1 + np.abs(Y)))), abs(dlam) / (1 + abs(lam)))
+
+
+@dataclass
+class NewtonResult:
+    converged: bool
+    Y: np.ndarray
+    lam: float
+    niter: int
+    factorizations: int
+    message: str = ""
+    contraction: float = 0.0   # the first iteration's |correction 2| / |correction 1|
+    correction: float = float("nan")    # the size of the last correction
+
+
+def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Row,
+           lin: Linearization | None, split, tol: float = NEWTON_TOL) -> NewtonResult:
+    """Solve F(Y, lam) = 0 with the border row ``row`` from (Y, lam).
+
+    ``lin``: a factorisation to start the chord iterations with (at a nearby point, with any
+    border row), or None to factorise at the start. Non-finite residuals count as a failed
+    step (damped, then failure)."""
+    Y = np.array(Y, dtype=float)
+    lam = float(lam)
+
+    def correction(lin, Y, lam):
+        p = {**params, name: lam}
+        ev = disc.evaluate(Y, p)
+        g = row.residual(Y, lam)
+        if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)):
+            return None, None, np.inf
+        dY, dlam = lin.solve(row, ev.col, ev.bc, g)
+        return dY, dlam, scaled_norm(dY, dlam, Y, lam)
+
+    nfact = 0
+    fresh = lin is None
+    if fresh:
+        lin = Linearization(disc, name, params, Y, lam, row, split)
+        nfact = 1
+    dY, dlam, size = correction(lin, Y, lam)
+    if not np.isfinite(size):
+        return NewtonResult(False, Y, lam, 0, nfact, "non-finite residual at the initial guess",
+                            correction=size)
+    first = None
+    for it in range(1, MAX_ITER + 1):
+        if size <= tol:
+            return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0)
+        alpha = 1.0
+        while True:
+            Y1, lam1 = Y - alpha * dY, lam - alpha * dlam
+            dY1, dlam1, size1 = correction(lin, Y1, lam1)
+            if size1 <= (1 - alpha / 4) * size:
+                break
+            if not fresh:  # the Jacobian is stale: refactorise here first, then damp
+                lin = Linearization(disc, name, params, Y, lam, row, split)
+                nfact += 1
+                fresh = True
+                dY, dlam, size = correction(lin, Y, lam)
+                alpha = 1.0
+                continue
+            alpha /= 2
+            if alpha < 1 / 16:
+                return NewtonResult(False, Y, lam, it, nfact,
+                                    f"no decrease of the Newton correction ({size:.2e})",
+                                    correction=size)
+        theta = size1 / size
+        if first is None:
+            first = theta
+        Y, lam = Y1, lam1
+        ahead = np.log(tol / size1) / np.log(theta) if 0 < theta < 1 and size1 > tol else 0
+        if ahead > CHORD_AHEAD:
+            lin = Linearization(disc, name, params, Y, lam, row, split)
+            nfact += 1
+            fresh = True
+            dY, dlam, size = correction(lin, Y, lam)
+        else:
+            dY, dlam, size, fresh = dY1, dlam1, size1, False
+    return NewtonResult(False, Y, lam, MAX_ITER, nfact,
+                        f"no convergence in {MAX_ITER} iterations (correction {size:.2e})",
+                        correction=size)
+
+
+@dataclass
+class FoldResult:
+    converged: bool
+    Y: np.ndarray
+    lam: float
+    phi: Tangent | None          # the null vector (unit, lam part 0)
+    g: float                     # the test function at the result
+    niter: int
+    message: str = ""
+
+
+def _null_vector(disc, blocks, name, c, split):
+    """(v, g, w_col, w_bc) of the bordered system ``[[F_y, F_lam], [c, 0]]``: ``F_y v + F_lam g
+    = 0``, ``<c, v> = 1``; w the multipliers of its transpose with the same right-hand side.
+    ``g`` vanishes exactly where F_y is singular with null vector v (a fold when F_lam is not
+    in the range of F_y)."""
+    fact = bordered.factor(blocks, (name,), [(c, [0.0])], split)
+    v, g = fact.solve(np.zeros((disc.n, disc.m - 1)), np.zeros(disc.n), [1.0])
+    w_col, w_bc, _ = fact.solve_transpose(np.zeros((disc.n, disc.m)), [1.0])
+    return v, float(g[0]), w_col, w_bc
+
+
+def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t: Tangent,
+                split, tol: float = FOLD_NEWTON_TOL, max_iter: int = 15) -> FoldResult:
+    """Locate a fold by Newton's method on the minimally augmented system (Govaerts)
+
+        F(Y, lam) = 0,    g(Y, lam) = 0,
+
+    with g from ``[[F_y, b], [c, 0]] (v, g) = (0, 1)``: ``b`` = F_lam and ``c`` = the weighted
+    state part of ``t`` (an approximate null vector) at the start, then frozen. The Newton
+    matrix ``[[F_y, F_lam], [g_y, g_lam]]`` is the bordered Jacobian with the gradient of g as
+    its border row, ``g_z = -w^T (dF_y/dz) v`` (w from the transposed system), the
+    derivative of F_y along v and in lam by central differences of the module's Jacobian."""
+    Y = np.array(Y, dtype=float)
+    lam = float(lam)
+    p = {**params, name: lam}
+    ev = disc.evaluate(Y, p)
+    blocks = disc.blocks(ev, p, (name,))
+    frozen_col, frozen_bc = blocks.dcol[name], blocks.dbc[name]
+    c = disc.weights * t.on(disc.s).y
+    v = g = None
+    for it in range(1, max_iter + 1):
+        aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
+                     {name: frozen_bc}, blocks.jac, blocks.fp)
+        v, g, w_col, w_bc = _null_vector(disc, aux, name, c, split)
+        eps = 1e-6 * (1 + float(np.max(np.abs(Y)))) / max(float(np.max(np.abs(v))), 1e-300)
+        plus = disc.blocks(disc.evaluate(Y + eps * v, p), p)
+        minus = disc.blocks(disc.evaluate(Y - eps * v, p), p)
+        g_y = -(plus.transpose_times(w_col, w_bc) - minus.transpose_times(w_col, w_bc)) / (2 * eps)
+        eps_l = 1e-6 * (1 + abs(lam))
+        up = disc.blocks(disc.evaluate(Y, {**p, name: lam + eps_l}), {**p, name: lam + eps_l})
+        down = disc.blocks(disc.evaluate(Y, {**p, name: lam - eps_l}), {**p, name: lam - eps_l})
+        (uc, ub), (dc, db) = up.times(v), down.times(v)
+        g_lam = -(float(np.sum(w_col * (uc - dc))) + float(w_bc @ (ub - db))) / (2 * eps_l)
+        fact = bordered.factor(blocks, (name,), [(g_y, [g_lam])], split)
+        dY, dlam = fact.solve(ev.col, ev.bc, [g])
+        dlam = float(dlam[0])
+        if not (np.all(np.isfinite(dY)) and np.isfinite(dlam)):
+            return FoldResult(False, Y, lam, None, g, it, "non-finite Newton correction")
+        Y, lam = Y - dY, lam - dlam
+        p = {**params, name: lam}
+        ev = disc.evaluate(Y, p)
+        blocks = disc.blocks(ev, p, (name,))
+        if scaled_norm(dY, dlam, Y, lam) <= tol:
+            aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
+                         {name: frozen_bc}, blocks.jac, blocks.fp)
+            v, g, _, _ = _null_vector(disc, aux, name, c, split)
+            return FoldResult(True, Y, lam, unit(disc, blocks, v, 0.0, name), g, it)
+    return FoldResult(False, Y, lam, None, np.nan if g is None else g, max_iter,
+                      f"no convergence in {max_iter} iterations")
+
+
+def kernel(lin: Linearization) -> tuple[np.ndarray, float]:
+    """The kernel of a singular bordered matrix, by one solve with a fixed pseudo-random
+    right-hand side: its component along the kernel is amplified by 1 / sigma_min. At a
+    branch point located to ~1e-12 this is the direction of the other branch that is
+    orthogonal to the border row (the first branch's tangent). Returns (v (n, m), v_lam)."""
+    disc = lin.disc
+    rng = np.random.default_rng(20261201)
+    v, v_lam = lin.fact.solve(rng.standard_normal((disc.n, disc.m - 1)),
+                              rng.standard_normal(disc.n), [rng.standard_normal()])
+    return v, float(v_lam[0])
