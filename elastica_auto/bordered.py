@@ -30,10 +30,36 @@ sign changes of ``det M'`` along a branch, on one mesh, are sign changes of ``de
 
 from __future__ import annotations
 
+import importlib.util
+import os
 from functools import lru_cache
 
 import numpy as np
-from scipy.linalg.lapack import dgbtrf, dgbtrs
+
+
+def _banded_lapack():
+    """LAPACK's banded LU routines ``dgbtrf`` and ``dgbtrs`` from scipy's Fortran wrappers.
+
+    ``import scipy.linalg.lapack`` first runs scipy.linalg's package initialisation, which
+    imports all of scipy.linalg (about 0.25 s here, more than a small run computes); the
+    wrapper extension itself loads in a few milliseconds, so it is loaded directly from its
+    file. Any failure falls back to the ordinary import."""
+    try:
+        scipy_dir = os.path.dirname(importlib.util.find_spec("scipy").origin)
+        folder = os.path.join(scipy_dir, "linalg")
+        name = next(f for f in os.listdir(folder)
+                    if f.startswith("_flapack.") and f.endswith((".so", ".pyd")))
+        spec = importlib.util.spec_from_file_location("scipy.linalg._flapack",
+                                                      os.path.join(folder, name))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module.dgbtrf, module.dgbtrs
+    except Exception:  # an unusual installation: the documented route
+        from scipy.linalg.lapack import dgbtrf, dgbtrs
+        return dgbtrf, dgbtrs
+
+
+dgbtrf, dgbtrs = _banded_lapack()
 
 
 def split_rows(ga, gb, tol=0.0):

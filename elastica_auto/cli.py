@@ -16,11 +16,7 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .problem import ProblemError
-from .runfile import RunFileError
-from .store import StoreError
-
-USER_ERRORS = (RunFileError, StoreError, ProblemError)
+from .errors import USER_ERRORS, RunFileError, StoreError
 EXIT_USER, EXIT_BRANCH_FAILED, EXIT_INTERRUPTED = 2, 1, 130
 
 

@@ -36,8 +36,20 @@ REGRID_TARGET, REFINE_ABOVE = 0.125, 0.4
 #: The mesh is coarsened for the next step when the error is this far below the tolerance
 #: and the equidistributed mesh has at most COARSEN_SIZE of the nodes.
 COARSEN_BELOW, COARSEN_SIZE = 1 / 64, 0.7
+#: A step uses the hyperplane normal to the border row of its start's factorisation (the
+#: previous tangent) while that is within acos(STALE_NORMAL) of the tangent; else the
+#: tangent's own hyperplane, through a rank-one update.
+STALE_NORMAL = 0.5
+#: A fold's mesh aims at this fraction of fold_tol (it serves no further step).
+FOLD_TARGET = 0.5
 #: Regrid-and-resolve rounds before a solve is given up.
 MESH_ROUNDS = 4
+
+
+def _tangent_row(disc, t: Tangent) -> Row:
+    """A border row along the direction t on the mesh of ``disc``."""
+    t = t.on(disc.s)
+    return Row(disc.weights * t.y, t.lam, 0.0)
 
 
 class CorrectorFailure(RuntimeError):
@@ -139,9 +151,11 @@ class Collocation:
         return out
 
     def _solve(self, s, params, guess: State, lam: float, make_row, lin=None,
-               tol=None, regrid=True) -> Solution:
+               tol=None, regrid=True, row_of=None) -> Solution:
         """Newton from ``guess`` on mesh ``s`` with the condition ``make_row(disc)``; then, if
-        ``regrid``, regrid and solve again until the error estimate is under ``tol``."""
+        ``regrid``, regrid and solve again until the error estimate is under ``tol``. The
+        solution is linearised with the border row ``row_of(disc)`` (default: the
+        condition's)."""
         tol = self.options.tol if tol is None else tol
         disc = self.disc(s)
         Y = guess(disc.s)
@@ -150,7 +164,8 @@ class Collocation:
             row = make_row(disc)
             res = self._newton(disc, params, Y, lam, row, lin)
             niter += res.niter
-            sol = self.solution(disc, params, res.Y, res.lam, row, niter)
+            sol = self.solution(disc, params, res.Y, res.lam,
+                                row if row_of is None else row_of(disc), niter)
             sol.extra["contraction"] = res.contraction
             worst = float(np.max(sol.rms))
             if not regrid or worst <= tol:
@@ -193,12 +208,36 @@ class Collocation:
         p = {**params, self.parameter: value}
         return State(disc.s, res.Y, self.problem.rhs(disc.s, res.Y, p), p)
 
+    def point(self, guess: State) -> Solution:
+        """The solution at the guess's parameters, from the guess, on a mesh that meets
+        ``tol``."""
+        lam = guess.params[self.parameter]
+        return self._solve(guess.s, guess.params, guess, lam, lambda disc: Row.value(disc, lam))
+
     def step(self, a: Solution, ds: float, curvature: Tangent | None = None) -> Solution:
         """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` on a's mesh (a's factorised
         Jacobian serves for the chord iterations), predicted at ``a + ds t_a`` or, given the
         curve's ``curvature`` (the derivative of its unit tangent in arclength), at
         ``a + ds t_a + ds^2 / 2 curvature``."""
-        return self.on_plane(a, a.tangent, ds, curvature=curvature)
+        name, t = self.parameter, a.tangent
+        row = a.lin.row
+        cos = float(np.sum(row.c * t.y) + row.d * t.lam)
+        if cos < STALE_NORMAL or a.extra.get("singular"):
+            return self.on_plane(a, t, ds, curvature=curvature)
+        # the hyperplane normal to the border row a was factorised with (the tangent one point
+        # back) through the predictor: a plain solve with a's factors, no rank-one update
+        s = a.mesh
+        if curvature is not None:
+            k = curvature.on(s)
+            t = Tangent(s, t.y + ds / 2 * k.y, t.yp + ds / 2 * k.yp, t.lam + ds / 2 * k.lam)
+        pred = State(s, a.state.y + ds * t.y, a.state.yp + ds * t.yp,
+                     {**a.state.params, name: a.lam + ds * t.lam})
+        beta = float(np.sum(row.c * pred.y) + row.d * pred.params[name])
+        sol = self._solve(s, a.state.params, pred, pred.params[name],
+                          lambda disc: (Row(row.c, row.d, beta) if disc.s is s else
+                                        Row.hyperplane(disc, pred, a.tangent, name, 0.0)),
+                          lin=a.lin, row_of=lambda disc: _tangent_row(disc, a.tangent))
+        return sol
 
     def on_plane(self, a: Solution, direction: Tangent, sigma: float, s=None,
                  regrid: bool = True, curvature: Tangent | None = None) -> Solution:
@@ -235,11 +274,10 @@ class Collocation:
             ev = disc.evaluate(res.Y, p)
             rms = np.maximum(disc.rms_residuals(res.Y, ev.f, p, ev),
                              disc.linear_rms_residuals(res.Y, p, res.phi.y))
-            if rms.max() <= opt.fold_tol:
-                return FoldPoint(State(disc.s, res.Y, ev.f, p), res.phi,
-                                 max(float(rms.max()), abs(res.g)))
             state = State(disc.s, res.Y, ev.f, p)
-            disc = self.disc(equidistributed_mesh(disc.s, rms, REGRID_TARGET * opt.fold_tol,
+            if rms.max() <= opt.fold_tol:
+                return FoldPoint(state, res.phi, float(rms.max()))
+            disc = self.disc(equidistributed_mesh(disc.s, rms, FOLD_TARGET * opt.fold_tol,
                                                   opt.ntst, opt.max_nodes - 1))
             Y, lam, t = state(disc.s), res.lam, res.phi
         raise CorrectorFailure(f"fold: error estimate {rms.max():.2e} > fold_tol after "
@@ -249,7 +287,7 @@ class Collocation:
 @dataclass
 class FoldPoint:
     """A located fold: its solution, null vector (unit, parameter part 0) and residual (the
-    largest error estimate of the solution and null vector, or the fold test function)."""
+    largest error estimate of the solution and null vector)."""
 
     state: State
     phi: Tangent

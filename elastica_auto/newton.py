@@ -30,8 +30,9 @@ from .solution import State, Tangent
 #: Newton stops when the scaled correction max |dY| / (1 + |Y|), |dlam| / (1 + |lam|) is
 #: below this: two orders below the discretisation error at the default tol.
 NEWTON_TOL = 1e-9
-#: The fold locator's stricter tolerance (folds are compared across methods to 1e-9).
-FOLD_NEWTON_TOL = 1e-12
+#: The fold locator's tolerance on its last correction. Its Newton matrix is exact up to
+#: differences of step 1e-7, so the error left after a correction of 1e-8 is ~1e-15.
+FOLD_NEWTON_TOL = 1e-8
 MAX_ITER = 12
 #: Chord iterations continue while at most this many more are predicted (from the last
 #: contraction) to reach the tolerance; otherwise the Jacobian is refactorised (about the
@@ -95,7 +96,7 @@ class Linearization:
 
     def solve(self, row: Row, col, bc, g):
         """The Newton correction for residuals (col, bc, g) with border row ``row``."""
-        if row is self.row:
+        if row is self.row or (row.c is self.row.c and row.d == self.row.d):
             dY, dp = self.fact.solve(col, bc, [g])
         else:
             dY, dp = self.fact.solve_with_border(row.c, [row.d], col, bc, [g])
@@ -225,7 +226,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     state part of ``t`` (an approximate null vector) at the start, then frozen. The Newton
     matrix ``[[F_y, F_lam], [g_y, g_lam]]`` is the bordered Jacobian with the gradient of g as
     its border row, ``g_z = -w^T (dF_y/dz) v`` (w from the transposed system), the
-    derivative of F_y along v and in lam by central differences of the module's Jacobian."""
+    derivative of F_y along v and in lam by differences of the module's Jacobian."""
     Y = np.array(Y, dtype=float)
     lam = float(lam)
     p = {**params, name: lam}
@@ -238,15 +239,15 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
                      {name: frozen_bc}, blocks.jac, blocks.fp)
         v, g, w_col, w_bc = _null_vector(disc, aux, name, c, split)
-        eps = 1e-6 * (1 + float(np.max(np.abs(Y)))) / max(float(np.max(np.abs(v))), 1e-300)
+        # one-sided differences: an O(eps) error in the Newton matrix only slows the (then
+        # linear, rate ~eps) convergence; F and g themselves are exact
+        eps = 1e-7 * (1 + float(np.max(np.abs(Y)))) / max(float(np.max(np.abs(v))), 1e-300)
         plus = disc.blocks(disc.evaluate(Y + eps * v, p), p)
-        minus = disc.blocks(disc.evaluate(Y - eps * v, p), p)
-        g_y = -(plus.transpose_times(w_col, w_bc) - minus.transpose_times(w_col, w_bc)) / (2 * eps)
-        eps_l = 1e-6 * (1 + abs(lam))
+        g_y = -(plus.transpose_times(w_col, w_bc) - blocks.transpose_times(w_col, w_bc)) / eps
+        eps_l = 1e-7 * (1 + abs(lam))
         up = disc.blocks(disc.evaluate(Y, {**p, name: lam + eps_l}), {**p, name: lam + eps_l})
-        down = disc.blocks(disc.evaluate(Y, {**p, name: lam - eps_l}), {**p, name: lam - eps_l})
-        (uc, ub), (dc, db) = up.times(v), down.times(v)
-        g_lam = -(float(np.sum(w_col * (uc - dc))) + float(w_bc @ (ub - db))) / (2 * eps_l)
+        (uc, ub), (bc_, bb) = up.times(v), blocks.times(v)
+        g_lam = -(float(np.sum(w_col * (uc - bc_))) + float(w_bc @ (ub - bb))) / eps_l
         fact = bordered.factor(blocks, (name,), [(g_y, [g_lam])], split)
         dY, dlam = fact.solve(ev.col, ev.bc, [g])
         dlam = float(dlam[0])
@@ -257,9 +258,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         ev = disc.evaluate(Y, p)
         blocks = disc.blocks(ev, p, (name,))
         if scaled_norm(dY, dlam, Y, lam) <= tol:
-            aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
-                         {name: frozen_bc}, blocks.jac, blocks.fp)
-            v, g, _, _ = _null_vector(disc, aux, name, c, split)
+            # the null vector of the last iterate, within the last correction of this one's
             return FoldResult(True, Y, lam, unit(disc, blocks, v, 0.0, name), g, it)
     return FoldResult(False, Y, lam, None, np.nan if g is None else g, max_iter,
                       f"no convergence in {max_iter} iterations")

@@ -46,11 +46,9 @@ from typing import Callable
 
 import numpy as np
 
+from .errors import ProblemError
+
 ENTERS = ("fixed", "free", "ode")
-
-
-class ProblemError(ValueError):
-    """An equation module does not follow the protocol (missing name, wrong shape, ...)."""
 
 
 @dataclass(frozen=True)

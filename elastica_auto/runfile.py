@@ -41,14 +41,11 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from .errors import RunFileError
 from .events import UserValues
 from .options import ContinuationOptions, OptionsError
 from .problem import Problem, ProblemError, load_problem
 from .stepper import Stops
-
-
-class RunFileError(ValueError):
-    """A run file that cannot be used; the message is one line naming the file and key."""
 
 
 _FUNCS = {"sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "tan": math.tan,

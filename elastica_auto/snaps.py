@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .branch import PROFILE_GRID
 from .solution import State
@@ -46,6 +45,7 @@ class Equilibrium:
 def _integrate(problem, params, y0, s_eval=None):
     """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together; y at s = 1 (or at
     ``s_eval``), shape (n, m) (or (n, m, len(s_eval)))."""
+    from scipy.integrate import solve_ivp
     n, m = y0.shape
 
     def f(s, z):

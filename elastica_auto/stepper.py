@@ -27,21 +27,27 @@ travel):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Callable
 
-from .branch import Branch
+import numpy as np
+
+from .branch import PROFILE_GRID, Branch
 from .correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Step, UserValues, crossings, locate_branch_point, locate_fold,
                      locate_value, pair_suspected, tangent_between)
 from .newton import Row
 from .options import ContinuationOptions
-from .solution import State, Tangent, inner, norm, secant
+from .solution import State, Tangent, difference, inner, norm, secant
 from .stability import fold_sign, index
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
+#: A fold's translate is looked for where the branch passes it with ordinates within
+#: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
+TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
 #: ds grows after a step whose Newton iteration contracted at least this fast (and whose
 #: tangent turned by less than half of max_angle).
 EASY_CONTRACTION = 0.1
@@ -141,9 +147,17 @@ class _Walk:
         self.ordinate = next((o for o in self.problem.ordinates.values()
                               if o.parameter == self.name), None)
         self.enters = self.problem.parameters[self.name].enters
+        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
 
     # -- the loop ---------------------------------------------------------------------------
     def run(self, a: Solution):
+        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
+        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
+        self._walk(a)
+        if self.until is None and self.branch.end != "LP":
+            self._complete_translates()
+
+    def _walk(self, a: Solution):
         opt, branch = self.opt, self.branch
         self.base_point = branch.add(a.state, type="EP", arclength=0.0, tangent=a.tangent,
                                      direct=index(self.problem, a.state))
@@ -264,10 +278,107 @@ class _Walk:
         self.a, self.first = b, False
         if self.progress is not None:
             self.progress(self.branch, b.lam)
+        if self.until is not None:
+            origin, direction, distance = self.until
+            if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
+                self.branch.end, self.branch.message = "EP", "reached the end of the segment"
+                return ds, True
         if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
                 and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
             ds = min(ds * opt.growth, opt.ds_max)
         return ds, False
+
+    # -- folds at every translate of a periodic parameter -------------------------------------
+    def _complete_translates(self):
+        """The solution set is periodic in a parameter with a period, so a fold found at
+        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
+        Where it passes without one (a fold pair stepped over), the step there is walked again
+        with steps of at most 1/32 of its length; a translate still missing is a warning."""
+        period = self.problem.parameters[self.name].period
+        if period is None:
+            return
+        for _ in range(3):
+            gaps = self._missing_translates(period, TRANSLATE_NEAR)
+            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
+                break
+        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
+            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
+                                        f"{lam:.6g}, a translate of a fold by a period")
+
+    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
+        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
+        whole periods, within the range the branch travelled) where the branch has no fold."""
+        pts = self.branch.points
+        lam = np.array([p.params[self.name] for p in pts])
+        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
+        folds = [k for k, p in enumerate(pts) if p.type == "LP" and not p.note]
+        out = {}
+        for k in folds:
+            scale = 1.0 + np.abs(ords[k])
+            for j in range(math.ceil((lam.min() - lam[k]) / period),
+                           math.floor((lam.max() - lam[k]) / period) + 1):
+                target = lam[k] + j * period
+                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
+                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
+                                 for g in folds):
+                    continue
+                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
+                # fold's parameter is an extreme value, which the branch touches, not crosses
+                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
+                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
+                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
+                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
+                for i in np.flatnonzero(near):
+                    out[int(i)] = float(target)
+        return out
+
+    def _refine(self, i: int) -> bool:
+        """Walk the step from point i to point i+1 again with small steps, and put the points
+        (and any folds, branch points, user points) it finds between them. False if it could
+        not be done (the two points could not be solved again from their profiles)."""
+        pts, corr, name = self.branch.points, self.corr, self.name
+        try:
+            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
+        except CorrectorFailure:
+            return False
+        sec, dist = secant(p.state, q.state, name)
+        if inner(p.tangent, sec, sec.s) < 0:
+            t = p.tangent.scaled(-1.0)
+            disc = corr.disc(p.mesh)
+            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
+                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
+        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
+                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
+        sub = Branch(self.problem, name, self.branch.direction, "refinement", {})
+        walk = _Walk(sub, corr, opt, Stops(), self.user_values, None, False)
+        walk.until = (p.state, sec, dist * (1 - 1e-7))
+        walk.run(p)
+        if sub.end != "EP":
+            return False
+        grid = PROFILE_GRID
+        w = np.gradient(grid)
+        origin = p.state(grid)
+
+        def sigma(pt):
+            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
+                         + (pt.params[name] - p.lam) * sec.lam)
+
+        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        total = sub.points[-1].arclength
+        a0, a1 = pts[i].arclength, pts[i + 1].arclength
+        for pt in new:
+            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
+        pts[i + 1:i + 1] = new
+        self.branch.warnings.extend(sub.warnings)
+        return True
+
+    def _resolve(self, point) -> Solution:
+        """A point of the branch as a linearised solution: its stored solution if labelled,
+        else solved again at its parameters from its profile."""
+        state = point.state
+        if state is None:
+            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
+        return self.corr.point(state)
 
     # -- detection helpers ------------------------------------------------------------------
     def _probe(self, step: Step, u: float, ds: float, index_a: int):

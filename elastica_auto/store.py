@@ -42,13 +42,10 @@ import numpy as np
 
 from . import FORMAT_VERSION, __version__
 from .branch import INDEX_UNKNOWN, PROFILE_GRID, Branch
+from .errors import StoreError
 from .solution import State, Tangent
 
 FORMAT = "elastica-auto"
-
-
-class StoreError(ValueError):
-    """A branch file that cannot be read (missing, truncated, foreign, newer format)."""
 
 
 def _ordinate_for(problem, parameter):

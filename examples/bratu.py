@@ -15,9 +15,8 @@ so u'(0) = 2 z tanh(z / 2), u(1/2) = 2 ln cosh(z / 2), and the fold is where z t
 """
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
-
 from elastica_auto.problem import Ordinate, Parameter
+from elastica_auto.solution import hermite
 
 STATES = ("u", "v")
 
@@ -66,7 +65,7 @@ def _du0(s, y, p):
 
 def _u_half(s, y, p):
     # u' = v is part of the state, so cubic Hermite interpolation is 4th-order accurate.
-    return CubicHermiteSpline(s, y[0], y[1])(0.5)
+    return float(hermite(s, y[:1], y[1:2], np.array([0.5]))[0, 0])
 
 
 ORDINATES = [
