@@ -107,7 +107,7 @@ def locate_fold(corr, step: Step) -> FoldPoint:
     off = math.sqrt(max(inner(difference(fold.state, step.a.state, step.name, fold.state.s),
                               difference(fold.state, step.a.state, step.name, fold.state.s),
                               fold.state.s) - where * where, 0.0))
-    if not (-0.1 * step.dist <= where <= 1.1 * step.dist) or off > step.dist:
+    if not (-0.01 * step.dist <= where <= 1.01 * step.dist) or off > step.dist:
         raise CorrectorFailure(f"the fold system converged off the step (at sigma = "
                                f"{where:.3g} of {step.dist:.3g}, {off:.3g} beside it)")
     return fold

@@ -34,6 +34,8 @@ NEWTON_TOL = 1e-9
 #: differences of step 1e-7, so the error left after a correction of 1e-8 is ~1e-15.
 FOLD_NEWTON_TOL = 1e-8
 MAX_ITER = 12
+#: The fold locator starts on the branch next to the fold; a larger correction diverges.
+FOLD_MAX_CORRECTION = 0.5
 #: Chord iterations continue while at most this many more are predicted (from the last
 #: contraction) to reach the tolerance; otherwise the Jacobian is refactorised (about the
 #: cost of two or three chord iterations) for quadratic convergence.
@@ -139,7 +141,8 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
 
     def correction(lin, Y, lam):
         p = {**params, name: lam}
-        ev = disc.evaluate(Y, p)
+        with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
+            ev = disc.evaluate(Y, p)
         g = row.residual(Y, lam)
         if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)):
             return None, None, np.inf
@@ -251,13 +254,15 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         fact = bordered.factor(blocks, (name,), [(g_y, [g_lam])], split)
         dY, dlam = fact.solve(ev.col, ev.bc, [g])
         dlam = float(dlam[0])
-        if not (np.all(np.isfinite(dY)) and np.isfinite(dlam)):
-            return FoldResult(False, Y, lam, None, g, it, "non-finite Newton correction")
+        size = scaled_norm(dY, dlam, Y, lam)
+        if not size < FOLD_MAX_CORRECTION:  # started near the fold: this diverges (or is NaN)
+            return FoldResult(False, Y, lam, None, g, it,
+                              f"Newton correction {size:.2g} (diverging)")
         Y, lam = Y - dY, lam - dlam
         p = {**params, name: lam}
         ev = disc.evaluate(Y, p)
         blocks = disc.blocks(ev, p, (name,))
-        if scaled_norm(dY, dlam, Y, lam) <= tol:
+        if size <= tol:
             # the null vector of the last iterate, within the last correction of this one's
             return FoldResult(True, Y, lam, unit(disc, blocks, v, 0.0, name), g, it)
     return FoldResult(False, Y, lam, None, np.nan if g is None else g, max_iter,

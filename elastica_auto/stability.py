@@ -110,16 +110,21 @@ def index(problem, state) -> int:
     return negative + (d < 0)
 
 
+def index_change(enters: str, curvature: float, slope: float) -> int:
+    """Index change across a simple fold in the direction of travel, from the signs of the
+    parameter's curvature xi'' and of the ordinate's slope dB/dtau there:
+    ``+sign(xi'' dB/dtau)`` for a parameter entering the free end or the ODE, ``-sign(...)``
+    for one entering the fixed end; 0 if either vanishes (not a simple fold)."""
+    change = int(np.sign(curvature) * np.sign(slope))
+    return -change if enters == "fixed" else change
+
+
 def fold_sign(enters: str, lam: np.ndarray, ordinate: np.ndarray, k: int) -> int:
-    """Index change across the fold at point ``k`` in the direction of travel, from its
-    neighbours: ``+sign(xi'' dB/dtau)`` (free end, ODE) or ``-sign(...)`` (fixed end); 0 if
-    the fold is not simple as seen from the neighbouring points."""
+    """:func:`index_change` at the fold at point ``k``, the signs read off its neighbours."""
     if k == 0 or k == len(lam) - 1:
         return 0
-    curvature = np.sign((lam[k - 1] - lam[k]) + (lam[k + 1] - lam[k]))  # sign of xi''
-    slope = np.sign(ordinate[k + 1] - ordinate[k - 1])                 # sign of dB/dtau
-    change = int(curvature * slope)
-    return -change if enters == "fixed" else change
+    return index_change(enters, (lam[k - 1] - lam[k]) + (lam[k + 1] - lam[k]),
+                        ordinate[k + 1] - ordinate[k - 1])
 
 
 def fold_rule(branch, start_index: int) -> list[int]:

@@ -41,7 +41,7 @@ from .events import (Step, UserValues, crossings, locate_branch_point, locate_fo
 from .newton import Row
 from .options import ContinuationOptions
 from .solution import State, Tangent, difference, inner, norm, secant
-from .stability import fold_sign, index
+from .stability import index, index_change
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
@@ -399,6 +399,13 @@ class _Walk:
 
     def _fold_event(self, step: Step, bp: bool) -> _Event:
         fp = locate_fold(self.corr, step)
+        lam = fp.state.params[self.name]
+        for p in self.branch.folds[-1:]:
+            if abs(p.params[self.name] - lam) <= 1e-9 * (1 + abs(lam)) and all(
+                    abs(p.ordinates[k] - v) <= 1e-6 * (1 + abs(v))
+                    for k, v in self.problem.ordinate_values(fp.state.s, fp.state.y,
+                                                             fp.state.params).items()):
+                raise CorrectorFailure("the fold system converged to the fold before")
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
             phi = phi.scaled(-1.0)
@@ -429,9 +436,9 @@ class _Walk:
         for e in sorted(found, key=lambda e: e.sigma):
             if e.kind != "LP" or e.note:
                 return None
-            lam = [step.a.lam, e.state.params[self.name], step.b.lam]
-            ords = [self._ordinate(st) for st in (step.a.state, e.state, step.b.state)]
-            change = fold_sign(self.enters, lam, ords, 1)
+            # xi'' from the tangents (robust at any step length), dB/dtau across the step
+            change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
+                                  self._ordinate(step.b.state) - self._ordinate(step.a.state))
             if change == 0:
                 return None
             out += change

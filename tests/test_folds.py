@@ -10,15 +10,16 @@ import numpy as np
 import pytest
 
 import shooting
-from helpers import elastica_run_file, run_plan
+from helpers import REPO, elastica_run_file, run_plan
 from elastica_auto import runfile
 
 TWO_PI = 2 * math.pi
 
-# Fold locations: the engine locates folds with an extended system solved at fold_tol = 1e-7,
-# documented (options.py) as putting them within ~1e-10 of a shooting solve; we check 1e-8.
-# The same 1e-8 bounds the tip moment m1 = kappa(1) at a fold: unlike psi, which is stationary
-# at a fold, m1 is first order in the state error, which at fold_tol = 1e-7 is ~1e-9 here.
+# Fold locations: the engine locates folds on meshes that resolve the solution and its null
+# vector to fold_tol = 1e-7, documented (options.py) as putting them within ~1e-10 of a shooting
+# solve; we check 1e-9 in psi. The tip moment m1 = kappa(1) at a fold is first order in the
+# state error (psi is stationary there), which at fold_tol = 1e-7 is ~1e-9 here: 1e-8.
+PSI_ATOL = 1e-9
 FOLD_ATOL = 1e-8
 
 
@@ -75,7 +76,7 @@ def test_every_fold_matches_an_independent_shooting_solve(rotating_arm):
             for psi, m1, m0, res in zip(lp["psi"], lp["m1"], lp["m0"], lp["fold_residual"]):
                 assert np.isfinite(res)    # located, not merely detected
                 k0, psi_s, m1_s = shooting.fold(P, eps, m0, psi)
-                assert abs(psi - psi_s) <= FOLD_ATOL, (eps, P, psi, psi_s)
+                assert abs(psi - psi_s) <= PSI_ATOL, (eps, P, psi, psi_s)
                 assert abs(m0 - k0) <= FOLD_ATOL * (1 + abs(k0))
                 assert abs(m1 - m1_s) <= FOLD_ATOL * (1 + abs(m1_s))
                 nfolds += 1
@@ -168,3 +169,78 @@ def test_fold_location_converges_as_fold_tol_shrinks(small_plan_file, tmp_path):
     assert np.all(errors[1:] < errors[:-1]), errors
     # ... and the tightest is well inside the 1e-8 claimed for the default fold_tol
     assert np.all(errors[-1] < 1e-9)
+
+
+# ---- 7. no fold pair stepped over, no branch jumping -----------------------------------------
+
+#: Near a cusp of the rotating-arm family at P = 9 pi^2 / 4 (eps_c = 0.3611139756, found by
+#: shooting: where the fold condition's two roots in theta'(0) merge), at eps = 0.362 two folds
+#: lie 8.5e-4 apart in psi with a stable sliver (index 1 -> 0 -> 1) between them; they recur,
+#: mirrored, every 2 pi. The branch from the straight rod meets 17 folds in each direction
+#: within |psi| <= 6 pi (a shooting scan of the fold condition over theta'(0)).
+CUSP = dict(eps="0.362", P="9*pi^2/4", bounds=("-6*pi", "6*pi"))
+
+
+def _cusp_folds(tmp_path, eps=CUSP["eps"], **options):
+    tmp_path.mkdir(exist_ok=True)
+    path = elastica_run_file(tmp_path / "cusp.toml", eps=eps, P=CUSP["P"], bounds=CUSP["bounds"])
+    plan = runfile.load(path)
+    plan.options = dataclasses.replace(plan.options, **options)
+    return run_plan(plan, tmp_path, jobs=2).result.branches
+
+
+def _check_cusp(branches, eps=0.362, gap=8.515e-4):
+    P = 9 * math.pi ** 2 / 4
+    assert [len(b.folds) for b in branches] == [17, 17]
+    slivers = 0
+    for b in branches:
+        for p in b.folds:
+            _, psi, _ = shooting.fold(P, eps, p.ordinates["m0"], p.params["psi"])
+            assert abs(psi - p.params["psi"]) <= PSI_ATOL
+        psi = np.array([p.params["psi"] for p in b.folds])
+        close = np.flatnonzero(np.abs(np.diff(psi)) < 1e-3)     # the pairs, in travel order
+        assert len(close) >= 4
+        for k in close:
+            assert abs(abs(psi[k + 1] - psi[k]) - gap) < 1e-6
+            assert b.transition(b.folds[k]) == "1 -> 0"
+            assert b.transition(b.folds[k + 1]) == "0 -> 1"
+            slivers += 1
+        assert b.disagreements == [] and b.warnings == []
+    assert slivers >= 8
+
+
+@pytest.mark.parametrize("ds_max", [1.0, 3.0])
+def test_a_fold_pair_near_a_cusp_is_never_stepped_over(tmp_path, ds_max):
+    _check_cusp(_cusp_folds(tmp_path, ds_max=ds_max))
+
+
+def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
+    """A narrower pair (eps = 0.3615: 2.44e-4 apart, by shooting). Without the probe of a
+    dipping parameter slope, steps pass over some of its translates; the periodic translates
+    of the folds that were found bring every missing one back."""
+    from elastica_auto import stepper
+    monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
+    monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
+    missed = _cusp_folds(tmp_path / "without", eps="0.3615", ds_max=3.0)
+    assert all(len(b.folds) < 17 for b in missed)
+    monkeypatch.undo()
+    monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
+    _check_cusp(_cusp_folds(tmp_path / "with", eps="0.3615", ds_max=3.0), 0.3615, 2.436414e-4)
+
+
+def test_the_rotating_arm_folds_do_not_depend_on_ds_max(tmp_path):
+    """From tiny steps to steps longer than the folds' spacing: the same 50 folds, equal to
+    1e-9, and the fold rule and direct count agree everywhere (no jump between branches)."""
+    folds = {}
+    for ds_max in (0.05, 0.3, 1.0, 3.0):
+        plan = runfile.load(REPO / "runs" / "rotating_arm.toml")
+        plan.options = dataclasses.replace(plan.options, ds=min(0.05, ds_max), ds_max=ds_max,
+                                           max_points=20000)
+        plan.user_values = []
+        branches = run_plan(plan, tmp_path / str(ds_max), jobs=2).result.branches
+        assert [len(b.folds) for b in branches] == [5, 5, 5, 5, 5, 5, 10, 10]
+        for b in branches:
+            assert b.disagreements == [] and b.warnings == [] and b.end == "EP"
+        folds[ds_max] = np.concatenate([[p.params["psi"] for p in b.folds] for b in branches])
+    for ds_max, psi in folds.items():
+        np.testing.assert_allclose(psi, folds[0.05], rtol=0, atol=1e-9, err_msg=str(ds_max))

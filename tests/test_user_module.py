@@ -14,6 +14,7 @@ falls back to 0 as z -> infinity: the branch from u = 0 folds once, at lam_c.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 
 import numpy as np
@@ -189,3 +190,48 @@ def test_restart_with_the_same_user_module_file_from_another_directory(tmp_path,
                     '[options]\nmax_points = 5\n')
     second = run_cli(cli_exe, "run", toml, "--out", out)
     assert second.returncode == 0, second.stderr
+
+
+# ---- user points and bounds beside the fold, whatever the step -----------------------------
+
+def _sweep_plan(lam_value_list, upper, ds):
+    plan = runfile.load(BRATU_TOML)
+    plan.user_values = [type(plan.user_values[0])(tuple(lam_value_list))]
+    plan.stops = type(plan.stops)(plan.stops.lower, upper, None)
+    plan.options = dataclasses.replace(plan.options, ds=ds, ds_max=ds, max_points=200)
+    return plan
+
+
+@pytest.mark.parametrize("ds", np.linspace(0.2, 0.6, 21))
+def test_user_points_beside_the_fold_are_found_on_both_sides(tmp_path, lam_c, ds):
+    """Values 1e-2, 1e-3 and 1e-4 below lam_c, for steps of 0.2 to 0.6 (a fold inside a step,
+    on either side of its midpoint): each is labelled twice, once on each closed-form
+    solution, and the step is split at the fold wherever it lies. Bratu has no stability hook,
+    so only the parameter's tangent sees the fold."""
+    lam_fold, z_c = lam_c
+    values = [lam_fold - d for d in (1e-2, 1e-3, 1e-4)]
+    plan = _sweep_plan(values, 4.0, float(ds))
+    (br,) = run_plan(plan, tmp_path).result.branches
+    assert len(br.folds) == 1 and br.warnings == []
+    uz = [p for p in br.points if p.type == "UZ"]
+    for v in values:
+        at = sorted(p.ordinates["du0"] for p in uz if p.params["lam"] == v)
+        z_lo = brentq(lambda z: lam_of(z) - v, 1e-12, z_c, xtol=1e-15)
+        z_hi = brentq(lambda z: lam_of(z) - v, z_c, 60.0, xtol=1e-15)
+        assert len(at) == 2, (ds, v, at)
+        np.testing.assert_allclose(at, [du0_of(z_lo), du0_of(z_hi)], rtol=1e-5)
+    # in travel order: the values rise to the fold, then fall after it
+    lam = [p.params["lam"] for p in br.points if p.type in ("UZ", "LP")]
+    k = lam.index(max(lam))
+    assert lam[:k] == sorted(values) and lam[k + 1:] == sorted(values, reverse=True)
+
+
+@pytest.mark.parametrize("ds", np.linspace(0.2, 0.6, 5))
+def test_a_bound_just_below_the_fold_ends_the_branch_there(tmp_path, lam_c, ds):
+    lam_fold, _ = lam_c
+    plan = _sweep_plan([], lam_fold - 1e-3, float(ds))
+    (br,) = run_plan(plan, tmp_path).result.branches
+    assert br.end == "EP" and br.folds == []
+    assert br.points[-1].type == "EP"
+    assert br.points[-1].params["lam"] == pytest.approx(lam_fold - 1e-3, abs=1e-12)
+    assert all(p.params["lam"] <= lam_fold - 1e-3 + 1e-12 for p in br.points)

@@ -1,0 +1,67 @@
+"""Branch points without a stability hook: u'' + p u (1 + u^2) = 0, u(0) = u(1) = 0
+(examples/nonlinear_eigenvalue.py), fixed at both ends.
+
+On u = 0 the linearisation u'' + p u = 0 has a solution sin(k pi x) exactly at p = (k pi)^2: the
+branch points. The engine sees them only through the sign of the determinant of the bordered
+collocation Jacobian. The branches switched onto there are checked by an independent shooting
+integration (scipy's DOP853) and by the symmetry u -> -u.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from elastica_auto import runfile
+from helpers import EXAMPLES, run_plan
+
+
+@pytest.fixture(scope="module")
+def eigen_run(tmp_path_factory):
+    plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
+    assert plan.switch_count == 2 and not plan.problem.has_second_variation
+    return run_plan(plan, tmp_path_factory.mktemp("eigen"), jobs=2)
+
+
+def _shoot(p, slope):
+    """u(1) and the number of sign changes of u in (0, 1) for u(0) = 0, u'(0) = slope."""
+    sol = solve_ivp(lambda x, z: [z[1], -p * z[0] * (1 + z[0] ** 2)], (0.0, 1.0), [0.0, slope],
+                    method="DOP853", rtol=1e-12, atol=1e-12, dense_output=True)
+    u = sol.sol(np.linspace(1e-3, 1 - 1e-3, 2001))[0]
+    return sol.y[0, -1], int(np.sum(np.diff(np.sign(u)) != 0))
+
+
+def test_branch_points_are_at_k_pi_squared(eigen_run):
+    trivial = eigen_run.result.branches[0]
+    assert trivial.start == "trivial" and trivial.folds == []
+    bps = [p for p in trivial.points if p.type == "BP"]
+    expected = [(k * math.pi) ** 2 for k in (1, 2, 3, 4, 5) if (k * math.pi) ** 2 < 50]
+    got = [p.params["p"] for p in bps]
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=0)
+    assert all(p.index == -1 for p in trivial.points)        # no hook, no index
+    assert trivial.warnings == []
+
+
+def test_switched_branches_solve_the_problem_and_mirror_each_other(eigen_run):
+    branches = eigen_run.result.branches[1:]
+    assert len(branches) == 4                                 # two BPs, both directions
+    for k, (up, down) in enumerate((branches[0:2], branches[2:4]), start=1):
+        assert up.start == down.start == f"switch at BP{k}"
+        for br in (up, down):
+            p0 = br.points[0].params["p"]
+            assert p0 == pytest.approx((k * math.pi) ** 2, rel=1e-9)
+            # subcritical: the load falls as the amplitude grows
+            amp, lam = br.column("amplitude"), br.column("p")
+            assert amp[-1] > 1 and lam[-1] < p0
+            assert np.all(np.diff(lam[1:]) < 0)
+            for pt in br.points[1::10]:
+                end, changes = _shoot(pt.params["p"], pt.ordinates["slope"])
+                assert abs(end) <= 1e-6 * (1 + pt.ordinates["amplitude"]), (k, pt.params)
+                assert changes == k - 1                      # the k-th mode's shape
+        # u -> -u: the two directions are mirror images
+        np.testing.assert_allclose(up.column("slope"), -down.column("slope"), rtol=1e-9,
+                                   atol=1e-9)
+        np.testing.assert_allclose(up.column("p"), down.column("p"), rtol=1e-12)

@@ -1,0 +1,210 @@
+"""The collocation corrector's parts against independent implementations, and the two
+correctors against each other.
+
+* the collocation equations against scipy's own (scipy.integrate._bvp.collocation_fun, the
+  discretisation both correctors share) and their Jacobian against finite differences;
+* the banded form of the bordered systems against a dense assembly and numpy's solver
+  (solutions, transposed solutions, log|det|, the sign up to a structural constant, the
+  rank-one change of the border row);
+* the collocation and the solve_bvp corrector: the same folds on rotating_arm branches and on
+  Bratu, to 1e-9 and against the analytic fold.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate._bvp import collocation_fun
+
+import shooting
+from elastica_auto import bordered, runfile
+from elastica_auto.collocation import Blocks, Discretisation, equidistributed_mesh
+from elastica_auto.problem import load_problem
+from helpers import EXAMPLES, ROTATING_ARM, run_plan
+
+# ---- the discretisation ------------------------------------------------------------------
+
+
+def _state(elastica, m, rng):
+    s = np.sort(np.concatenate(([0.0, 1.0], rng.uniform(0, 1, m - 2))))
+    y = np.vstack((np.sin(3 * s) + 0.2, 2 * np.cos(2 * s), s * s, -s))
+    p = {**elastica.defaults(), "P": 7.3, "eps": 0.4, "psi": 0.9, "alpha": 0.3}
+    return s, y, p
+
+
+def test_collocation_equations_are_scipys(elastica):
+    rng = np.random.default_rng(1)
+    s, y, p = _state(elastica, 37, rng)
+    disc = Discretisation(elastica, s)
+    ev = disc.evaluate(y, p)
+    col, y_mid, f, f_mid = collocation_fun(lambda x, y, _: elastica.rhs(x, y, p), y, None, s,
+                                           np.diff(s))
+    np.testing.assert_allclose(ev.col, col, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ev.y_mid, y_mid, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ev.bc, elastica.bc(y[:, 0], y[:, -1], p), rtol=0, atol=0)
+
+
+def test_collocation_jacobian_is_the_derivative_of_the_equations(elastica):
+    rng = np.random.default_rng(2)
+    s, y, p = _state(elastica, 13, rng)
+    disc = Discretisation(elastica, s)
+    blocks = disc.blocks(disc.evaluate(y, p), p, ("psi", "P"))
+    v = rng.standard_normal(y.shape)
+    h = 1e-6
+    plus, minus = disc.evaluate(y + h * v, p), disc.evaluate(y - h * v, p)
+    col, bc = blocks.times(v)
+    np.testing.assert_allclose(col, (plus.col - minus.col) / (2 * h), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(bc, (plus.bc - minus.bc) / (2 * h), rtol=0, atol=1e-8)
+    for name in ("psi", "P"):
+        up = disc.evaluate(y, {**p, name: p[name] + h})
+        down = disc.evaluate(y, {**p, name: p[name] - h})
+        np.testing.assert_allclose(blocks.dcol[name], (up.col - down.col) / (2 * h), atol=1e-8)
+        np.testing.assert_allclose(blocks.dbc[name], (up.bc - down.bc) / (2 * h), atol=1e-8)
+    # the transpose: <w, F_y v> = <F_y^T w, v>
+    w_col, w_bc = rng.standard_normal(col.shape), rng.standard_normal(bc.shape)
+    lhs = np.sum(w_col * col) + w_bc @ bc
+    assert lhs == pytest.approx(np.sum(blocks.transpose_times(w_col, w_bc) * v), rel=1e-12)
+
+
+def test_equidistributed_mesh_meets_its_target(elastica):
+    """A regridded mesh brings the error estimate of a converged solution to about the
+    target (within the factor 2 the step's margins allow for)."""
+    from elastica_auto.newton import Row, newton
+    p = {**elastica.defaults(), "P": 9 * math.pi ** 2 / 4, "eps": 0.5}
+    k0 = shooting.solve_at(0.7, p["P"], p["eps"], 6.0)
+    s = np.linspace(0.0, 1.0, 41)
+    y = shooting.profile(p["P"], 0.0, [0.0, k0, 0.0, 0.0], s)
+    p["psi"] = 0.7
+    split = ((0, 1, 2), (3,), ())
+    for target in (1e-6, 1e-8):
+        disc = Discretisation(elastica, s)
+        res = newton(disc, "psi", p, y, 0.7, Row.value(disc, 0.7), None, split)
+        ev = disc.evaluate(res.Y, p)
+        rms = disc.rms_residuals(res.Y, ev.f, p, ev)
+        new = Discretisation(elastica, equidistributed_mesh(s, rms, target, 10, 10 ** 4))
+        y_new = shooting.profile(p["P"], 0.0, [0.0, k0, 0.0, 0.0], new.s)
+        res = newton(new, "psi", p, y_new, 0.7, Row.value(new, 0.7), None, split)
+        assert res.converged
+        ev = new.evaluate(res.Y, p)
+        worst = new.rms_residuals(res.Y, ev.f, p, ev).max()
+        assert target / 2 <= worst <= 2 * target, (target, worst)
+
+
+# ---- the bordered banded systems ---------------------------------------------------------
+
+def _dense(blocks, names, border):
+    d0 = blocks.d0
+    m, n, k = d0.shape[0] + 1, d0.shape[1], len(names)
+    N = n * m + k
+    M = np.zeros((N, N))
+    for i in range(m - 1):
+        M[i * n:(i + 1) * n, i * n:(i + 1) * n] = d0[i]
+        M[i * n:(i + 1) * n, (i + 1) * n:(i + 2) * n] = blocks.d1[i]
+        for q, nm in enumerate(names):
+            M[i * n:(i + 1) * n, n * m + q] = blocks.dcol[nm][:, i]
+    r0 = n * (m - 1)
+    M[r0:r0 + n, :n] = blocks.ga
+    M[r0:r0 + n, (m - 1) * n:m * n] = blocks.gb
+    for q, nm in enumerate(names):
+        M[r0:r0 + n, n * m + q] = blocks.dbc[nm]
+    for q, (c, d) in enumerate(border):
+        M[n * m + q, :n * m] = c.T.ravel()
+        M[n * m + q, n * m:] = d
+    return M
+
+
+@pytest.mark.parametrize("n, m, names, pattern", [
+    (4, 7, ("a",), "LLLR"), (2, 5, (), "LR"), (3, 6, ("a", "b"), "LMR"), (4, 9, ("a",), "MMRL"),
+    (2, 6, ("a", "b"), "PM"), (4, 41, ("a",), "LLLR")])
+def test_banded_form_solves_the_bordered_system(n, m, names, pattern):
+    """Left (L), right (R), both-ends (M) and parameter-only (P) boundary rows; 0-2 borders."""
+    rng = np.random.default_rng(m * 10 + n)
+    signs = set()
+    for _ in range(4):
+        d0 = rng.standard_normal((m - 1, n, n)) * 0.3 - np.eye(n)
+        d1 = rng.standard_normal((m - 1, n, n)) * 0.3 + np.eye(n)
+        ga, gb = rng.standard_normal((n, n)), rng.standard_normal((n, n))
+        for r, kind in enumerate(pattern):
+            if kind in "RP":
+                ga[r] = 0
+            if kind in "LP":
+                gb[r] = 0
+        blocks = Blocks(d0, d1, ga, gb, {nm: rng.standard_normal((n, m - 1)) for nm in names},
+                        {nm: rng.standard_normal(n) for nm in names}, None, None)
+        k = len(names)
+        border = [(rng.standard_normal((n, m)), rng.standard_normal(k)) for _ in range(k)]
+        M = _dense(blocks, names, border)
+        fact = bordered.factor(blocks, names, border)
+        col, bc, g = rng.standard_normal((n, m - 1)), rng.standard_normal(n), rng.standard_normal(k)
+        y, p = fact.solve(col, bc, g)
+        x = np.linalg.solve(M, np.concatenate([col.T.ravel(), bc, g]))
+        scale = np.max(np.abs(x))
+        np.testing.assert_allclose(y.T.ravel(), x[:n * m], atol=1e-11 * scale)
+        np.testing.assert_allclose(p, x[n * m:], atol=1e-11 * scale)
+        ey, ep = rng.standard_normal((n, m)), rng.standard_normal(k)
+        w_col, w_bc, w_g = fact.solve_transpose(ey, ep)
+        w = np.linalg.solve(M.T, np.concatenate([ey.T.ravel(), ep]))
+        scale = np.max(np.abs(w))
+        np.testing.assert_allclose(w_col.T.ravel(), w[:n * (m - 1)], atol=1e-11 * scale)
+        np.testing.assert_allclose(w_bc, w[n * (m - 1):n * m], atol=1e-11 * scale)
+        np.testing.assert_allclose(w_g, w[n * m:], atol=1e-11 * scale)
+        sign, logdet = np.linalg.slogdet(M)
+        assert fact.logdet == pytest.approx(logdet, abs=1e-8)
+        signs.add(fact.sign * int(sign))
+        if k:
+            c2, d2 = rng.standard_normal((n, m)), rng.standard_normal(k)
+            y2, p2 = fact.solve_with_border(c2, d2, col, bc, g)
+            M2 = M.copy()
+            M2[-1, :n * m], M2[-1, n * m:] = c2.T.ravel(), d2
+            x2 = np.linalg.solve(M2, np.concatenate([col.T.ravel(), bc, g]))
+            scale = np.max(np.abs(x2))
+            np.testing.assert_allclose(y2.T.ravel(), x2[:n * m], atol=1e-10 * scale)
+            np.testing.assert_allclose(p2, x2[n * m:], atol=1e-10 * scale)
+    # det(banded) = +-det(bordered) with a sign fixed by the structure alone
+    assert len(signs) == 1
+
+
+# ---- the two correctors -------------------------------------------------------------------
+
+def _folds(branches):
+    return [sorted(p.params[b.parameter] for p in b.folds) for b in branches]
+
+
+def test_both_correctors_find_the_same_folds_on_rotating_arm(tmp_path):
+    plan = runfile.load(ROTATING_ARM)
+    # the load pi^2/4 (both arm lengths, both directions): 20 folds; solve_bvp is slow
+    plan.branches = [b for b in plan.branches if abs(b.params["P"] - math.pi ** 2 / 4) < 1e-12]
+    plan.user_values = []
+    assert len(plan.branches) == 4
+    runs = {}
+    for corrector in ("collocation", "solve_bvp"):
+        p = dataclasses.replace(plan, options=dataclasses.replace(plan.options,
+                                                                 corrector=corrector))
+        runs[corrector] = run_plan(p, tmp_path / corrector, jobs=2).result.branches
+    a, b = _folds(runs["collocation"]), _folds(runs["solve_bvp"])
+    assert [len(f) for f in a] == [5, 5, 5, 5] == [len(f) for f in b]
+    np.testing.assert_allclose(np.concatenate(a), np.concatenate(b), rtol=0, atol=1e-9)
+    for br in runs["collocation"]:
+        for p in br.folds:
+            eps, P = p.params["eps"], p.params["P"]
+            _, psi, _ = shooting.fold(P, eps, p.ordinates["m0"], p.params["psi"])
+            assert abs(psi - p.params["psi"]) <= 1e-9
+
+
+def test_both_correctors_find_the_bratu_fold(tmp_path):
+    from test_user_module import lam_of
+    from scipy.optimize import brentq
+    z_c = brentq(lambda z: z * math.tanh(z / 2) - 2, 1.0, 4.0, xtol=1e-15)
+    plan = runfile.load(EXAMPLES / "bratu.toml")
+    found = []
+    for corrector in ("collocation", "solve_bvp"):
+        p = dataclasses.replace(plan, options=dataclasses.replace(plan.options,
+                                                                 corrector=corrector))
+        (br,) = run_plan(p, tmp_path / corrector).result.branches
+        (lp,) = br.folds
+        found.append(lp.params["lam"])
+    assert abs(found[0] - found[1]) <= 1e-9
+    assert abs(found[0] - lam_of(z_c)) <= 1e-9
