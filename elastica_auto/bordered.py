@@ -138,10 +138,9 @@ class Structure:
             "d0", "d1", "left_y", "right_y", "init_y", "close_y")])
         self.index_k = np.concatenate([self.index_0] + [index[g] for g in (
             "pcol", "left_p", "right_p", "acc", "close_p")])
-        self.template = np.zeros((N, self.ldab))
-        for r, c, v in ones:
-            r, c = np.broadcast_arrays(r, c)
-            self.template.flat[flat(r, c)] = v
+        const = [(flat(*np.broadcast_arrays(r, c)), v) for r, c, v in ones]
+        self.index_const = np.concatenate([f for f, _ in const])
+        self.value_const = np.concatenate([np.full(len(f), v) for f, v in const])
         # rows of M' that hold the rows of M, and the unknowns of z that hold (y, p)
         self.row_col = (L + i[:, :, 0] * nn + a[:, :, 0]).T          # (n, m-1)
         self.row_left = np.arange(na)
@@ -152,7 +151,7 @@ class Structure:
         self.col_p = n + np.arange(k)
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=128)   # meshes change size as they adapt: keep many, each is small
 def structure(n: int, m: int, k: int, split) -> Structure:
     return Structure(n, m, k, split)
 
@@ -264,8 +263,10 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
                    -np.stack([c[:, 1:] for c, _ in border]).transpose(2, 0, 1).ravel(),
                    *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
                    *(gp[r] for r in st.mixed)]
-    ab = st.template.copy()
-    ab.reshape(-1)[st.index_k if k else st.index_0] = np.concatenate(values)
+    ab = np.zeros((st.N, st.ldab))
+    flat = ab.reshape(-1)
+    flat[st.index_const] = st.value_const
+    flat[st.index_k if k else st.index_0] = np.concatenate(values)
     lu, piv, info = dgbtrf(ab.T, st.kl, st.ku, overwrite_ab=True)
     if info > 0:
         # exactly singular (a branch point hit exactly): a pivot of the size of rounding

@@ -95,22 +95,64 @@ def _illinois(f, x0, x1, f0, f1, xtol, maxiter=60):
     return x1
 
 
-def locate_fold(corr, step: Step) -> FoldPoint:
+def locate_fold(corr, step: Step, before: State | None = None) -> FoldPoint:
     """The fold between a and b, where the tangents' parameter components differ in sign.
 
-    Raises CorrectorFailure if it is not found, or is found outside the step (another fold)."""
+    Bordered Newton (the corrector's ``fold``) from the solution on the step where that
+    component, interpolated linearly, vanishes; if that converges off the step or to the fold
+    ``before`` (the branch's previous one: a pair closer than the interpolation can tell),
+    from where it vanishes exactly, found by the Illinois method along the step. Raises
+    CorrectorFailure if neither lands in the step."""
     la, lb = step.a.tangent.lam, step.b.tangent.lam
-    sigma = step.dist * la / (la - lb)
-    near = corr.on_plane(step.a, step.secant, sigma, step.b.mesh, regrid=False)
-    fold = corr.fold(near)
-    where = step.sigma(fold.state)
-    off = math.sqrt(max(inner(difference(fold.state, step.a.state, step.name, fold.state.s),
-                              difference(fold.state, step.a.state, step.name, fold.state.s),
-                              fold.state.s) - where * where, 0.0))
-    if not (-0.01 * step.dist <= where <= 1.01 * step.dist) or off > step.dist:
-        raise CorrectorFailure(f"the fold system converged off the step (at sigma = "
-                               f"{where:.3g} of {step.dist:.3g}, {off:.3g} beside it)")
-    return fold
+    reason = ""
+    for start in ("estimate", "root"):
+        if start == "estimate":
+            near = corr.on_plane(step.a, step.secant, step.dist * la / (la - lb), step.b.mesh,
+                                 regrid=False)
+        else:
+            near = _slope_root(corr, step)
+        try:
+            fold = corr.fold(near)
+        except CorrectorFailure as exc:
+            reason = str(exc)
+            continue
+        where = step.sigma(fold.state)
+        d = difference(fold.state, step.a.state, step.name, fold.state.s)
+        off = math.sqrt(max(inner(d, d, fold.state.s) - where * where, 0.0))
+        if not (-0.01 * step.dist <= where <= 1.01 * step.dist) or off > step.dist:
+            reason = (f"the fold system converged off the step (at sigma = {where:.3g} of "
+                      f"{step.dist:.3g}, {off:.3g} beside it)")
+        elif before is not None and _same(fold.state, before, step.name):
+            reason = "the fold system converged to the fold before"
+        else:
+            return fold
+    raise CorrectorFailure(reason)
+
+
+def _same(x: State, y: State, name: str) -> bool:
+    """The same solution (a fold found twice), to the accuracy folds are located to."""
+    lam = x.params[name]
+    if abs(y.params[name] - lam) > 1e-9 * (1 + abs(lam)):
+        return False
+    s = x.s
+    return bool(np.max(np.abs(x.y - y(s))) <= 1e-6 * (1 + np.max(np.abs(x.y))))
+
+
+def _slope_root(corr, step: Step) -> Solution:
+    """The solution on the step where the tangent's parameter component vanishes, by the
+    Illinois method on the hyperplanes (to 1e-6 of the step)."""
+    found = {}
+
+    def lamdot(sigma):
+        sol = corr.on_plane(step.a, step.secant, sigma, step.b.mesh, regrid=False)
+        found[sigma] = sol
+        return sol.tangent.lam
+
+    sigma = _illinois(lamdot, 0.0, step.dist, step.a.tangent.lam, step.b.tangent.lam,
+                      1e-6 * step.dist)
+    if sigma not in found:
+        lamdot(sigma)
+    return found[sigma]
 
 
 def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]:

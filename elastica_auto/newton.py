@@ -28,8 +28,9 @@ from .collocation import Blocks, Discretisation
 from .solution import State, Tangent
 
 #: Newton stops when the scaled correction max |dY| / (1 + |Y|), |dlam| / (1 + |lam|) is
-#: below this: two orders below the discretisation error at the default tol.
-NEWTON_TOL = 1e-9
+#: below this: an order below the discretisation error at the default tol (solve_bvp stops
+#: its Newton iteration at a similar level, 1.5 orders below tol in the residual).
+NEWTON_TOL = 1e-8
 #: The fold locator's tolerance on its last correction. Its Newton matrix is exact up to
 #: differences of step 1e-7, so the error left after a correction of 1e-8 is ~1e-15.
 FOLD_NEWTON_TOL = 1e-8

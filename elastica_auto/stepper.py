@@ -50,7 +50,7 @@ RETRY_HALVINGS = 6
 TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
 #: ds grows after a step whose Newton iteration contracted at least this fast (and whose
 #: tangent turned by less than half of max_angle).
-EASY_CONTRACTION = 0.1
+EASY_CONTRACTION = 0.3
 
 
 @dataclass(frozen=True)
@@ -398,14 +398,8 @@ class _Walk:
                           max(u * ds / 2, ds / 8))
 
     def _fold_event(self, step: Step, bp: bool) -> _Event:
-        fp = locate_fold(self.corr, step)
-        lam = fp.state.params[self.name]
-        for p in self.branch.folds[-1:]:
-            if abs(p.params[self.name] - lam) <= 1e-9 * (1 + abs(lam)) and all(
-                    abs(p.ordinates[k] - v) <= 1e-6 * (1 + abs(v))
-                    for k, v in self.problem.ordinate_values(fp.state.s, fp.state.y,
-                                                             fp.state.params).items()):
-                raise CorrectorFailure("the fold system converged to the fold before")
+        before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
+        fp = locate_fold(self.corr, step, before[0] if before else None)
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
             phi = phi.scaled(-1.0)

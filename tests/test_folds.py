@@ -179,6 +179,8 @@ def test_fold_location_converges_as_fold_tol_shrinks(small_plan_file, tmp_path):
 #: mirrored, every 2 pi. The branch from the straight rod meets 17 folds in each direction
 #: within |psi| <= 6 pi (a shooting scan of the fold condition over theta'(0)).
 CUSP = dict(eps="0.362", P="9*pi^2/4", bounds=("-6*pi", "6*pi"))
+#: The pair's width in psi by eps (shooting): it grows like 32.3 (eps - eps_c)^1.5.
+GAPS = {"0.3612": 2.555434e-5, "0.3615": 2.436414e-4, "0.362": 8.515e-4}
 
 
 def _cusp_folds(tmp_path, eps=CUSP["eps"], **options):
@@ -189,7 +191,7 @@ def _cusp_folds(tmp_path, eps=CUSP["eps"], **options):
     return run_plan(plan, tmp_path, jobs=2).result.branches
 
 
-def _check_cusp(branches, eps=0.362, gap=8.515e-4):
+def _check_cusp(branches, eps=0.362, gap=GAPS["0.362"]):
     P = 9 * math.pi ** 2 / 4
     assert [len(b.folds) for b in branches] == [17, 17]
     slivers = 0
@@ -209,23 +211,25 @@ def _check_cusp(branches, eps=0.362, gap=8.515e-4):
     assert slivers >= 8
 
 
+@pytest.mark.parametrize("eps", ["0.3612", "0.362"])
 @pytest.mark.parametrize("ds_max", [1.0, 3.0])
-def test_a_fold_pair_near_a_cusp_is_never_stepped_over(tmp_path, ds_max):
-    _check_cusp(_cusp_folds(tmp_path, ds_max=ds_max))
+def test_a_fold_pair_near_a_cusp_is_never_stepped_over(tmp_path, eps, ds_max):
+    _check_cusp(_cusp_folds(tmp_path, eps=eps, ds_max=ds_max), float(eps), GAPS[eps])
 
 
 def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
-    """A narrower pair (eps = 0.3615: 2.44e-4 apart, by shooting). Without the probe of a
-    dipping parameter slope, steps pass over some of its translates; the periodic translates
-    of the folds that were found bring every missing one back."""
+    """Without the probe of a dipping parameter slope, steps pass over some translates of the
+    pair; the periodic translates of the folds that were found bring every missing one back.
+    (Without the probe the translate check is all there is: where every translate of a pair
+    is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.)"""
     from elastica_auto import stepper
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
     monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
-    missed = _cusp_folds(tmp_path / "without", eps="0.3615", ds_max=3.0)
-    assert all(len(b.folds) < 17 for b in missed)
+    missed = _cusp_folds(tmp_path / "without", ds_max=1.0)
+    assert all(len(b.folds) < 17 for b in missed), "choose a case where pairs are missed"
     monkeypatch.undo()
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
-    _check_cusp(_cusp_folds(tmp_path / "with", eps="0.3615", ds_max=3.0), 0.3615, 2.436414e-4)
+    _check_cusp(_cusp_folds(tmp_path / "with", ds_max=1.0))
 
 
 def test_the_rotating_arm_folds_do_not_depend_on_ds_max(tmp_path):
