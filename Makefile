@@ -23,8 +23,8 @@ test: install
 	$(BIN)/python -m pytest -q
 
 bench: install
-	$(BIN)/python benchmarks/bench_rotating_arm.py
-	$(BIN)/python benchmarks/bench_rotating_arm.py --memory
+	$(BIN)/python benchmarks/bench.py
+	$(BIN)/python benchmarks/bench.py --memory
 
 clean:
 	rm -rf $(OUT) $(FIG) .pytest_cache

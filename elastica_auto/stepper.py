@@ -148,6 +148,7 @@ class _Walk:
                               if o.parameter == self.name), None)
         self.enters = self.problem.parameters[self.name].enters
         self.until = None   # (origin, unit direction, distance): end once past that hyperplane
+        self.event_retries = 0
 
     # -- the loop ---------------------------------------------------------------------------
     def run(self, a: Solution):
@@ -235,7 +236,10 @@ class _Walk:
         fold = a.tangent.lam * b.tangent.lam < 0 and not skip
         bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
         index_a, index_b = self.base_point.index_direct, index(self.problem, b.state)
-        can_retry = retries < RETRY_HALVINGS
+        # retries for a fold that cannot be located or a fold rule that fails count until a
+        # step with a fold is accepted: shorter steps that stop before the fold do not reset
+        # them (they would approach the fold for ever)
+        can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
         if not (fold or bp) and can_retry and not skip:
             u = pair_suspected(step)
             if u is not None:
@@ -246,6 +250,7 @@ class _Walk:
                 found.append(self._fold_event(step, bp))
             except CorrectorFailure as exc:
                 if can_retry:
+                    self.event_retries += 1
                     raise _Reject(f"fold not located ({exc})", ds / 2) from None
                 self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not located: {exc}")
                 found.append(_Event(dist / 2, "LP", b.state, b.tangent,
@@ -259,12 +264,15 @@ class _Walk:
             expected = self._rule(step, found, index_a)
             if expected is not None and expected != index_b:
                 if can_retry:
+                    self.event_retries += 1
                     raise _Reject(f"index {index_b} at the new point, the fold rule gives "
                                   f"{expected}", ds / 2)
                 self.branch.warnings.append(
                     f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
                     f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
         # -- accept ----------------------------------------------------------------------------
+        if found:
+            self.event_retries = 0
         if self._add_events(step, found):
             return ds, True
         self.arclength += ds

@@ -1,4 +1,4 @@
-"""HDF5 branch files (DESIGN section 5): atomic writes, validated reads, CSV export.
+"""HDF5 branch files (docs/hdf5.md): atomic writes, validated reads, CSV export.
 
 Layout of ``out/<run>.h5``::
 

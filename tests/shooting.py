@@ -1,6 +1,6 @@
 """An independent solver for the elastica with a lever arm, by shooting (no elastica_auto code).
 
-The reduced problem (DESIGN.md section 1) is the initial value problem
+The reduced problem (docs/design.md, "The elastica with a lever arm") is the initial value problem
 
     theta'' = -P sin(theta - alpha),  theta(0) = theta0,  theta'(0) = k0,
 

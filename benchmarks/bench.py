@@ -1,0 +1,205 @@
+"""Benchmarks, as `make bench` prints them; nothing here asserts.
+
+1. The cost of one continuation step of the elastica (4 states) on fixed meshes of 100, 400 and
+   1600 intervals (collocation corrector: Newton with the previous point's factorisation,
+   the linearisation at the new point, its tangent, the determinant's sign, the direct
+   index), and of locating one fold.
+2. The rotating_arm run in one process, for each corrector: points, median milliseconds per
+   continuation step (wall time between accepted points, so rejected attempts and the
+   location of LP/UZ/EP points are included), folds and the largest fold residual.
+3. Whole processes, for each corrector: ``elastica-auto run rotating_arm`` with ``--jobs 1``
+   and with the default (one process per core), ``examples/bratu.toml``, and every run of
+   ``make runs`` (in restart order) with their sum.
+
+``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
+This machine's speed drifts: compare two commits by running this alternately on both.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+CORRECTORS = ("collocation", "solve_bvp")
+CLI = [str(Path(sys.executable).parent / "elastica-auto")]
+
+
+def step_cost(intervals=(100, 400, 1600), steps=40):
+    """Median ms per continuation step on a fixed mesh (no regridding), and the time to
+    locate the first fold met (on meshes refined to fold_tol, as in a run)."""
+    import numpy as np
+
+    from elastica_auto.correctors import Collocation
+    from elastica_auto.events import Step, locate_fold
+    from elastica_auto.options import ContinuationOptions
+    from elastica_auto.problem import load_problem
+    from elastica_auto.solution import State, secant
+    from elastica_auto.stability import index
+    from elastica_auto.stepper import start_solution
+
+    problem = load_problem("elastica_lever_arm")
+    params = {**problem.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    print("one continuation step of the elastica from the straight rod (psi, eps = 0.5, "
+          "P = 9 pi^2/4, ds = 0.03), on a fixed mesh; then the first fold:")
+    print(f"{'intervals':>10} {'ms/step':>8} {'ms/fold':>8}")
+    for n in intervals:
+        # tol = 1: no regridding, the mesh stays as given (folds still meet fold_tol)
+        corr = Collocation(problem, "psi", ContinuationOptions(tol=0.99, ds_max=1.0))
+        s = np.linspace(0.0, 1.0, n + 1)
+        a = start_solution(corr, State.from_values(problem, s, problem.exact_start(s, params),
+                                                   params), 1, None, False)
+        times, ds, fold = [], 0.03, float("nan")
+        while len(times) < steps or fold != fold:
+            t0 = time.perf_counter()
+            b = corr.step(a, ds)
+            index(problem, b.state)
+            times.append(time.perf_counter() - t0)
+            if a.tangent.lam * b.tangent.lam < 0 and fold != fold:
+                sec, dist = secant(a.state, b.state, "psi")
+                t0 = time.perf_counter()
+                locate_fold(corr, Step(a, b, sec, dist, 0.0, ds, "psi"))
+                fold = time.perf_counter() - t0
+            a = b
+        print(f"{n:>10} {1e3 * statistics.median(times):>8.2f} {1e3 * fold:>8.1f}")
+
+
+def in_process(corrector):
+    from elastica_auto.run import execute
+    from elastica_auto.runfile import load
+    import dataclasses
+
+    plan = load(REPO / "runs" / "rotating_arm.toml")
+    plan.options = dataclasses.replace(plan.options, corrector=corrector)
+    stamps: dict[int, list[float]] = {}
+
+    def progress(k, npts, nfolds, lam):
+        stamps.setdefault(k, []).append(time.perf_counter())
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        result = execute(plan, Path(tmp), progress, jobs=1)
+        seconds = time.perf_counter() - t0
+    steps = [1e3 * (b - a) for t in stamps.values() for a, b in zip(t, t[1:])]
+    folds = [p for b in result.branches for p in b.folds]
+    worst = max((p.fold_residual for p in folds), default=float("nan"))
+    npts = sum(len(b.points) for b in result.branches)
+    print(f"{corrector:>12} {npts:>7} {statistics.median(steps):>9.2f} "
+          f"{len(folds):>6} {worst:>14.1e} {seconds:>9.2f}")
+
+
+def _run_files(corrector, folder: Path) -> Path:
+    """The shipped run files (and Bratu's), with ``corrector`` set, in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for src in list((REPO / "runs").glob("*.toml")) + [REPO / "examples" / "bratu.toml"]:
+        text = src.read_text()
+        if src.parent.name == "examples":
+            text = text.replace('equation = "bratu.py"',
+                                f'equation = "{REPO / "examples" / "bratu.py"}"')
+        if "[options]" in text:
+            text = text.replace("[options]", f'[options]\ncorrector = "{corrector}"', 1)
+        else:
+            text += f'\n[options]\ncorrector = "{corrector}"\n'
+        (folder / src.name).write_text(text)
+    return folder
+
+
+def _timed(args, cwd) -> float:
+    t0 = time.perf_counter()
+    proc = subprocess.run(CLI + [str(a) for a in args], cwd=cwd, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    if proc.returncode not in (0, 1):
+        sys.exit(f"{' '.join(map(str, args))} failed: {proc.stderr.strip()[-300:]}")
+    return seconds
+
+
+def whole_processes(corrector):
+    runs = re.search(r"PAPER_RUNS\s*=\s*((?:[^\n\\]|\\\n)*)",
+                     (REPO / "Makefile").read_text()).group(1).replace("\\\n", " ").split()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        files = _run_files(corrector, tmp / "runs")
+        out = tmp / "out"
+        one = _timed(["run", files / "rotating_arm.toml", "--out", out, "-q", "-j", "1"], tmp)
+        default = _timed(["run", files / "rotating_arm.toml", "--out", out, "-q"], tmp)
+        bratu = min(_timed(["run", files / "bratu.toml", "--out", out, "-q", "-j", "1"], tmp)
+                    for _ in range(3))
+        print(f"{corrector}: rotating_arm {one:.2f} s with --jobs 1, {default:.2f} s with "
+              f"--jobs {os.cpu_count()}; examples/bratu.toml {bratu:.2f} s (best of 3)")
+        total = 0.0
+        for name in runs:
+            seconds = _timed(["run", files / f"{name}.toml", "--out", out, "-q"], tmp)
+            total += seconds
+            print(f"    make runs: {name:<22} {seconds:7.2f} s")
+        print(f"    make runs: {'sum':<22} {total:7.2f} s")
+
+
+LONG_RUN = """\
+equation = "elastica_lever_arm"
+[parameters]
+eps = 0.25
+P = "pi^2/4"
+[continuation]
+parameter = "psi"
+directions = "+"
+bounds = ["-1000", "1000"]
+[options]
+ds_max = 0.05
+max_points = {n}
+"""
+
+MEMORY_PROBE = """\
+import resource, sys
+from pathlib import Path
+from elastica_auto.run import execute
+from elastica_auto.runfile import load
+r = execute(load(Path(sys.argv[1])), Path(sys.argv[2]), jobs=1)
+print(len(r.branches[0].points), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def memory(sizes=(2500, 10000)):
+    """Peak resident memory of one branch of n points, each in a fresh process: it grows in
+    proportion to the points stored (profiles on a 101-point grid, columns), not faster."""
+    print("memory of one long branch (fresh process each, one psi-branch, ds_max = 0.05):")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            run = Path(tmp) / f"long{n}.toml"
+            run.write_text(LONG_RUN.format(n=n))
+            t0 = time.perf_counter()
+            out = subprocess.run([sys.executable, "-c", MEMORY_PROBE, str(run), tmp],
+                                 capture_output=True, text=True, check=True).stdout.split()
+            pts, kib = int(out[0]), int(out[1])
+            rows.append((pts, kib))
+            print(f"  {pts:>6} points: peak RSS {kib / 1024:7.1f} MiB, "
+                  f"{time.perf_counter() - t0:6.1f} s")
+    (p1, m1), (p2, m2) = rows[0], rows[-1]
+    print(f"  growth: {(m2 - m1) / (p2 - p1):.2f} KiB per point "
+          f"(a profile alone is {4 * 101 * 8 / 1024:.2f} KiB)")
+
+
+def main():
+    step_cost()
+    print("\nrotating_arm in one process (8 branches to |psi| = 6 pi):")
+    print(f"{'corrector':>12} {'points':>7} {'ms/step':>9} {'folds':>6} "
+          f"{'max fold res.':>14} {'seconds':>9}")
+    for corrector in CORRECTORS:
+        in_process(corrector)
+    print("\nwhole processes:")
+    for corrector in CORRECTORS:
+        whole_processes(corrector)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--memory"]:
+        memory()
+    else:
+        main()
