@@ -24,14 +24,16 @@ import numpy as np
 
 from .solution import at_fractions
 
-#: 3-point Gauss-Legendre rule on [0, 1] (exact for polynomials of degree 5).
-_GAUSS_X = 0.5 + 0.5 * np.sqrt(0.6) * np.array([-1.0, 0.0, 1.0])
-_GAUSS_W = np.array([5.0, 8.0, 5.0]) / 18.0
+#: Simpson's rule on [0, 1]: the element's nodes, where the solution is known, and midpoint.
+#: It is exact for the stiffness of constant coefficients and O(h^4) otherwise, the order of
+#: the P2 eigenvalues themselves.
+_GAUSS_X = np.array([0.0, 0.5, 1.0])
+_GAUSS_W = np.array([1.0, 4.0, 1.0]) / 6.0
 #: P2 Lagrange basis (left node, midpoint, right node) and its derivative at those points.
 _PHI = np.array([(1 - _GAUSS_X) * (1 - 2 * _GAUSS_X), 4 * _GAUSS_X * (1 - _GAUSS_X),
                  _GAUSS_X * (2 * _GAUSS_X - 1)])
 _DPHI = np.array([4 * _GAUSS_X - 3, 4 - 8 * _GAUSS_X, 4 * _GAUSS_X - 1])
-#: Products of basis derivatives and of basis functions at each Gauss point, (3 points, 9).
+#: Products of basis derivatives and of basis functions at each quadrature point, (3, 9).
 _STIFF = np.einsum("iq,jq->qij", _DPHI, _DPHI).reshape(3, 9)
 _MASS = np.einsum("iq,jq->qij", _PHI, _PHI).reshape(3, 9)
 
@@ -44,22 +46,22 @@ MAX_PHASE = 0.2
 
 
 def _coefficients(problem, state, s):
-    """a, b at the 3 Gauss points of each interval of the mesh ``s`` ((m-1, 3) each) and c,
-    from the state's interpolant (its own mesh, or a refinement of it)."""
-    h = np.diff(s)
-    x = (s[:-1, None] + h[:, None] * _GAUSS_X[None, :]).ravel()
+    """a, b at the nodes and midpoints of each interval of the mesh ``s`` ((m-1, 3) each: left
+    node, midpoint, right node) and c, from the state's interpolant (on its own mesh, or a
+    refinement of it)."""
+    mid = 0.5 * (s[:-1] + s[1:])
     if s is state.s:
-        y = at_fractions(s, state.y, state.yp, _GAUSS_X).transpose(0, 2, 1).reshape(
-            len(state.y), -1)
+        y = np.concatenate((at_fractions(s, state.y, state.yp, (0.5,))[:, 0], state.y), axis=1)
     else:
-        y = state(x)
-    # the hook reads the end term from the last column, so s = 1 comes last
-    x = np.append(x, s[-1])
-    y = np.concatenate((y, state.y[:, -1:]), axis=1)
-    a, b, c = problem.second_variation(x, y, state.params)
-    a = np.broadcast_to(np.asarray(a, dtype=float), x.shape)[:-1].reshape(-1, 3)
-    b = np.broadcast_to(np.asarray(b, dtype=float), x.shape)[:-1].reshape(-1, 3)
-    return a, b, float(c)
+        y = state(np.concatenate((mid, s)))
+    # the hook reads the end term from the last column: the nodes come last, s = 1 at the end
+    a, b, c = problem.second_variation(np.concatenate((mid, s)), y, state.params)
+    k = len(mid)
+    out = []
+    for v in (a, b):
+        v = np.broadcast_to(np.asarray(v, dtype=float), (2 * k + 1,))
+        out.append(np.stack((v[k:-1], v[:k], v[k + 1:]), axis=1))
+    return out[0], out[1], float(c)
 
 
 def index(problem, state) -> int:
@@ -68,8 +70,8 @@ def index(problem, state) -> int:
 
     Quadratic (P2) finite elements on the state's own mesh, each interval subdivided where the
     coefficients oscillate faster than the mesh resolves (``MAX_PHASE``); the coefficients at
-    3 Gauss points per element. The element matrices ``K_e = int (a phi_i' phi_j' + b phi_i
-    phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``. The index is the inertia of K
+    each element's nodes and midpoint (Simpson's rule). The element matrices
+    ``K_e = int (a phi_i' phi_j' + b phi_i phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``. The index is the inertia of K
     (Sylvester; the mass matrix is positive definite, so K and the generalised eigenproblem
     have the same number of negative eigenvalues). Each midpoint unknown belongs to one
     element, so it is eliminated element by element: by Haynsworth's inertia additivity,

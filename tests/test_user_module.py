@@ -198,7 +198,7 @@ def _sweep_plan(lam_value_list, upper, ds):
     plan = runfile.load(BRATU_TOML)
     plan.user_values = [type(plan.user_values[0])(tuple(lam_value_list))]
     plan.stops = type(plan.stops)(plan.stops.lower, upper, None)
-    plan.options = dataclasses.replace(plan.options, ds=ds, ds_max=ds, max_points=200)
+    plan.options = dataclasses.replace(plan.options, ds=ds, ds_max=ds, max_points=60)
     return plan
 
 
