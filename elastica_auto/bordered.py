@@ -85,7 +85,7 @@ class Structure:
         na, nb = len(left), len(right)
         L = na + J                              # rows before the first interval
         self.nn, self.J, self.L = nn, J, L
-        N = self.N = m * nn
+        self.N = m * nn
         i = np.arange(m - 1)[:, None, None]
         a = np.arange(n)[None, :, None]
         b = np.arange(n)[None, None, :]

@@ -173,7 +173,7 @@ def locate_branch_point(corr, step: Step) -> tuple[Solution, float, float]:
     ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
     and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
     equidistributed ones. Returns (solution, sigma, |scaled determinant| there)."""
-    sec, a, name = step.secant, step.a, step.name
+    name = step.name
     s, lo, hi = step.b.mesh, 0.0, step.dist
     for _ in range(4):
         sol, sigma, value = _branch_point_on(corr, step, s, lo, hi)

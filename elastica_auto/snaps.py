@@ -3,7 +3,8 @@
 At an LP next to an index-0 segment a stable equilibrium stops existing as the parameter moves
 past the fold value, and the structure snaps to another stable equilibrium at the same
 parameter values. The candidates are found by enumerating *all* equilibria there with a
-bounded shooting scan (docs/design.md, "Enumerating all equilibria"), through the optional equation-module hook
+bounded shooting scan (docs/design.md, "Enumerating all equilibria"), through the optional
+equation-module hook
 
 ``shooting(p) -> (k_lo, k_hi, initial, residual)``
     equilibria at parameters ``p`` are the roots ``k`` in ``[k_lo, k_hi]`` of

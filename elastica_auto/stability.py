@@ -71,9 +71,9 @@ def index(problem, state) -> int:
     Quadratic (P2) finite elements on the state's own mesh, each interval subdivided where the
     coefficients oscillate faster than the mesh resolves (``MAX_PHASE``); the coefficients at
     each element's nodes and midpoint (Simpson's rule). The element matrices
-    ``K_e = int (a phi_i' phi_j' + b phi_i phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``. The index is the inertia of K
-    (Sylvester; the mass matrix is positive definite, so K and the generalised eigenproblem
-    have the same number of negative eigenvalues). Each midpoint unknown belongs to one
+    ``K_e = int (a phi_i' phi_j' + b phi_i phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``.
+    The index is the inertia of K (Sylvester; the mass matrix is positive definite, so K and
+    the generalised eigenproblem have the same number of negative eigenvalues). Each midpoint unknown belongs to one
     element, so it is eliminated element by element: by Haynsworth's inertia additivity,
     In(K) = In(K_mm) + In(K / K_mm), K_mm the (diagonal) midpoint block and K / K_mm a
     tridiagonal matrix on the nodes, whose negative LDL^T pivots are counted. The count is

@@ -487,7 +487,8 @@ class _Walk:
                 if stops.at_fold is not None and nfolds >= stops.at_fold:
                     cut = step.position(e.sigma)
                     branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                    branch.end, branch.message = "LP", f"stopped at fold {nfolds} (stop = LP{nfolds})"
+                    branch.end = "LP"
+                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
                     return True
             if e.kind == "EP":
                 branch.end = "EP"

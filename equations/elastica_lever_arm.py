@@ -141,15 +141,17 @@ def exact_start(s, p):
 
 def second_variation(s, y, p):
     """delta^2 E[h] = int_0^1 (h'^2 - P cos(theta - alpha) h^2) ds - eps P cos(psi + alpha -
-    theta(1)) h(1)^2 with h(0) = 0 (docs/design.md, "Second variation and the natural end condition"): a = 1, b = -P cos(theta - alpha), c = -eps P
-    cos(psi + alpha - theta(1)); natural end condition h'(1) = eps P cos(.) h(1)."""
+    theta(1)) h(1)^2 with h(0) = 0 (docs/design.md, "Second variation and the natural end
+    condition"): a = 1, b = -P cos(theta - alpha), c = -eps P cos(psi + alpha - theta(1));
+    natural end condition h'(1) = eps P cos(.) h(1)."""
     return 1.0, -p["P"] * np.cos(y[0] - p["alpha"]), -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p))
 
 
 def shooting(p):
     """Equilibria are the roots k = theta'(0) of the free-end residual kappa(1) + eps P
     sin(psi + alpha - theta(1)). The first integral kappa^2/2 - P cos(theta - alpha) = const
-    and |kappa(1)| <= |eps P| bound |k| <= sqrt((eps P)^2 + 4 |P|) (docs/design.md, "Enumerating all equilibria")."""
+    and |kappa(1)| <= |eps P| bound |k| <= sqrt((eps P)^2 + 4 |P|) (docs/design.md,
+    "Enumerating all equilibria")."""
     bound = math.sqrt((p["eps"] * p["P"]) ** 2 + 4 * abs(p["P"]))
 
     def initial(k):

@@ -22,7 +22,6 @@ from scipy.integrate._bvp import collocation_fun
 import shooting
 from elastica_auto import bordered, runfile
 from elastica_auto.collocation import Blocks, Discretisation, equidistributed_mesh
-from elastica_auto.problem import load_problem
 from helpers import EXAMPLES, ROTATING_ARM, run_plan
 
 # ---- the discretisation ------------------------------------------------------------------

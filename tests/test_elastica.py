@@ -59,8 +59,9 @@ def _tol_of(label, options):
 
 
 def test_moment_invariant_is_constant_on_every_labelled_solution(rotating_arm):
-    """kappa(s) - P (x cos alpha + y sin alpha) is independent of s (docs/design.md, "The elastica with a lever arm"),
-    checked on the exact collocation solution of every label, on its own mesh."""
+    """kappa(s) - P (x cos alpha + y sin alpha) is independent of s (docs/design.md, "The
+    elastica with a lever arm"), checked on the exact collocation solution of every label, on
+    its own mesh."""
     bf, opt = rotating_arm.file, rotating_arm.plan.options
     assert len(bf.labels) > 100
     worst = 0.0

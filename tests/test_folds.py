@@ -53,7 +53,8 @@ def test_shooting_jacobi_field_on_the_straight_rod(P):
 @pytest.mark.parametrize("eps", [0.25, 0.5])
 def test_shooting_critical_loads_of_the_straight_rod(eps):
     """dr/dk0 on the straight rod is cos(w) - eps w sin(w), w = sqrt(P): it vanishes at the
-    critical loads cot(w) = eps w (docs/design.md, "The straight rod"; found here by brentq on the formula)."""
+    critical loads cot(w) = eps w (docs/design.md, "The straight rod"; found here by brentq on
+    the formula)."""
     from scipy.optimize import brentq
     w = brentq(lambda w: math.cos(w) - eps * w * math.sin(w), 0.1, math.pi / 2)
     _, dr = shooting.residual(0.0, 0.0, w * w, eps)

@@ -222,7 +222,8 @@ def fig_rotating_base(data_dir, out_dir):
 # --------------------------------------------------------------------------------- figure 3
 def _critical_curves(n_modes=4, eps_lim=1.0):
     """The roots of cot(sqrt P) = eps sqrt P as curves (eps(q), P = q^2), q = sqrt P in
-    (n pi, (n + 1) pi): eps = cot(q) / q, explicit in q (docs/design.md, "The straight rod"; paper section 3.2)."""
+    (n pi, (n + 1) pi): eps = cot(q) / q, explicit in q (docs/design.md, "The straight rod";
+    paper section 3.2)."""
     out = []
     for n in range(n_modes):
         q = np.linspace(n * PI + 1e-4, (n + 1) * PI - 1e-4, 4000)
