@@ -256,7 +256,13 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
     values = [d0.ravel(), blocks.d1.ravel(), ga[st.left].ravel(), gb[st.right].ravel(),
               *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
               gb[st.mixed].ravel()]
-    if k:
+    if k == 1:      # the common case, without stacking
+        (name,), ((c, _),) = names, border
+        gp = blocks.dbc[name][:, None]
+        values += [blocks.dcol[name].T.ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
+                   -c[:, 1:].T.ravel(), np.asarray(border[0][1], dtype=float).reshape(1),
+                   *(gp[r] for r in st.mixed)]
+    elif k:
         pcol = np.stack([blocks.dcol[nm] for nm in names], axis=-1)     # (n, m-1, k)
         gp = np.stack([blocks.dbc[nm] for nm in names], axis=-1)       # (n, k)
         values += [pcol.transpose(1, 0, 2).ravel(), gp[st.left].ravel(), gp[st.right].ravel(),

@@ -115,7 +115,7 @@ def unit(disc: Discretisation, blocks: Blocks, v, v_lam: float, name: str) -> Ta
 
 
 def scaled_norm(dY, dlam, Y, lam) -> float:
-    return max(float(np.max(np.abs(dY) / (1 + np.abs(Y)))), abs(dlam) / (1 + abs(lam)))
+    return max(float((np.abs(dY) / (1 + np.abs(Y))).max()), abs(dlam) / (1 + abs(lam)))
 
 
 @dataclass

@@ -40,20 +40,19 @@ def at_fractions(s, y, yp, fractions, derivative: bool = False):
     Fixed fractions make the Hermite basis constants: a few array operations in all."""
     h = s[1:] - s[:-1]
     y0, y1, d0, d1 = y[:, :-1], y[:, 1:], yp[:, :-1] * h, yp[:, 1:] * h
-    out = []
-    for t in fractions:
+    values = np.empty((len(y), len(fractions), len(h)))
+    for j, t in enumerate(fractions):
         t2 = t * t
-        out.append((2 * t2 * t - 3 * t2 + 1) * y0 + (t2 * t - 2 * t2 + t) * d0
-                   + (3 * t2 - 2 * t2 * t) * y1 + (t2 * t - t2) * d1)
-    values = np.stack(out, axis=1)
+        values[:, j] = ((2 * t2 * t - 3 * t2 + 1) * y0 + (t2 * t - 2 * t2 + t) * d0
+                        + (3 * t2 - 2 * t2 * t) * y1 + (t2 * t - t2) * d1)
     if not derivative:
         return values
-    out = []
-    for t in fractions:
+    slopes = np.empty_like(values)
+    for j, t in enumerate(fractions):
         t2 = t * t
-        out.append(((6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * d0
-                    + (3 * t2 - 2 * t) * d1) / h)
-    return values, np.stack(out, axis=1)
+        slopes[:, j] = ((6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * d0
+                        + (3 * t2 - 2 * t) * d1) / h
+    return values, slopes
 
 
 def trapezoid_weights(s):
