@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -75,13 +76,17 @@ class Branch:
         ``direct`` is the stability index by direct count if the caller has computed it."""
         if type and type not in LABEL_TYPES:
             raise ValueError(f"unknown label type {type!r}")
-        point = Point(params=dict(state.params),
-                      ordinates=self.problem.ordinate_values(state.s, state.y, state.params),
+        ordinates = self.problem.ordinate_values(state.s, state.y, state.params)
+        if not all(math.isfinite(v) for v in ordinates.values()):
+            direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
+        elif direct is None:
+            direct = index(self.problem, state)
+        point = Point(params=dict(state.params), ordinates=ordinates,
                       arclength=float(arclength), ds=float(ds), niter=int(niter),
                       nodes=len(state.s), type=type, profile=state(PROFILE_GRID),
                       fold_residual=float(fold_residual), note=note,
                       state=state if type else None, tangent=tangent if type else None,
-                      index_direct=index(self.problem, state) if direct is None else direct)
+                      index_direct=direct)
         self.last = (state, tangent)
         if not self.points or point.arclength >= self.points[-1].arclength:
             self.points.append(point)

@@ -97,8 +97,10 @@ def run(name_or_path, out_dir, jobs, quiet):
     tty = sys.stderr.isatty() and not quiet
     switched = (f", then the other branch at the first {plan.switch_count} BPs of each"
                 if plan.switch_count else "")
-    click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter}"
-               f"{switched} -> {out_dir / plan.output_name}", err=True)
+
+    def header():  # once the starts and the output are checked: an error stays one line
+        click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter}"
+                   f"{switched} -> {out_dir / plan.output_name}", err=True)
 
     def of(k):
         return f"{k}/{nbr}" if k <= nbr else f"{k}"
@@ -129,18 +131,22 @@ def run(name_or_path, out_dir, jobs, quiet):
 
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1)
+        result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1,
+                         on_start=header)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:
         _fail(str(exc))
-    except KeyboardInterrupt:  # between branches or while saving: the last file written stands
-        click.echo(f"\ninterrupted; {out_dir / plan.output_name} holds the branches completed "
-                   "before", err=True)
+    except KeyboardInterrupt:  # execute stops its own interruptions once the output is open
+        click.echo("\ninterrupted before the first branch: nothing written", err=True)
         sys.exit(EXIT_INTERRUPTED)
     if result.interrupted:
-        click.echo(f"\ninterrupted: {len(result.branches)} branches saved to {result.path}",
-                   err=True)
+        out = out_dir / plan.output_name
+        saved = (f"{len(result.branches)} branches saved to {result.path}" if result.branches
+                 else "no branch saved")
+        # a rerun saves beside an earlier result and leaves it alone (see execute)
+        kept = f"; the earlier {out} is unchanged" if result.path != out else ""
+        click.echo(f"\ninterrupted: {saved}{kept}", err=True)
         sys.exit(EXIT_INTERRUPTED)
     for w in result.warnings:
         click.echo(f"warning: {w}")
@@ -220,7 +226,10 @@ def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
     from .store import export_csv
     bf = _open(file)
-    path = export_csv(bf, Path(output))
+    try:
+        path = export_csv(bf, Path(output))
+    except StoreError as exc:
+        _fail(str(exc))
     n = sum(len(b) for b in bf.branches)
     click.echo(f"{n} points of {len(bf.branches)} branches -> {path}")
 

@@ -9,6 +9,14 @@ from dataclasses import asdict, dataclass, fields
 #: The correctors (:mod:`elastica_auto.correctors`).
 CORRECTORS = ("collocation", "solve_bvp")
 
+#: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
+#: norm of `elastica_auto.solution` (the L2 norm of y plus |lam|), in the module's units. The
+#: predictor is a straight line along the tangent, which a curved branch leaves within a few
+#: of its own length scales: the shipped runs need ds_max <= 2, and a problem whose values are
+#: in the millions wants rescaling, not steps of millions (1e300 even overflows to inf once
+#: squared in the norms).
+MAX_STEP = 1e3
+
 
 class OptionsError(ValueError):
     """Inconsistent continuation options."""
@@ -23,8 +31,8 @@ class ContinuationOptions:
     ds : float
         Initial pseudo-arclength step (its sign is ignored; the direction is set per branch).
     ds_min, ds_max : float
-        Bounds on |ds|; ``ds_min <= |ds| <= ds_max``. The step halves on corrector failure and
-        the branch ends with MX once it would drop below ``ds_min``.
+        Bounds on |ds|; ``ds_min <= |ds| <= ds_max <= MAX_STEP`` (1e3). The step halves on
+        corrector failure and the branch ends with MX once it would drop below ``ds_min``.
     growth : float
         Factor applied to |ds| after a step that converged on the first mesh (>= 1).
     max_points : int
@@ -75,6 +83,8 @@ class ContinuationOptions:
         if not 0 < self.ds_min <= abs(self.ds) <= self.ds_max:
             raise OptionsError(f"need 0 < ds_min <= |ds| <= ds_max, got ds_min={self.ds_min}, "
                                f"ds={self.ds}, ds_max={self.ds_max}")
+        if self.ds_max > MAX_STEP:
+            raise OptionsError(f"ds_max must be <= {MAX_STEP:g}, got {self.ds_max}")
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
         for name in ("max_points", "ntst", "max_nodes"):

@@ -10,6 +10,8 @@ An equation module is a plain Python file. It declares
     s = 1) or ``"ode"`` (the differential equation). Angles declare ``period=2*pi``.
 ``ORDINATES``
     list of :class:`Ordinate`: named output functionals ``fn(s, y, p) -> float`` of a solution.
+    Parameter and ordinate names become columns of the branch files, so none may contain
+    ``/`` or be one of :data:`RESERVED_NAMES` (``index``, ``type``, ``label``, ...).
 ``rhs(s, y, p)``
     vectorised right-hand side, ``s`` shape (m,), ``y`` shape (n, m), returns (n, m);
     ``p`` is a ``dict`` of parameter values by name.
@@ -40,6 +42,8 @@ from __future__ import annotations
 
 import importlib.resources
 import importlib.util
+import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -49,6 +53,26 @@ import numpy as np
 from .errors import ProblemError
 
 ENTERS = ("fixed", "free", "ode")
+
+#: Column names the engine itself uses next to the parameters and ordinates: the columns of a
+#: stored branch (`elastica_auto.store._write_branch`) and the extra fields of its rows and CSV
+#: export (`store.rows`, `store.export_csv`). A parameter or ordinate of the same name would
+#: overwrite one of them, so none may be named so; keep this in step with store.py.
+RESERVED_NAMES = frozenset({
+    "arclength", "ds", "fold_residual", "niter", "nodes", "label", "index", "index_rule",
+    "index_direct", "type", "note", "transition", "branch", "pt"})
+
+
+def _sequence(source, name, value, kind):
+    """``value`` as a tuple, checked to be a list or tuple of ``kind`` (not a bare string)."""
+    if not isinstance(value, (list, tuple)):
+        raise ProblemError(f"{source}: {name} must be a list or tuple of {kind.__name__}, "
+                           f"got {type(value).__name__}")
+    for i, v in enumerate(value):
+        if not isinstance(v, kind):
+            raise ProblemError(f"{source}: {name}[{i}] must be a {kind.__name__}, "
+                               f"got {type(v).__name__}")
+    return tuple(value)
 
 
 @dataclass(frozen=True)
@@ -83,6 +107,11 @@ class Ordinate:
     doc: str = ""
 
 
+def _shape_of(value) -> str:
+    shape = getattr(value, "shape", None)
+    return f"shape {shape}" if shape is not None else f"a {type(value).__name__}"
+
+
 def _fd_step(v):
     return 1e-6 * (1.0 + np.abs(v))
 
@@ -105,14 +134,30 @@ class Problem:
         for attr in ("STATES", "PARAMETERS", "rhs", "bc"):
             if not hasattr(module, attr):
                 raise ProblemError(f"{source}: equation module defines no {attr}")
-        self.states = tuple(module.STATES)
+        self.states = _sequence(source, "STATES", module.STATES, str)
         self.n = len(self.states)
         if self.n == 0:
             raise ProblemError(f"{source}: STATES is empty")
-        self.parameters = {q.name: q for q in module.PARAMETERS}
-        if len(self.parameters) != len(module.PARAMETERS):
+        parameters = _sequence(source, "PARAMETERS", module.PARAMETERS, Parameter)
+        ordinates = _sequence(source, "ORDINATES", getattr(module, "ORDINATES", []), Ordinate)
+        for q in parameters:
+            d = q.default
+            if isinstance(d, bool) or not isinstance(d, numbers.Real) or not math.isfinite(d):
+                raise ProblemError(f"{source}: parameter {q.name!r}: default must be a finite "
+                                   f"number, got {d!r}")
+        for what, entries in (("parameter", parameters), ("ordinate", ordinates)):
+            for x in entries:
+                # HDF5 reads '/' as a group separator and '.' as the group itself
+                if not isinstance(x.name, str) or x.name in ("", ".") or "/" in x.name \
+                        or x.name in RESERVED_NAMES:
+                    raise ProblemError(
+                        f"{source}: {what} name {x.name!r} cannot name a column of the branch "
+                        f"files; use a non-empty string other than '.', without '/', and none "
+                        f"of {', '.join(sorted(RESERVED_NAMES))}")
+        self.parameters = {q.name: q for q in parameters}
+        if len(self.parameters) != len(parameters):
             raise ProblemError(f"{source}: duplicate parameter names in PARAMETERS")
-        self.ordinates = {o.name: o for o in getattr(module, "ORDINATES", [])}
+        self.ordinates = {o.name: o for o in ordinates}
         clash = set(self.ordinates) & set(self.parameters)
         if clash:
             raise ProblemError(f"{source}: names used both as parameter and ordinate: {sorted(clash)}")
@@ -140,7 +185,13 @@ class Problem:
 
     # -- the BVP -------------------------------------------------------------------------------
     def rhs(self, s, y, p):
-        return self.module.rhs(s, y, p)
+        """f(s, y; p), shape (n, m). Checked on every call (a shape compare): a module that
+        misbehaves only on some meshes is named, not left to fail deep in the engine."""
+        out = self.module.rhs(s, y, p)
+        if getattr(out, "shape", None) != y.shape:
+            raise ProblemError(f"{self.source}: rhs(s, y, p) returned {_shape_of(out)}; "
+                               f"expected {y.shape} (the shape of y)")
+        return out
 
     def bc(self, ya, yb, p):
         return np.asarray(self.module.bc(ya, yb, p), dtype=float)
@@ -148,7 +199,11 @@ class Problem:
     def rhs_jac(self, s, y, p):
         """df/dy, shape (n, n, m): the module's, or central differences."""
         if self._rhs_jac is not None:
-            return self._rhs_jac(s, y, p)
+            out = self._rhs_jac(s, y, p)
+            if getattr(out, "shape", None) != (self.n, self.n, y.shape[1]):
+                raise ProblemError(f"{self.source}: rhs_jac(s, y, p) returned "
+                                   f"{_shape_of(out)}; expected {(self.n, self.n, y.shape[1])}")
+            return out
         jac = np.empty((self.n, self.n, y.shape[1]))
         for j in range(self.n):
             h = _fd_step(y[j])
@@ -295,5 +350,8 @@ def load_problem(name_or_path: str, base_dir: Path | None = None) -> Problem:
     except Exception as exc:
         raise ProblemError(f"{source}: importing the module failed: "
                            f"{type(exc).__name__}: {exc}") from exc
+    except SystemExit as exc:  # else the command would end, with status 0, having done nothing
+        raise ProblemError(f"{source}: importing the module called sys.exit({exc.code!r}); "
+                           "put script code under if __name__ == \"__main__\":") from exc
     return Problem(module, source)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import signal
 import time
+import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,8 @@ from typing import Callable
 import numpy as np
 
 from . import store
-from .branch import Branch
+from .errors import USER_ERRORS
+from .branch import PROFILE_GRID, Branch, Point
 from .correctors import CorrectorFailure, make_corrector
 from .runfile import BranchSpec, Plan, RunFileError, Start
 from .solution import State, Tangent
@@ -94,6 +96,21 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     return _checked(plan, Job(spec, state, tangent, singular=singular))
 
 
+def _built(plan: Plan, spec: BranchSpec) -> Job:
+    """:func:`build_start`, with the equation module failing there reported as a StartError
+    (one line) rather than a traceback."""
+    try:
+        return build_start(plan, spec)
+    except (StartError, *USER_ERRORS):
+        raise
+    except Exception as exc:
+        raise StartError(f"{spec.start}: {_one_line(exc)}") from exc
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: " + " ".join(str(exc).split())
+
+
 def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
     if tangent is None:
         raise StartError(f"{spec.start}: no tangent stored with the branch point")
@@ -134,11 +151,12 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     """Continue branch number ``k`` of the file from ``job``'s start.
 
     Ctrl-C (or ``should_stop()`` turning true) ends the branch early: it keeps every point
-    computed so far, its last point is labelled MX and ``branch.interrupted`` is set.
+    computed so far, its last point is labelled MX and ``branch.interrupted`` is set. An
+    exception (the equation module raising, or returning what the engine cannot use) ends it
+    the same way, with the exception's type and message in ``branch.message`` and
+    ``branch.diagnostics``: one failing branch does not cost the run its other branches.
     """
-    spec = job.spec
-    br = Branch(plan.problem, plan.parameter, spec.direction, str(spec.start),
-                plan.options.to_dict(), singular_start=job.singular)
+    br = _new_branch(plan, job)
 
     def on_step(b, lam):
         if should_stop is not None and should_stop():
@@ -151,16 +169,65 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
         continue_branch(br, job.state, plan.options, plan.stops, plan.user_values, job.tangent,
                         on_step, singular_start=job.singular, exact_tangent=job.exact)
     except KeyboardInterrupt:
-        br.end, br.message, br.interrupted = "MX", "interrupted by the user", True
-        if br.points and br.last is not None:
-            last = br.points[-1]
-            if last.type:  # keep its label (the start's EP, say); end with an MX of its own
-                br.add(br.last[0], type="MX", arclength=last.arclength, tangent=br.last[1])
-            else:
-                br.relabel(last, "MX", *br.last)
+        br.interrupted = True
+        _end_mx(br, job, "interrupted by the user")
+    except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
+        frames = traceback.extract_tb(exc.__traceback__)
+        # the module's own line if it raised, else where the engine met what it returned
+        module_file = getattr(plan.problem.module, "__file__", None)
+        at = next((f for f in reversed(frames) if f.filename == module_file), frames[-1])
+        where = f"{Path(at.filename).name}:{at.lineno} in {at.name}"
+        error = " ".join(str(exc).split())  # one line, as every message of a branch
+        state = br.last[0] if br.last is not None else job.state
+        when = f"after point {len(br.points)}" if br.points else "at the start"
+        _end_mx(br, job, f"{type(exc).__name__}: {error} ({where}) {when} "
+                         f"({plan.parameter} = {state.params[plan.parameter]:g})")
+        br.diagnostics = {"exception": type(exc).__name__, "error": str(exc), "where": where,
+                          "step": len(br.points),
+                          "traceback": [f"{f.filename}:{f.lineno} in {f.name}" for f in frames]}
     label_stability(br)
     br.seconds = time.perf_counter() - t0
     return br
+
+
+def _new_branch(plan: Plan, job: Job) -> Branch:
+    spec = job.spec
+    return Branch(plan.problem, plan.parameter, spec.direction, str(spec.start),
+                  plan.options.to_dict(), singular_start=job.singular)
+
+
+def _end_mx(br: Branch, job: Job, message: str):
+    """End ``br`` early with ``message``: its last point becomes MX.
+
+    A branch that ended before its first point gets its start, labelled MX, so that every
+    branch in the file has a point to show and restart from (:func:`_start_point` if the
+    module fails there too).
+    """
+    br.end, br.message = "MX", message
+    if not br.points:
+        try:
+            br.add(job.state, type="MX", arclength=0.0, tangent=job.tangent)
+        except Exception:  # the module fails at the start itself
+            br.points.append(_start_point(br, job))
+        return
+    last = br.points[-1]
+    if last.type:  # keep its label (the start's EP, say); end with an MX of its own
+        br.add(last.state, type="MX", arclength=last.arclength, tangent=last.tangent,
+               direct=last.index_direct)
+    else:
+        br.relabel(last, "MX", *br.last)
+
+
+def _start_point(br: Branch, job: Job) -> Point:
+    """The start of ``job`` as an MX point, without calling the equation module (which may
+    be what failed, or may end the process): NaN ordinates, an unknown index, and the profile
+    interpolated linearly from the values alone (the derivatives may be what is broken)."""
+    state = job.state
+    return Point(params=dict(state.params),
+                 ordinates=dict.fromkeys(br.problem.ordinates, np.nan),
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
+                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
+                 state=state, tangent=job.tangent)
 
 
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
@@ -175,40 +242,72 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
                     jobs.append(_switch_job(plan, spec, p.state, p.tangent))
                 except StartError as exc:
                     warnings.append(str(exc))
+                except Exception as exc:  # the module failing at the branch point
+                    warnings.append(f"switch at {p.name}: {_one_line(exc)}")
     return jobs
 
 
 def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
-            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1) -> RunResult:
+            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
+            on_start: Callable[[], None] | None = None) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
-    Every start is built (and so validated) before any branch is computed; branches switched
-    at this run's own branch points (``switch = N``) follow once their parents are done. The
-    file is rewritten after each branch completes, in plan order, so labels are numbered the
-    same way whatever ``jobs`` is. An interrupted run saves every branch computed so far, the
-    ones in progress up to their last point.
+    Before any branch is computed: a start read from the file this run writes is refused
+    (RunFileError), every start is built (and so validated), and the output is checked and
+    locked for the whole run (`store.Writer`: StoreError if it cannot be written or another
+    run is writing it). Branches switched at this run's own branch points (``switch = N``)
+    follow once their parents are done. The file is rewritten after each branch completes, in
+    plan order, so labels are numbered the same way whatever ``jobs`` is. ``on_start`` is
+    called once these checks have passed, before the first branch.
+
+    A run that ends, with failed branches (MX) or not, leaves its complete file as
+    ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
+    branch computed so far, the ones in progress up to their last point: in ``<run>.h5`` if
+    there was none, else in ``<run>.partial.h5``, leaving the earlier ``<run>.h5`` as it was.
+    ``result.path`` is the file written and ``result.branches`` the branches it holds.
     """
     out = Path(out_dir) / plan.output_name
-    t_run = time.perf_counter()
-    first = [build_start(plan, spec) for spec in plan.branches]
     writer = store.Writer(out, plan.name, plan.problem, plan.text)
+    for spec in plan.branches:
+        # the start is read before the run writes, but the run would destroy its own input
+        own = next((p for p in (writer.target, writer.partial)
+                    if spec.start.file is not None and store.same_file(spec.start.file, p)),
+                   None)
+        if own is not None:
+            key = "switch" if spec.start.kind == "switch" else "start"
+            raise RunFileError(f"{plan.path}: {key}: {spec.start.file} is the file this run "
+                               f"writes ({own}); restart from a copy, or write elsewhere")
+    t_run = time.perf_counter()
+    first = [_built(plan, spec) for spec in plan.branches]
     branches: list[Branch] = []
+    warnings: list[str] = []
+    snaps = []
 
     def save():
         number_labels(branches)
         writer.save(branches)
 
-    interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
-    warnings: list[str] = []
-    if not interrupted and plan.switch_count:
-        second = switch_jobs(plan, list(branches), warnings)
-        interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
-    snaps = []
-    if not interrupted:
-        snaps = snap_targets(plan.problem, branches)
-        writer.save(branches, snaps)
-    return RunResult(out, branches, time.perf_counter() - t_run, interrupted=interrupted,
-                     snaps=snaps, warnings=warnings)
+    with writer:
+        if on_start is not None:
+            on_start()
+        try:
+            interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
+            if not interrupted and plan.switch_count:
+                second = switch_jobs(plan, list(branches), warnings)
+                interrupted = _run_jobs(plan, second, jobs, branches, save, progress,
+                                        on_branch)
+            if not interrupted:
+                try:
+                    snaps = snap_targets(plan.problem, branches)
+                except Exception as exc:  # the module failing in the scan: keep the branches
+                    warnings.append(f"snap-back scan failed: {_one_line(exc)}")
+                writer.save(branches, snaps)
+                writer.finish()
+        except KeyboardInterrupt:  # outside a branch (while saving, say): the last save stands
+            interrupted = True
+            del branches[writer.written:]
+    return RunResult(writer.path, branches, time.perf_counter() - t_run,
+                     interrupted=interrupted, snaps=snaps, warnings=warnings)
 
 
 def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
@@ -235,6 +334,9 @@ _WORKER: dict = {}
 
 def _init_worker(plan, jobs_list, offset, queue, stop):
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    # not the command's SIGTERM handler (fork copies it): the pool terminates its workers when
+    # one of them dies, and they must end quietly then, not with a KeyboardInterrupt traceback
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _WORKER.update(plan=plan, jobs=jobs_list, offset=offset, queue=queue, stop=stop)
 
 
@@ -284,10 +386,24 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
                     f.cancel()
                 finished, pending = wait(pending)
             for f in finished:
-                if f.cancelled() or f.result() is None:
+                if f.cancelled():
                     continue
-                br = f.result()
-                br.problem = plan.problem
+                exc = f.exception()
+                if exc is not None:
+                    # compute_branch reports its own failures: this is its worker dying (the
+                    # module ending the process, say), which breaks the pool for every branch
+                    # not finished yet; they end MX at their start, the others are kept
+                    job = jobs_list[futures[f]]
+                    br = _new_branch(plan, job)
+                    br.end = "MX"
+                    br.message = f"not computed: {_one_line(exc)}"
+                    br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
+                    br.points.append(_start_point(br, job))
+                elif f.result() is None:
+                    continue
+                else:
+                    br = f.result()
+                    br.problem = plan.problem
                 done[futures[f]] = br
             while len(branches) - offset in done:
                 branches.append(done.pop(len(branches) - offset))

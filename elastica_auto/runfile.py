@@ -28,7 +28,9 @@ A run file (``runs/<name>.toml``)::
     [options]                           # ContinuationOptions: ds, ds_min, ds_max, ntst, ...
 
 Unknown keys, wrong types and names the equation module does not declare are errors
-(:class:`RunFileError`, whose message names the file and the key).
+(:class:`RunFileError`, whose message names the file and the key). So is every value that is
+not a finite number (TOML's ``nan`` and ``inf``, ``"1e400"``): a parameter without bounds is
+unbounded by omitting ``bounds``, never by writing ``inf``.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ from .stepper import Stops
 
 _FUNCS = {"sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "tan": math.tan,
           "exp": math.exp, "log": math.log, "abs": abs}
-_CONSTS = {"pi": math.pi, "e": math.e, "inf": math.inf}
+_CONSTS = {"pi": math.pi, "e": math.e}
 _BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow}
 _UNOPS = {ast.USub: operator.neg, ast.UAdd: operator.pos}
@@ -59,8 +61,9 @@ _UNOPS = {ast.USub: operator.neg, ast.UAdd: operator.pos}
 def evaluate(text: str) -> float:
     """Evaluate an arithmetic expression such as ``"9*pi^2/4"`` (``^`` means power).
 
-    Only numbers, the constants pi, e, inf, the functions sqrt, sin, cos, tan, exp, log, abs and
-    + - * / ** are allowed; anything else raises ValueError.
+    Only numbers, the constants pi, e, the functions sqrt, sin, cos, tan, exp, log, abs and
+    + - * / ** are allowed, and the value must be a finite real number; anything else raises
+    ValueError.
     """
     def ev(node):
         if isinstance(node, ast.Expression):
@@ -83,8 +86,10 @@ def evaluate(text: str) -> float:
         value = ev(ast.parse(str(text).replace("^", "**"), mode="eval"))
     except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
         raise ValueError(f"cannot evaluate {text!r}: {exc}") from exc
-    if isinstance(value, complex) or math.isnan(value):
-        raise ValueError(f"{text!r} is not a real number")
+    except (RecursionError, MemoryError) as exc:  # the parser's or ev's stack, nested too deep
+        raise ValueError(f"cannot evaluate {str(text)[:20]!r}...: nested too deeply") from exc
+    if isinstance(value, complex) or not math.isfinite(value):
+        raise ValueError(f"{text!r} is not a finite real number")
     return float(value)
 
 
@@ -149,9 +154,12 @@ def load(path, out_dir: Path | None = None) -> Plan:
         raise RunFileError(f"{where}: {key}: {msg}")
 
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # TOML is UTF-8, whatever the locale
     except OSError as exc:
         raise RunFileError(f"{where}: cannot read ({exc.strerror})") from exc
+    except UnicodeDecodeError as exc:
+        raise RunFileError(f"{where}: not UTF-8 text (byte {exc.start}); "
+                           "save the run file as UTF-8") from exc
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -165,9 +173,12 @@ def load(path, out_dir: Path | None = None) -> Plan:
         if isinstance(v, bool) or not isinstance(v, (int, float, str)):
             fail(key, f"expected a number or an expression string, got {v!r}")
         try:
-            return evaluate(v) if isinstance(v, str) else float(v)
+            value = evaluate(v) if isinstance(v, str) else float(v)
         except ValueError as exc:
             fail(key, str(exc))
+        if not math.isfinite(value):  # TOML's own nan and inf
+            fail(key, f"expected a finite number, got {v!r}")
+        return value
 
     def string(key, v):
         if not isinstance(v, str):
@@ -216,8 +227,9 @@ def load(path, out_dir: Path | None = None) -> Plan:
     if not isinstance(stop, list):
         fail("[continuation] stop", f"expected a list such as [\"LP4\"], got {stop!r}")
     for item in stop:
-        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isdigit()
-                and int(item[2:]) > 0):
+        # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
+        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isascii()
+                and item[2:].isdigit() and int(item[2:]) > 0):
             fail("[continuation] stop", f"expected entries like \"LP4\", got {item!r}")
         at_fold = min(int(item[2:]), at_fold or math.inf)
     user_values = []

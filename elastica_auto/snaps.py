@@ -61,6 +61,30 @@ def _integrate(problem, params, y0, s_eval=None):
     return sol.y.reshape(n, m, len(s_eval))
 
 
+def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
+    """The root in each bracket [a, b] of ``r`` (vectorised; ``fa fb < 0``), all refined
+    together by Illinois regula falsi.
+
+    A bracket is done once it is shorter than 1e-13 (relative) or ``r`` is exactly 0 at its
+    newest end, which is then the root; only the others are evaluated again. (Iterating a done
+    bracket would meet ``fa = fb = 0`` after an exact zero, and 0 / 0 would make its root NaN.)
+    """
+    a, b, fa, fb = (np.array(v, dtype=float) for v in (a, b, fa, fb))
+    for _ in range(max_iter):
+        # fa and fb have opposite signs in a live bracket (fa is only ever halved or set to
+        # a nonzero fb), so fb - fa cannot vanish
+        live = np.flatnonzero((np.abs(b - a) >= 1e-13 * (1 + np.abs(a))) & (fb != 0.0))
+        if len(live) == 0:
+            break
+        c = b[live] - fb[live] * (b[live] - a[live]) / (fb[live] - fa[live])
+        fc = r(c)
+        same = fc * fb[live] > 0
+        a[live] = np.where(same, a[live], b[live])
+        fa[live] = np.where(same, fa[live] / 2, fb[live])
+        b[live], fb[live] = c, fc
+    return b
+
+
 def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     """Every equilibrium at ``params`` (a root of the shooting residual in the module's bounds),
     sorted by k. Requires the module hooks ``shooting`` and (for the index) ``second_variation``."""
@@ -75,17 +99,8 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     rs = r(ks)
     exact = ks[rs == 0.0]
     idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
-    a, b, fa, fb = ks[idx], ks[idx + 1], rs[idx], rs[idx + 1]
-    for _ in range(60):  # Illinois regula falsi on all brackets at once
-        if len(a) == 0 or np.all(np.abs(b - a) < 1e-13 * (1 + np.abs(a))):
-            break
-        c = b - fb * (b - a) / (fb - fa)
-        fc = r(c)
-        same = fc * fb > 0
-        a = np.where(same, a, b)
-        fa = np.where(same, fa / 2, fb)
-        b, fb = c, fc
-    roots = np.sort(np.concatenate((exact, b)))
+    roots = np.sort(np.concatenate((exact, refine_brackets(r, ks[idx], ks[idx + 1], rs[idx],
+                                                           rs[idx + 1]))))
     if len(roots) == 0:
         return []
     s = np.linspace(0.0, 1.0, PROFILE_NODES)

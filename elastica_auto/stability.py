@@ -65,8 +65,9 @@ def _coefficients(problem, state, s):
 
 
 def index(problem, state) -> int:
-    """The number of negative eigenvalues of the second variation at ``state``, or -1 if the
-    module has no ``second_variation`` hook.
+    """The number of negative eigenvalues of the second variation at ``state``, or -1 (unknown)
+    if the module has no ``second_variation`` hook or the state or the coefficients are not
+    all finite.
 
     Quadratic (P2) finite elements on the state's own mesh, each interval subdivided where the
     coefficients oscillate faster than the mesh resolves (``MAX_PHASE``); the coefficients at
@@ -81,8 +82,14 @@ def index(problem, state) -> int:
     branch point, where it is zero)."""
     if not problem.has_second_variation:
         return -1
+    # NaN compares false with everything, so the count below would call such a point stable
+    if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
+            and all(np.isfinite(v) for v in state.params.values())):
+        return -1
     s = state.s
     a, b, c = _coefficients(problem, state, s)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.isfinite(c)):
+        return -1
     h = np.diff(s)
     parts = np.ceil(h * np.sqrt(np.max(np.abs(b) / a, axis=1)) / MAX_PHASE).astype(int)
     if np.any(parts > 1):

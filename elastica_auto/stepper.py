@@ -181,8 +181,13 @@ class _Walk:
                 retries += 1
                 ds = rej.ds
                 if ds < opt.ds_min:
+                    # an infinite residual is Newton's mark for residuals that are not finite,
+                    # which only the module's functions can make from a finite guess
+                    why = (" (the equation module returned NaN or inf there)"
+                           if math.isinf(rej.residual) else "")
                     self._end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
-                                            f"after point {len(branch.points)}: {rej}")
+                                            f"after point {len(branch.points)} "
+                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
                     branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
                                           "nodes": len(self.a.mesh), "history": history[-12:]}
                     return

@@ -23,14 +23,20 @@ Layout of ``out/<run>.h5``::
                             profiles (targets, states, grid): each target on /profile_grid
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
-reader never sees a half-written file.
+reader never sees a half-written file. A run holds an exclusive lock on its output for as long
+as it runs, and replaces an existing ``<run>.h5`` only once it has finished (see `Writer`).
+New files get the mode ``open`` would give them (0666 less the umask). Reading validates the
+layout: a damaged file raises one `StoreError` naming the file and what is wrong.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import fcntl
 import json
 import os
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -60,47 +66,160 @@ def _tex_labels(problem) -> dict[str, str]:
     return out
 
 
+def _new_file_mode() -> int:
+    """The mode ``open`` gives a new file: 0666 less the umask (``mkstemp`` gives 0600)."""
+    umask = os.umask(0)  # the umask can only be read by setting it
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def _temporary(path: Path) -> str:
+    """A new empty file beside ``path`` named ``.<name>.XXXXXXXX.tmp``, with the mode of a new
+    file; `_temporaries` recognises the name."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # file systems without Unix modes refuse chmod; the file is no less usable
+        with contextlib.suppress(OSError):
+            os.fchmod(fd, _new_file_mode())
+    finally:
+        os.close(fd)
+    return tmp
+
+
+def _temporaries(*paths: Path) -> re.Pattern:
+    """The names `_temporary` gives for ``paths``: tempfile's 8 characters [a-z0-9_]."""
+    names = "|".join(re.escape(p.name) for p in paths)
+    return re.compile(rf"\.(?:{names})\.[a-z0-9_]{{8}}\.tmp")
+
+
+def _lock(lock: Path, target: Path) -> int:
+    """Take the exclusive lock ``lock`` (created if need be) for writing ``target``: its fd.
+
+    Never waits: if another process holds it, StoreError. The holder removes the lock file on
+    release (`_unlock`); a process that opened it just before then holds a lock on a removed
+    file, so the lock counts only if the locked file is still the one at ``lock``.
+    """
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            current = os.stat(lock)
+        except BlockingIOError:
+            os.close(fd)
+            raise StoreError(f"{target}: another run is writing it (lock {lock} is held); "
+                             "wait for it to end or write elsewhere") from None
+        except FileNotFoundError:
+            current = None  # removed by the holder as it ended: lock the next one
+        except OSError:
+            os.close(fd)
+            raise
+        if current is not None and os.path.samestat(os.fstat(fd), current):
+            return fd
+        os.close(fd)
+
+
+def _unlock(fd: int, lock: Path):
+    # Removed while still held, so that nobody locks this file after us (see _lock). A lock
+    # file that cannot be removed does no harm: the next run locks it again.
+    with contextlib.suppress(OSError):
+        os.unlink(lock)
+    os.close(fd)
+
+
 class Writer:
-    """Writes a run's branch file after each branch, atomically.
+    """Writes a run's branch file after each branch, atomically; use it as a context manager.
+
+    Entering checks, before anything is computed, that the output can be written (a folder that
+    cannot be created or written, a name too long for the file system, ``<run>.h5`` a directory:
+    StoreError); takes an exclusive lock on the output for the whole run, on the hidden file
+    ``.<run>.h5.lock`` beside it (a second run writing the same file gets StoreError at once;
+    the lock file is removed on exit); and removes the temporary files a killed run left for
+    this output.
 
     Each save copies the last complete file to a temporary name in the same folder, appends the
-    branches not written yet, and renames it over the target: a reader (or an interrupted run)
-    never sees a half-written file, and completed branches are not written twice.
+    branches not written yet, and renames it over ``path``: a reader (or an interrupted run)
+    never sees a half-written file, and completed branches are not written twice. ``path`` is
+    the target ``<run>.h5`` if no such file exists when the run starts. Otherwise the saves go
+    to ``<run>.partial.h5`` beside it and `finish` renames that over the target once the run
+    has ended, failed branches (MX) or not: an earlier result is replaced by a complete one
+    only, and an interrupted or killed rerun leaves it as it was, the rerun's branches in the
+    partial file.
     """
 
     def __init__(self, path: Path, run: str, problem, run_file_text: str = ""):
-        self.path = Path(path)
+        self.target = Path(path)
+        self.partial = self.target.with_name(f"{self.target.stem}.partial.h5")
+        self.path = self.target
         self.run, self.problem, self.text = run, problem, run_file_text
         self.written = 0
         self.labels: dict[str, list[int]] = {}
+        self._lock = self.target.with_name(f".{self.target.name}.lock")
+        self._fd = -1
+
+    def __enter__(self) -> Writer:
+        folder = self.target.parent
+        if self.target.is_dir():
+            raise StoreError(f"{self.target}: is a directory, not a branch file")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            self._fd = _lock(self._lock, self.target)
+        except OSError as exc:
+            raise StoreError(f"{self.target}: cannot write in {folder} "
+                             f"({exc.strerror or exc})") from None
+        try:
+            stale = _temporaries(self.target, self.partial)
+            for entry in os.scandir(folder):
+                if stale.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
+                    os.unlink(entry.path)
+            if self.target.exists():
+                self.path = self.partial
+            os.unlink(_temporary(self.path))  # the longest name a save needs
+        except OSError as exc:
+            _unlock(self._fd, self._lock)
+            raise StoreError(f"{self.target}: cannot write in {folder} "
+                             f"({exc.strerror or exc})") from None
+        return self
+
+    def __exit__(self, *exc_info):
+        _unlock(self._fd, self._lock)
 
     def save(self, branches: list[Branch], snaps: list[dict] | None = None):
         """Write ``branches`` (labels already numbered); earlier ones are kept as written.
         ``snaps``: the snap-back target table (replaces any stored one)."""
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp",
-                                   dir=self.path.parent)
-        os.close(fd)
         try:
-            if self.written:
-                shutil.copyfile(self.path, tmp)
-            with h5py.File(tmp, "a" if self.written else "w") as f:
-                if not self.written:
-                    self._write_header(f)
-                for k in range(self.written + 1, len(branches) + 1):
-                    br = branches[k - 1]
-                    _write_branch(f.create_group(f"branches/{k:03d}"), self.problem, br)
-                    for pt, p in enumerate(br.points, start=1):
-                        if p.type:
-                            self.labels[p.name] = [k, pt]
-                f.attrs["labels"] = json.dumps(self.labels)
-                if snaps is not None:
-                    _write_snaps(f, snaps)
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+            tmp = _temporary(self.path)
+            try:
+                if self.written:
+                    shutil.copyfile(self.path, tmp)
+                with h5py.File(tmp, "a" if self.written else "w") as f:
+                    if not self.written:
+                        self._write_header(f)
+                    for k in range(self.written + 1, len(branches) + 1):
+                        br = branches[k - 1]
+                        _write_branch(f.create_group(f"branches/{k:03d}"), self.problem, br)
+                        for pt, p in enumerate(br.points, start=1):
+                            if p.type:
+                                self.labels[p.name] = [k, pt]
+                    f.attrs["labels"] = json.dumps(self.labels)
+                    if snaps is not None:
+                        _write_snaps(f, snaps)
+                os.replace(tmp, self.path)
+            except BaseException:
+                Path(tmp).unlink(missing_ok=True)
+                raise
+        except OSError as exc:
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         self.written = len(branches)
+
+    def finish(self):
+        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class)."""
+        if self.path != self.target:
+            try:
+                os.replace(self.path, self.target)
+            except OSError as exc:
+                raise StoreError(f"{self.target}: cannot replace it with {self.path} "
+                                 f"({exc.strerror or exc})") from exc
+            self.path = self.target
 
     def _write_header(self, f):
         problem = self.problem
@@ -133,6 +252,12 @@ def _write_snaps(f, snaps: list[dict]):
             g[k] = np.asarray(values, dtype=float)
 
 
+# The columns of every branch besides its parameters and ordinates.
+_FLOAT_COLUMNS = ("arclength", "ds", "fold_residual")
+_INT_COLUMNS = ("niter", "nodes", "label", "index", "index_rule", "index_direct")
+_STR_COLUMNS = ("type", "note", "transition")
+
+
 def _write_branch(g, problem, br: Branch):
     g.attrs.update(parameter=br.parameter, ordinate=_ordinate_for(problem, br.parameter),
                    direction=br.direction, start=br.start, options=json.dumps(br.options),
@@ -141,9 +266,9 @@ def _write_branch(g, problem, br: Branch):
     cols = g.create_group("columns")
     for name in problem.parameter_names + problem.ordinate_names:
         cols[name] = br.column(name).astype(float)
-    for name in ("arclength", "ds", "fold_residual"):
+    for name in _FLOAT_COLUMNS:
         cols[name] = br.column(name).astype(float)
-    for name in ("niter", "nodes", "label", "index", "index_rule", "index_direct"):
+    for name in _INT_COLUMNS:
         cols[name] = br.column(name).astype(np.int32)
     str_dt = h5py.string_dtype()
     cols.create_dataset("type", data=[p.type for p in br.points], dtype=str_dt)
@@ -197,7 +322,13 @@ class StoredLabel:
 
 
 class BranchFile:
-    """A read-only view of an elastica-auto HDF5 file; raises StoreError with one line."""
+    """A read-only view of an elastica-auto HDF5 file; raises StoreError with one line.
+
+    Every branch is read on opening, and the layout checked: each branch has every column,
+    each a one-dimensional dataset of one length, and a profile per point; the ``labels``
+    attribute maps each label to a point of that label whose solution is stored. A file that
+    fails a check is reported as damaged, naming what is wrong.
+    """
 
     def __init__(self, path):
         self.path = Path(path)
@@ -219,7 +350,7 @@ class BranchFile:
                 self.states = json.loads(self.attrs["states"])
                 self.tex = json.loads(self.attrs["tex"])
                 self.periods = json.loads(self.attrs.get("periods", "{}"))
-                self.labels = {k: tuple(v) for k, v in json.loads(self.attrs["labels"]).items()}
+                self.labels = self._labels(self.attrs["labels"])
                 self.profile_grid = f["profile_grid"][()]
                 self.snaps = []
                 if "snaps" in f:
@@ -230,22 +361,65 @@ class BranchFile:
                     if "profiles" in f["snaps"]:
                         for row, prof in zip(self.snaps, f["snaps/profiles"][()]):
                             row["profile"] = prof
-                self.branches = []
-                for key in sorted(f.get("branches", {})):
-                    g = f["branches"][key]
-                    cols = {}
-                    for name, ds in g["columns"].items():
-                        data = ds[()]
-                        if ds.dtype.kind == "O":
-                            data = np.array([x.decode() if isinstance(x, bytes) else x
-                                             for x in data], dtype=object)
-                        cols[name] = data
-                    self.branches.append(StoredBranch(int(key), dict(g.attrs), cols,
-                                                      g["profiles"][()]))
+                self.branches = [self._branch(key, f["branches"][key])
+                                 for key in sorted(f.get("branches", {}))]
+                self._check_labels(f)
         except StoreError:
             raise
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, TypeError) as exc:
             raise StoreError(f"{self.path}: unreadable branch file ({exc})") from exc
+
+    def _damaged(self, what: str) -> StoreError:
+        return StoreError(f"{self.path}: damaged branch file: {what}")
+
+    def _labels(self, text: str) -> dict[str, tuple[int, int]]:
+        try:
+            labels = json.loads(text)
+        except ValueError as exc:
+            raise self._damaged(f"attribute 'labels' is not JSON ({exc})") from None
+        if not isinstance(labels, dict) or not all(
+                isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v)
+                for v in labels.values()):
+            raise self._damaged("attribute 'labels' is not a map of label -> [branch, point]")
+        return {k: tuple(v) for k, v in labels.items()}
+
+    def _branch(self, key: str, g) -> StoredBranch:
+        cols = {}
+        for name, ds in g["columns"].items():
+            if not isinstance(ds, h5py.Dataset) or ds.ndim != 1:
+                raise self._damaged(f"branch {key}: column {name!r} is not a one-dimensional "
+                                    "dataset")
+            data = ds[()]
+            if ds.dtype.kind == "O":
+                data = np.array([x.decode() if isinstance(x, bytes) else x for x in data],
+                                dtype=object)
+            cols[name] = data
+        missing = [name for name in (*self.parameters, *self.ordinates, *_FLOAT_COLUMNS,
+                                     *_INT_COLUMNS, *_STR_COLUMNS) if name not in cols]
+        if missing:
+            raise self._damaged(f"branch {key}: no column {', '.join(map(repr, missing))}")
+        lengths = [len(c) for c in cols.values()]
+        n = max(lengths, key=lengths.count)  # the length of most columns: the odd one is wrong
+        odd = next((name for name, c in cols.items() if len(c) != n), None)
+        if odd is not None:
+            raise self._damaged(f"branch {key}: column {odd!r} has {len(cols[odd])} rows, "
+                                f"the others {n}")
+        profiles = g["profiles"][()]
+        if len(profiles) != n:
+            raise self._damaged(f"branch {key}: {len(profiles)} profiles for {n} points")
+        return StoredBranch(int(key), dict(g.attrs), cols, profiles)
+
+    def _check_labels(self, f):
+        """Each label names a point with that label, and its solution is stored."""
+        names = {b.number: b.label_names() for b in self.branches}
+        for name, (br, pt) in self.labels.items():
+            if not 1 <= pt <= len(names.get(br, [])) or names[br][pt - 1] != name:
+                raise self._damaged(f"label {name} is at branch {br} point {pt}, but there is "
+                                    f"no point {name} there")
+            sol = f.get(f"branches/{br:03d}/solutions/{name}")
+            if not isinstance(sol, h5py.Group) or not {"s", "y", "yp"} <= set(sol):
+                raise self._damaged(f"label {name} has no stored solution "
+                                    f"(branches/{br:03d}/solutions/{name})")
 
     @property
     def run(self) -> str:
@@ -268,15 +442,19 @@ class BranchFile:
         if name not in self.labels:
             raise StoreError(f"{self.path}: no label {name!r} (labels: {self.label_ranges()})")
         br, pt = self.labels[name]
-        with h5py.File(self.path, "r") as f:
-            h = f[f"branches/{br:03d}/solutions/{name}"]
-            params = json.loads(h.attrs["params"])
-            state = State(h["s"][()], h["y"][()], h["yp"][()], params)
-            tangent, tpar = None, None
-            if "tangent_y" in h:
-                tangent = Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
-                                  float(h.attrs["tangent_lam"]))
-                tpar = str(h.attrs["tangent_parameter"])
+        try:
+            with h5py.File(self.path, "r") as f:
+                h = f[f"branches/{br:03d}/solutions/{name}"]
+                params = json.loads(h.attrs["params"])
+                state = State(h["s"][()], h["y"][()], h["yp"][()], params)
+                tangent, tpar = None, None
+                if "tangent_y" in h:
+                    tangent = Tangent(h["tangent_s"][()], h["tangent_y"][()],
+                                      h["tangent_yp"][()], float(h.attrs["tangent_lam"]))
+                    tpar = str(h.attrs["tangent_parameter"])
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            # checked on opening; what is left: a solution's own datasets and attributes
+            raise self._damaged(f"solution {name} unreadable ({exc})") from exc
         return StoredLabel(name, br, pt, state, tangent, tpar)
 
 
@@ -302,16 +480,41 @@ def rows(bf: BranchFile, labelled_only=False):
             yield row
 
 
+def same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` are one existing file, however spelled or linked."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist
+        return False
+
+
 def export_csv(bf: BranchFile, out: Path):
     """Every point of every branch, one row each (header: branch,pt,type,label,<parameters>,
-    <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits."""
+    <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits.
+
+    The CSV is written to a temporary file beside ``out`` and renamed over it, so a failed
+    export leaves ``out`` as it was. StoreError if ``out`` is the branch file itself or
+    cannot be written."""
     header = (["branch", "pt", "type", "label"] + bf.parameters + bf.ordinates
               + ["index", "index_rule", "index_direct"])
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for row in rows(bf):
-            w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h] for h in header])
+    if same_file(bf.path, out):
+        raise StoreError(f"{out} is the branch file being exported ({bf.path}); "
+                         "choose another name for the CSV")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _temporary(out)
+        try:
+            with open(tmp, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(header)
+                for row in rows(bf):
+                    w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
+                                for h in header])
+            os.replace(tmp, out)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise StoreError(f"{out}: cannot write ({exc.strerror or exc})") from exc
     return out

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import shooting
-from helpers import invariant, invariant_bound, run_cli, run_plan
+from helpers import elastica_run_file, invariant, invariant_bound, run_cli, run_plan
 from elastica_auto import runfile
 from elastica_auto.store import BranchFile
 
@@ -113,3 +113,74 @@ def test_eps_branch_follows_the_solution_curve(small_cli_run, tmp_path):
         k, e = p.ordinates["m0"], p.params["eps"]
         side = [_eps_of_k0(k + d)[0] - e for d in (-0.02, 0.02)]
         assert side[0] * side[1] > 0, f"LP at eps = {e:.3g}, k0 = {k:.3g} is no extremum"
+
+
+# ---- restarts at a fold and at a branch point, in both directions ------------------------------
+
+def _both_ways(path, start, parameter, bounds):
+    path.write_text(f'description = "{parameter} both ways from {start}"\n'
+                    f'equation = "elastica_lever_arm"\nstart = "{start}"\n'
+                    f'[continuation]\nparameter = "{parameter}"\ndirections = "both"\n'
+                    f'bounds = ["{bounds[0]}", "{bounds[1]}"]\n')
+    return path
+
+
+def _run_ok(cli_exe, toml, out):
+    proc = run_cli(cli_exe, "run", toml, "--out", out, "-j", "1")
+    assert proc.returncode == 0, proc.stderr
+    return BranchFile(out / f"{toml.stem}.h5")
+
+
+def test_restart_from_a_fold_in_both_directions(tmp_path, cli_exe):
+    """start = "FILE.h5:LP1" with directions = "both": the parameter is stationary at a fold,
+    so only the tangent stored with the label tells the two ways apart (+ on along the way the
+    run passed the fold, - back); each leaves on its side of the fold, with that side's
+    index, and neither ends MX (without the stored tangent the start is singular)."""
+    out = tmp_path / "out"
+    src = _run_ok(cli_exe, elastica_run_file(tmp_path / "psi.toml", bounds=("-pi", "pi")), out)
+    k, pt = src.labels["LP1"]
+    c = src.branches[k - 1].columns
+    lp = src.label("LP1").state
+    m1 = c["m1"][pt - 1]
+    before, after = (int(i) for i in c["transition"][pt - 1].split(" -> "))
+    assert {before, after} == {0, 1}                      # LP1 1 -> 0 of this run
+    assert (c["m1"][pt - 2] - m1) * (c["m1"][pt] - m1) < 0  # m1 is monotone through the fold
+    rf = _run_ok(cli_exe, _both_ways(tmp_path / "from_lp.toml", "psi.h5:LP1", "psi",
+                                     ("-pi", "pi")), out)
+    assert [b.attrs["direction"] for b in rf.branches] == [1, -1]
+    for b, neighbour, index in zip(rf.branches, (pt, pt - 2), (after, before)):
+        bc = b.columns
+        assert b.attrs["end"] == "EP" and "MX" not in list(bc["type"]), b.attrs["message"]
+        assert {q: float(bc[q][0]) for q in rf.parameters} == lp.params
+        # psi turns at the fold: it moves away on both sides the same way, as in the source
+        assert (bc["psi"][1] - lp.params["psi"]) * (c["psi"][pt] - lp.params["psi"]) > 0
+        # on the side of the source's neighbour, with its index (the fold rule's)
+        assert (bc["m1"][1] - m1) * (c["m1"][neighbour] - m1) > 0
+        assert bc["index"][1] == index and bc["index"][-1] >= 0
+
+
+def test_restart_from_a_branch_point_in_both_directions(tmp_path, cli_exe):
+    """start = "FILE.h5:BP1" (not switch) with directions = "both": both ways along the straight
+    rod, the branch the run was on, with index 0 below the first critical load and 1 above."""
+    out = tmp_path / "out"
+    rod = tmp_path / "rod.toml"
+    rod.write_text('description = "the straight rod"\nequation = "elastica_lever_arm"\n'
+                   'start = "trivial"\n[parameters]\neps = 0.25\nP = 0\npsi = 0\nalpha = 0\n'
+                   'theta0 = 0\n[continuation]\nparameter = "P"\ndirections = "+"\n'
+                   'bounds = [-1, 5]\n')
+    src = _run_ok(cli_exe, rod, out)
+    bp = src.label("BP1").state
+    assert bp.params["P"] == pytest.approx(1.5991918, abs=1e-6)
+    k, pt = src.labels["BP1"]
+    assert src.branches[k - 1].columns["transition"][pt - 1] == "0 -> 1"
+    rf = _run_ok(cli_exe, _both_ways(tmp_path / "from_bp.toml", "rod.h5:BP1", "P", ("-1", "5")),
+                 out)
+    assert [b.attrs["direction"] for b in rf.branches] == [1, -1]
+    for b, end, index in zip(rf.branches, (5.0, -1.0), (1, 0)):
+        bc = b.columns
+        assert b.attrs["end"] == "EP" and "MX" not in list(bc["type"]), b.attrs["message"]
+        assert {q: float(bc[q][0]) for q in rf.parameters} == bp.params
+        assert bc["P"][-1] == pytest.approx(end)
+        assert np.all(np.sign(np.diff(bc["P"])) == np.sign(end - bp.params["P"]))
+        assert np.max(np.abs(bc["m0"])) < 1e-9 and np.max(np.abs(bc["m1"])) < 1e-9   # straight
+        assert np.all(bc["index"][1:] == index)

@@ -1,11 +1,14 @@
 """Bad input, failures and interruption, through the CLI as a user meets them (issue 5).
 
-Each test checks the exit code, the message and the file left behind. The property-based test
-feeds the run-file loader random TOML documents and mutations of the shipped run files.
+Each test checks the exit code, the message and the file left behind. The property-based tests
+feed the run-file loader random TOML documents and mutations of the shipped run files, check
+the plans that load, and compute a few steps of the first few of them.
 """
 
 from __future__ import annotations
 
+import collections
+import dataclasses
 import json
 import math
 import shutil
@@ -21,6 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from elastica_auto import runfile
+from elastica_auto.run import StartError, build_start, compute_branch
 from elastica_auto.store import BranchFile
 from helpers import REPO, run_cli
 
@@ -276,22 +280,73 @@ SHIPPED = [p for p in sorted((REPO / "runs").glob("*.toml"))
            if "start =" not in p.read_text() or "trivial" in p.read_text()]
 
 
-def _load_never_crashes(text, tmp_path):
+#: Plans computed (briefly) per hypothesis test and session: loading is cheap, a run is not.
+RUNS_PER_TEST = 5
+#: Wall-clock budget of one sampled run; compute_branch stops at the next step after it.
+RUN_SECONDS = 5.0
+_runs_done: collections.Counter = collections.Counter()
+
+
+def _load_never_crashes(text, tmp_path, test):
+    """Load ``text``: a one-line error naming the file, or a consistent plan; the first few
+    plans per ``test`` are also computed for a few steps (:func:`_run_briefly`)."""
     path = tmp_path / "random.toml"
     path.write_text(text)
     try:
         plan = runfile.load(path, out_dir=tmp_path)
     except runfile.RunFileError as exc:
-        assert "\n" not in str(exc)
+        msg = str(exc)
+        assert "\n" not in msg and msg.startswith(f"{path}: ") and len(msg) > len(f"{path}: ")
         return
-    assert plan.branches or plan.switch_count >= 0
+    problem = plan.problem
+    assert plan.parameter in problem.parameters
+    assert set(plan.varying) <= set(problem.parameters)
+    assert plan.branches, "a plan that loads computes something"
+    for spec in plan.branches:
+        assert spec.start.kind in ("trivial", "label", "switch")
+        assert (spec.start.file is None) == (spec.start.kind == "trivial")
+        assert spec.direction in (1, -1)
+        assert set(spec.params) <= set(problem.parameters)
+        assert all(math.isfinite(v) for v in spec.params.values())
+    assert plan.switch_count >= 0
+    assert plan.stops.lower < plan.stops.upper
+    assert plan.stops.at_fold is None or plan.stops.at_fold >= 1
+    assert all(math.isfinite(v) for uv in plan.user_values for v in uv.values)
     assert 0 < plan.options.ds_min <= abs(plan.options.ds) <= plan.options.ds_max
+    if _runs_done[test] < RUNS_PER_TEST:
+        _run_briefly(plan)
+        # counted once it passed: a failing example fails again when hypothesis replays it
+        _runs_done[test] += 1
+
+
+def _run_briefly(plan):
+    """Compute the first two branches of ``plan`` for a few points: each ends EP, LP (a
+    ``stop``) or MX, with a one-line message, and no exception inside the engine (which
+    compute_branch would report as an MX with the exception in its diagnostics)."""
+    opt = plan.options
+    # a few points on small meshes, and ds halved at most ~14 times per step: what matters is
+    # how each branch ends, and the sample must take seconds whatever the fuzzed options
+    opt = dataclasses.replace(opt, max_points=5, ntst=min(opt.ntst, 40),
+                              max_nodes=min(opt.max_nodes, 400),
+                              ds_min=max(opt.ds_min, 1e-4 * abs(opt.ds)))
+    plan = dataclasses.replace(plan, options=opt, branches=plan.branches[:2])
+    deadline = time.perf_counter() + RUN_SECONDS
+    for k, spec in enumerate(plan.branches, 1):
+        try:
+            job = build_start(plan, spec)
+        except StartError as exc:  # e.g. no exact start at the fuzzed parameters
+            assert "\n" not in str(exc)
+            continue
+        br = compute_branch(plan, k, job, should_stop=lambda: time.perf_counter() > deadline)
+        assert "exception" not in br.diagnostics, br.message
+        assert br.end in ("EP", "LP", "MX") and br.message and "\n" not in br.message
+        assert br.points and br.points[-1].type == br.end
 
 
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(doc=st.dictionaries(keys, values, max_size=6))
 def test_random_documents_give_a_clean_error_or_a_plan(doc, tmp_path):
-    _load_never_crashes(toml_document(doc), tmp_path)
+    _load_never_crashes(toml_document(doc), tmp_path, "random")
 
 
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -311,5 +366,4 @@ def test_mutated_shipped_run_files(data, tmp_path):
             target[data.draw(st.sampled_from(sorted(target)))] = data.draw(values)
         else:
             target[data.draw(keys)] = data.draw(values)
-    if all(isinstance(v, dict) for v in doc.values()) or True:
-        _load_never_crashes(toml_document(doc), tmp_path)
+    _load_never_crashes(toml_document(doc), tmp_path, "mutated")

@@ -1,0 +1,355 @@
+"""The files a run or an export writes and the branch files the commands read, through the CLI.
+
+Each test checks the exit code, the message and what is left on disk: an export never
+overwrites its input or leaves half a CSV; an output that cannot be written is found before
+anything is computed; a run never restarts from the file it writes; an interrupted rerun keeps
+the earlier complete result; two runs never write one file at once; temporary files of a
+killed run are removed; new files follow the umask; a damaged branch file is refused with
+one line by every command that reads it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+
+import h5py
+import pytest
+
+from elastica_auto.store import BranchFile
+from helpers import run_cli
+from test_robustness import LONG, SMALL, one_line_error
+
+# A run whose branches all end MX (see test_robustness): it finishes with exit status 1.
+FAILS = SMALL.replace('parameter = "psi"', 'parameter = "psi"\ndirections = "+"') + (
+    "[options]\nds = 0.05\nds_min = 0.04\nmax_angle = 0.005\n")
+
+
+@pytest.fixture(scope="module")
+def good_file(tmp_path_factory, cli_exe):
+    d = tmp_path_factory.mktemp("good")
+    (d / "small.toml").write_text(SMALL)
+    assert run_cli(cli_exe, "run", d / "small.toml", "--out", d).returncode == 0
+    return d / "small.h5"
+
+
+def hidden(folder):
+    """Names in ``folder`` starting with a dot: temporary and lock files."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def points(path):
+    return sum(len(b) for b in BranchFile(path).branches)
+
+
+def wait_for(condition, proc, seconds=60):
+    deadline = time.time() + seconds
+    while not condition() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.02)
+    assert proc.poll() is None, proc.communicate()
+
+
+# -- 1. export ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("spelling", ["same", "relative", "dotdot", "symlink", "hardlink"])
+def test_export_onto_its_own_input_is_refused(good_file, tmp_path, cli_exe, spelling):
+    h5 = tmp_path / "small.h5"
+    shutil.copy(good_file, h5)
+    before = h5.read_bytes()
+    (tmp_path / "sub").mkdir()
+    target = {"same": h5, "relative": "small.h5", "dotdot": tmp_path / "sub" / ".." / "small.h5",
+              "symlink": tmp_path / "link.csv", "hardlink": tmp_path / "hard.csv"}[spelling]
+    if spelling == "symlink":
+        target.symlink_to(h5)
+    elif spelling == "hardlink":
+        os.link(h5, target)
+    one_line_error(run_cli(cli_exe, "export", h5, "-o", target, cwd=tmp_path),
+                   "small.h5", "the branch file being exported")
+    assert h5.read_bytes() == before
+    assert hidden(tmp_path) == []
+
+
+def test_a_failed_export_leaves_the_old_csv_and_no_partial_one(good_file, tmp_path, cli_exe):
+    csv = tmp_path / "small.csv"
+    csv.write_text("old\n")
+
+    def small_files():  # the CSV (about 14 kB) cannot be written in full
+        resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+    proc = subprocess.run([cli_exe, "export", str(good_file), "-o", str(csv)],
+                          capture_output=True, text=True, timeout=300, preexec_fn=small_files)
+    one_line_error(proc, "small.csv", "cannot write")
+    assert csv.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.csv"]
+
+
+# -- 2. an output that cannot be written ----------------------------------------------------------
+
+def _writable(folder) -> bool:
+    try:
+        fd, name = tempfile.mkstemp(dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(name)
+    return True
+
+
+@contextlib.contextmanager
+def read_only(folder):
+    """``folder`` made unwritable: by its mode, or, for root (whom modes do not stop), by the
+    immutable attribute; the test is skipped where neither works."""
+    folder.chmod(0o555)
+    immutable = False
+    try:
+        if _writable(folder) and shutil.which("chattr"):
+            immutable = subprocess.run(["chattr", "+i", str(folder)],
+                                       capture_output=True).returncode == 0
+        if _writable(folder):
+            pytest.skip("cannot make a folder read-only here")
+        yield
+    finally:
+        if immutable:
+            subprocess.run(["chattr", "-i", str(folder)], check=True)
+        folder.chmod(0o755)
+
+
+def _run_refused_before_computing(cli_exe, toml, out, *needles):
+    proc = run_cli(cli_exe, "run", toml, "--out", out, "-q")
+    one_line_error(proc, *needles)
+    assert "branch 1/" not in proc.stdout         # refused before the first branch was computed
+    return proc
+
+
+def test_read_only_output_folder(tmp_path, cli_exe):
+    (tmp_path / "small.toml").write_text(SMALL)
+    out = tmp_path / "out"
+    out.mkdir()
+    with read_only(out):
+        _run_refused_before_computing(cli_exe, tmp_path / "small.toml", out, "small.h5",
+                                      "cannot write")
+    assert list(out.iterdir()) == []
+
+
+def test_output_folder_below_a_file(tmp_path, cli_exe):
+    (tmp_path / "small.toml").write_text(SMALL)
+    (tmp_path / "notes").write_text("a file, not a folder\n")
+    _run_refused_before_computing(cli_exe, tmp_path / "small.toml", tmp_path / "notes" / "out",
+                                  "small.h5", "cannot write")
+    assert (tmp_path / "notes").read_text() == "a file, not a folder\n"
+
+
+def test_output_file_is_a_directory(tmp_path, cli_exe):
+    (tmp_path / "small.toml").write_text(SMALL)
+    (tmp_path / "out" / "small.h5").mkdir(parents=True)
+    _run_refused_before_computing(cli_exe, tmp_path / "small.toml", tmp_path / "out",
+                                  "small.h5", "is a directory")
+    assert (tmp_path / "out" / "small.h5").is_dir()
+
+
+def test_output_name_too_long(tmp_path, cli_exe):
+    # the run file's name fits (255 characters), <run>.h5 too, but not the hidden temporary
+    # and lock names beside it
+    name = "r" * 250
+    try:
+        (tmp_path / f"{name}.toml").write_text(SMALL)
+    except OSError:
+        pytest.skip("file names here are shorter than 255 characters")
+    _run_refused_before_computing(cli_exe, tmp_path / f"{name}.toml", tmp_path / "out",
+                                  f"{name}.h5", "cannot write", "name too long")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+# -- 3. a run that restarts from its own output ----------------------------------------------------
+
+@pytest.mark.parametrize("start", ['start = "small.h5:UZ1"',
+                                   'start = { file = "small.h5", type = "UZ" }',
+                                   'start = "link.h5:UZ1"'])
+def test_restart_from_the_file_the_run_writes_is_refused(good_file, tmp_path, cli_exe, start):
+    shutil.copy(good_file, tmp_path / "small.h5")
+    (tmp_path / "link.h5").symlink_to(tmp_path / "small.h5")
+    before = (tmp_path / "small.h5").read_bytes()
+    (tmp_path / "small.toml").write_text(start + "\n" + SMALL)
+    _run_refused_before_computing(cli_exe, tmp_path / "small.toml", tmp_path, "small.toml",
+                                  "start", "the file this run writes")
+    assert (tmp_path / "small.h5").read_bytes() == before
+
+
+# -- 4. an interrupted or failed rerun ------------------------------------------------------------
+
+def test_an_interrupted_rerun_keeps_the_complete_file(tmp_path, cli_exe):
+    out, run = tmp_path / "out", tmp_path / "again.toml"
+    run.write_text(SMALL)
+    assert run_cli(cli_exe, "run", run, "--out", out, "-q").returncode == 0
+    path, partial = out / "again.h5", out / "again.partial.h5"
+    before, npts, inode = path.read_bytes(), points(path), path.stat().st_ino
+    run.write_text(LONG)                                 # 4 branches of about a second each
+    proc = subprocess.Popen([cli_exe, "run", str(run), "--out", str(out), "-j", "1", "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # the first branch has been saved (beside the complete file, or over it)
+    wait_for(lambda: partial.exists() or path.stat().st_ino != inode, proc)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert path.read_bytes() == before and points(path) == npts
+    saved = BranchFile(partial)
+    assert 1 <= len(saved.branches) < 4 and saved.branches[0].attrs["end"] == "EP"
+    last = err.strip().splitlines()[-1]
+    assert f"{len(saved.branches)} branches saved to {partial}" in last
+    assert f"{path} is unchanged" in last
+    assert sorted(p.name for p in out.iterdir()) == ["again.h5", "again.partial.h5"]
+    # a rerun that completes replaces the earlier file, and its partial file is gone
+    run.write_text(SMALL.replace("eps = 0.25", "eps = 0.5"))
+    assert run_cli(cli_exe, "run", run, "--out", out, "-q").returncode == 0
+    assert sorted(p.name for p in out.iterdir()) == ["again.h5"]
+    assert BranchFile(path).branches[0].columns["eps"][0] == 0.5
+
+
+def test_a_rerun_with_failed_branches_replaces_the_file(tmp_path, cli_exe):
+    run = tmp_path / "again.toml"
+    run.write_text(SMALL)
+    assert run_cli(cli_exe, "run", run, "--out", tmp_path, "-q").returncode == 0
+    run.write_text(FAILS)
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path, "-q")
+    assert proc.returncode == 1, proc.stderr
+    bf = BranchFile(tmp_path / "again.h5")
+    assert [b.attrs["end"] for b in bf.branches] == ["MX"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["again.h5", "again.toml"]
+
+
+# -- 5. two runs writing one file -----------------------------------------------------------------
+
+def test_two_runs_cannot_write_the_same_file_at_once(tmp_path, cli_exe):
+    out, run = tmp_path / "out", tmp_path / "long.toml"
+    run.write_text(LONG)
+    first = subprocess.Popen([cli_exe, "run", str(run), "--out", str(out), "-j", "1", "-q"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(lambda: (out / ".long.h5.lock").exists() or (out / "long.h5").exists(), first)
+        second = run_cli(cli_exe, "run", run, "--out", out, "-q")
+        assert first.poll() is None                      # the two runs overlapped
+        one_line_error(second, str(out / "long.h5"), "another run is writing it")
+    finally:
+        first.send_signal(signal.SIGTERM)
+        _, err = first.communicate(timeout=60)
+    assert first.returncode == 130, err
+    assert BranchFile(out / "long.h5").branches
+    assert hidden(out) == []                             # the lock file went with the run
+
+
+# -- 6. temporaries of a killed run; file modes ----------------------------------------------------
+
+def test_stale_temporaries_of_the_output_are_removed(tmp_path, cli_exe):
+    (tmp_path / "small.toml").write_text(SMALL)
+    out = tmp_path / "out"
+    out.mkdir()
+    # what a run killed while saving leaves, and files that only look alike
+    stale = [".small.h5.k3x_9q2a.tmp", ".small.partial.h5.0abcdefg.tmp"]
+    kept = [".small.h5.notes.tmp", ".small.h5.k3x_9q2a.txt", ".other.h5.k3x_9q2a.tmp",
+            ".small.h5.k3x_9q2a.tmp.bak"]
+    for name in stale + kept:
+        (out / name).write_bytes(b"half a file")
+    assert run_cli(cli_exe, "run", tmp_path / "small.toml", "--out", out, "-q").returncode == 0
+    assert hidden(out) == sorted(kept)
+    assert BranchFile(out / "small.h5").branches
+
+
+@pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o077, 0o600)])
+def test_new_files_follow_the_umask(tmp_path, cli_exe, umask, mode):
+    (tmp_path / "small.toml").write_text(SMALL)
+
+    def cli(*args):
+        return subprocess.run([cli_exe, *map(str, args)], capture_output=True, text=True,
+                              timeout=300, preexec_fn=lambda: os.umask(umask))
+
+    assert cli("run", tmp_path / "small.toml", "--out", tmp_path, "-q").returncode == 0
+    assert (tmp_path / "small.h5").stat().st_mode & 0o777 == mode
+    assert cli("export", tmp_path / "small.h5", "-o", tmp_path / "small.csv").returncode == 0
+    assert (tmp_path / "small.csv").stat().st_mode & 0o777 == mode
+
+
+# -- 7. damaged branch files ----------------------------------------------------------------------
+
+def _first_uz(f):
+    return next((k, v) for k, v in json.loads(f.attrs["labels"]).items() if k.startswith("UZ"))
+
+
+def _delete_column(f):
+    del f["branches/001/columns/psi"]
+
+
+def _shorten_column(f):
+    cols = f["branches/001/columns"]
+    data = cols["psi"][:-3]
+    del cols["psi"]
+    cols["psi"] = data
+
+
+def _column_as_group(f):
+    del f["branches/001/columns/psi"]
+    f.create_group("branches/001/columns/psi")
+
+
+def _labels_not_json(f):
+    f.attrs["labels"] = '{"UZ1": [1, 2'
+
+
+def _labels_wrong_shape(f):
+    f.attrs["labels"] = json.dumps({name: where[0] for name, where in
+                                    json.loads(f.attrs["labels"]).items()})
+
+
+def _label_beyond_the_branch(f):
+    name, (br, _) = _first_uz(f)
+    f.attrs["labels"] = json.dumps({**json.loads(f.attrs["labels"]), name: [br, 10 ** 6]})
+
+
+def _solution_missing(f):
+    name, (br, _) = _first_uz(f)
+    del f[f"branches/{br:03d}/solutions/{name}"]
+
+
+DAMAGES = {
+    "column_deleted": (_delete_column, ["no column 'psi'"]),
+    "column_short": (_shorten_column, ["column 'psi' has", "rows"]),
+    "column_group": (_column_as_group, ["column 'psi' is not a one-dimensional dataset"]),
+    "labels_not_json": (_labels_not_json, ["attribute 'labels' is not JSON"]),
+    "labels_wrong_shape": (_labels_wrong_shape, ["attribute 'labels'", "[branch, point]"]),
+    "label_beyond_the_branch": (_label_beyond_the_branch, ["UZ1", "no point"]),
+    "solution_missing": (_solution_missing, ["UZ1", "no stored solution"]),
+}
+
+
+@pytest.mark.parametrize("damage", sorted(DAMAGES))
+def test_damaged_branch_file_gives_one_line_everywhere(good_file, tmp_path, cli_exe, damage):
+    edit, needles = DAMAGES[damage]
+    bad = tmp_path / "bad.h5"
+    shutil.copy(good_file, bad)
+    with h5py.File(good_file, "r") as f:
+        uz, _ = _first_uz(f)
+    with h5py.File(bad, "a") as f:
+        edit(f)
+    (tmp_path / "restart.toml").write_text(f'start = "bad.h5:{uz}"\n' + SMALL)
+    commands = {"show": ["show", bad], "export": ["export", bad, "-o", tmp_path / "bad.csv"],
+                "snaps": ["snaps", bad], "plot": ["plot", bad, "-o", tmp_path / "bad.png"],
+                "restart": ["run", tmp_path / "restart.toml", "--out", tmp_path / "out"]}
+    # the five commands at once: each only reads the damaged file
+    procs = {cmd: subprocess.Popen([cli_exe, *map(str, args)], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+             for cmd, args in commands.items()}
+    for cmd, proc in procs.items():
+        out, err = proc.communicate(timeout=300)
+        done = subprocess.CompletedProcess(commands[cmd], proc.returncode, out, err)
+        try:
+            one_line_error(done, str(bad), "damaged branch file", *needles)
+        except AssertionError as exc:
+            raise AssertionError(f"{cmd}: {exc}") from None
+    assert not (tmp_path / "bad.csv").exists() and not (tmp_path / "bad.png").exists()
+    assert not (tmp_path / "out" / "restart.h5").exists()
