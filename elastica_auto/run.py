@@ -8,7 +8,9 @@ and ends with an MX label.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import signal
+import threading
 import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -338,6 +340,16 @@ def _init_worker(plan, jobs_list, offset, queue, stop):
     # one of them dies, and they must end quietly then, not with a KeyboardInterrupt traceback
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _WORKER.update(plan=plan, jobs=jobs_list, offset=offset, queue=queue, stop=stop)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+
+
+def _exit_with_parent(parent: int, every: float = 0.5):
+    """A worker outlives a command killed outright (SIGKILL), computing for nobody or blocked
+    on a queue no one reads: once its parent is gone (it is adopted, so its parent pid
+    changes), it ends itself."""
+    while os.getppid() == parent:
+        time.sleep(every)
+    os._exit(1)
 
 
 def _worker_branch(i: int) -> Branch | None:
@@ -366,6 +378,7 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
     offset = len(branches)
     done: dict[int, Branch] = {}
     interrupted = False
+    previous = None
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
                              initargs=(plan, jobs_list, offset, queue, stop)) as pool:
         futures = {pool.submit(_worker_branch, i): i for i in range(len(jobs_list))}
@@ -378,8 +391,15 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
                     if progress is not None:
                         progress(*msg)
             except KeyboardInterrupt:
-                # A second Ctrl-C must not abort the saving of what the workers computed.
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
+                # The workers end their branches at their next step. A second Ctrl-C (or
+                # SIGTERM) does not wait for a slow step: it ends the workers at once (their
+                # branches in progress are lost, the completed ones saved); it must not abort
+                # the saving itself.
+                def now(signum, frame):
+                    for process in list(pool._processes.values()):  # the pool's own workers
+                        process.terminate()
+
+                previous = signal.signal(signal.SIGINT, now), signal.signal(signal.SIGTERM, now)
                 interrupted = True
                 stop.set()
                 for f in pending:
@@ -413,6 +433,9 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
     if done:  # after an interruption: branches that finished beyond a gap
         branches.extend(done[i] for i in sorted(done))
         save()
+    if previous is not None:  # the command's own handlers again, after a parallel run
+        signal.signal(signal.SIGINT, previous[0])
+        signal.signal(signal.SIGTERM, previous[1])
     return interrupted or any(b.interrupted for b in branches)
 
 

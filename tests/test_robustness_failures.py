@@ -309,3 +309,57 @@ def test_regula_falsi_stops_at_an_exact_zero():
     with np.errstate(divide="raise", invalid="raise"):
         roots = refine_brackets(lambda k: k - 0.5, a, b, a - 0.5, np.array([0.0, 1.7]))
     np.testing.assert_array_equal(roots, b)
+
+
+# -- a command killed outright leaves no worker behind ---------------------------------------
+
+def test_workers_end_when_the_command_is_killed(tmp_path, cli_exe):
+    """SIGKILL cannot be caught: the pool's workers notice that their parent is gone (they are
+    adopted) and end within about a second, instead of computing for nobody."""
+    import signal
+    import subprocess
+    import time
+    out = tmp_path / "killed_out"
+    proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", out, "-j", "2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def workers():
+        ps = subprocess.run(["ps", "-ww", "-eo", "pid,args"], capture_output=True,
+                            text=True).stdout
+        return [line for line in ps.splitlines() if str(out) in line]
+
+    deadline = time.monotonic() + 30
+    while len(workers()) < 3 and time.monotonic() < deadline:   # the command and 2 workers
+        time.sleep(0.1)
+    assert len(workers()) >= 3, workers()
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 5
+    while workers() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert workers() == []
+
+
+def test_a_second_ctrl_c_does_not_wait_for_a_slow_step(tmp_path, cli_exe):
+    """The first Ctrl-C asks the workers to stop at their next step; in a module whose step
+    takes a minute, a second one ends them at once. The run exits 130 in seconds and says
+    truthfully what it saved."""
+    import signal
+    import subprocess
+    import time
+    _module(tmp_path, BRATU, "def rhs(s, y, p):\n",
+            'if p["lam"] > 1:\n    import time\n    time.sleep(60)\n')
+    toml = tmp_path / "mine.toml"
+    toml.write_text(RUN)
+    proc = subprocess.Popen([cli_exe, "run", toml, "--out", tmp_path / "out", "-j", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(4)                     # both branches started; one is in its slow step
+    proc.send_signal(signal.SIGINT)
+    time.sleep(1)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert time.monotonic() - t0 < 10
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    saved = BranchFile(tmp_path / "out" / "mine.h5")
+    assert f"interrupted: {len(saved.branches)} branches saved to" in err
