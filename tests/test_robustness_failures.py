@@ -42,6 +42,20 @@ RUN = textwrap.dedent("""\
     """)
 
 
+ELASTICA = (importlib.resources.files("elastica_auto.equations")
+            / "elastica_lever_arm.py").read_text()
+PSI_RUN = textwrap.dedent("""\
+    equation = "mine.py"
+    [parameters]
+    eps = 0.25
+    P = "pi^2/4"
+    [continuation]
+    parameter = "psi"
+    directions = "{directions}"
+    bounds = ["-pi", "pi"]
+    """)
+
+
 def _module(tmp_path, source, after, body):
     """Write ``source`` as ``mine.py`` with ``body`` (one indented block) inserted after the
     line ``after``."""
@@ -136,20 +150,9 @@ def test_non_finite_rhs_ends_the_branch_mx_with_a_clear_message(tmp_path, cli_ex
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_second_variation_raising_ends_that_branch_mx(tmp_path, cli_exe, jobs):
     """The stability index calls second_variation at every point."""
-    source = (importlib.resources.files("elastica_auto.equations")
-              / "elastica_lever_arm.py").read_text()
-    _module(tmp_path, source, "def second_variation(s, y, p):\n",
+    _module(tmp_path, ELASTICA, "def second_variation(s, y, p):\n",
             'if p["psi"] > 1:\n    raise FloatingPointError("no index above psi = 1")\n')
-    text = textwrap.dedent("""\
-        equation = "mine.py"
-        [parameters]
-        eps = 0.25
-        P = "pi^2/4"
-        [continuation]
-        parameter = "psi"
-        directions = "both"
-        bounds = ["-pi", "pi"]
-        """)
+    text = PSI_RUN.format(directions="both")
     proc, bf = _run(tmp_path, cli_exe, jobs, text)
     # the + branch turns at its fold below psi = 1 and ends at -pi; the - branch turns at the
     # mirror fold and comes up through psi = 1
@@ -209,25 +212,13 @@ def test_a_module_failing_in_its_exact_start_is_one_line(tmp_path, cli_exe):
         "elastica-auto: error: trivial: RuntimeError: no start today"]
 
 
-ELASTICA = (importlib.resources.files("elastica_auto.equations")
-            / "elastica_lever_arm.py").read_text()
-PSI_RUN = textwrap.dedent("""\
-    equation = "mine.py"
-    [parameters]
-    eps = 0.25
-    P = "pi^2/4"
-    [continuation]
-    parameter = "psi"
-    directions = "+"
-    bounds = ["-pi", "pi"]
-    """)
 
 
 def test_a_module_failing_in_the_snap_scan_keeps_the_branches(tmp_path, cli_exe):
     """The scan runs after the branches (the run has a fold ending a stable segment): a
     ``shooting`` hook that raises costs the snap-back targets only, with a warning."""
     _module(tmp_path, ELASTICA, "def shooting(p):\n", 'raise ValueError("no shooting")\n')
-    (tmp_path / "mine.toml").write_text(PSI_RUN)
+    (tmp_path / "mine.toml").write_text(PSI_RUN.format(directions="+"))
     proc = run_cli(cli_exe, "run", tmp_path / "mine.toml", "--out", tmp_path / "out")
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert "warning: snap-back scan failed: ValueError: no shooting" in proc.stdout
