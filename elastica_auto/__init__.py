@@ -1,9 +1,42 @@
 """elastica-auto: AUTO-07p-style continuation of boundary value problems on s in [0, 1].
 
-The engine continues the solutions of an equation module (see `elastica_auto.problem`) in one
-named parameter with Keller pseudo-arclength steps and `scipy.integrate.solve_bvp` as corrector,
-labels folds (LP), user points (UZ) and end points (EP, MX), and writes branches to HDF5.
+The engine continues the solutions of an equation module (`elastica_auto.problem`) in one
+named parameter by Keller pseudo-arclength on a collocation discretisation, labels folds (LP),
+branch points (BP), user points (UZ) and end points (EP, MX) with the stability index on each
+side, and writes branches to HDF5. From Python::
+
+    import elastica_auto as ea
+    problem = ea.load_problem("elastica_lever_arm")
+    branches = ea.continuation(problem, {"eps": 0.5, "P": 22.2}, "psi", bounds=(-7, 7))
+
+The public names are imported on first use, so that ``import elastica_auto`` (and the command
+line's ``--version``) does not import numpy and scipy.
 """
 
 __version__ = "0.1.0"
 FORMAT_VERSION = 1
+
+#: Public name -> the module that defines it.
+_PUBLIC = {
+    "load_problem": "problem", "Problem": "problem",
+    "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
+    "Switch": "plan", "ContinuationOptions": "options",
+    "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",
+    "PlanError": "errors", "ProblemError": "errors", "StoreError": "errors",
+    "RunFileError": "errors", "StartError": "run",
+}
+
+__all__ = ["__version__", *_PUBLIC]
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        import importlib
+        value = getattr(importlib.import_module(f".{_PUBLIC[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

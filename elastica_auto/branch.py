@@ -5,6 +5,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -20,6 +21,43 @@ LABEL_TYPES = ("EP", "LP", "BP", "UZ", "MX")
 
 #: Index columns hold this until the stability post-processor has filled them.
 INDEX_UNKNOWN = -1
+
+#: The columns of a branch (``branch.columns``), around its parameters and ordinates. The
+#: first seven groups are what ``elastica-auto export`` writes, in its order: branch number,
+#: point number (from 1), label type and name ("LP3"; "" on other points), then the
+#: parameters, the ordinates and the three stability indices. The rest is bookkeeping:
+#: pseudo-arclength, step, Newton iterations, mesh nodes, the located fold's residual, notes,
+#: and the index before and after a fold or branch point ("1 -> 0").
+LEADING_COLUMNS = ("branch", "pt", "type", "label")
+INDEX_COLUMNS = ("index", "index_rule", "index_direct")
+EXTRA_COLUMNS = ("arclength", "ds", "niter", "nodes", "fold_residual", "note", "transition")
+
+
+def export_names(parameters, ordinates) -> list[str]:
+    """The columns ``elastica-auto export`` writes, in order."""
+    return [*LEADING_COLUMNS, *parameters, *ordinates, *INDEX_COLUMNS]
+
+
+def column_names(parameters, ordinates) -> list[str]:
+    """Every column, in order, of a branch with these parameters and ordinates."""
+    return [*export_names(parameters, ordinates), *EXTRA_COLUMNS]
+
+
+@dataclass
+class StoredLabel:
+    """A labelled point: its solution (a restart point) and, if stored, its tangent.
+
+    ``path`` and ``equation`` are the branch file's and the module's it was computed with
+    (``path`` is None for a label of branches in memory)."""
+
+    name: str
+    branch: int
+    pt: int
+    state: State
+    tangent: Tangent | None
+    tangent_parameter: str | None
+    path: Path | None = None
+    equation: str = ""
 
 
 @dataclass
@@ -67,6 +105,7 @@ class Branch:
     seconds: float = 0.0
     last: tuple[State, Tangent | None] | None = None
     interrupted: bool = False
+    number: int = 0
 
     def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
             niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),
@@ -108,6 +147,16 @@ class Branch:
         before, after = point.index, self.points[k + 1].index
         return f"{before} -> {after}" if before >= 0 and after >= 0 else ""
 
+    def label(self, name: str) -> StoredLabel:
+        """The solution labelled ``name`` on this branch, to restart from (as a label read
+        from a branch file)."""
+        for pt, p in enumerate(self.points, 1):
+            if p.type and p.name == name:
+                return StoredLabel(name, self.number, pt, p.state, p.tangent, self.parameter,
+                                   None, self.problem.source)
+        names = [p.name for p in self.points if p.type]
+        raise KeyError(f"no label {name!r} on this branch; labels: {', '.join(names) or 'none'}")
+
     @property
     def disagreements(self) -> list[Point]:
         """Points where the fold rule and the direct count disagree."""
@@ -121,11 +170,30 @@ class Branch:
     def labelled(self) -> list[Point]:
         return [p for p in self.points if p.type]
 
+    @property
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every column (:func:`column_names`) as an array, one row per point:
+        ``branch.columns["psi"]``, ``branch.columns["index"]``."""
+        return {name: self.column(name) for name in
+                column_names(self.problem.parameter_names, self.problem.ordinate_names)}
+
     def column(self, name: str) -> np.ndarray:
-        """A parameter, ordinate or bookkeeping column as an array (``branch.column("psi")``)."""
+        """One of :attr:`columns`, computed alone."""
         pts = self.points
         if name in self.problem.parameters:
-            return np.array([p.params[name] for p in pts])
+            return np.array([p.params[name] for p in pts], dtype=float)
         if name in self.problem.ordinates:
-            return np.array([p.ordinates[name] for p in pts])
-        return np.array([getattr(p, name) for p in pts])
+            return np.array([p.ordinates[name] for p in pts], dtype=float)
+        if name == "branch":
+            return np.full(len(pts), self.number)
+        if name == "pt":
+            return np.arange(1, len(pts) + 1)
+        if name in ("type", "label", "note", "transition"):
+            values = ([p.name for p in pts] if name == "label" else
+                      [self.transition(p) if p.type in ("LP", "BP") else "" for p in pts]
+                      if name == "transition" else [getattr(p, name) for p in pts])
+            return np.array(values, dtype=object)
+        if name in (*INDEX_COLUMNS, *EXTRA_COLUMNS):
+            return np.array([getattr(p, name) for p in pts])
+        names = column_names(self.problem.parameter_names, self.problem.ordinate_names)
+        raise KeyError(f"no column {name!r}; columns: {', '.join(names)}")

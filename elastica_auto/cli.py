@@ -83,13 +83,19 @@ def _fmt_params(params: dict, names) -> str:
 @click.option("--jobs", "-j", default=0, show_default=True, type=click.IntRange(min=0),
               help="Branches computed at once (0: one per CPU core).")
 @click.option("--quiet", "-q", is_flag=True, help="No live progress line (summaries only).")
-def run(name_or_path, out_dir, jobs, quiet):
+@click.option("--set", "overrides", multiple=True, metavar="NAME=VALUE",
+              help="Override an option, a parameter or a [continuation] key of the run file "
+                   "(repeatable): --set ds_max=0.3 --set eps=0.4 --set 'eps=[0.25, 0.5]'.")
+@click.option("--from", "restart", metavar="FILE.h5:LABEL",
+              help="Start from this label instead of the run file's start.")
+def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
     from .run import StartError, execute
     from .runfile import load
     out_dir = Path(out_dir)
     try:
-        plan = load(resolve_run(name_or_path), out_dir=out_dir)
+        plan = load(resolve_run(name_or_path), out_dir=out_dir, overrides=overrides,
+                    restart=restart)
     except USER_ERRORS as exc:
         _fail(str(exc))
     nbr = len(plan.branches)

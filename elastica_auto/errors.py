@@ -17,4 +17,13 @@ class StoreError(ValueError):
     """A branch file that cannot be read (missing, truncated, foreign, newer format)."""
 
 
-USER_ERRORS = (RunFileError, StoreError, ProblemError)
+class PlanError(ValueError):
+    """An argument of ``continuation()`` that cannot be used. ``key`` names the argument
+    (``bounds``, ``params.eps``, ...); the message starts with it."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key, self.detail = key, message
+
+
+USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError)

@@ -21,10 +21,10 @@ from typing import Callable
 import numpy as np
 
 from . import store
-from .errors import USER_ERRORS
 from .branch import PROFILE_GRID, Branch, Point
 from .correctors import CorrectorFailure, make_corrector
-from .runfile import BranchSpec, Plan, RunFileError, Start
+from .errors import USER_ERRORS, RunFileError
+from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
 from .snaps import snap_targets
 from .stability import label_stability
@@ -38,7 +38,7 @@ class StartError(RuntimeError):
 
 @dataclass
 class RunResult:
-    path: Path
+    path: Path | None
     branches: list[Branch]
     seconds: float
     interrupted: bool = False
@@ -77,7 +77,7 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
             raise StartError(f"{problem.source} has no exact start at {fixed}; "
                              "start from a label (start = \"FILE.h5:LABEL\")")
         return _checked(plan, Job(spec, State.from_values(problem, s, y, params), None))
-    stored = store.BranchFile(spec.start.file).label(spec.start.label)
+    stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
     state, tangent = stored.state, stored.tangent
     if spec.start.kind == "switch":
         if not spec.start.label.startswith("BP"):
@@ -135,9 +135,11 @@ def _checked(plan: Plan, job: Job) -> Job:
 
 
 def number_labels(branches: list[Branch]):
-    """Number labels per type through the file in branch and point order (LP1, LP2, ...)."""
+    """Number the branches from 1, and labels per type through the file in branch and point
+    order (LP1, LP2, ...)."""
     counters = {}
-    for br in branches:
+    for k, br in enumerate(branches, 1):
+        br.number = k
         for p in br.points:
             if p.type:
                 counters[p.type] = counters.get(p.type, 0) + 1
@@ -281,35 +283,45 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
                                f"writes ({own}); restart from a copy, or write elsewhere")
     t_run = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
-    branches: list[Branch] = []
-    warnings: list[str] = []
-    snaps = []
+    result = RunResult(writer.path, [], 0.0)
 
     def save():
-        number_labels(branches)
-        writer.save(branches)
+        number_labels(result.branches)
+        writer.save(result.branches)
 
     with writer:
         if on_start is not None:
             on_start()
         try:
-            interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
-            if not interrupted and plan.switch_count:
-                second = switch_jobs(plan, list(branches), warnings)
-                interrupted = _run_jobs(plan, second, jobs, branches, save, progress,
-                                        on_branch)
-            if not interrupted:
-                try:
-                    snaps = snap_targets(plan.problem, branches)
-                except Exception as exc:  # the module failing in the scan: keep the branches
-                    warnings.append(f"snap-back scan failed: {_one_line(exc)}")
-                writer.save(branches, snaps)
+            compute(plan, first, result, save, progress, on_branch, jobs)
+            if not result.interrupted:
+                writer.save(result.branches, result.snaps)
                 writer.finish()
         except KeyboardInterrupt:  # outside a branch (while saving, say): the last save stands
-            interrupted = True
-            del branches[writer.written:]
-    return RunResult(writer.path, branches, time.perf_counter() - t_run,
-                     interrupted=interrupted, snaps=snaps, warnings=warnings)
+            result.interrupted = True
+            del result.branches[writer.written:]
+    result.path, result.seconds = writer.path, time.perf_counter() - t_run
+    return result
+
+
+def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
+            progress: Progress | None = None,
+            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1):
+    """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
+    for, then the snap-back targets, into ``result`` (labels numbered); ``save()`` after each
+    branch. An interruption ends it with ``result.interrupted`` set."""
+    branches = result.branches
+    interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
+    if not interrupted and plan.switch_count:
+        second = switch_jobs(plan, list(branches), result.warnings)
+        interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
+    number_labels(branches)
+    result.interrupted = interrupted
+    if not interrupted:
+        try:
+            result.snaps = snap_targets(plan.problem, branches)
+        except Exception as exc:  # the module failing in the scan: keep the branches
+            result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
 
 
 def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
@@ -439,5 +451,5 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
     return interrupted or any(b.interrupted for b in branches)
 
 
-__all__ = ["execute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",
+__all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",
            "StartError", "RunFileError"]

@@ -36,18 +36,20 @@ unbounded by omitting ``bounds``, never by writing ``inf``.
 from __future__ import annotations
 
 import ast
-import itertools
 import math
 import operator
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import fields
 from pathlib import Path
+from typing import Sequence
 
-from .errors import RunFileError
-from .events import UserValues
-from .options import ContinuationOptions, OptionsError
+from .errors import PlanError, RunFileError, StoreError
+from .options import ContinuationOptions
+from .plan import BranchSpec, Plan, Start, Switch, make_plan
 from .problem import Problem, ProblemError, load_problem
-from .stepper import Stops
+from .store import BranchFile, StoredLabel
+
+__all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 
 _FUNCS = {"sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "tan": math.tan,
@@ -93,335 +95,353 @@ def evaluate(text: str) -> float:
     return float(value)
 
 
-@dataclass(frozen=True)
-class Start:
-    """Where a branch starts: the module's exact solution or a label in a branch file."""
-
-    kind: str          # "trivial", "label", or "switch" (the other branch at a BP label)
-    file: Path | None = None
-    label: str = ""
-
-    def __str__(self):
-        if self.kind == "trivial":
-            return "trivial"
-        where = f"{self.file.name}:{self.label}" if self.file is not None else self.label
-        return f"switch at {where}" if self.kind == "switch" else where
-
-
-@dataclass(frozen=True)
-class BranchSpec:
-    """One branch to compute: start, parameter values, direction."""
-
-    start: Start
-    params: dict
-    direction: int
-
-
-@dataclass
-class Plan:
-    """A validated run: the problem, the branches and everything that applies to all of them."""
-
-    name: str
-    path: Path
-    text: str
-    description: str
-    problem: Problem
-    parameter: str
-    options: ContinuationOptions
-    stops: Stops
-    user_values: list[UserValues]
-    branches: list[BranchSpec] = field(default_factory=list)
-    varying: list[str] = field(default_factory=list)
-    switch_count: int = 0
-
-    @property
-    def output_name(self) -> str:
-        return f"{self.name}.h5"
-
-
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
-_DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
+_INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
 
 
-def load(path, out_dir: Path | None = None) -> Plan:
-    """Read and validate a run file; restart files are looked up in ``out_dir`` first."""
+def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
+         restart: str | None = None) -> Plan:
+    """Read and validate a run file; restart files are looked up in ``out_dir`` first.
+
+    Each table is read into the arguments of :func:`elastica_auto.continuation` (TOML types
+    and expressions checked here); :func:`~elastica_auto.plan.make_plan` checks their
+    meaning, as for a call from Python, and its errors are reported under the run-file key.
+
+    ``overrides`` are the command line's ``--set NAME=VALUE`` (:func:`apply_overrides`), and
+    ``restart`` its ``--from FILE.h5:LABEL``, which replaces ``start``, ``switch`` and
+    ``[parameters]`` (the label's parameters hold, except those given with ``--set``).
+    Both are applied to the parsed file before it is checked, so they are checked exactly as
+    the file's own values, and recorded as comments in the run file text stored with the
+    branches.
+    """
     path = Path(path)
-    where = str(path)
-
-    def fail(key, msg):
-        raise RunFileError(f"{where}: {key}: {msg}")
-
+    doc = _Document(path, out_dir)
+    apply_overrides(doc, overrides, restart)
+    problem = doc.equation()
+    cont = doc.continuation(problem)
+    options = doc.options()
+    params = doc.parameters()
+    starts, switch = doc.starts(problem)
     try:
-        text = path.read_text(encoding="utf-8")  # TOML is UTF-8, whatever the locale
-    except OSError as exc:
-        raise RunFileError(f"{where}: cannot read ({exc.strerror})") from exc
-    except UnicodeDecodeError as exc:
-        raise RunFileError(f"{where}: not UTF-8 text (byte {exc.start}); "
-                           "save the run file as UTF-8") from exc
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise RunFileError(f"{where}: not valid TOML ({exc})") from exc
+        plan = make_plan(problem, starts, params=params, switch=switch, options=options,
+                         **cont)
+    except PlanError as exc:
+        raise RunFileError(f"{path}: {_toml_key(exc.key)}: {exc.detail}") from None
+    plan.name, plan.path, plan.text = path.stem, path, doc.text
+    plan.description = doc.string("description", doc.doc.get("description", ""))
+    return plan
 
-    for key in doc:
-        if key not in _TOP:
-            fail(key, f"unknown key; expected one of {sorted(_TOP)}")
 
-    def number(key, v):
+def _toml_key(key: str) -> str:
+    """The run-file key of an argument of ``continuation()``."""
+    if key in _CONT:
+        return f"[continuation] {key}"
+    if key.startswith("params."):
+        return f"[parameters] {key[len('params.'):]}"
+    return "[options]" if key == "options" else key
+
+
+def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | None):
+    """``NAME=VALUE`` into the table that has NAME: ``[options]`` for an option,
+    ``[parameters]`` for a parameter of the module, ``[continuation]`` for one of its keys,
+    or the one named (``options.ds_max=0.3``). VALUE is read as TOML (``0.3``,
+    ``[0.25, 0.5]``, ``"pi/2"``) or else taken as a string (``pi/2``, ``both``)."""
+    tables = {"options": {f.name for f in fields(ContinuationOptions)},
+              "continuation": _CONT, "parameters": None}
+    notes = []
+    if restart is not None:
+        fname, colon, label = restart.rpartition(":")
+        if not colon or not fname or not label:
+            raise RunFileError(f"--from {restart}: expected FILE.h5:LABEL")
+        if Path(fname).is_file():  # typed at the command line: relative to here first
+            restart = f"{Path(fname).resolve()}:{label}"
+        doc.doc["start"] = restart
+        doc.doc.pop("switch", None)
+        doc.doc.pop("parameters", None)  # the label's own; --set may change them
+        notes.append(f"--from {restart}")
+    for item in overrides:
+        name, eq, text = item.partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise RunFileError(f"--set {item}: expected NAME=VALUE")
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        table, _, key = name.rpartition(".")
+        if table:
+            if table not in tables:
+                raise RunFileError(f"--set {item}: no table [{table}]; expected "
+                                   f"{', '.join(tables)}")
+        else:
+            params = doc.parameter_names()
+            owners = [t for t, keys in tables.items()
+                      if key in (params if keys is None else keys)]
+            if len(owners) != 1:
+                why = "is ambiguous" if owners else "is not an option, parameter or " \
+                    "[continuation] key"
+                raise RunFileError(f"--set {item}: {key!r} {why}; write TABLE.{key} with "
+                                   f"TABLE one of {', '.join(tables)}")
+            table = owners[0]
+        section = doc.doc.setdefault(table, {})
+        if not isinstance(section, dict):
+            raise RunFileError(f"{doc.path}: {table}: expected a table [{table}]")
+        section[key] = value
+        notes.append(f"--set {table}.{key}={text.strip()}")
+    if notes:
+        doc.text += "\n# command line:\n" + "".join(f"#   {n}\n" for n in notes)
+
+
+class _Document:
+    """A run file's parsed TOML, with checks that name the file and the key."""
+
+    def __init__(self, path: Path, out_dir: Path | None):
+        self.path, self.out_dir = path, out_dir
+        try:
+            self.text = path.read_text(encoding="utf-8")  # TOML is UTF-8, whatever the locale
+        except OSError as exc:
+            raise RunFileError(f"{path}: cannot read ({exc.strerror})") from exc
+        except UnicodeDecodeError as exc:
+            raise RunFileError(f"{path}: not UTF-8 text (byte {exc.start}); "
+                               "save the run file as UTF-8") from exc
+        try:
+            self.doc = tomllib.loads(self.text)
+        except tomllib.TOMLDecodeError as exc:
+            raise RunFileError(f"{path}: not valid TOML ({exc})") from exc
+        for key in self.doc:
+            if key not in _TOP:
+                self.fail(key, f"unknown key; expected one of {sorted(_TOP)}")
+        self.seen = []  # (parameters, ordinates) of the equilibria selected so far
+        self._problem: Problem | None = None
+
+    def fail(self, key, msg):
+        raise RunFileError(f"{self.path}: {key}: {msg}")
+
+    def number(self, key, v) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float, str)):
-            fail(key, f"expected a number or an expression string, got {v!r}")
+            self.fail(key, f"expected a number or an expression string, got {v!r}")
         try:
             value = evaluate(v) if isinstance(v, str) else float(v)
         except ValueError as exc:
-            fail(key, str(exc))
+            self.fail(key, str(exc))
         if not math.isfinite(value):  # TOML's own nan and inf
-            fail(key, f"expected a finite number, got {v!r}")
+            self.fail(key, f"expected a finite number, got {v!r}")
         return value
 
-    def string(key, v):
+    def string(self, key, v) -> str:
         if not isinstance(v, str):
-            fail(key, f"expected a string, got {v!r}")
+            self.fail(key, f"expected a string, got {v!r}")
         return v
 
-    def table(key):
-        v = doc.get(key, {})
+    def table(self, key) -> dict:
+        v = self.doc.get(key, {})
         if not isinstance(v, dict):
-            fail(key, f"expected a table [{key}], got {type(v).__name__}")
+            self.fail(key, f"expected a table [{key}], got {type(v).__name__}")
         return v
 
-    description = string("description", doc.get("description", ""))
-    if "equation" not in doc:
-        fail("equation", "missing; name a module in equations/ or a .py file")
-    try:
-        problem = load_problem(string("equation", doc["equation"]), base_dir=path.parent)
-    except ProblemError as exc:
-        fail("equation", str(exc))
+    def parameter_names(self) -> list[str]:
+        """The module's parameters, or none if the module cannot be loaded (the error is
+        reported when the file is checked)."""
+        try:
+            return self.equation().parameter_names
+        except RunFileError:
+            return []
 
-    cont = table("continuation")
-    for key in cont:
-        if key not in _CONT:
-            fail(f"[continuation] {key}", f"unknown key; expected one of {sorted(_CONT)}")
-    if "parameter" not in cont:
-        fail("[continuation] parameter", "missing; name the continued parameter")
-    parameter = string("[continuation] parameter", cont["parameter"])
-    if parameter not in problem.parameters:
-        fail("[continuation] parameter", f"unknown parameter {parameter!r}; "
-             f"{problem.source} declares {', '.join(problem.parameter_names)}")
+    def equation(self) -> Problem:
+        if "equation" not in self.doc:
+            self.fail("equation", "missing; name a module in equations/ or a .py file")
+        if self._problem is None:
+            try:
+                self._problem = load_problem(self.string("equation", self.doc["equation"]),
+                                             base_dir=self.path.parent)
+            except ProblemError as exc:
+                self.fail("equation", str(exc))
+        return self._problem
 
-    directions = cont.get("directions", "both")
-    if not isinstance(directions, str) or directions not in _DIRECTIONS:
-        fail("[continuation] directions", f"expected one of {sorted(_DIRECTIONS)}, got {directions!r}")
-
-    lower, upper = -math.inf, math.inf
-    if "bounds" in cont:
-        b = cont["bounds"]
-        if not isinstance(b, list) or len(b) != 2:
-            fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
-        lower, upper = (number("[continuation] bounds", v) for v in b)
-        if not lower < upper:
-            fail("[continuation] bounds", f"need lower < upper, got {lower:g}, {upper:g}")
-    at_fold = None
-    stop = cont.get("stop", [])
-    if not isinstance(stop, list):
-        fail("[continuation] stop", f"expected a list such as [\"LP4\"], got {stop!r}")
-    for item in stop:
-        # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
-        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isascii()
-                and item[2:].isdigit() and int(item[2:]) > 0):
-            fail("[continuation] stop", f"expected entries like \"LP4\", got {item!r}")
-        at_fold = min(int(item[2:]), at_fold or math.inf)
-    user_values = []
-    if "uz" in cont:
-        uz = cont["uz"]
-        if not isinstance(uz, list):
-            fail("[continuation] uz", f"expected a list of values, got {uz!r}")
-        period = None
+    def continuation(self, problem: Problem) -> dict:
+        """``[continuation]`` as keyword arguments: parameter, directions, bounds, stop, uz,
+        uz_period."""
+        cont = self.table("continuation")
+        for key in cont:
+            if key not in _CONT:
+                self.fail(f"[continuation] {key}", f"unknown key; expected one of {sorted(_CONT)}")
+        if "parameter" not in cont:
+            self.fail("[continuation] parameter", "missing; name the continued parameter")
+        out = {"parameter": self.string("[continuation] parameter", cont["parameter"]),
+               "directions": cont.get("directions", "both")}
+        if "bounds" in cont:
+            b = cont["bounds"]
+            if not isinstance(b, list) or len(b) != 2:
+                self.fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
+            out["bounds"] = [self.number("[continuation] bounds", v) for v in b]
+        for key in ("stop", "uz"):
+            if key in cont:
+                if not isinstance(cont[key], list):
+                    example = "[\"LP4\"]" if key == "stop" else "of values"
+                    self.fail(f"[continuation] {key}",
+                              f"expected a list {example}, got {cont[key]!r}")
+                out[key] = cont[key]
+        out["uz"] = [self.number("[continuation] uz", v) for v in out.get("uz", [])]
         if "uz_period" in cont:
-            period = number("[continuation] uz_period", cont["uz_period"])
-            if not period > 0:
-                fail("[continuation] uz_period", f"must be positive, got {period:g}")
-        user_values.append(UserValues(tuple(number("[continuation] uz", v) for v in uz), period))
-    elif "uz_period" in cont:
-        fail("[continuation] uz_period", "given without uz")
+            out["uz_period"] = self.number("[continuation] uz_period", cont["uz_period"])
+        return out
 
-    opts = table("options")
-    known = {f.name: f.type for f in fields(ContinuationOptions)}
-    values = {}
-    for key, v in opts.items():
-        if key not in known:
-            fail(f"[options] {key}", f"unknown option; expected one of {sorted(known)}")
-        if key in ("max_points", "ntst", "max_nodes"):
-            if isinstance(v, bool) or not isinstance(v, int):
-                fail(f"[options] {key}", f"expected an integer, got {v!r}")
-            values[key] = v
-        elif key == "corrector":
-            values[key] = string(f"[options] {key}", v)
+    def options(self) -> dict:
+        """``[options]``: numbers (or expressions), integers and the corrector's name."""
+        known = {f.name for f in fields(ContinuationOptions)}
+        values = {}
+        for key, v in self.table("options").items():
+            where = f"[options] {key}"
+            if key not in known:
+                self.fail(where, f"unknown option; expected one of {sorted(known)}")
+            if key in _INTEGER_OPTIONS:
+                if isinstance(v, bool) or not isinstance(v, int):
+                    self.fail(where, f"expected an integer, got {v!r}")
+                values[key] = v
+            elif key == "corrector":
+                values[key] = self.string(where, v)
+            else:
+                values[key] = self.number(where, v)
+        return values
+
+    def parameters(self) -> dict[str, list[float]]:
+        """``[parameters]``: a value or a list of values per parameter."""
+        grid = {}
+        for key, v in self.table("parameters").items():
+            vals = v if isinstance(v, list) else [v]
+            grid[key] = [self.number(f"[parameters] {key}", x) for x in vals]
+        return grid
+
+    def starts(self, problem: Problem) -> tuple[list, int]:
+        """``start`` and ``switch``: the starts (``{}`` for the module's exact solution, a
+        label, or :class:`Switch` at a label) and the count of branch points to switch at."""
+        parsed = []
+        switch = self.doc.get("switch", [])
+        count = 0
+        if isinstance(switch, int) and not isinstance(switch, bool):
+            if switch < 0:
+                self.fail("switch", f"expected a count >= 0 or a list of \"FILE.h5:BPn\", "
+                          f"got {switch}")
+            count = switch
+        elif isinstance(switch, list):
+            for item in switch:
+                label = self.file_label("switch", problem, self.string("switch", item))
+                if not label.name.startswith("BP"):
+                    self.fail("switch", f"{item!r}: branch switching needs a BP label")
+                parsed.append(Switch(label))
         else:
-            values[key] = number(f"[options] {key}", v)
-    try:
-        options = ContinuationOptions(**values)
-    except OptionsError as exc:
-        fail("[options]", str(exc))
+            self.fail("switch", f"expected a count or a list of \"FILE.h5:BPn\", got {switch!r}")
+        starts = self.doc.get("start", [] if parsed else "trivial")
+        starts = starts if isinstance(starts, list) else [starts]
+        if not starts and not parsed:
+            self.fail("start", "empty list")
+        for s in starts:
+            if isinstance(s, dict):
+                parsed.extend(self.selected("start", problem, s))
+            elif self.string("start", s) == "trivial":
+                parsed.append({})
+            else:
+                parsed.append(self.file_label("start", problem, s))
+        return parsed, count
 
-    params = table("parameters")
-    grid = {}
-    for key, v in params.items():
-        if key not in problem.parameters:
-            fail(f"[parameters] {key}", f"unknown parameter; {problem.source} declares "
-                 f"{', '.join(problem.parameter_names)}")
-        vals = v if isinstance(v, list) else [v]
-        if not vals:
-            fail(f"[parameters] {key}", "empty list")
-        grid[key] = [number(f"[parameters] {key}", x) for x in vals]
-
-    from .store import BranchFile, StoreError
-
-    def branch_file(key, fname):
-        candidates = [Path(fname)] if Path(fname).is_absolute() else (
-            ([out_dir / fname] if out_dir is not None else []) + [path.parent / fname, Path(fname)])
+    def branch_file(self, key, problem: Problem, fname: str) -> BranchFile:
+        """The branch file ``fname`` (looked up in the output folder, beside the run file,
+        then here), computed with ``problem``'s module."""
+        given = Path(fname)
+        candidates = [given] if given.is_absolute() else (
+            ([self.out_dir / fname] if self.out_dir is not None else [])
+            + [self.path.parent / fname, given])
         file = next((c for c in candidates if c.is_file()), None)
         if file is None:
             folders = ", ".join(dict.fromkeys(str(c.parent) for c in candidates))
-            fail(key, f"restart file {fname!r} not found (looked in {folders}); "
-                 "run the run that writes it first")
+            self.fail(key, f"restart file {fname!r} not found (looked in {folders}); "
+                      "run the run that writes it first")
         try:
             bf = BranchFile(file)
         except StoreError as exc:
-            fail(key, str(exc))
+            self.fail(key, str(exc))
         if Path(bf.equation).stem != problem.name:
-            fail(key, f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
-        return file, bf
+            self.fail(key, f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
+        return bf
 
-    def file_label(key, s):
+    def file_label(self, key, problem: Problem, s: str) -> StoredLabel:
         if ":" not in s:
-            fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
-        fname, label = s.rsplit(":", 1)
-        file, bf = branch_file(key, fname)
+            self.fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
+        fname, name = s.rsplit(":", 1)
         try:
-            bf.label(label)
+            return self.branch_file(key, problem, fname).label(name)
         except StoreError as exc:
-            fail(key, str(exc))
-        return file, label
+            self.fail(key, str(exc))
 
-    seen = []  # (parameters, ordinates) of the equilibria selected so far, by any selector
-
-    def same_equilibrium(params, ords, other):
-        """Equal parameters (angles modulo their period) and equal ordinates: the ordinates
-        are physical, so periodic copies of one equilibrium have the same ones."""
-        p2, o2 = other
-        for q, v in params.items():
-            d = v - p2[q]
-            T = problem.parameters[q].period
-            if T:
-                d = math.remainder(d, T)
-            if abs(d) > 1e-7 * (1 + abs(v)):
-                return False
-        return all(abs(a - b) <= 1e-5 * (1 + abs(a)) for a, b in zip(ords, o2))
-
-    def selected(key, sel):
+    def selected(self, key, problem: Problem, sel: dict) -> list[StoredLabel]:
         """Labels of one type in a file whose parameters match ``where`` (periodic parameters
         modulo their period) and, if given, whose stability index is ``index``, in label
         order; with ``distinct``, one per equilibrium (also across selectors: periodic copies
         and the same equilibrium reached by two selectors count once); at most ``limit``."""
         for k in sel:
             if k not in _SELECT:
-                fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
+                self.fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
         if "file" not in sel:
-            fail(key, "a start selector needs file = \"FILE.h5\"")
-        file, bf = branch_file(f"{key}.file", string(f"{key}.file", sel["file"]))
-        kind = string(f"{key}.type", sel.get("type", "UZ"))
+            self.fail(key, "a start selector needs file = \"FILE.h5\"")
+        bf = self.branch_file(f"{key}.file", problem,
+                              self.string(f"{key}.file", sel["file"]))
+        kind = self.string(f"{key}.type", sel.get("type", "UZ"))
         where = sel.get("where", {})
         if not isinstance(where, dict):
-            fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")
+            self.fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")
         want = {}
         for q, v in where.items():
             if q not in problem.parameters:
-                fail(f"{key}.where.{q}", f"unknown parameter; {problem.source} declares "
-                     f"{', '.join(problem.parameter_names)}")
-            want[q] = number(f"{key}.where.{q}", v)
+                self.fail(f"{key}.where.{q}", f"unknown parameter; {problem.source} declares "
+                          f"{', '.join(problem.parameter_names)}")
+            want[q] = self.number(f"{key}.where.{q}", v)
         index = sel.get("index")
         if index is not None and (isinstance(index, bool) or not isinstance(index, int)):
-            fail(f"{key}.index", f"expected an integer stability index, got {index!r}")
+            self.fail(f"{key}.index", f"expected an integer stability index, got {index!r}")
         distinct = sel.get("distinct", True)
         if not isinstance(distinct, bool):
-            fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
+            self.fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
         limit = sel.get("limit")
         if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int)
                                   or limit < 1):
-            fail(f"{key}.limit", f"expected a positive integer, got {limit!r}")
+            self.fail(f"{key}.limit", f"expected a positive integer, got {limit!r}")
         names = sorted((n for n in bf.labels if n[:2] == kind), key=lambda n: int(n[2:]))
         out = []
         for n in names:
             br, pt = bf.labels[n]
             cols = bf.branches[br - 1].columns
-            ok = True
-            for q, v in want.items():
-                d = cols[q][pt - 1] - v
-                T = problem.parameters[q].period
-                if T:
-                    d = math.remainder(d, T)
-                ok &= abs(d) <= 1e-9 * (1 + abs(v))
-            if not ok or (index is not None and cols["index"][pt - 1] != index):
+            if not all(_same(cols[q][pt - 1], v, problem.parameters[q].period, 1e-9)
+                       for q, v in want.items()):
+                continue
+            if index is not None and cols["index"][pt - 1] != index:
                 continue
             if distinct:
                 params = {q: cols[q][pt - 1] for q in problem.parameter_names}
                 ords = [cols[o][pt - 1] for o in problem.ordinate_names]
-                if any(same_equilibrium(params, ords, other) for other in seen):
+                if any(_same_equilibrium(problem, params, ords, other) for other in self.seen):
                     continue
-                seen.append((params, ords))
-            out.append(Start("label", file, n))
+                self.seen.append((params, ords))
+            out.append(bf.label(n))
             if limit is not None and len(out) == limit:
                 break
         if not out:
-            fail(key, f"no {kind} label of {file.name} matches {where}")
+            self.fail(key, f"no {kind} label of {bf.path.name} matches {where}")
         return out
 
-    parsed = []
-    switch = doc.get("switch", [])
-    switch_count = 0
-    if isinstance(switch, int) and not isinstance(switch, bool):
-        if switch < 0:
-            fail("switch", f"expected a count >= 0 or a list of \"FILE.h5:BPn\", got {switch}")
-        switch_count = switch
-    elif isinstance(switch, list):
-        for item in switch:
-            file, label = file_label("switch", string("switch", item))
-            if not label.startswith("BP"):
-                fail("switch", f"{item!r}: branch switching needs a BP label")
-            parsed.append(Start("switch", file, label))
-    else:
-        fail("switch", f"expected a count or a list of \"FILE.h5:BPn\", got {switch!r}")
-    starts = doc.get("start", [] if parsed else "trivial")
-    starts = starts if isinstance(starts, list) else [starts]
-    if not starts and not parsed:
-        fail("start", "empty list")
-    for s in starts:
-        if isinstance(s, dict):
-            parsed.extend(selected("start", s))
-            continue
-        s = string("start", s)
-        if s == "trivial":
-            parsed.append(Start("trivial"))
-        else:
-            parsed.append(Start("label", *file_label("start", s)))
 
-    plan = Plan(name=path.stem, path=path, text=text, description=description, problem=problem,
-                parameter=parameter, options=options, stops=Stops(lower, upper, at_fold),
-                user_values=user_values, varying=[k for k, v in grid.items() if len(v) > 1],
-                switch_count=switch_count)
-    switches = [st for st in parsed if st.kind == "switch"]
-    others = [st for st in parsed if st.kind != "switch"]
-    if switches and grid and not others:
-        fail("switch", "a branch switched at a stored BP has that point's parameters; "
-             "remove [parameters]")
-    for start in switches:  # both directions of the other branch, at the BP's parameters
-        for d in (1, -1):
-            plan.branches.append(BranchSpec(start, {}, d))
-    keys = list(grid)
-    for combo in itertools.product(*(grid[k] for k in keys)):
-        for start in others:
-            for d in _DIRECTIONS[directions]:
-                plan.branches.append(BranchSpec(start, dict(zip(keys, combo)), d))
-    return plan
+def _same(a: float, b: float, period: float | None, rel: float) -> bool:
+    """a == b to ``rel`` (relative, with 1 added), modulo ``period`` if there is one."""
+    d = a - b
+    if period:
+        d = math.remainder(d, period)
+    return abs(d) <= rel * (1 + abs(b))
+
+
+def _same_equilibrium(problem: Problem, params, ords, other) -> bool:
+    """Equal parameters (angles modulo their period) and equal ordinates: the ordinates are
+    physical, so periodic copies of one equilibrium have the same ones."""
+    p2, o2 = other
+    return (all(_same(p2[q], v, problem.parameters[q].period, 1e-7) for q, v in params.items())
+            and all(abs(a - b) <= 1e-5 * (1 + abs(a)) for a, b in zip(ords, o2)))

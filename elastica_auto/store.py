@@ -47,7 +47,8 @@ import h5py
 import numpy as np
 
 from . import FORMAT_VERSION, __version__
-from .branch import INDEX_UNKNOWN, PROFILE_GRID, Branch
+from .branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
+                     column_names, export_names)
 from .errors import StoreError
 from .solution import State, Tangent
 
@@ -264,17 +265,14 @@ def _write_branch(g, problem, br: Branch):
                    end=br.end, message=br.message, diagnostics=json.dumps(br.diagnostics),
                    warnings=json.dumps(br.warnings), seconds=br.seconds)
     cols = g.create_group("columns")
-    for name in problem.parameter_names + problem.ordinate_names:
+    for name in problem.parameter_names + problem.ordinate_names + list(_FLOAT_COLUMNS):
         cols[name] = br.column(name).astype(float)
-    for name in _FLOAT_COLUMNS:
-        cols[name] = br.column(name).astype(float)
-    for name in _INT_COLUMNS:
-        cols[name] = br.column(name).astype(np.int32)
+    for name in _INT_COLUMNS:  # the label's number: its name is type and number
+        cols[name] = np.array([p.label for p in br.points] if name == "label"
+                              else br.column(name), dtype=np.int32)
     str_dt = h5py.string_dtype()
-    cols.create_dataset("type", data=[p.type for p in br.points], dtype=str_dt)
-    cols.create_dataset("note", data=[p.note for p in br.points], dtype=str_dt)
-    cols.create_dataset("transition", data=[br.transition(p) if p.type in ("LP", "BP") else ""
-                                            for p in br.points], dtype=str_dt)
+    for name in _STR_COLUMNS:
+        cols.create_dataset(name, data=list(br.column(name)), dtype=str_dt)
     g["profiles"] = np.array([p.profile for p in br.points])
     sols = g.create_group("solutions")
     for pt, p in enumerate(br.points, start=1):
@@ -291,7 +289,8 @@ def _write_branch(g, problem, br: Branch):
 
 @dataclass
 class StoredBranch:
-    """A branch read back from a file: attributes and columns (``b.columns["psi"]``)."""
+    """A branch read back from a file: attributes and columns (``b.columns["psi"]``), the
+    same columns as a branch in memory (`elastica_auto.branch.column_names`)."""
 
     number: int
     attrs: dict
@@ -306,19 +305,7 @@ class StoredBranch:
         return len(self.columns["type"])
 
     def label_names(self) -> list[str]:
-        return [f"{t}{n}" if t else "" for t, n in zip(self.columns["type"], self.columns["label"])]
-
-
-@dataclass
-class StoredLabel:
-    """A labelled point: its solution (a restart point) and, if stored, its tangent."""
-
-    name: str
-    branch: int
-    pt: int
-    state: State
-    tangent: Tangent | None
-    tangent_parameter: str | None
+        return list(self.columns["label"])
 
 
 class BranchFile:
@@ -407,7 +394,15 @@ class BranchFile:
         profiles = g["profiles"][()]
         if len(profiles) != n:
             raise self._damaged(f"branch {key}: {len(profiles)} profiles for {n} points")
-        return StoredBranch(int(key), dict(g.attrs), cols, profiles)
+        number = int(key)
+        # the file keeps a label's number; a branch's columns hold its name, as in memory
+        cols["label"] = np.array([f"{t}{k}" if t else "" for t, k in
+                                  zip(cols["type"], cols["label"])], dtype=object)
+        cols["branch"], cols["pt"] = np.full(n, number), np.arange(1, n + 1)
+        names = column_names(self.parameters, self.ordinates)
+        cols = {name: cols[name] for name in names} | {
+            name: c for name, c in cols.items() if name not in names}
+        return StoredBranch(number, dict(g.attrs), cols, profiles)
 
     def _check_labels(self, f):
         """Each label names a point with that label, and its solution is stored."""
@@ -455,7 +450,7 @@ class BranchFile:
         except (OSError, KeyError, ValueError, TypeError) as exc:
             # checked on opening; what is left: a solution's own datasets and attributes
             raise self._damaged(f"solution {name} unreadable ({exc})") from exc
-        return StoredLabel(name, br, pt, state, tangent, tpar)
+        return StoredLabel(name, br, pt, state, tangent, tpar, self.path, self.equation)
 
 
 
@@ -465,18 +460,21 @@ def _fmt(v):
 
 
 def rows(bf: BranchFile, labelled_only=False):
-    """Yield one dict per point: branch, pt, type, label, parameters, ordinates, indices."""
+    """Yield one dict per point, of its export columns (`elastica_auto.branch.export_names`):
+    parameters and ordinates as floats, indices as text ('' where unknown)."""
+    names = export_names(bf.parameters, bf.ordinates)
     for b in bf.branches:
         c = b.columns
-        names = b.label_names()
         for i in range(len(b)):
             if labelled_only and not c["type"][i]:
                 continue
-            row = {"branch": b.number, "pt": i + 1, "type": c["type"][i], "label": names[i]}
+            row = {k: c[k][i] for k in names}
+            for k in ("branch", "pt"):
+                row[k] = int(row[k])
             for k in bf.parameters + bf.ordinates:
-                row[k] = float(c[k][i])
-            for k in ("index", "index_rule", "index_direct"):
-                row[k] = _fmt(c[k][i])
+                row[k] = float(row[k])
+            for k in INDEX_COLUMNS:
+                row[k] = _fmt(row[k])
             yield row
 
 
@@ -495,8 +493,7 @@ def export_csv(bf: BranchFile, out: Path):
     The CSV is written to a temporary file beside ``out`` and renamed over it, so a failed
     export leaves ``out`` as it was. StoreError if ``out`` is the branch file itself or
     cannot be written."""
-    header = (["branch", "pt", "type", "label"] + bf.parameters + bf.ordinates
-              + ["index", "index_rule", "index_direct"])
+    header = export_names(bf.parameters, bf.ordinates)
     out = Path(out)
     if same_file(bf.path, out):
         raise StoreError(f"{out} is the branch file being exported ({bf.path}); "

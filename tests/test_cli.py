@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 
 import numpy as np
+import pytest
 
-from helpers import run_cli
+from helpers import elastica_run_file, run_cli
 from elastica_auto.store import BranchFile
 
 PARAMS = ["P", "eps", "psi", "alpha", "theta0"]
@@ -137,3 +139,64 @@ def test_list_names_the_shipped_runs(cli_exe):
     proc = run_cli(cli_exe, "list")
     assert proc.returncode == 0, proc.stderr
     assert any(ln.split()[0] == "rotating_arm" for ln in proc.stdout.splitlines() if ln.split())
+
+
+def test_set_overrides_like_an_edited_run_file(cli_exe, tmp_path):
+    """--set of an option, a parameter (a grid) and a [continuation] key gives the branches
+    of the run file edited to say the same."""
+    plain = elastica_run_file(tmp_path / "plain.toml")
+    edited = elastica_run_file(tmp_path / "edited.toml", directions="+", extra="[options]\n"
+                               "ds_max = 0.3\n")
+    edited.write_text(edited.read_text().replace("eps = '0.25'", "eps = [0.3, 0.4]"))
+    proc = run_cli(cli_exe, "run", plain, "--out", tmp_path / "a", "-q", "-j1",
+                   "--set", "ds_max=0.3", "--set", "eps=[0.3, 0.4]",
+                   "--set", "continuation.directions=+")
+    assert proc.returncode == 0, proc.stderr
+    assert run_cli(cli_exe, "run", edited, "--out", tmp_path / "b", "-q",
+                   "-j1").returncode == 0
+    a, b = BranchFile(tmp_path / "a" / "plain.h5"), BranchFile(tmp_path / "b" / "edited.h5")
+    assert len(a.branches) == len(b.branches) == 2
+    for x, y in zip(a.branches, b.branches):
+        assert x.columns["eps"][0] in (0.3, 0.4) and x.attrs["direction"] == 1
+        assert json.loads(x.attrs["options"])["ds_max"] == 0.3
+        for name in PARAMS + ORDS + ["type", "index"]:
+            np.testing.assert_array_equal(x.columns[name], y.columns[name], err_msg=name)
+    assert "#   --set options.ds_max=0.3" in a.attrs["run_file"]
+
+
+def test_from_restarts_at_a_label_with_its_parameters(small_cli_run, cli_exe, tmp_path):
+    """--from FILE:LABEL replaces the start and the run file's parameter values (eps = 0.9,
+    P = 0 here): each branch starts at the label's solution, eps = 0.25, and runs to a
+    bound."""
+    _, h5, _ = small_cli_run
+    label = "UZ2"
+    stored = BranchFile(h5).label(label)
+    toml = elastica_run_file(tmp_path / "eps.toml", eps="0.9", P="0")
+    toml.write_text(toml.read_text().replace('parameter = "psi"', 'parameter = "eps"')
+                    .replace('bounds = ["-2*pi", "2*pi"]', "bounds = [0.2, 0.3]"))
+    proc = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", "-q",
+                   "--from", f"{h5}:{label}")
+    assert proc.returncode == 0, proc.stderr
+    bf = BranchFile(tmp_path / "out" / "eps.h5")
+    for b in bf.branches:
+        assert b.attrs["start"] == f"small.h5:{label}"
+        first = {q: b.columns[q][0] for q in PARAMS}
+        assert first == pytest.approx(stored.state.params, abs=0)
+        assert abs(b.columns["eps"][-1] - 0.25) == pytest.approx(0.05, abs=1e-12)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--set", "nonsense=1"], "--set nonsense=1: 'nonsense' is not an option"),
+    (["--set", "ds_max"], "expected NAME=VALUE"),
+    (["--set", "ds_max=abc"], "[options] ds_max"),
+    (["--set", "ds=5"], "[options]"),
+    (["--set", "table.ds=5"], "no table [table]"),
+    (["--set", "eps=[]"], "[parameters] eps: empty list"),
+    (["--from", "nolabel.h5"], "expected FILE.h5:LABEL"),
+    (["--from", "missing.h5:UZ1"], "restart file 'missing.h5' not found"),
+])
+def test_bad_overrides_are_one_line_user_errors(cli_exe, tmp_path, args, words):
+    toml = elastica_run_file(tmp_path / "r.toml")
+    proc = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", *args)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and words in proc.stderr, proc.stderr

@@ -1,0 +1,178 @@
+"""The Python API: continue a problem's solutions, restart from labels, save branch files.
+
+    import elastica_auto as ea
+
+    problem = ea.load_problem("elastica_lever_arm")
+    branches = ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi**2 / 4}, "psi",
+                               bounds=(-2 * math.pi, 2 * math.pi), directions="both",
+                               ds_max=0.3)
+    branches[0].columns["psi"], branches[0].columns["index"]
+    again = ea.continuation(problem, branches.label("LP1"), "eps", bounds=(0, 1))
+    ea.save(branches, "out/mine.h5")
+
+A run file is the same call written in TOML (:mod:`elastica_auto.runfile`); both go through
+:func:`elastica_auto.plan.make_plan` and give the same branches.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from . import store
+from .branch import Branch
+from .errors import PlanError, StoreError
+from .options import ContinuationOptions
+from .plan import StartLike, make_plan
+from .run import Progress, RunResult, _built, compute, number_labels
+from .store import StoredLabel
+
+
+class Branches(list):
+    """The branches of one :func:`continuation`, in order: a list of
+    :class:`~elastica_auto.branch.Branch`, with labels numbered through all of them as in a
+    branch file (LP1, LP2, ... in branch and point order).
+
+    Attributes
+    ----------
+    snaps : list of dict
+        Snap-back targets (as ``elastica-auto snaps`` lists them), if the module has the
+        ``shooting`` and ``second_variation`` hooks.
+    warnings : list of str
+        Branch points where switching failed, a failed snap-back scan.
+    seconds : float
+        Wall-clock time of the whole computation.
+    """
+
+    def __init__(self, branches: Iterable[Branch] = (), snaps=(), warnings=(),
+                 seconds: float = 0.0):
+        super().__init__(branches)
+        self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
+
+    def label(self, name: str) -> StoredLabel:
+        """The solution labelled ``name`` (``"LP1"``), to restart from or switch at."""
+        for br in self:
+            if any(p.name == name and p.type for p in br.points):
+                return br.label(name)
+        names = [p.name for br in self for p in br.points if p.type]
+        raise KeyError(f"no label {name!r}; labels: {', '.join(names) or 'none'}")
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`continuation`. ``branches`` holds what was computed: every
+    finished branch, and the ones in progress up to their last point (ending MX)."""
+
+    def __init__(self, branches: Branches):
+        super().__init__("continuation interrupted")
+        self.branches = branches
+
+
+def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str, *,
+                 params: Mapping[str, float | Iterable[float]] | None = None,
+                 bounds: tuple[float, float] | None = None, directions: str = "+",
+                 uz: Iterable[float] = (), uz_period: float | None = None,
+                 stop: Iterable[str] = (), switch: int = 0, jobs: int = 1,
+                 progress: Progress | None = None, **options) -> Branches:
+    """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
+
+    Parameters
+    ----------
+    problem : Problem
+        From :func:`load_problem`.
+    start : dict, StoredLabel, Switch, or a list of them
+        A dict of parameter values starts from the module's exact solution there (the
+        others at their defaults); a label (``BranchFile(path).label("UZ3")`` or
+        ``branches.label("LP1")``) restarts from its solution; ``Switch(label)`` follows the
+        other branch through a branch point, both ways.
+    parameter : str
+        The continued parameter.
+    params : dict, optional
+        Parameter values applied to every start; a list of values gives one set of branches
+        per value (restarting from a label at other values first solves there).
+    bounds : (lower, upper), optional
+        A branch ends (EP) where the parameter leaves them.
+    directions : {"+", "-", "both"}
+        The direction(s) of travel from each start.
+    uz, uz_period : optional
+        Values of the parameter to label UZ; with a period, every value + k * period.
+    stop : list of str, optional
+        ``["LP4"]`` ends each branch at its 4th fold.
+    switch : int
+        Also follow the other branch, both ways, at the first ``switch`` branch points of
+        each branch (AUTO-07p's ISW=-1).
+    jobs : int
+        Branches computed at once, in forked processes (1: in this process).
+    progress : callable, optional
+        Called as ``progress(branch, points, folds, value)`` during the continuation.
+    **options
+        :class:`~elastica_auto.options.ContinuationOptions` by name: ``ds``, ``ds_min``,
+        ``ds_max``, ``max_points``, ``ntst``, ``tol``, ``corrector``, ...
+
+    Returns
+    -------
+    Branches
+        One :class:`~elastica_auto.branch.Branch` per start, value and direction (starts in
+        order, each in each direction), then the switched ones. A branch that failed ends
+        with an MX label and says why in ``branch.message``.
+
+    Raises
+    ------
+    PlanError
+        An argument that cannot be used (``exc.key`` names it).
+    StartError
+        A start that cannot be built (no exact solution there, no solution at the changed
+        parameters).
+    Interrupted
+        Ctrl-C; ``exc.branches`` holds what was computed.
+    """
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
+    plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
+                     directions=directions, uz=uz, uz_period=uz_period, stop=stop,
+                     switch=switch, options=options)
+    t0 = time.perf_counter()
+    first = [_built(plan, spec) for spec in plan.branches]
+    result = RunResult(None, [], 0.0)
+    try:
+        compute(plan, first, result, lambda: None, progress, jobs=jobs)
+    except KeyboardInterrupt:  # between branches: the finished ones are kept
+        result.interrupted = True
+    number_labels(result.branches)
+    out = Branches(result.branches, result.snaps, result.warnings, time.perf_counter() - t0)
+    if result.interrupted:
+        raise Interrupted(out)
+    return out
+
+
+def save(branches: Iterable[Branch], path, *, run: str | None = None) -> Path:
+    """Write ``branches`` to the branch file ``path`` (HDF5, as ``elastica-auto run``
+    writes; read it back with :class:`~elastica_auto.store.BranchFile`).
+
+    The file is written to a temporary name and renamed over ``path``. Labels are numbered
+    through the file in branch and point order (the branches keep their own numbering).
+    ``run`` names the run in the file (default: the file's stem). Snap-back targets are
+    saved if ``branches`` came from one :func:`continuation`.
+    """
+    given, branches = branches, list(branches)
+    if not branches or not all(isinstance(b, Branch) for b in branches):
+        raise PlanError("branches", "expected a non-empty list of branches")
+    problem = branches[0].problem
+    if any(b.problem is not problem for b in branches):
+        raise PlanError("branches", "all branches of a file must be of one problem")
+    path = Path(path)
+    if path.suffix != ".h5":
+        raise StoreError(f"{path}: a branch file is named <name>.h5")
+    copies = [dataclasses.replace(b, points=[dataclasses.replace(p) for p in b.points])
+              for b in branches]
+    number_labels(copies)
+    snaps = given.snaps if isinstance(given, Branches) else None  # a whole continuation's
+    writer = store.Writer(path, run or path.stem, problem)
+    with writer:
+        writer.save(copies, snaps)
+        writer.finish()
+    return writer.path
+
+
+__all__ = ["continuation", "save", "Branches", "Interrupted", "ContinuationOptions"]

@@ -1,0 +1,249 @@
+"""What to compute: the validated arguments of one continuation, as a plan of branches.
+
+:func:`make_plan` is the single place where the arguments of
+:func:`elastica_auto.continuation` are checked, for calls from Python and for run files
+alike (:mod:`elastica_auto.runfile` parses TOML into these arguments). It raises
+:class:`PlanError`, whose ``key`` names the argument at fault, so that each front end can
+report it in its own terms (a keyword, or a run-file key).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Iterable, Mapping, Union
+
+from .errors import PlanError
+from .events import UserValues
+from .options import ContinuationOptions, OptionsError
+from .problem import Problem
+from .stepper import Stops
+from .store import StoredLabel
+
+#: ``directions``: the signs of the steps from each start.
+DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
+
+
+@dataclass(frozen=True)
+class Switch:
+    """Start on the other branch through a branch point (AUTO-07p's ``ISW=-1``).
+
+    ``label`` is a BP label, from a branch file (``BranchFile(path).label("BP1")``) or from
+    branches in memory (``branches.label("BP1")``)."""
+
+    label: StoredLabel
+
+
+#: What a branch can start from: the module's exact solution at these parameter values, a
+#: labelled solution, or the other branch at a labelled branch point.
+StartLike = Union[Mapping[str, float], StoredLabel, Switch]
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a branch starts: the module's exact solution (``trivial``), a labelled solution
+    (``label``), or the other branch at a branch point (``switch``)."""
+
+    kind: str
+    file: Path | None = None
+    label: str = ""
+    stored: StoredLabel | None = field(default=None, compare=False, repr=False)
+
+    def __str__(self):
+        if self.kind == "trivial":
+            return "trivial"
+        where = f"{self.file.name}:{self.label}" if self.file is not None else self.label
+        return f"switch at {where}" if self.kind == "switch" else where
+
+
+@dataclass(frozen=True)
+class BranchSpec:
+    """One branch to compute: start, parameter values, direction."""
+
+    start: Start
+    params: dict
+    direction: int
+
+
+@dataclass
+class Plan:
+    """A validated continuation: the problem, the branches and what applies to all of them.
+
+    ``name``, ``path`` and ``text`` describe the run file, if there is one (they are stored
+    in the branch file); a plan made from Python has the name ``continuation``."""
+
+    problem: Problem
+    parameter: str
+    options: ContinuationOptions
+    stops: Stops
+    user_values: list[UserValues]
+    branches: list[BranchSpec] = field(default_factory=list)
+    varying: list[str] = field(default_factory=list)
+    switch_count: int = 0
+    name: str = "continuation"
+    path: Path | None = None
+    text: str = ""
+    description: str = ""
+
+    @property
+    def output_name(self) -> str:
+        return f"{self.name}.h5"
+
+
+def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
+              params: Mapping[str, float | Iterable[float]] | None = None,
+              bounds: tuple[float, float] | None = None, directions: str = "+",
+              uz: Iterable[float] = (), uz_period: float | None = None,
+              stop: Iterable[str] = (), switch: int = 0,
+              options: Mapping[str, object] | ContinuationOptions | None = None) -> Plan:
+    """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
+
+    The branches are, for each combination of the ``params`` values (a list gives one set of
+    branches per value; the first parameter varies slowest), each start in order, each
+    direction. Raises :class:`PlanError` naming the argument at fault.
+    """
+    if not isinstance(problem, Problem):
+        raise PlanError("problem", f"expected a problem from load_problem(), got "
+                        f"{type(problem).__name__}")
+    if not isinstance(parameter, str) or parameter not in problem.parameters:
+        raise PlanError("parameter", f"unknown parameter {parameter!r}; {problem.source} "
+                        f"declares {', '.join(problem.parameter_names)}")
+    if not isinstance(directions, str) or directions not in DIRECTIONS:
+        raise PlanError("directions", f"expected one of {', '.join(map(repr, DIRECTIONS))}, "
+                        f"got {directions!r}")
+    lower, upper = _bounds(bounds)
+    user_values = _user_values(uz, uz_period)
+    if isinstance(switch, bool) or not isinstance(switch, int) or switch < 0:
+        raise PlanError("switch", f"expected a count >= 0 of branch points to switch at, "
+                        f"got {switch!r}")
+    opts = _options(options)
+    grid = _grid(problem, params)
+    starts = _starts(problem, start)
+    specs = []
+    for st, _ in starts:  # the other branch at a stored BP: both ways, at its parameters
+        if st.kind == "switch":
+            if grid:
+                raise PlanError("params", "a branch switched at a branch point has that "
+                                "point's parameters; give no params")
+            specs += [BranchSpec(st, {}, d) for d in (1, -1)]
+    keys = list(grid)
+    for combo in itertools.product(*(grid[k] for k in keys)):
+        for st, given in starts:
+            if st.kind == "switch":
+                continue
+            values = dict(zip(keys, combo))
+            twice = sorted(set(given) & set(values))
+            if twice:
+                raise PlanError("params", f"{', '.join(twice)} given both in the start and "
+                                "in params")
+            specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
+    return Plan(problem, parameter, opts, Stops(lower, upper, _at_fold(stop)), user_values,
+                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch)
+
+
+def _finite(key: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise PlanError(key, f"expected a finite number, got {v!r}")
+    return float(v)
+
+
+def _bounds(bounds) -> tuple[float, float]:
+    if bounds is None:
+        return -math.inf, math.inf
+    if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
+        raise PlanError("bounds", f"expected (lower, upper), got {bounds!r}")
+    lower, upper = (_finite("bounds", v) for v in bounds)
+    if not lower < upper:
+        raise PlanError("bounds", f"need lower < upper, got {lower:g}, {upper:g}")
+    return lower, upper
+
+
+def _user_values(uz, uz_period) -> list[UserValues]:
+    if isinstance(uz, (str, bytes)) or not isinstance(uz, Iterable):
+        raise PlanError("uz", f"expected a list of values, got {uz!r}")
+    values = tuple(_finite("uz", v) for v in uz)
+    if uz_period is not None:
+        if not values:
+            raise PlanError("uz_period", "given without uz")
+        if not _finite("uz_period", uz_period) > 0:
+            raise PlanError("uz_period", f"must be positive, got {uz_period:g}")
+    return [UserValues(values, uz_period and float(uz_period))] if values else []
+
+
+def _at_fold(stop) -> int | None:
+    """``stop = ["LP4"]``: the fold count at which a branch ends (the smallest given)."""
+    if isinstance(stop, (str, bytes)) or not isinstance(stop, Iterable):
+        raise PlanError("stop", f"expected a list such as [\"LP4\"], got {stop!r}")
+    at = None
+    for item in stop:
+        # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
+        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isascii()
+                and item[2:].isdigit() and int(item[2:]) > 0):
+            raise PlanError("stop", f"expected entries like \"LP4\", got {item!r}")
+        at = min(int(item[2:]), at or math.inf)
+    return at
+
+
+def _options(options) -> ContinuationOptions:
+    if isinstance(options, ContinuationOptions):
+        return options
+    known = {f.name for f in fields(ContinuationOptions)}
+    unknown = sorted(set(options or {}) - known)
+    if unknown:
+        raise PlanError("options", f"unknown option {unknown[0]!r}; expected one of "
+                        f"{', '.join(sorted(known))}")
+    try:
+        return ContinuationOptions(**(options or {}))
+    except OptionsError as exc:
+        raise PlanError("options", str(exc)) from None
+
+
+def _grid(problem: Problem, params) -> dict[str, list[float]]:
+    grid = {}
+    for name, v in (params or {}).items():
+        if name not in problem.parameters:
+            raise PlanError(f"params.{name}", f"unknown parameter; {problem.source} declares "
+                            f"{', '.join(problem.parameter_names)}")
+        values = list(v) if isinstance(v, (list, tuple)) else [v]
+        if not values:
+            raise PlanError(f"params.{name}", "empty list")
+        grid[name] = [_finite(f"params.{name}", x) for x in values]
+    return grid
+
+
+def _starts(problem: Problem, start) -> list[tuple[Start, dict[str, float]]]:
+    """Each start, with the parameter values it was given (a dict start's)."""
+    items = list(start) if isinstance(start, (list, tuple)) else [start]
+    if not items:
+        raise PlanError("start", "empty list")
+    return [_start(problem, item) for item in items]
+
+
+def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
+    if isinstance(item, Mapping):
+        values = {}
+        for name, v in item.items():
+            if name not in problem.parameters:
+                raise PlanError("start", f"unknown parameter {name!r}; {problem.source} "
+                                f"declares {', '.join(problem.parameter_names)}")
+            values[name] = _finite(f"start.{name}", v)
+        return Start("trivial"), values
+    kind = "switch" if isinstance(item, Switch) else "label"
+    label = item.label if isinstance(item, Switch) else item
+    if not isinstance(label, StoredLabel):
+        raise PlanError("start", "expected parameter values (a dict), a label "
+                        "(BranchFile(path).label(\"UZ1\")) or Switch(label), got "
+                        f"{type(item).__name__}")
+    if kind == "switch" and not label.name.startswith("BP"):
+        raise PlanError("start", f"{label.name}: switching branches needs a BP label")
+    if label.equation and Path(label.equation).stem != problem.name:
+        where = label.path.name if label.path is not None else label.name
+        raise PlanError("start", f"{where} was computed with {label.equation!r}, not "
+                        f"{problem.source!r}")
+    if len(label.state.y) != problem.n:
+        raise PlanError("start", f"{label.name} has {len(label.state.y)} states, "
+                        f"{problem.source} {problem.n}")
+    return Start(kind, label.path, label.name, label), {}
+
