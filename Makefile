@@ -20,6 +20,7 @@ demo: install
 	$(BIN)/elastica-auto plot $(OUT)/rotating_arm.h5 -o $(FIG)/rotating_arm_m1_psi.png
 
 test: install
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
 bench: install

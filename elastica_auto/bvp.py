@@ -73,8 +73,8 @@ def solve_fixed(problem: Problem, guess: Curve, params: dict, tol: float,
     def bc_jac(ya, yb):
         return problem.bc_jac(ya, yb, params)
 
-    sol = solve_bvp(fun, bc, guess.s, guess(guess.s), fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
-                    max_nodes=max_nodes)
+    sol = solve_bvp(fun, bc, guess.s, guess(guess.s), fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+                    bc_tol=bc_tol(tol), max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1])
     return _result(sol, params, float("nan"), problem.n, res)
 

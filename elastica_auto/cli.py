@@ -78,8 +78,8 @@ def _fmt_params(params: dict, names) -> str:
 
 @main.command()
 @click.argument("name_or_path")
-@click.option("--out", "out_dir", default="out", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for the branch file <run>.h5.")
+@click.option("--out", "out_dir", default="out", show_default=True,
+              type=click.Path(file_okay=False), help="Folder for the branch file <run>.h5.")
 @click.option("--jobs", "-j", default=0, show_default=True, type=click.IntRange(min=0),
               help="Branches computed at once (0: one per CPU core).")
 @click.option("--quiet", "-q", is_flag=True, help="No live progress line (summaries only).")
@@ -119,8 +119,9 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
     def on_branch(k, br):
         if tty:
             click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
-        folds = ", ".join(f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
-                          f" {br.transition(p)}".rstrip() for p in br.folds)
+        folds = ", ".join(
+            f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
+            f" {br.transition(p)}".rstrip() for p in br.folds)
         start = f" from {br.start}" if br.start != "trivial" else ""
         bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
                         for p in br.points if p.type == "BP")

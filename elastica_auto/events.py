@@ -50,7 +50,8 @@ def crossings(a: float, b: float, spec: UserValues) -> list[float]:
             cands = [v]
         else:
             T = spec.period
-            cands = [v + j * T for j in range(math.ceil((lo - v) / T), math.floor((hi - v) / T) + 1)]
+            cands = [v + j * T
+                     for j in range(math.ceil((lo - v) / T), math.floor((hi - v) / T) + 1)]
         for c in cands:
             if (a < c <= b) or (b <= c < a):
                 found.append(c)

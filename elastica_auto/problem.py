@@ -160,7 +160,8 @@ class Problem:
         self.ordinates = {o.name: o for o in ordinates}
         clash = set(self.ordinates) & set(self.parameters)
         if clash:
-            raise ProblemError(f"{source}: names used both as parameter and ordinate: {sorted(clash)}")
+            raise ProblemError(f"{source}: names used both as parameter and ordinate: "
+                               f"{sorted(clash)}")
         self.doc = (module.__doc__ or "").strip()
         self._rhs_jac = getattr(module, "rhs_jac", None)
         self._bc_jac = getattr(module, "bc_jac", None)
@@ -341,7 +342,8 @@ def load_problem(name_or_path: str, base_dir: Path | None = None) -> Problem:
         if name_or_path not in shipped_equations():
             raise ProblemError(f"unknown equation module {name_or_path!r}; shipped modules: "
                                f"{', '.join(shipped_equations())}, or give a path to a .py file")
-        path = Path(str(importlib.resources.files("elastica_auto.equations") / f"{name_or_path}.py"))
+        root = importlib.resources.files("elastica_auto.equations")
+        path = Path(str(root / f"{name_or_path}.py"))
         source = name_or_path
     spec = importlib.util.spec_from_file_location(f"elastica_auto_eq_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)

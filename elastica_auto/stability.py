@@ -74,12 +74,12 @@ def index(problem, state) -> int:
     each element's nodes and midpoint (Simpson's rule). The element matrices
     ``K_e = int (a phi_i' phi_j' + b phi_i phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``.
     The index is the inertia of K (Sylvester; the mass matrix is positive definite, so K and
-    the generalised eigenproblem have the same number of negative eigenvalues). Each midpoint unknown belongs to one
-    element, so it is eliminated element by element: by Haynsworth's inertia additivity,
-    In(K) = In(K_mm) + In(K / K_mm), K_mm the (diagonal) midpoint block and K / K_mm a
-    tridiagonal matrix on the nodes, whose negative LDL^T pivots are counted. The count is
-    exact unless an eigenvalue lies within the discretisation error of zero (at a fold or a
-    branch point, where it is zero)."""
+    the generalised eigenproblem have the same number of negative eigenvalues). Each midpoint
+    unknown belongs to one element, so it is eliminated element by element: by Haynsworth's
+    inertia additivity, In(K) = In(K_mm) + In(K / K_mm), K_mm the (diagonal) midpoint block
+    and K / K_mm a tridiagonal matrix on the nodes, whose negative LDL^T pivots are counted.
+    The count is exact unless an eigenvalue lies within the discretisation error of zero (at
+    a fold or a branch point, where it is zero)."""
     if not problem.has_second_variation:
         return -1
     # NaN compares false with everything, so the count below would call such a point stable
@@ -166,10 +166,10 @@ def fold_rule(branch, start_index: int) -> list[int]:
 def label_stability(branch) -> None:
     """Fill ``index_rule`` and ``index`` on every point of ``branch``.
 
-    The rule starts from the direct count at the first point (the second after a switch). ``index`` is the common value
-    where rule and direct count agree; at LP and BP points (critical eigenvalue zero, direct
-    count ambiguous) it is the rule's value. Elsewhere a disagreement leaves ``index = -1``
-    and says so in the point's note: it is never hidden.
+    The rule starts from the direct count at the first point (the second after a switch).
+    ``index`` is the common value where rule and direct count agree; at LP and BP points
+    (critical eigenvalue zero, direct count ambiguous) it is the rule's value. Elsewhere a
+    disagreement leaves ``index = -1`` and says so in the point's note: it is never hidden.
     """
     if not branch.points or not branch.problem.has_second_variation:
         return

@@ -144,7 +144,8 @@ def second_variation(s, y, p):
     theta(1)) h(1)^2 with h(0) = 0 (docs/design.md, "Second variation and the natural end
     condition"): a = 1, b = -P cos(theta - alpha), c = -eps P cos(psi + alpha - theta(1));
     natural end condition h'(1) = eps P cos(.) h(1)."""
-    return 1.0, -p["P"] * np.cos(y[0] - p["alpha"]), -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p))
+    return (1.0, -p["P"] * np.cos(y[0] - p["alpha"]),
+            -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p)))
 
 
 def shooting(p):

@@ -343,13 +343,15 @@ def _run_briefly(plan):
         assert br.points and br.points[-1].type == br.end
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(doc=st.dictionaries(keys, values, max_size=6))
 def test_random_documents_give_a_clean_error_or_a_plan(doc, tmp_path):
     _load_never_crashes(toml_document(doc), tmp_path, "random")
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_mutated_shipped_run_files(data, tmp_path):
     import tomllib

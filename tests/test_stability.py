@@ -652,8 +652,9 @@ def test_near_eps_zero_the_eps_branch_is_a_graph_over_eps(eps_branches):
     """For psi != 0 the eps-branches pass (theta'(0) = 0, eps = 0) without a fold (no sign
     change of d eps/d tau; docs/design.md, "Turning points that are not folds"). By shooting:
     eps(k0) is monotone on the k0-range the computed branch spans near eps = 0, so the branch
-    is a graph over eps there and has no fold. Whether the tangent is vertical depends on P: d eps/d k0 at k0 = 0 is
-    -cos(sqrt P)/(P sin psi), zero only at the eps = 0 buckling loads ((2j - 1) pi / 2)^2.
+    is a graph over eps there and has no fold. Whether the tangent is vertical depends on P:
+    d eps/d k0 at k0 = 0 is -cos(sqrt P)/(P sin psi), zero only at the eps = 0 buckling loads
+    ((2j - 1) pi / 2)^2.
     So at P = pi^2/4 (the paper's load) the crossing is a vertical inflection (eps ~ k0^3),
     while at P = 2 it is transversal (eps ~ k0): the starting design's claim that it is
     always vertical holds only at those loads."""

@@ -125,9 +125,9 @@ def test_bratu_branch_lies_on_the_closed_form_family(bratu_run):
     tol = bratu_run.plan.options.tol
     du0, lam, u_half = br.column("du0"), br.column("lam"), br.column("u_half")
     assert du0.max() > 10        # well past the fold, on the upper family
-    for d, l, uh in zip(du0, lam, u_half):
+    for d, lm, uh in zip(du0, lam, u_half):
         z = brentq(lambda z: du0_of(z) - d, 0.0, 60.0, xtol=1e-15) if d > 0 else 0.0
-        assert abs(l - lam_of(z)) <= tol, (l, lam_of(z))
+        assert abs(lm - lam_of(z)) <= tol, (lm, lam_of(z))
         assert abs(uh - u_half_of(z)) <= tol * (1 + uh)
 
 

@@ -1,8 +1,8 @@
 """Configurations of the elastica with its lever arm, drawn from stored profiles.
 
 Conventions (docs/design.md, "Sign conventions"): the centreline (x(s), y(s)) starts at the
-clamp, which is turned by theta0 from the vertical; the lever arm starts at the tip and points at angle
-theta(1) - psi from the vertical, measured like theta (so its direction is
+clamp, which is turned by theta0 from the vertical; the lever arm starts at the tip and points
+at angle theta(1) - psi from the vertical, measured like theta (so its direction is
 eps (sin(psi - theta(1)), cos(psi - theta(1)))); the load F = P (sin alpha, -cos alpha) acts at
 the arm's end. Everything here is geometry for drawing; nothing is solved.
 """
