@@ -37,6 +37,8 @@ class Branches(list):
 
     Attributes
     ----------
+    problem : Problem
+        The problem continued (with its free parameters, if any).
     snaps : list of dict
         Snap-back targets (as ``elastica-auto snaps`` lists them), if the module has the
         ``shooting`` and ``second_variation`` hooks.
@@ -46,10 +48,17 @@ class Branches(list):
         Wall-clock time of the whole computation.
     """
 
-    def __init__(self, branches: Iterable[Branch] = (), snaps=(), warnings=(),
+    def __init__(self, branches: Iterable[Branch] = (), problem=None, snaps=(), warnings=(),
                  seconds: float = 0.0):
         super().__init__(branches)
+        self.problem = problem
         self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
+
+    def __add__(self, other):
+        """Branches of one problem put together (``arm + load``): still of that problem."""
+        if isinstance(other, Branches) and other.problem is self.problem:
+            return Branches([*self, *other], self.problem)
+        return list(self) + list(other)
 
     def label(self, name: str) -> StoredLabel:
         """The solution labelled ``name`` (``"LP1"``), to restart from or switch at."""
@@ -73,7 +82,8 @@ def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str
                  params: Mapping[str, float | Iterable[float]] | None = None,
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
-                 stop: Iterable[str] = (), switch: int = 0, jobs: int = 1,
+                 stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
+                 jobs: int = 1,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
 
@@ -98,10 +108,14 @@ def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str
     uz, uz_period : optional
         Values of the parameter to label UZ; with a period, every value + k * period.
     stop : list of str, optional
-        ``["LP4"]`` ends each branch at its 4th fold.
+        ``["LP4"]`` ends each branch at its 4th fold; ``["u_max > 100"]`` where an ordinate
+        (or a free parameter) passes a value (EP, located exactly).
     switch : int
         Also follow the other branch, both ways, at the first ``switch`` branch points of
         each branch (AUTO-07p's ISW=-1).
+    free : list of str, optional
+        The parameters solved for where the module has more conditions than states (extra
+        boundary conditions, integral conditions); default: the module's ``FREE``.
     jobs : int
         Branches computed at once, in forked processes (1: in this process).
     progress : callable, optional
@@ -131,7 +145,7 @@ def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
     plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
                      directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, options=options)
+                     switch=switch, free=free, options=options)
     t0 = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
@@ -140,27 +154,34 @@ def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
     number_labels(result.branches)
-    out = Branches(result.branches, result.snaps, result.warnings, time.perf_counter() - t0)
+    out = Branches(result.branches, plan.problem, result.snaps, result.warnings,
+                   time.perf_counter() - t0)
     if result.interrupted:
         raise Interrupted(out)
     return out
 
 
-def save(branches: Iterable[Branch], path, *, run: str | None = None) -> Path:
+def save(branches: Iterable[Branch], path, *, problem=None, run: str | None = None) -> Path:
     """Write ``branches`` to the branch file ``path`` (HDF5, as ``elastica-auto run``
     writes; read it back with :class:`~elastica_auto.store.BranchFile`).
 
     The file is written to a temporary name and renamed over ``path``. Labels are numbered
     through the file in branch and point order (the branches keep their own numbering).
-    ``run`` names the run in the file (default: the file's stem). Snap-back targets are
-    saved if ``branches`` came from one :func:`continuation`.
+    ``problem``: the branches' (default: that of the :func:`continuation` they came from; a
+    list put together from several needs it). ``run`` names the run in the file (default:
+    the file's stem). Snap-back targets are saved if ``branches`` is one continuation's.
     """
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
         raise PlanError("branches", "expected a non-empty list of branches")
-    problem = branches[0].problem
-    if any(b.problem is not problem for b in branches):
-        raise PlanError("branches", "all branches of a file must be of one problem")
+    problem = problem if problem is not None else getattr(given, "problem", None)
+    if problem is None:
+        raise PlanError("problem", "a list of branches needs problem= (the problem they "
+                        "were computed for)")
+    names = (tuple(problem.parameter_names), tuple(problem.ordinate_names))
+    if any(b.equation != problem.source or (b.parameter_names, b.ordinate_names) != names
+           for b in branches):
+        raise PlanError("branches", f"all branches of a file must be of {problem.source}")
     path = Path(path)
     if path.suffix != ".h5":
         raise StoreError(f"{path}: a branch file is named <name>.h5")

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .problem import Problem
 from .solution import State, Tangent
 from .stability import index
 
@@ -87,15 +86,41 @@ class Point:
         return f"{self.type}{self.label}" if self.type else ""
 
 
+def new_point(problem, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
+              niter: int = 0, tangent: Tangent | None = None,
+              fold_residual: float = float("nan"), note: str = "",
+              direct: int | None = None) -> Point:
+    """The point of a branch at ``state``: its parameter values (free ones included), its
+    ordinates, its profile on PROFILE_GRID and its stability index by direct count
+    (``direct`` if the caller has it, unknown where an ordinate is not finite); a labelled
+    point keeps its solution and tangent."""
+    if type and type not in LABEL_TYPES:
+        raise ValueError(f"unknown label type {type!r}")
+    ordinates = problem.ordinate_values(state.s, state.y, state.params)
+    if not all(math.isfinite(v) for v in ordinates.values()):
+        direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
+    elif direct is None:
+        direct = index(problem, state)
+    return Point(params=problem.point_params(state.params, state.y), ordinates=ordinates,
+                 arclength=float(arclength), ds=float(ds), niter=int(niter),
+                 nodes=len(state.s), type=type, profile=state(PROFILE_GRID),
+                 fold_residual=float(fold_residual), note=note,
+                 state=state if type else None, tangent=tangent if type else None,
+                 index_direct=direct)
+
+
 @dataclass
 class Branch:
-    """The points of one continuation in one direction, in order of pseudo-arclength."""
+    """The points of one continuation in one direction, in order of pseudo-arclength: a plain
+    record (it pickles), named after its problem's parameters and ordinates."""
 
-    problem: Problem
     parameter: str
     direction: int
     start: str
     options: dict
+    equation: str = ""
+    parameter_names: tuple[str, ...] = ()
+    ordinate_names: tuple[str, ...] = ()
     singular_start: bool = False
     points: list[Point] = field(default_factory=list)
     end: str = ""
@@ -103,30 +128,18 @@ class Branch:
     diagnostics: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     seconds: float = 0.0
-    last: tuple[State, Tangent | None] | None = None
     interrupted: bool = False
     number: int = 0
 
-    def add(self, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
-            niter: int = 0, tangent: Tangent | None = None, fold_residual: float = float("nan"),
-            note: str = "", direct: int | None = None) -> Point:
-        """Insert a point at its place in arclength order; labelled points keep their solution.
+    @classmethod
+    def of(cls, problem, parameter: str, direction: int, start: str, options: dict,
+           **fields) -> "Branch":
+        """An empty branch of ``problem``."""
+        return cls(parameter, direction, start, options, problem.source,
+                   tuple(problem.parameter_names), tuple(problem.ordinate_names), **fields)
 
-        ``direct`` is the stability index by direct count if the caller has computed it."""
-        if type and type not in LABEL_TYPES:
-            raise ValueError(f"unknown label type {type!r}")
-        ordinates = self.problem.ordinate_values(state.s, state.y, state.params)
-        if not all(math.isfinite(v) for v in ordinates.values()):
-            direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
-        elif direct is None:
-            direct = index(self.problem, state)
-        point = Point(params=dict(state.params), ordinates=ordinates,
-                      arclength=float(arclength), ds=float(ds), niter=int(niter),
-                      nodes=len(state.s), type=type, profile=state(PROFILE_GRID),
-                      fold_residual=float(fold_residual), note=note,
-                      state=state if type else None, tangent=tangent if type else None,
-                      index_direct=direct)
-        self.last = (state, tangent)
+    def insert(self, point: Point) -> Point:
+        """Put ``point`` at its place in arclength order."""
         if not self.points or point.arclength >= self.points[-1].arclength:
             self.points.append(point)
         else:
@@ -153,7 +166,7 @@ class Branch:
         for pt, p in enumerate(self.points, 1):
             if p.type and p.name == name:
                 return StoredLabel(name, self.number, pt, p.state, p.tangent, self.parameter,
-                                   None, self.problem.source)
+                                   None, self.equation)
         names = [p.name for p in self.points if p.type]
         raise KeyError(f"no label {name!r} on this branch; labels: {', '.join(names) or 'none'}")
 
@@ -175,14 +188,14 @@ class Branch:
         """Every column (:func:`column_names`) as an array, one row per point:
         ``branch.columns["psi"]``, ``branch.columns["index"]``."""
         return {name: self.column(name) for name in
-                column_names(self.problem.parameter_names, self.problem.ordinate_names)}
+                column_names(self.parameter_names, self.ordinate_names)}
 
     def column(self, name: str) -> np.ndarray:
         """One of :attr:`columns`, computed alone."""
         pts = self.points
-        if name in self.problem.parameters:
+        if name in self.parameter_names:
             return np.array([p.params[name] for p in pts], dtype=float)
-        if name in self.problem.ordinates:
+        if name in self.ordinate_names:
             return np.array([p.ordinates[name] for p in pts], dtype=float)
         if name == "branch":
             return np.full(len(pts), self.number)
@@ -195,5 +208,5 @@ class Branch:
             return np.array(values, dtype=object)
         if name in (*INDEX_COLUMNS, *EXTRA_COLUMNS):
             return np.array([getattr(p, name) for p in pts])
-        names = column_names(self.problem.parameter_names, self.problem.ordinate_names)
+        names = column_names(self.parameter_names, self.ordinate_names)
         raise KeyError(f"no column {name!r}; columns: {', '.join(names)}")

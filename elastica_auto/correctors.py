@@ -206,7 +206,8 @@ class Collocation:
         row = Row.value(disc, value)
         res = self._newton(disc, params, guess.y, value, row, lin)
         p = {**params, self.parameter: value}
-        return State(disc.s, res.Y, self.problem.rhs(disc.s, res.Y, p), p)
+        return State(disc.s, res.Y, self.problem.rhs(disc.s, res.Y, p),
+                     self.problem.point_params(p, res.Y))
 
     def point(self, guess: State) -> Solution:
         """The solution at the guess's parameters, from the guess, on a mesh that meets
@@ -274,7 +275,7 @@ class Collocation:
             ev = disc.evaluate(res.Y, p)
             rms = np.maximum(disc.rms_residuals(res.Y, ev.f, p, ev),
                              disc.linear_rms_residuals(res.Y, p, res.phi.y))
-            state = State(disc.s, res.Y, ev.f, p)
+            state = State(disc.s, res.Y, ev.f, self.problem.point_params(p, res.Y))
             if rms.max() <= opt.fold_tol:
                 return FoldPoint(state, res.phi, float(rms.max()))
             disc = self.disc(equidistributed_mesh(disc.s, rms, FOLD_TARGET * opt.fold_tol,

@@ -79,6 +79,43 @@ class Step:
         return self.arclength + self.ds * sigma / self.dist
 
 
+@dataclass
+class Located:
+    """A point located inside a step: its solution (linearised on its hyperplane), its
+    coordinate sigma along the secant, and the test function's value there."""
+
+    solution: Solution
+    sigma: float
+    value: float
+
+
+def along(corr, step: Step, fn, lo: float = 0.0, hi: float | None = None, s=None,
+          ends: tuple[float, float] | None = None, xtol: float = 1e-12) -> Located:
+    """Where the test function ``fn(solution)`` changes sign along the step: the solution on
+    the hyperplane ``<x - a, secant> = sigma`` found by the Illinois method in sigma in
+    [lo, hi] (default the whole step), on the mesh ``s`` (default b's), to ``xtol`` of the
+    step. ``ends``: fn at lo and hi where known (None where not). The one locator of every
+    event but folds.
+    CorrectorFailure if fn has one sign at both ends."""
+    s = step.b.mesh if s is None else s
+    hi = step.dist if hi is None else hi
+    found = {}
+
+    def f(sigma):
+        sol = corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
+        found[sigma] = sol
+        return fn(sol)
+
+    f0, f1 = ends or (None, None)
+    f0 = f(lo) if f0 is None else f0
+    f1 = f(hi) if f1 is None else f1
+    if f0 * f1 > 0:
+        raise CorrectorFailure("no sign change along the step")
+    sigma = _illinois(f, lo, hi, f0, f1, xtol * step.dist)
+    value = f(sigma) if sigma not in found else fn(found[sigma])
+    return Located(found[sigma], sigma, value)
+
+
 def _illinois(f, x0, x1, f0, f1, xtol, maxiter=60):
     """A root of f in [x0, x1] with f0 f1 < 0 by the Illinois variant of regula falsi."""
     for _ in range(maxiter):
@@ -140,20 +177,10 @@ def _same(x: State, y: State, name: str) -> bool:
 
 
 def _slope_root(corr, step: Step) -> Solution:
-    """The solution on the step where the tangent's parameter component vanishes, by the
-    Illinois method on the hyperplanes (to 1e-6 of the step)."""
-    found = {}
-
-    def lamdot(sigma):
-        sol = corr.on_plane(step.a, step.secant, sigma, step.b.mesh, regrid=False)
-        found[sigma] = sol
-        return sol.tangent.lam
-
-    sigma = _illinois(lamdot, 0.0, step.dist, step.a.tangent.lam, step.b.tangent.lam,
-                      1e-6 * step.dist)
-    if sigma not in found:
-        lamdot(sigma)
-    return found[sigma]
+    """The solution on the step where the tangent's parameter component vanishes (to 1e-6
+    of the step)."""
+    return along(corr, step, lambda sol: sol.tangent.lam,
+                 ends=(step.a.tangent.lam, step.b.tangent.lam), xtol=1e-6).solution
 
 
 def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]:
@@ -169,39 +196,37 @@ def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]
     return lin.sign, lin.fact.logdet
 
 
-def locate_branch_point(corr, step: Step) -> tuple[Solution, float, float]:
+def locate_branch_point(corr, step: Step) -> Located:
     """The branch point between a and b, where the determinant changes sign: the root of
     ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
     and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
-    equidistributed ones. Returns (solution, sigma, |scaled determinant| there)."""
+    equidistributed ones. ``value``: the scaled determinant there."""
     name = step.name
     s, lo, hi = step.b.mesh, 0.0, step.dist
     for _ in range(4):
-        sol, sigma, value = _branch_point_on(corr, step, s, lo, hi)
+        bp = _branch_point_on(corr, step, s, lo, hi)
+        sol = bp.solution
         v, v_lam = kernel(sol.lin)
         disc = sol.lin.disc
         rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
                                                            v, v_lam, name))
         if rms.max() <= corr.options.fold_tol:
-            return sol, sigma, value
+            return bp
         s = corr.regrid(s, rms, corr.options.fold_tol)
         width = 0.02 * step.dist
-        lo, hi = max(sigma - width, 0.0), min(sigma + width, step.dist)
+        lo, hi = max(bp.sigma - width, 0.0), min(bp.sigma + width, step.dist)
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
 
 
-def _branch_point_on(corr, step: Step, s, lo: float, hi: float):
+def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
     """The root of the scaled determinant on mesh ``s``, bracketed in [lo, hi] if possible,
     else in [0, dist]."""
     sec, a = step.secant, step.a
-    found = {}
 
     def det(sigma):
-        sol = corr.on_plane(a, sec, sigma, s, regrid=False) if sigma else None
-        sign, logdet = _det_on(corr, sol or a, sec, s)
-        found[sigma] = sol
-        return sign, logdet
+        sol = corr.on_plane(a, sec, sigma, s, regrid=False) if sigma else a
+        return _det_on(corr, sol, sec, s)
 
     (sign0, ref), (sign1, log1) = det(lo), det(hi)
     if sign0 * sign1 >= 0 and (lo, hi) != (0.0, step.dist):
@@ -210,14 +235,12 @@ def _branch_point_on(corr, step: Step, s, lo: float, hi: float):
     if sign0 * sign1 >= 0:
         raise CorrectorFailure("the determinant does not change sign along the secant")
 
-    def tau(sigma):
-        sign, logdet = det(sigma)
+    def tau(sol):
+        sign, logdet = _det_on(corr, sol, sec, s)
         return sign * math.exp(min(logdet - ref, 700.0))
 
-    sigma = _illinois(tau, lo, hi, float(sign0), sign1 * math.exp(min(log1 - ref, 700.0)),
-                      1e-12 * step.dist)
-    value = tau(sigma)
-    return found[sigma], sigma, abs(value)
+    return along(corr, step, tau, lo, hi, s,
+                 ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))))
 
 
 def pair_suspected(step: Step, dip: float = 0.5) -> float | None:
@@ -267,21 +290,25 @@ def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
             return state, min(max(sigma, s0), s1)
     except CorrectorFailure:
         pass
-    found = {}
 
-    def lam(sigma):
-        sol = corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
-        found[sigma] = sol
+    def lam(sol):
         return sol.lam - value
 
-    f0 = lam(s0) if s0 > 0 else step.a.lam - value
-    f1 = lam(s1) if s1 < step.dist else step.b.lam - value
-    if f0 * f1 > 0:
-        raise CorrectorFailure(f"{name} does not cross {value:.6g} in this step")
-    sigma = _illinois(lam, s0, s1, f0, f1, 1e-12 * step.dist)
-    if sigma not in found:
-        lam(sigma)
-    return corr.at_value(found[sigma].state, y.params, value, lin=found[sigma].lin), sigma
+    ends = (step.a.lam - value if s0 == 0.0 else None,
+            step.b.lam - value if s1 == step.dist else None)
+    try:
+        at = along(corr, step, lam, s0, s1, s, ends=ends)
+    except CorrectorFailure:
+        raise CorrectorFailure(f"{name} does not cross {value:.6g} in this step") from None
+    sol = at.solution
+    return corr.at_value(sol.state, y.params, value, lin=sol.lin), at.sigma
+
+
+def locate_limit(corr, problem, step: Step, limit) -> Located:
+    """Where a limit on an ordinate or a free parameter (``stop = ["u_max > 5"]``) is
+    reached inside the step, its excess passing zero."""
+    return along(corr, step, lambda sol: limit.excess(problem, sol.state),
+                 ends=(limit.excess(problem, step.a.state), limit.excess(problem, step.b.state)))
 
 
 def tangent_between(step: Step, sigma: float) -> Tangent:

@@ -90,7 +90,8 @@ class Linearization:
         return self.fact.sign
 
     def state(self) -> State:
-        return State(self.disc.s, self.Y, self.ev.f, self.params)
+        return State(self.disc.s, self.Y, self.ev.f,
+                     self.disc.problem.point_params(self.params, self.Y))
 
     def tangent(self) -> Tangent:
         """The unit tangent: the kernel of ``[F_y, F_lam]``, ``<row, t> > 0``."""

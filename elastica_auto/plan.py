@@ -15,11 +15,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Iterable, Mapping, Union
 
-from .errors import PlanError
+from .augmented import Augmented
+from .errors import PlanError, ProblemError
 from .events import UserValues
+from .expressions import evaluate
 from .options import ContinuationOptions, OptionsError
 from .problem import Problem
-from .stepper import Stops
+from .stepper import Course, Limit, Stops
 from .store import StoredLabel
 
 #: ``directions``: the signs of the steps from each start.
@@ -91,25 +93,41 @@ class Plan:
     def output_name(self) -> str:
         return f"{self.name}.h5"
 
+    @property
+    def course(self) -> Course:
+        return Course(self.parameter, self.options, self.stops, tuple(self.user_values))
+
 
 def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
               params: Mapping[str, float | Iterable[float]] | None = None,
               bounds: tuple[float, float] | None = None, directions: str = "+",
               uz: Iterable[float] = (), uz_period: float | None = None,
-              stop: Iterable[str] = (), switch: int = 0,
+              stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
               options: Mapping[str, object] | ContinuationOptions | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
     The branches are, for each combination of the ``params`` values (a list gives one set of
     branches per value; the first parameter varies slowest), each start in order, each
-    direction. Raises :class:`PlanError` naming the argument at fault.
+    direction. ``free`` names the parameters solved for where the module has more conditions
+    than states (default: its ``FREE``); the plan's problem then carries them
+    (`elastica_auto.augmented`). Raises :class:`PlanError` naming the argument at fault.
     """
-    if not isinstance(problem, Problem):
+    if not isinstance(problem, (Problem, Augmented)):
         raise PlanError("problem", f"expected a problem from load_problem(), got "
                         f"{type(problem).__name__}")
+    if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
+                             or not all(isinstance(q, str) for q in free)):
+        raise PlanError("free", f"expected a list of parameter names, got {free!r}")
+    try:
+        problem = problem.with_free(None if free is None else tuple(free))
+    except ProblemError as exc:
+        raise PlanError("free", str(exc)) from None
     if not isinstance(parameter, str) or parameter not in problem.parameters:
         raise PlanError("parameter", f"unknown parameter {parameter!r}; {problem.source} "
                         f"declares {', '.join(problem.parameter_names)}")
+    if parameter in getattr(problem, "free", ()) and isinstance(problem, Augmented):
+        raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
+                        "continue in another one")
     if not isinstance(directions, str) or directions not in DIRECTIONS:
         raise PlanError("directions", f"expected one of {', '.join(map(repr, DIRECTIONS))}, "
                         f"got {directions!r}")
@@ -139,7 +157,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
                 raise PlanError("params", f"{', '.join(twice)} given both in the start and "
                                 "in params")
             specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
-    return Plan(problem, parameter, opts, Stops(lower, upper, _at_fold(stop)), user_values,
+    at_fold, limits = _stops(problem, stop)
+    return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
                 specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch)
 
 
@@ -172,18 +191,36 @@ def _user_values(uz, uz_period) -> list[UserValues]:
     return [UserValues(values, uz_period and float(uz_period))] if values else []
 
 
-def _at_fold(stop) -> int | None:
-    """``stop = ["LP4"]``: the fold count at which a branch ends (the smallest given)."""
+def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
+    """``stop = ["LP4", "u_max > 100"]``: the fold count at which a branch ends (the
+    smallest given), and the limits on ordinates or free parameters."""
     if isinstance(stop, (str, bytes)) or not isinstance(stop, Iterable):
         raise PlanError("stop", f"expected a list such as [\"LP4\"], got {stop!r}")
-    at = None
+    at, limits = None, []
+    names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
     for item in stop:
+        if not isinstance(item, str):
+            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
+                            f"got {item!r}")
+        op = ">" if ">" in item else "<" if "<" in item else None
+        if op is not None:
+            name, _, text = (x.strip() for x in item.partition(op))
+            if name not in names:
+                raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
+                                f"parameter ({', '.join(names) or 'none'})")
+            try:
+                value = evaluate(text)
+            except ValueError as exc:
+                raise PlanError("stop", f"{item!r}: {exc}") from None
+            limits.append(Limit(name, 1 if op == ">" else -1, value))
         # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
-        if not (isinstance(item, str) and item.startswith("LP") and item[2:].isascii()
-                and item[2:].isdigit() and int(item[2:]) > 0):
-            raise PlanError("stop", f"expected entries like \"LP4\", got {item!r}")
-        at = min(int(item[2:]), at or math.inf)
-    return at
+        elif item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
+                and int(item[2:]) > 0:
+            at = min(int(item[2:]), at or math.inf)
+        else:
+            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
+                            f"got {item!r}")
+    return at, tuple(limits)
 
 
 def _options(options) -> ContinuationOptions:

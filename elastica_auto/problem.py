@@ -16,7 +16,8 @@ An equation module is a plain Python file. It declares
     vectorised right-hand side, ``s`` shape (m,), ``y`` shape (n, m), returns (n, m);
     ``p`` is a ``dict`` of parameter values by name.
 ``bc(ya, yb, p)``
-    the n boundary residuals, shape (n,).
+    the boundary residuals, shape (n,); or (n + r,) with r more conditions than states, for
+    as many free parameters (AUTO-07p's NBC > NDIM; below).
 
 and optionally
 
@@ -26,6 +27,16 @@ and optionally
 ``exact_start(s, p)``
     an exact solution on the mesh ``s`` for parameter values ``p``, or ``None`` where the module
     knows none (used by ``start = "trivial"`` in run files).
+``guess(s, p)``
+    an approximate solution (n, len(s)) at ``p``, or ``None``; where there is no exact start,
+    a start from parameter values solves the problem there from this guess first.
+``INTEGRALS``, ``integrals(s, y, p)`` -> (q, m)
+    names of q integral conditions ``int_0^1 phi_j(s, y; p) ds = 0`` and their integrands
+    (AUTO-07p's NINT); optionally ``integrals_jac(s, y, p)`` -> (q, n, m) and
+    ``integrals_dp(s, y, p, name)`` -> (q, m).
+``FREE``
+    the parameters solved for when there are more conditions (r + q) than states: as many
+    names as extra conditions. A run may name others (``free = [...]``).
 ``second_variation(s, y, p)`` -> ``(a, b, c)``
     the second variation in scalar form ``int_0^1 (a h'^2 + b h^2) ds + c h(1)^2`` with
     ``h(0) = 0`` (a > 0; a, b arrays on s or scalars, c a scalar); enables the stability index
@@ -34,6 +45,10 @@ and optionally
     a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
     [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
     (see `elastica_auto.snaps`).
+``draw(ax, profile, params)``
+    draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
+    solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
+    values; enables the configurations in figures (see `elastica_auto.plots.layout`).
 
 Only equation modules know any physics; everything in `elastica_auto` is generic.
 """
@@ -170,6 +185,25 @@ class Problem:
         self._exact_start = getattr(module, "exact_start", None)
         self._second_variation = getattr(module, "second_variation", None)
         self._shooting = getattr(module, "shooting", None)
+        self._draw = getattr(module, "draw", None)
+        if self._draw is not None and not callable(self._draw):
+            raise ProblemError(f"{source}: draw must be a function draw(ax, profile, params), "
+                               f"got {type(self._draw).__name__}")
+        self._guess = getattr(module, "guess", None)
+        self.integral_names = _sequence(source, "INTEGRALS", getattr(module, "INTEGRALS", ()),
+                                        str)
+        self._integrals = getattr(module, "integrals", None)
+        self._integrals_jac = getattr(module, "integrals_jac", None)
+        self._integrals_dp = getattr(module, "integrals_dp", None)
+        if bool(self.integral_names) != (self._integrals is not None):
+            raise ProblemError(f"{source}: INTEGRALS and integrals(s, y, p) go together; "
+                               "define both or neither")
+        self.free = _sequence(source, "FREE", getattr(module, "FREE", ()), str)
+        unknown = [q for q in self.free if q not in self.parameters]
+        if unknown:
+            raise ProblemError(f"{source}: FREE names unknown parameters {unknown}; "
+                               f"PARAMETERS are {', '.join(self.parameters)}")
+        self.nbc = self.n
         self._check_shapes()
 
     # -- names ---------------------------------------------------------------------------------
@@ -215,11 +249,11 @@ class Problem:
         return jac
 
     def bc_jac(self, ya, yb, p):
-        """(dbc/dya, dbc/dyb), each (n, n): the module's, or central differences."""
+        """(dbc/dya, dbc/dyb), each (nbc, n): the module's, or central differences."""
         if self._bc_jac is not None:
             return self._bc_jac(ya, yb, p)
-        da = np.empty((self.n, self.n))
-        db = np.empty((self.n, self.n))
+        da = np.empty((self.nbc, self.n))
+        db = np.empty((self.nbc, self.n))
         for j in range(self.n):
             e = np.zeros(self.n)
             e[j] = _fd_step(ya[j])
@@ -247,6 +281,76 @@ class Problem:
     def ordinate_values(self, s, y, p) -> dict[str, float]:
         return {k: float(o.fn(s, y, p)) for k, o in self.ordinates.items()}
 
+    def point_params(self, params: dict, y) -> dict[str, float]:
+        """The parameter values of a solution (free parameters are part of ``y`` in
+        `elastica_auto.augmented`; here there are none)."""
+        return dict(params)
+
+    # -- integral conditions and free parameters ---------------------------------------------
+    @property
+    def extra_conditions(self) -> int:
+        """Conditions beyond one per state: extra boundary rows plus integral conditions; the
+        number of free parameters a continuation needs."""
+        return self.nbc - self.n + len(self.integral_names)
+
+    def integrals(self, s, y, p):
+        """The integrands phi (q, m) of the conditions int_0^1 phi ds = 0."""
+        out = np.asarray(self._integrals(s, y, p), dtype=float)
+        if out.shape != (len(self.integral_names), y.shape[1]):
+            raise ProblemError(f"{self.source}: integrals(s, y, p) returned shape {out.shape}; "
+                               f"expected {(len(self.integral_names), y.shape[1])}")
+        return out
+
+    def integrals_jac(self, s, y, p):
+        """d phi / dy, shape (q, n, m): the module's, or central differences."""
+        if self._integrals_jac is not None:
+            return np.asarray(self._integrals_jac(s, y, p), dtype=float)
+        jac = np.empty((len(self.integral_names), self.n, y.shape[1]))
+        for j in range(self.n):
+            h = _fd_step(y[j])
+            yp, ym = y.copy(), y.copy()
+            yp[j] += h
+            ym[j] -= h
+            jac[:, j, :] = (self.integrals(s, yp, p) - self.integrals(s, ym, p)) / (2 * h)
+        return jac
+
+    def integrals_dp(self, s, y, p, name):
+        """d phi / d(p[name]), shape (q, m)."""
+        if self._integrals_dp is not None:
+            return np.asarray(self._integrals_dp(s, y, p, name), dtype=float)
+        h = _fd_step(p[name])
+        return (self.integrals(s, y, {**p, name: p[name] + h})
+                - self.integrals(s, y, {**p, name: p[name] - h})) / (2 * h)
+
+    def with_free(self, free=None) -> "Problem":
+        """The problem the engine solves: this one if it has one condition per state, else
+        the one with the integral conditions and the free parameters ``free`` (default the
+        module's ``FREE``) carried as extra states (`elastica_auto.augmented`).
+        ProblemError if the number of free parameters is not the number of extra
+        conditions."""
+        free = tuple(self.free if free is None else free)
+        if not free and not self.extra_conditions:
+            return self
+        from .augmented import Augmented
+        return Augmented(self, free)
+
+    @property
+    def has_guess(self) -> bool:
+        return self._guess is not None
+
+    def guess(self, s, p):
+        """The module's approximate solution on mesh ``s`` at ``p``, or None."""
+        if self._guess is None:
+            return None
+        y = self._guess(s, p)
+        if y is None:
+            return None
+        y = np.asarray(y, dtype=float)
+        if y.shape != (self.n, len(s)):
+            raise ProblemError(f"{self.source}: guess(s, p) returned shape {y.shape}; "
+                               f"expected {(self.n, len(s))} = (len(STATES), len(s))")
+        return y
+
     @property
     def has_second_variation(self) -> bool:
         return self._second_variation is not None
@@ -262,6 +366,18 @@ class Problem:
     def shooting(self, p):
         """(k_lo, k_hi, initial(k) -> y(0), residual(y(0), y(1))) for enumerating equilibria."""
         return self._shooting(p)
+
+    @property
+    def has_draw(self) -> bool:
+        return self._draw is not None
+
+    def draw(self, ax, profile, params):
+        """Draw the configuration of ``profile`` (n, len(grid)) at ``params`` on ``ax``."""
+        profile = np.asarray(profile, dtype=float)
+        if profile.ndim != 2 or profile.shape[0] != self.n:
+            raise ProblemError(f"{self.source}: draw(ax, profile, params) needs a profile of "
+                               f"shape ({self.n}, len(grid)), got {profile.shape}")
+        self._draw(ax, profile, dict(params))
 
     def exact_start(self, s, p):
         """An exact solution on mesh ``s`` for parameters ``p``, or None if the module has none."""
@@ -292,19 +408,26 @@ class Problem:
 
         try:
             check("rhs(s, y, p) with y of shape (n, 3)", self.rhs(s, y, p), (n, m))
-            check("bc(ya, yb, p)", self.bc(y[:, 0], y[:, -1], p), (n,))
+            g = self.bc(y[:, 0], y[:, -1], p)
+            if g.ndim != 1 or len(g) < n:
+                raise ProblemError(f"{self.source}: bc(ya, yb, p) returned shape {g.shape}; "
+                                   f"expected ({n},), or more conditions than states")
+            self.nbc = nbc = len(g)
+            if self._integrals is not None:
+                check("integrals(s, y, p)", self.integrals(s, y, p),
+                      (len(self.integral_names), m))
             if self._rhs_jac is not None:
                 check("rhs_jac(s, y, p)", self._rhs_jac(s, y, p), (n, n, m))
             if self._bc_jac is not None:
                 da, db = self._bc_jac(y[:, 0], y[:, -1], p)
-                check("bc_jac(ya, yb, p)[0]", da, (n, n))
-                check("bc_jac(ya, yb, p)[1]", db, (n, n))
+                check("bc_jac(ya, yb, p)[0]", da, (nbc, n))
+                check("bc_jac(ya, yb, p)[1]", db, (nbc, n))
             for name in self.parameters:
                 if self._rhs_dp is not None:
                     check(f"rhs_dp(s, y, p, {name!r})", self._rhs_dp(s, y, p, name), (n, m))
                 if self._bc_dp is not None:
                     check(f"bc_dp(ya, yb, p, {name!r})", self._bc_dp(y[:, 0], y[:, -1], p, name),
-                          (n,))
+                          (nbc,))
             for o in self.ordinates.values():
                 v = o.fn(s, y, p)
                 if np.ndim(v) != 0:

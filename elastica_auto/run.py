@@ -12,7 +12,6 @@ import os
 import signal
 import threading
 import time
-import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,14 +20,15 @@ from typing import Callable
 import numpy as np
 
 from . import store
-from .branch import PROFILE_GRID, Branch, Point
+from .augmented import Augmented
+from .branch import Branch
 from .correctors import CorrectorFailure, make_corrector
 from .errors import USER_ERRORS, RunFileError
 from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
 from .snaps import snap_targets
 from .stability import label_stability
-from .stepper import continue_branch
+from .stepper import Origin, continue_branch, start_point
 from .switching import switch_direction
 
 
@@ -52,31 +52,18 @@ class RunResult:
 
 @dataclass
 class Job:
-    """One branch to compute: its spec and its start (state, tangent).
-
-    ``singular`` marks a start at a fold or branch point (a restart from an LP or BP label, or
-    a switch); ``exact`` marks a switch, where ``tangent`` is the direction of the other branch,
-    used as it is (the bordered tangent system is singular there)."""
+    """One branch to compute: its spec and where it starts."""
 
     spec: BranchSpec
-    state: State
-    tangent: Tangent | None
-    singular: bool = False
-    exact: bool = False
+    origin: Origin
 
 
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
     """The start of a branch: an exact solution, a stored label, or the other branch at a BP."""
     problem, opt = plan.problem, plan.options
     if spec.start.kind == "trivial":
-        params = {**problem.defaults(), **spec.params}
-        s = np.linspace(0.0, 1.0, opt.ntst + 1)
-        y = problem.exact_start(s, params)
-        if y is None:
-            fixed = ", ".join(f"{k}={v:g}" for k, v in params.items())
-            raise StartError(f"{problem.source} has no exact start at {fixed}; "
-                             "start from a label (start = \"FILE.h5:LABEL\")")
-        return _checked(plan, Job(spec, State.from_values(problem, s, y, params), None))
+        return _checked(plan, Job(spec, Origin(_from_values(plan, {**problem.defaults(),
+                                                                   **spec.params}))))
     stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
     state, tangent = stored.state, stored.tangent
     if spec.start.kind == "switch":
@@ -95,7 +82,35 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
                              f"({exc})") from None
         tangent = None
     singular = spec.start.label[:2] in ("LP", "BP") and params == stored.state.params
-    return _checked(plan, Job(spec, state, tangent, singular=singular))
+    return _checked(plan, Job(spec, Origin(state, tangent,
+                                           "singular" if singular else "regular")))
+
+
+def _from_values(plan: Plan, params: dict) -> State:
+    """The start at parameter values: the module's exact solution there; or, where it has
+    none, its guess, solved from at those values (as is every start of a problem with
+    integral conditions or free parameters, whose completed start is only approximate)."""
+    problem, opt = plan.problem, plan.options
+    s = np.linspace(0.0, 1.0, opt.ntst + 1)
+    y = problem.exact_start(s, params)
+    solve = y is None or isinstance(problem, Augmented)
+    what = "its exact start"
+    if y is None:
+        y, what = problem.guess(s, params), "its guess"
+    fixed = ", ".join(f"{k}={v:g}" for k, v in params.items())
+    if y is None:
+        raise StartError(f"{problem.source} has no exact start or guess at {fixed}; "
+                         "start from a label (start = \"FILE.h5:LABEL\")")
+    state = State.from_values(problem, s, y, params)
+    if not solve:
+        return state
+    try:
+        state = make_corrector(problem, plan.parameter, opt).point(state).state
+    except CorrectorFailure as exc:
+        raise StartError(f"{problem.source}: no solution found from {what} at {fixed} "
+                         f"({exc})") from None
+    state.params = problem.point_params(state.params, state.y)
+    return state
 
 
 def _built(plan: Plan, spec: BranchSpec) -> Job:
@@ -121,13 +136,13 @@ def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | N
         raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
                          "of the linearised problem not found)")
     d = spec.direction
-    return _checked(plan, Job(spec, state, Tangent(direction.s, d * direction.y,
-                                                   d * direction.yp, d * direction.lam),
-                              singular=True, exact=True))
+    return _checked(plan, Job(spec, Origin(state, Tangent(direction.s, d * direction.y,
+                                                          d * direction.yp, d * direction.lam),
+                                           "switch")))
 
 
 def _checked(plan: Plan, job: Job) -> Job:
-    lam = job.state.params[plan.parameter]
+    lam = job.origin.state.params[plan.parameter]
     if not plan.stops.lower <= lam <= plan.stops.upper:
         raise StartError(f"{job.spec.start}: the start has {plan.parameter} = {lam:g}, outside "
                          f"the bounds [{plan.stops.lower:g}, {plan.stops.upper:g}]")
@@ -152,14 +167,10 @@ Progress = Callable[[int, int, int, float], None]
 
 def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = None,
                    should_stop: Callable[[], bool] | None = None) -> Branch:
-    """Continue branch number ``k`` of the file from ``job``'s start.
-
-    Ctrl-C (or ``should_stop()`` turning true) ends the branch early: it keeps every point
-    computed so far, its last point is labelled MX and ``branch.interrupted`` is set. An
-    exception (the equation module raising, or returning what the engine cannot use) ends it
-    the same way, with the exception's type and message in ``branch.message`` and
-    ``branch.diagnostics``: one failing branch does not cost the run its other branches.
-    """
+    """Continue branch number ``k`` of the file from ``job``'s start, then label its
+    stability. Ctrl-C (or ``should_stop()`` turning true) or a failure ends the branch early
+    with MX, keeping every point computed so far (`elastica_auto.stepper.continue_branch`):
+    one failing branch does not cost the run its other branches."""
     br = _new_branch(plan, job)
 
     def on_step(b, lam):
@@ -169,69 +180,16 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
             progress(k, len(b.points), len(b.folds), lam)
 
     t0 = time.perf_counter()
-    try:
-        continue_branch(br, job.state, plan.options, plan.stops, plan.user_values, job.tangent,
-                        on_step, singular_start=job.singular, exact_tangent=job.exact)
-    except KeyboardInterrupt:
-        br.interrupted = True
-        _end_mx(br, job, "interrupted by the user")
-    except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
-        frames = traceback.extract_tb(exc.__traceback__)
-        # the module's own line if it raised, else where the engine met what it returned
-        module_file = getattr(plan.problem.module, "__file__", None)
-        at = next((f for f in reversed(frames) if f.filename == module_file), frames[-1])
-        where = f"{Path(at.filename).name}:{at.lineno} in {at.name}"
-        error = " ".join(str(exc).split())  # one line, as every message of a branch
-        state = br.last[0] if br.last is not None else job.state
-        when = f"after point {len(br.points)}" if br.points else "at the start"
-        _end_mx(br, job, f"{type(exc).__name__}: {error} ({where}) {when} "
-                         f"({plan.parameter} = {state.params[plan.parameter]:g})")
-        br.diagnostics = {"exception": type(exc).__name__, "error": str(exc), "where": where,
-                          "step": len(br.points),
-                          "traceback": [f"{f.filename}:{f.lineno} in {f.name}" for f in frames]}
-    label_stability(br)
+    continue_branch(br, plan.problem, plan.course, job.origin, on_step)
+    label_stability(br, plan.problem)
     br.seconds = time.perf_counter() - t0
     return br
 
 
 def _new_branch(plan: Plan, job: Job) -> Branch:
     spec = job.spec
-    return Branch(plan.problem, plan.parameter, spec.direction, str(spec.start),
-                  plan.options.to_dict(), singular_start=job.singular)
-
-
-def _end_mx(br: Branch, job: Job, message: str):
-    """End ``br`` early with ``message``: its last point becomes MX.
-
-    A branch that ended before its first point gets its start, labelled MX, so that every
-    branch in the file has a point to show and restart from (:func:`_start_point` if the
-    module fails there too).
-    """
-    br.end, br.message = "MX", message
-    if not br.points:
-        try:
-            br.add(job.state, type="MX", arclength=0.0, tangent=job.tangent)
-        except Exception:  # the module fails at the start itself
-            br.points.append(_start_point(br, job))
-        return
-    last = br.points[-1]
-    if last.type:  # keep its label (the start's EP, say); end with an MX of its own
-        br.add(last.state, type="MX", arclength=last.arclength, tangent=last.tangent,
-               direct=last.index_direct)
-    else:
-        br.relabel(last, "MX", *br.last)
-
-
-def _start_point(br: Branch, job: Job) -> Point:
-    """The start of ``job`` as an MX point, without calling the equation module (which may
-    be what failed, or may end the process): NaN ordinates, an unknown index, and the profile
-    interpolated linearly from the values alone (the derivatives may be what is broken)."""
-    state = job.state
-    return Point(params=dict(state.params),
-                 ordinates=dict.fromkeys(br.problem.ordinates, np.nan),
-                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
-                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
-                 state=state, tangent=job.tangent)
+    return Branch.of(plan.problem, plan.parameter, spec.direction, str(spec.start),
+                     plan.options.to_dict(), singular_start=job.origin.kind != "regular")
 
 
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
@@ -376,11 +334,8 @@ def _worker_branch(i: int) -> Branch | None:
             last[0] = now
             queue.put((k, npts, nfolds, lam))
 
-    br = compute_branch(plan, _WORKER["offset"] + i + 1, _WORKER["jobs"][i], progress,
-                        stop.is_set)
-    br.problem = None  # modules do not pickle; the parent puts its own back
-    br.last = None
-    return br
+    return compute_branch(plan, _WORKER["offset"] + i + 1, _WORKER["jobs"][i], progress,
+                          stop.is_set)
 
 
 def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
@@ -430,12 +385,11 @@ def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) ->
                     br.end = "MX"
                     br.message = f"not computed: {_one_line(exc)}"
                     br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
-                    br.points.append(_start_point(br, job))
+                    br.points.append(start_point(br, job.origin))
                 elif f.result() is None:
                     continue
                 else:
                     br = f.result()
-                    br.problem = plan.problem
                 done[futures[f]] = br
             while len(branches) - offset in done:
                 branches.append(done.pop(len(branches) - offset))

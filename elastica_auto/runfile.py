@@ -21,7 +21,9 @@ A run file (``runs/<name>.toml``)::
     parameter = "psi"                   # the continued parameter
     directions = "both"                 # "both", "+" or "-"
     bounds = ["-6*pi", "6*pi"]          # the branch ends (EP) where the parameter leaves these
-    stop = ["LP4"]                      # optional: end at the 4th fold
+    stop = ["LP4", "u_max > 100"]       # optional: end at the 4th fold, or where an ordinate
+                                        # (or a free parameter) passes a value
+    free = ["mu"]                       # optional: parameters solved for (the module's FREE)
     uz = [0, "pi/12"]                   # optional: user points (UZ)
     uz_period = "2*pi"                  # optional: UZ at every value + k * uz_period
 
@@ -35,15 +37,14 @@ unbounded by omitting ``bounds``, never by writing ``inf``.
 
 from __future__ import annotations
 
-import ast
 import math
-import operator
 import tomllib
 from dataclasses import fields
 from pathlib import Path
 from typing import Sequence
 
 from .errors import PlanError, RunFileError, StoreError
+from .expressions import evaluate
 from .options import ContinuationOptions
 from .plan import BranchSpec, Plan, Start, Switch, make_plan
 from .problem import Problem, ProblemError, load_problem
@@ -52,52 +53,9 @@ from .store import BranchFile, StoredLabel
 __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 
-_FUNCS = {"sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "tan": math.tan,
-          "exp": math.exp, "log": math.log, "abs": abs}
-_CONSTS = {"pi": math.pi, "e": math.e}
-_BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
-           ast.Div: operator.truediv, ast.Pow: operator.pow}
-_UNOPS = {ast.USub: operator.neg, ast.UAdd: operator.pos}
-
-
-def evaluate(text: str) -> float:
-    """Evaluate an arithmetic expression such as ``"9*pi^2/4"`` (``^`` means power).
-
-    Only numbers, the constants pi, e, the functions sqrt, sin, cos, tan, exp, log, abs and
-    + - * / ** are allowed, and the value must be a finite real number; anything else raises
-    ValueError.
-    """
-    def ev(node):
-        if isinstance(node, ast.Expression):
-            return ev(node.body)
-        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
-                and not isinstance(node.value, bool):
-            return float(node.value)
-        if isinstance(node, ast.Name) and node.id in _CONSTS:
-            return _CONSTS[node.id]
-        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-            return _BINOPS[type(node.op)](ev(node.left), ev(node.right))
-        if isinstance(node, ast.UnaryOp) and type(node.op) in _UNOPS:
-            return _UNOPS[type(node.op)](ev(node.operand))
-        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-                and node.func.id in _FUNCS and len(node.args) == 1 and not node.keywords):
-            return float(_FUNCS[node.func.id](ev(node.args[0])))
-        raise ValueError(f"not allowed in an expression: {ast.dump(node)[:40]}")
-
-    try:
-        value = ev(ast.parse(str(text).replace("^", "**"), mode="eval"))
-    except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
-        raise ValueError(f"cannot evaluate {text!r}: {exc}") from exc
-    except (RecursionError, MemoryError) as exc:  # the parser's or ev's stack, nested too deep
-        raise ValueError(f"cannot evaluate {str(text)[:20]!r}...: nested too deeply") from exc
-    if isinstance(value, complex) or not math.isfinite(value):
-        raise ValueError(f"{text!r} is not a finite real number")
-    return float(value)
-
-
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
-_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period"}
+_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
 
 
@@ -215,6 +173,7 @@ class _Document:
                 self.fail(key, f"unknown key; expected one of {sorted(_TOP)}")
         self.seen = []  # (parameters, ordinates) of the equilibria selected so far
         self._problem: Problem | None = None
+        self._branch_files: dict[Path, BranchFile] = {}  # by resolved path: each opened once
 
     def fail(self, key, msg):
         raise RunFileError(f"{self.path}: {key}: {msg}")
@@ -276,10 +235,11 @@ class _Document:
             if not isinstance(b, list) or len(b) != 2:
                 self.fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
             out["bounds"] = [self.number("[continuation] bounds", v) for v in b]
-        for key in ("stop", "uz"):
+        for key in ("stop", "uz", "free"):
             if key in cont:
                 if not isinstance(cont[key], list):
-                    example = "[\"LP4\"]" if key == "stop" else "of values"
+                    example = {"stop": "[\"LP4\"]", "uz": "of values",
+                               "free": "of parameter names"}[key]
                     self.fail(f"[continuation] {key}",
                               f"expected a list {example}, got {cont[key]!r}")
                 out[key] = cont[key]
@@ -348,7 +308,9 @@ class _Document:
 
     def branch_file(self, key, problem: Problem, fname: str) -> BranchFile:
         """The branch file ``fname`` (looked up in the output folder, beside the run file,
-        then here), computed with ``problem``'s module."""
+        then here), computed with ``problem``'s module. A file is opened (and its layout
+        checked) once per run file: every ``start``, ``switch`` and selector naming it, however
+        spelled, gets the same `BranchFile`."""
         given = Path(fname)
         candidates = [given] if given.is_absolute() else (
             ([self.out_dir / fname] if self.out_dir is not None else [])
@@ -358,10 +320,13 @@ class _Document:
             folders = ", ".join(dict.fromkeys(str(c.parent) for c in candidates))
             self.fail(key, f"restart file {fname!r} not found (looked in {folders}); "
                       "run the run that writes it first")
-        try:
-            bf = BranchFile(file)
-        except StoreError as exc:
-            self.fail(key, str(exc))
+        resolved = file.resolve()
+        bf = self._branch_files.get(resolved)
+        if bf is None:
+            try:
+                bf = self._branch_files[resolved] = BranchFile(file)
+            except StoreError as exc:
+                self.fail(key, str(exc))
         if Path(bf.equation).stem != problem.name:
             self.fail(key, f"{fname} was computed with {bf.equation!r}, not {problem.source!r}")
         return bf

@@ -136,7 +136,7 @@ def fold_sign(enters: str, lam: np.ndarray, ordinate: np.ndarray, k: int) -> int
                         ordinate[k + 1] - ordinate[k - 1])
 
 
-def fold_rule(branch, start_index: int) -> list[int]:
+def fold_rule(branch, problem, start_index: int) -> list[int]:
     """Index at every point of ``branch`` from ``start_index`` and the sign rule at each LP.
 
     The index of a point that is itself an LP is the value on the side it is approached from.
@@ -145,7 +145,7 @@ def fold_rule(branch, start_index: int) -> list[int]:
     ordinate, a branch point) it takes the direct count after the special point, if there is
     one, else -1.
     """
-    problem, name = branch.problem, branch.parameter
+    name = branch.parameter
     ordinate = next((o.name for o in problem.ordinates.values() if o.parameter == name), None)
     enters = problem.parameters[name].enters
     lam = branch.column(name)
@@ -163,19 +163,19 @@ def fold_rule(branch, start_index: int) -> list[int]:
     return out
 
 
-def label_stability(branch) -> None:
-    """Fill ``index_rule`` and ``index`` on every point of ``branch``.
+def label_stability(branch, problem) -> None:
+    """Fill ``index_rule`` and ``index`` on every point of ``branch`` (of ``problem``).
 
     The rule starts from the direct count at the first point (the second after a switch).
     ``index`` is the common value where rule and direct count agree; at LP and BP points
     (critical eigenvalue zero, direct count ambiguous) it is the rule's value. Elsewhere a
     disagreement leaves ``index = -1`` and says so in the point's note: it is never hidden.
     """
-    if not branch.points or not branch.problem.has_second_variation:
+    if not branch.points or not problem.has_second_variation:
         return
     # A branch switched at a branch point starts where the direct count is ambiguous.
     seed = branch.points[1 if branch.singular_start and len(branch.points) > 1 else 0]
-    rule = fold_rule(branch, seed.index_direct)
+    rule = fold_rule(branch, problem, seed.index_direct)
     for k, (p, r) in enumerate(zip(branch.points, rule)):
         p.index_rule = r
         if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):

@@ -29,15 +29,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import traceback
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from .branch import PROFILE_GRID, Branch
+from .branch import PROFILE_GRID, Branch, Point, new_point
 from .correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Step, UserValues, crossings, locate_branch_point, locate_fold,
-                     locate_value, pair_suspected, tangent_between)
+                     locate_limit, locate_value, pair_suspected, tangent_between)
 from .newton import Row
 from .options import ContinuationOptions
 from .solution import State, Tangent, difference, inner, norm, secant
@@ -54,12 +56,34 @@ EASY_CONTRACTION = 0.3
 
 
 @dataclass(frozen=True)
+class Limit:
+    """``stop = ["norm > 100"]``: the branch ends where ``name`` (an ordinate or a free
+    parameter) passes ``value`` upwards (``sign`` +1, ``>``) or downwards (-1, ``<``)."""
+
+    name: str
+    sign: int
+    value: float
+
+    def __str__(self):
+        return f"{self.name} {'>' if self.sign > 0 else '<'} {self.value:g}"
+
+    def excess(self, problem, state: State) -> float:
+        """sign (quantity - value) at ``state``: positive once the limit is passed."""
+        p = problem.point_params(state.params, state.y)
+        q = p[self.name] if self.name in p else \
+            problem.ordinate_values(state.s, state.y, state.params)[self.name]
+        return self.sign * (q - self.value)
+
+
+@dataclass(frozen=True)
 class Stops:
-    """Where a branch ends: bounds on the continued parameter, and the n-th fold (or None)."""
+    """Where a branch ends: bounds on the continued parameter, the n-th fold (or None), and
+    limits on ordinates or free parameters."""
 
     lower: float = -math.inf
     upper: float = math.inf
     at_fold: int | None = None
+    limits: tuple[Limit, ...] = ()
 
 
 @dataclass
@@ -70,6 +94,7 @@ class _Event:
     tangent: Tangent | None
     residual: float = float("nan")
     note: str = ""
+    message: str = ""      # an EP's: why the branch ends there
 
 
 class _Reject(Exception):
@@ -110,40 +135,122 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
 
 
-def continue_branch(branch: Branch, start: State, options: ContinuationOptions, stops: Stops,
-                    user_values: list[UserValues] = (), start_tangent: Tangent | None = None,
-                    progress: Callable[[Branch, float], None] | None = None,
-                    singular_start: bool = False, exact_tangent: bool = False) -> Branch:
-    """Continue ``start`` in ``branch.parameter`` in ``branch.direction``; fills ``branch``.
+@dataclass(frozen=True)
+class Origin:
+    """Where a branch starts: a solution, a tangent to start along (or None: the bordered
+    tangent there), and what kind of point it is: ``"regular"``; ``"singular"`` (a fold or a
+    branch point: none is sought in the first step, where the start's own would be found);
+    ``"switch"`` (the other branch at a branch point: ``tangent`` is its direction, already
+    oriented, used as it is, since the bordered tangent system is singular there)."""
 
-    ``singular_start``: the start is a fold or a branch point; no fold or branch point is
-    sought in the first step, where the start's own singularity would be found.
-    ``exact_tangent``: ``start_tangent`` is the (already oriented) direction to follow, used as
-    it is (the other branch at a branch point, where the bordered tangent system is singular).
-    Points are appended as they are accepted, so an interrupted call leaves every completed
-    point in ``branch``.
+    state: State
+    tangent: Tangent | None = None
+    kind: str = "regular"
+
+    def __post_init__(self):
+        if self.kind not in ("regular", "singular", "switch"):
+            raise ValueError(f"unknown kind of start {self.kind!r}")
+        if self.kind == "switch" and self.tangent is None:
+            raise ValueError("a switch needs the direction of the other branch")
+
+
+@dataclass(frozen=True)
+class Course:
+    """How a branch is continued: the parameter, the options, where it ends, its UZ values."""
+
+    parameter: str
+    options: ContinuationOptions
+    stops: Stops = Stops()
+    user_values: tuple[UserValues, ...] = ()
+
+
+def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
+                    progress: Callable[[Branch, float], None] | None = None) -> Branch:
+    """Continue from ``origin`` in ``course.parameter`` in ``branch.direction``; fills
+    ``branch``.
+
+    Points are added as they are accepted. Nothing escapes: Ctrl-C, or an exception (the
+    equation module raising, or returning what the engine cannot use), ends the branch at its
+    last accepted point, labelled MX, with ``branch.interrupted`` set or the exception's type,
+    message and place in ``branch.message`` and ``branch.diagnostics``.
     """
-    corr = make_corrector(branch.problem, branch.parameter, options)
+    walk = None
     try:
-        a = start_solution(corr, start, branch.direction, start_tangent, exact_tangent)
-    except CorrectorFailure as exc:
-        branch.add(start, type="MX", arclength=0.0, note="singular start")
-        branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
-        return branch
-    _Walk(branch, corr, options, stops, list(user_values), progress,
-          singular_start or exact_tangent).run(a)
+        corr = make_corrector(problem, course.parameter, course.options)
+        try:
+            a = start_solution(corr, origin.state, branch.direction, origin.tangent,
+                               origin.kind == "switch")
+        except CorrectorFailure as exc:
+            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+                                    note="singular start"))
+            branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
+            return branch
+        walk = _Walk(branch, problem, corr, course, progress, origin.kind != "regular")
+        walk.run(a)
+    except KeyboardInterrupt:
+        branch.interrupted = True
+        _end_early(branch, problem, walk, origin, "interrupted by the user")
+    except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
+        frames = traceback.extract_tb(exc.__traceback__)
+        # the module's own line if it raised, else where the engine met what it returned
+        module_file = getattr(problem.module, "__file__", None)
+        at = next((f for f in reversed(frames) if f.filename == module_file), frames[-1])
+        where = f"{Path(at.filename).name}:{at.lineno} in {at.name}"
+        error = " ".join(str(exc).split())  # one line, as every message of a branch
+        last = walk.a.state if walk is not None and walk.a is not None else origin.state
+        when = f"after point {len(branch.points)}" if branch.points else "at the start"
+        _end_early(branch, problem, walk, origin,
+                   f"{type(exc).__name__}: {error} ({where}) {when} "
+                   f"({course.parameter} = {last.params[course.parameter]:g})")
+        branch.diagnostics = {"exception": type(exc).__name__, "error": str(exc),
+                              "where": where, "step": len(branch.points),
+                              "traceback": [f"{f.filename}:{f.lineno} in {f.name}"
+                                            for f in frames]}
     return branch
+
+
+def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
+    """End ``branch`` early with ``message``: its last point becomes MX (a labelled one keeps
+    its label and is followed by an MX of its own). A branch without points gets its start,
+    labelled MX, so that every branch has a point to show and restart from (without calling
+    the module, which may be what failed, if it fails there: :func:`start_point`)."""
+    branch.end, branch.message = "MX", message
+    if not branch.points:
+        try:
+            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+                                    tangent=origin.tangent))
+        except Exception:  # the module fails at the start itself
+            branch.insert(start_point(branch, origin))
+        return
+    last = branch.points[-1]
+    if last.type:  # keep its label (the start's EP, say); end with an MX of its own
+        branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,
+                                tangent=last.tangent, direct=last.index_direct))
+    else:  # the last accepted point, whose solution the walk still has
+        walk.end_at_base("MX", message)
+
+
+def start_point(branch: Branch, origin: Origin) -> Point:
+    """The start as an MX point, without calling the equation module: NaN ordinates, an
+    unknown index, and the profile interpolated linearly from the values alone (the
+    derivatives may be what is broken)."""
+    state = origin.state
+    return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
+                                                                    float("nan")),
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
+                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
+                 state=state, tangent=origin.tangent)
 
 
 class _Walk:
     """The state of one continuation: the last accepted solution, ds, the arclength."""
 
-    def __init__(self, branch, corr, options, stops, user_values, progress, singular_start):
-        self.branch, self.corr, self.opt = branch, corr, options
-        self.stops, self.user_values, self.progress = stops, user_values, progress
-        self.singular_start = singular_start
+    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
+        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
+        self.stops, self.user_values = course.stops, course.user_values
+        self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
-        self.problem = branch.problem
+        self.a, self.base_point = None, None
         self.ordinate = next((o for o in self.problem.ordinates.values()
                               if o.parameter == self.name), None)
         self.enters = self.problem.parameters[self.name].enters
@@ -160,8 +267,7 @@ class _Walk:
 
     def _walk(self, a: Solution):
         opt, branch = self.opt, self.branch
-        self.base_point = branch.add(a.state, type="EP", arclength=0.0, tangent=a.tangent,
-                                     direct=index(self.problem, a.state))
+        self.base_point = self._add(a.state, type="EP", arclength=0.0, tangent=a.tangent)
         if self.singular_start:
             self.base_point.note = ""
         self.a, self.arclength, self.first = a, 0.0, True
@@ -171,7 +277,7 @@ class _Walk:
         retries = 0
         while True:
             if len(branch.points) >= opt.max_points:
-                self._end_at_base("EP", f"reached max_points = {opt.max_points}")
+                self.end_at_base("EP", f"reached max_points = {opt.max_points}")
                 return
             try:
                 ds_next, ended = self._step(ds, retries)
@@ -185,7 +291,7 @@ class _Walk:
                     # which only the module's functions can make from a finite guess
                     why = (" (the equation module returned NaN or inf there)"
                            if math.isinf(rej.residual) else "")
-                    self._end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                    self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
                                             f"after point {len(branch.points)} "
                                             f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
                     branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
@@ -198,11 +304,16 @@ class _Walk:
             retries = 0
             ds = ds_next
 
-    def _end_at_base(self, kind: str, message: str):
+    def _add(self, state: State, **fields) -> Point:
+        return self.branch.insert(new_point(self.problem, state, **fields))
+
+    def end_at_base(self, kind: str, message: str):
+        """End the branch at the last accepted point, labelled ``kind`` (a point already
+        labelled keeps its label, and ``kind`` follows as a point of its own)."""
         branch, a = self.branch, self.a
         if self.base_point.type:
-            branch.add(a.state, type=kind, arclength=self.arclength, tangent=a.tangent,
-                       direct=self.base_point.index_direct)
+            self._add(a.state, type=kind, arclength=self.arclength, tangent=a.tangent,
+                      direct=self.base_point.index_direct)
         else:
             branch.relabel(self.base_point, kind, a.state, a.tangent)
         branch.end, branch.message = kind, message
@@ -210,8 +321,15 @@ class _Walk:
     def _step(self, ds: float, retries: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
         raises _Reject to retry with a smaller ds."""
+        step, cos_turn = self._correct(ds)
+        found, index_b = self._detect(step, retries)
+        return self._accept(step, found, index_b, retries, cos_turn)
+
+    def _correct(self, ds: float) -> tuple[Step, float]:
+        """Predict and correct (on the mesh chosen for the step), then check the new point:
+        a turn of the tangent beyond max_angle, or a correction that moved it more than
+        ds / 2 from the predictor (a jump to another branch), rejects the step."""
         opt, corr, a, name = self.opt, self.corr, self.a, self.name
-        first = self.first
         mesh = corr.next_mesh(a)
         if mesh is not a.mesh:  # the step's mesh: linearise a there once, for both uses
             a = self.a = corr.relinearize(a, mesh)
@@ -219,14 +337,13 @@ class _Walk:
             b = corr.step(a, ds, self.curvature)
         except CorrectorFailure as exc:
             raise _Reject(str(exc), ds / 2, exc.residual) from None
-        # -- checks: angle and distance from the predictor ------------------------------------
         s = b.mesh
         cos_turn = inner(a.tangent.on(s), b.tangent, s)
         if cos_turn < math.cos(opt.max_angle):
             raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
                           " deg > max_angle", ds / 2)
         sec, dist = secant(a.state, b.state, name)
-        if not first or not a.extra.get("singular"):
+        if not self.first or not a.extra.get("singular"):
             pred = Tangent(s, a.state(s) + ds * a.tangent.on(s).y - b.state.y,
                            a.state.derivative(s) + ds * a.tangent.on(s).yp - b.state.yp,
                            a.lam + ds * a.tangent.lam - b.lam)
@@ -234,9 +351,16 @@ class _Walk:
             if jump > 0.5 * ds:
                 raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
                               f"(ds = {ds:.3g})", ds / 2)
-        step = Step(a, b, sec, dist, self.arclength, ds, name)
-        # -- detect, on one mesh ----------------------------------------------------------------
-        skip = first and self.singular_start
+        return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
+
+    def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
+        """The folds and branch points in the step, located, and the index at b, checked
+        against the fold rule; a fold pair suspected inside the step, a fold that cannot be
+        located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
+        then with a warning). Returns the events and b's index."""
+        corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
+        s = b.mesh
+        skip = self.first and self.singular_start
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
         fold = a.tangent.lam * b.tangent.lam < 0 and not skip
         bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
@@ -258,13 +382,12 @@ class _Walk:
                     self.event_retries += 1
                     raise _Reject(f"fold not located ({exc})", ds / 2) from None
                 self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not located: {exc}")
-                found.append(_Event(dist / 2, "LP", b.state, b.tangent,
+                found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
                                     note=f"fold not located: {exc}"))
         elif bp:
             event = self._branch_point(step, index_a, index_b)
             if event is not None:
                 found.append(event)
-        # -- the index at b against the fold rule ----------------------------------------------
         if index_a >= 0 and index_b >= 0 and not skip:
             expected = self._rule(step, found, index_a)
             if expected is not None and expected != index_b:
@@ -275,24 +398,29 @@ class _Walk:
                 self.branch.warnings.append(
                     f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
                     f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
-        # -- accept ----------------------------------------------------------------------------
         if found:
             self.event_retries = 0
+        return found, index_b
+
+    def _accept(self, step: Step, found: list[_Event], index_b: int, retries: int,
+                cos_turn: float) -> tuple[float, bool]:
+        """Add the step's events and its end point b; the next ds (grown after an easy step)
+        and whether the branch ended."""
+        opt, a, b, ds = self.opt, step.a, step.b, step.ds
         if self._add_events(step, found):
             return ds, True
         self.arclength += ds
-        self.base_point = self.branch.add(b.state, arclength=self.arclength, ds=ds,
-                                          niter=b.niter, direct=index_b)
-        self.curvature = b.tangent.on(b.mesh)
-        ta = a.tangent.on(b.mesh)
-        self.curvature = Tangent(b.mesh, (self.curvature.y - ta.y) / dist,
-                                 (self.curvature.yp - ta.yp) / dist,
-                                 (self.curvature.lam - ta.lam) / dist)
+        self.base_point = self._add(b.state, arclength=self.arclength, ds=ds, niter=b.niter,
+                                    direct=index_b)
+        tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
+        self.curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
+                                 (tb.lam - ta.lam) / step.dist)
         self.a, self.first = b, False
         if self.progress is not None:
             self.progress(self.branch, b.lam)
         if self.until is not None:
             origin, direction, distance = self.until
+            s = b.mesh
             if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
                 self.branch.end, self.branch.message = "EP", "reached the end of the segment"
                 return ds, True
@@ -362,8 +490,9 @@ class _Walk:
                               Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
         opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
                                   ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
-        sub = Branch(self.problem, name, self.branch.direction, "refinement", {})
-        walk = _Walk(sub, corr, opt, Stops(), self.user_values, None, False)
+        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
+        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values),
+                     None, False)
         walk.until = (p.state, sec, dist * (1 - 1e-7))
         walk.run(p)
         if sub.end != "EP":
@@ -425,7 +554,7 @@ class _Walk:
     def _branch_point(self, step: Step, index_a: int, index_b: int) -> _Event | None:
         name = self.name
         try:
-            sol, sigma, value = locate_branch_point(self.corr, step)
+            bp = locate_branch_point(self.corr, step)
         except CorrectorFailure as exc:
             self.branch.warnings.append(f"branch point between {name} = {step.a.lam:.6g} and "
                                         f"{step.b.lam:.6g} not located: {exc}")
@@ -433,7 +562,7 @@ class _Walk:
         note = ""
         if index_a >= 0 and index_b >= 0 and abs(index_b - index_a) != 1:
             note = f"index {index_a} -> {index_b} across the branch point"
-        return _Event(sigma, "BP", sol.state, step.secant, value, note=note)
+        return _Event(bp.sigma, "BP", bp.solution.state, step.secant, abs(bp.value), note=note)
 
     def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
         """The index at b by the fold rule from a's (None where the rule does not apply)."""
@@ -480,13 +609,16 @@ class _Walk:
                 if bound_hit is None:
                     bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
                 break
+        limit_hit = self._limit_event(step)
+        if limit_hit is not None and (bound_hit is None or limit_hit.sigma < bound_hit.sigma):
+            bound_hit = limit_hit
         if bound_hit is not None:
             events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
         events.sort(key=lambda e: e.sigma)
         nfolds = len(branch.folds)
         for e in events:
-            branch.add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
-                       fold_residual=e.residual, note=e.note)
+            self._add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
+                      fold_residual=e.residual, note=e.note)
             if e.kind == "LP":
                 nfolds += 1
                 if stops.at_fold is not None and nfolds >= stops.at_fold:
@@ -497,9 +629,30 @@ class _Walk:
                     return True
             if e.kind == "EP":
                 branch.end = "EP"
-                branch.message = f"reached {name} = {e.state.params[name]:g}"
+                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
                 return True
         return False
+
+    def _limit_event(self, step: Step) -> _Event | None:
+        """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
+        event (None if none is passed)."""
+        first = None
+        for limit in self.stops.limits:
+            if not (limit.excess(self.problem, step.a.state) < 0
+                    <= limit.excess(self.problem, step.b.state)):
+                continue
+            try:
+                at = locate_limit(self.corr, self.problem, step, limit)
+            except CorrectorFailure as exc:
+                self.branch.warnings.append(f"stop {limit} not located: {exc}")
+                at = None
+            sigma = step.dist if at is None else at.sigma
+            if first is None or sigma < first.sigma:
+                state = step.b.state if at is None else at.solution.state
+                value = limit.value + limit.sign * (0.0 if at is None else at.value)
+                first = _Event(sigma, "EP", state, tangent_between(step, sigma),
+                               message=f"reached {limit.name} = {value:.6g} (stop {limit})")
+        return first
 
     def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
         try:

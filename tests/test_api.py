@@ -118,14 +118,17 @@ def test_save_renumbers_a_selection_and_leaves_the_branches_alone(tmp_path, brat
                                                                    bratu_branches):
     again = ea.continuation(bratu, {"lam": 0.0}, "lam", bounds=(-1, 4), max_points=60)
     both = [bratu_branches[0], again[0]]      # each has its own LP1
-    path = ea.save(both, tmp_path / "two.h5")
+    with pytest.raises(ea.PlanError, match="needs problem="):
+        ea.save(both, tmp_path / "two.h5")
+    assert ea.save(again + bratu_branches, tmp_path / "sum.h5").name == "sum.h5"
+    path = ea.save(both, tmp_path / "two.h5", problem=bratu)
     bf = ea.BranchFile(path)
     assert sorted(n for n in bf.labels if n.startswith("LP")) == ["LP1", "LP2"]
     assert again[0].folds[0].name == "LP1"    # unchanged in memory
     lp2 = bf.label("LP2")
     assert lp2.branch == 2 and lp2.state.params["lam"] == again[0].folds[0].params["lam"]
     with pytest.raises(ea.StoreError, match="<name>.h5"):
-        ea.save(both, tmp_path / "two.csv")
+        ea.save(both, tmp_path / "two.csv", problem=bratu)
 
 
 def test_switch_at_a_branch_point_without_a_hook():
