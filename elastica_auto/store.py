@@ -25,8 +25,12 @@ Layout of ``out/<run>.h5``::
 Files are written to a temporary name in the same folder, then renamed over the target, so a
 reader never sees a half-written file. A run holds an exclusive lock on its output for as long
 as it runs, and replaces an existing ``<run>.h5`` only once it has finished (see `Writer`).
-New files get the mode ``open`` would give them (0666 less the umask). Reading validates the
-layout: a damaged file raises one `StoreError` naming the file and what is wrong.
+New files get the mode ``open`` would give them (0666 less the umask).
+
+Reading validates the layout on opening, from the datasets' shapes and the label columns: a
+damaged file raises one `StoreError` naming the file and what is wrong. Branch columns,
+profiles and labelled solutions are read when first used, each read opening and closing the
+file (see `BranchFile`).
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ import os
 import re
 import shutil
 import tempfile
-from dataclasses import dataclass
+from collections.abc import Mapping
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -287,42 +291,226 @@ def _write_branch(g, problem, br: Branch):
             h.attrs["tangent_parameter"] = br.parameter
 
 
-@dataclass
-class StoredBranch:
-    """A branch read back from a file: attributes and columns (``b.columns["psi"]``), the
-    same columns as a branch in memory (`elastica_auto.branch.column_names`)."""
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
 
-    number: int
-    attrs: dict
-    columns: dict[str, np.ndarray]
-    profiles: np.ndarray
+
+class _Source:
+    """Where a `BranchFile` reads from: its path, and the identity (device, inode, size,
+    modification time) of the file it found there on opening.
+
+    Each read opens the file, checks that it is still that file, reads and closes it: nothing
+    stays open between reads, and a file replaced or rewritten since (by a run, say) is never
+    read as if it were the same file.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.identity: tuple | None = None
+
+    @contextlib.contextmanager
+    def open(self):
+        """The file, open for reading; StoreError if it is no longer the file first opened."""
+        with h5py.File(self.path, "r") as f:
+            st = os.fstat(f.id.get_vfd_handle())
+            identity = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+            if self.identity is None:
+                self.identity = identity
+            elif identity != self.identity:
+                raise StoreError(f"{self.path}: changed since it was opened (rewritten by a run?); "
+                                 "open it again")
+            yield f
+
+    def damaged(self, what: str) -> StoreError:
+        return StoreError(f"{self.path}: damaged branch file: {what}")
+
+    def read(self, what: str, read):
+        """``read(f)`` on the open file; any failure is one StoreError naming ``what``."""
+        try:
+            with self.open() as f:
+                return read(f)
+        except StoreError:
+            raise
+        except FileNotFoundError:
+            raise StoreError(f"{self.path}: no such file (removed since it was opened)") from None
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            raise self.damaged(f"{what} unreadable ({_one_line(exc)})") from exc
+
+
+def _dataset(g, name: str, shape: tuple) -> np.ndarray:
+    """The dataset ``g[name]`` as checked on opening (a dataset of ``shape``), read whole;
+    strings decoded. KeyError if it is no longer there, ValueError if it changed."""
+    ds = g[name]
+    if not isinstance(ds, h5py.Dataset) or ds.shape != shape:
+        raise ValueError("no longer the dataset checked on opening")
+    data = ds[()]
+    if ds.dtype.kind == "O":
+        data = np.array([x.decode() if isinstance(x, bytes) else x for x in data], dtype=object)
+    return data
+
+
+def _shapes(g) -> dict[str, tuple | None]:
+    """The shape of each member of the group ``g`` (None: not a dataset), read without reading
+    any data. h5py's low-level objects: its high-level ones cost tens of microseconds each, and
+    opening a file looks at every column of every branch."""
+    out = {}
+    for name in g:
+        obj = h5py.h5o.open(g.id, name.encode())
+        out[name] = obj.shape if isinstance(obj, h5py.h5d.DatasetID) else None
+    return out
+
+
+def _has_solution(solutions, name: str) -> bool:
+    """Whether the group ``solutions`` holds a group ``name`` with members s, y and yp (a
+    label's stored solution); low-level h5py, as in `_shapes`: a file can hold thousands of
+    labels."""
+    if not isinstance(solutions, h5py.Group):
+        return False
+    try:
+        sol = h5py.h5o.open(solutions.id, name.encode())
+    except KeyError:
+        return False
+    return isinstance(sol, h5py.h5g.GroupID) and all(sol.links.exists(k)
+                                                     for k in (b"s", b"y", b"yp"))
+
+
+class _Columns(Mapping):
+    """The columns of one stored branch by name, in the order of `StoredBranch.columns`.
+
+    ``branch`` and ``pt`` are made here; ``label`` (the label's name, made of the stored
+    ``type`` and label number) may be given on opening; every other column is read from the
+    file the first time it is looked up, then kept. ``items()`` and ``values()`` read all
+    columns not read yet at once (one opening of the file, not one per column).
+    """
+
+    def __init__(self, source: _Source, key: str, names: list[str], n: int):
+        self._source, self._key, self._n = source, key, n
+        self._names = dict.fromkeys(names)
+        self._data = {"branch": np.full(n, int(key)), "pt": np.arange(1, n + 1)}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._data:
+            if name not in self._names:
+                raise KeyError(name)
+            self.load([name])
+        return self._data[name]
+
+    def load(self, names=None):
+        """Read the columns ``names`` (default: all) not read yet, in one opening of the file."""
+        names = list(self._names if names is None else names)
+        unknown = [name for name in names if name not in self._names]
+        if unknown:
+            raise KeyError(unknown[0])
+        todo = [name for name in names if name not in self._data]
+        if todo:
+            what = f"column {todo[0]!r}" if len(todo) == 1 else "columns"
+            self._data |= self._source.read(f"branch {self._key}: {what}",
+                                            lambda f: _read_columns(f, self._key, todo, self._n))
+
+    def keep(self, data: dict[str, np.ndarray]):
+        """Columns already read (on opening)."""
+        self._data |= data
+
+    def items(self):
+        self.load()
+        return super().items()
+
+    def values(self):
+        self.load()
+        return super().values()
+
+    def __iter__(self):
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __contains__(self, name) -> bool:
+        return name in self._names
+
+    def __repr__(self) -> str:
+        return f"<columns of branch {self._key} ({self._n} points): {', '.join(self._names)}>"
+
+
+def _read_columns(f, key: str, names: list[str], n: int) -> dict[str, np.ndarray]:
+    """The stored columns ``names`` of branch ``key`` (``n`` points) from the open file.
+    ``label`` is the label's name: the file keeps its type and number, a branch in memory
+    its name, so reading ``label`` reads ``type`` too (and returns both)."""
+    g = f[f"branches/{key}/columns"]
+    out = {}
+    for name in names:
+        if name == "label":
+            types = out.get("type")
+            if types is None:
+                out["type"] = types = _dataset(g, "type", (n,))
+            out["label"] = np.array([f"{t}{k}" if t else "" for t, k in
+                                     zip(types, _dataset(g, "label", (n,)))], dtype=object)
+        elif name not in out:
+            out[name] = _dataset(g, name, (n,))
+    return out
+
+
+class StoredBranch:
+    """A branch read back from a file: its attributes, columns and profiles.
+
+    ``columns`` maps each column name of a branch in memory
+    (`elastica_auto.branch.column_names`, in that order, then any other stored column) to one
+    numpy array per column, one row per point; ``label`` holds label names (``LP3``, ``""``
+    elsewhere). ``profiles`` is the array (points, states, grid) of every state on the file's
+    profile grid. Both are read from the file on first access (a column at a time) and kept;
+    ``attrs``, ``number`` and ``len`` are known from opening.
+    """
+
+    def __init__(self, source: _Source, number: int, attrs: dict, columns: _Columns,
+                 profiles_shape: tuple):
+        self.number, self.attrs, self.columns = number, attrs, columns
+        self._source, self._profiles_shape = source, profiles_shape
+        self._profiles: np.ndarray | None = None
+
+    @property
+    def profiles(self) -> np.ndarray:
+        if self._profiles is None:
+            key = f"{self.number:03d}"
+            self._profiles = self._source.read(
+                f"branch {key}: profiles",
+                lambda f: _dataset(f[f"branches/{key}"], "profiles", self._profiles_shape))
+        return self._profiles
 
     @property
     def parameter(self) -> str:
         return self.attrs["parameter"]
 
     def __len__(self):
-        return len(self.columns["type"])
+        return self._profiles_shape[0]
 
     def label_names(self) -> list[str]:
         return list(self.columns["label"])
+
+    def __repr__(self) -> str:
+        return f"<StoredBranch {self.number} of {self._source.path}: {len(self)} points>"
 
 
 class BranchFile:
     """A read-only view of an elastica-auto HDF5 file; raises StoreError with one line.
 
-    Every branch is read on opening, and the layout checked: each branch has every column,
-    each a one-dimensional dataset of one length, and a profile per point; the ``labels``
-    attribute maps each label to a point of that label whose solution is stored. A file that
-    fails a check is reported as damaged, naming what is wrong.
+    Opening reads the file's attributes, profile grid and snap-back table, and checks the
+    whole layout from the datasets' shapes: each branch has every column, each a
+    one-dimensional dataset of one length, and a profile per point; the ``labels`` attribute
+    maps each label to a point of that label whose solution is stored (for which the ``type``
+    and ``label`` columns of the branches holding labels are read). A file that fails a check is
+    reported as damaged, naming what is wrong. The other columns and the profiles are read
+    when first used (see `StoredBranch`), and a label's solution by `label`: each read opens
+    the file and closes it again, and raises StoreError if the file was damaged, or replaced
+    or rewritten, since it was opened.
     """
 
     def __init__(self, path):
         self.path = Path(path)
+        self._source = _Source(self.path)
         if not self.path.is_file():
             raise StoreError(f"{self.path}: no such file")
         try:
-            with h5py.File(self.path, "r") as f:
+            with self._source.open() as f:
                 attrs = dict(f.attrs)
                 if attrs.get("format") != FORMAT:
                     raise StoreError(f"{self.path}: not an elastica-auto branch file")
@@ -354,10 +542,10 @@ class BranchFile:
         except StoreError:
             raise
         except (OSError, KeyError, ValueError, TypeError) as exc:
-            raise StoreError(f"{self.path}: unreadable branch file ({exc})") from exc
+            raise StoreError(f"{self.path}: unreadable branch file ({_one_line(exc)})") from exc
 
     def _damaged(self, what: str) -> StoreError:
-        return StoreError(f"{self.path}: damaged branch file: {what}")
+        return self._source.damaged(what)
 
     def _labels(self, text: str) -> dict[str, tuple[int, int]]:
         try:
@@ -371,48 +559,52 @@ class BranchFile:
         return {k: tuple(v) for k, v in labels.items()}
 
     def _branch(self, key: str, g) -> StoredBranch:
-        cols = {}
-        for name, ds in g["columns"].items():
-            if not isinstance(ds, h5py.Dataset) or ds.ndim != 1:
+        """Branch ``key``'s layout checked from the shapes of its datasets; nothing read."""
+        lengths = {}
+        for name, shape in _shapes(g["columns"]).items():
+            if shape is None or len(shape) != 1:
                 raise self._damaged(f"branch {key}: column {name!r} is not a one-dimensional "
                                     "dataset")
-            data = ds[()]
-            if ds.dtype.kind == "O":
-                data = np.array([x.decode() if isinstance(x, bytes) else x for x in data],
-                                dtype=object)
-            cols[name] = data
+            lengths[name] = shape[0]
         missing = [name for name in (*self.parameters, *self.ordinates, *_FLOAT_COLUMNS,
-                                     *_INT_COLUMNS, *_STR_COLUMNS) if name not in cols]
+                                     *_INT_COLUMNS, *_STR_COLUMNS) if name not in lengths]
         if missing:
             raise self._damaged(f"branch {key}: no column {', '.join(map(repr, missing))}")
-        lengths = [len(c) for c in cols.values()]
-        n = max(lengths, key=lengths.count)  # the length of most columns: the odd one is wrong
-        odd = next((name for name, c in cols.items() if len(c) != n), None)
+        counts = list(lengths.values())
+        n = max(counts, key=counts.count)  # the length of most columns: the odd one is wrong
+        odd = next((name for name, m in lengths.items() if m != n), None)
         if odd is not None:
-            raise self._damaged(f"branch {key}: column {odd!r} has {len(cols[odd])} rows, "
+            raise self._damaged(f"branch {key}: column {odd!r} has {lengths[odd]} rows, "
                                 f"the others {n}")
-        profiles = g["profiles"][()]
-        if len(profiles) != n:
-            raise self._damaged(f"branch {key}: {len(profiles)} profiles for {n} points")
-        number = int(key)
-        # the file keeps a label's number; a branch's columns hold its name, as in memory
-        cols["label"] = np.array([f"{t}{k}" if t else "" for t, k in
-                                  zip(cols["type"], cols["label"])], dtype=object)
-        cols["branch"], cols["pt"] = np.full(n, number), np.arange(1, n + 1)
+        profiles = g["profiles"]
+        if not isinstance(profiles, h5py.Dataset) or profiles.ndim < 1:
+            raise self._damaged(f"branch {key}: 'profiles' is not a dataset of one profile "
+                                "per point")
+        if profiles.shape[0] != n:
+            raise self._damaged(f"branch {key}: {profiles.shape[0]} profiles for {n} points")
         names = column_names(self.parameters, self.ordinates)
-        cols = {name: cols[name] for name in names} | {
-            name: c for name, c in cols.items() if name not in names}
-        return StoredBranch(number, dict(g.attrs), cols, profiles)
+        names += [name for name in lengths if name not in names]
+        return StoredBranch(self._source, int(key), dict(g.attrs),
+                            _Columns(self._source, key, names, n), profiles.shape)
 
     def _check_labels(self, f):
-        """Each label names a point with that label, and its solution is stored."""
-        names = {b.number: b.label_names() for b in self.branches}
+        """Each label names a point with that label, and its solution is stored: reads the
+        ``type`` and ``label`` columns of each branch that holds a label (and keeps them)."""
+        by_number = {b.number: b for b in self.branches}
+        names, solutions = {}, {}
         for name, (br, pt) in self.labels.items():
-            if not 1 <= pt <= len(names.get(br, [])) or names[br][pt - 1] != name:
+            b = by_number.get(br)
+            if b is not None and br not in names:
+                key = f"{br:03d}"
+                read = _read_columns(f, key, ["label"], len(b))
+                b.columns.keep(read)
+                names[br] = read["label"]
+            if b is None or not 1 <= pt <= len(b) or names[br][pt - 1] != name:
                 raise self._damaged(f"label {name} is at branch {br} point {pt}, but there is "
                                     f"no point {name} there")
-            sol = f.get(f"branches/{br:03d}/solutions/{name}")
-            if not isinstance(sol, h5py.Group) or not {"s", "y", "yp"} <= set(sol):
+            if br not in solutions:
+                solutions[br] = f.get(f"branches/{br:03d}/solutions")
+            if not _has_solution(solutions[br], name):
                 raise self._damaged(f"label {name} has no stored solution "
                                     f"(branches/{br:03d}/solutions/{name})")
 
@@ -433,26 +625,24 @@ class BranchFile:
                          for t, n in sorted(counts.items())) or "none"
 
     def label(self, name: str) -> StoredLabel:
-        """The solution stored under a label such as ``UZ3`` (StoreError if there is none)."""
+        """The solution stored under a label such as ``UZ3`` (StoreError if there is none),
+        read from the file now."""
         if name not in self.labels:
             raise StoreError(f"{self.path}: no label {name!r} (labels: {self.label_ranges()})")
         br, pt = self.labels[name]
-        try:
-            with h5py.File(self.path, "r") as f:
-                h = f[f"branches/{br:03d}/solutions/{name}"]
-                params = json.loads(h.attrs["params"])
-                state = State(h["s"][()], h["y"][()], h["yp"][()], params)
-                tangent, tpar = None, None
-                if "tangent_y" in h:
-                    tangent = Tangent(h["tangent_s"][()], h["tangent_y"][()],
-                                      h["tangent_yp"][()], float(h.attrs["tangent_lam"]))
-                    tpar = str(h.attrs["tangent_parameter"])
-        except (OSError, KeyError, ValueError, TypeError) as exc:
-            # checked on opening; what is left: a solution's own datasets and attributes
-            raise self._damaged(f"solution {name} unreadable ({exc})") from exc
+
+        def read(f):
+            h = f[f"branches/{br:03d}/solutions/{name}"]
+            state = State(h["s"][()], h["y"][()], h["yp"][()], json.loads(h.attrs["params"]))
+            if "tangent_y" not in h:
+                return state, None, None
+            tangent = Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
+                              float(h.attrs["tangent_lam"]))
+            return state, tangent, str(h.attrs["tangent_parameter"])
+
+        # checked on opening; what is left: a solution's own datasets and attributes
+        state, tangent, tpar = self._source.read(f"solution {name}", read)
         return StoredLabel(name, br, pt, state, tangent, tpar, self.path, self.equation)
-
-
 
 
 def _fmt(v):
@@ -465,6 +655,7 @@ def rows(bf: BranchFile, labelled_only=False):
     names = export_names(bf.parameters, bf.ordinates)
     for b in bf.branches:
         c = b.columns
+        c.load(names)
         for i in range(len(b)):
             if labelled_only and not c["type"][i]:
                 continue

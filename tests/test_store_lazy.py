@@ -1,0 +1,249 @@
+"""Reading branch files lazily (`elastica_auto.store.BranchFile`), and restart files opened once.
+
+Opening checks the layout from the datasets' shapes and reads only the label columns; a column,
+the profiles or a label's solution is read on first use, from a file opened and closed for that
+read, and kept. What is read lazily equals what h5py reads from the file. A read of a file that
+was damaged, replaced or removed since it was opened raises one StoreError naming the file. A
+run file opens each restart file once, however many starts and selectors name it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import textwrap
+
+import h5py
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto import runfile
+from elastica_auto.branch import column_names
+from elastica_auto.errors import StoreError
+from elastica_auto.store import BranchFile
+from helpers import EXAMPLES
+
+BRATU = EXAMPLES / "bratu.py"
+
+
+@pytest.fixture(scope="module")
+def bratu_file(tmp_path_factory):
+    """Two Bratu branches (60 and 8 points, UZ labels on the first, EP on both), saved."""
+    problem = ea.load_problem(str(BRATU))
+    branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
+                               directions="both", ds=0.05, ds_max=0.5, max_points=60)
+    return ea.save(branches, tmp_path_factory.mktemp("lazy") / "bratu.h5")
+
+
+@pytest.fixture
+def copy(bratu_file, tmp_path):
+    """A copy of the file, last modified long ago: any change later shows in its time."""
+    path = tmp_path / "bratu.h5"
+    shutil.copy(bratu_file, path)
+    os.utime(path, ns=(10 ** 18, 10 ** 18))
+    return path
+
+
+@pytest.fixture
+def reads(monkeypatch):
+    """The names of the datasets read through h5py from now on, in order."""
+    names = []
+    getitem = h5py.Dataset.__getitem__
+
+    def counted(self, args, *rest, **kw):
+        names.append(self.name)
+        return getitem(self, args, *rest, **kw)
+
+    monkeypatch.setattr(h5py.Dataset, "__getitem__", counted)
+    return names
+
+
+def _eager(path, key: str) -> dict[str, np.ndarray]:
+    """Every column of branch ``key`` as h5py reads it, strings decoded."""
+    with h5py.File(path, "r") as f:
+        out = {}
+        for name, ds in f[f"branches/{key}/columns"].items():
+            data = ds[()]
+            out[name] = (np.array([x.decode() for x in data], dtype=object)
+                         if ds.dtype.kind == "O" else data)
+        return out | {"profiles": f[f"branches/{key}/profiles"][()]}
+
+
+def test_lazy_columns_equal_an_eager_read(bratu_file):
+    bf = BranchFile(bratu_file)
+    assert [len(b) for b in bf.branches] == [60, 8]
+    names = column_names(bf.parameters, bf.ordinates)
+    for b in bf.branches:
+        eager = _eager(bratu_file, f"{b.number:03d}")
+        cols = b.columns
+        assert list(cols) == names and len(cols) == len(names) and "nope" not in cols
+        assert all(name in cols for name in names) and "profiles" not in cols
+        for name in names:
+            if name in ("branch", "pt", "label"):
+                continue
+            assert cols[name].dtype == eager[name].dtype, name
+            np.testing.assert_array_equal(cols[name], eager[name], err_msg=name)
+        np.testing.assert_array_equal(cols["branch"], np.full(len(b), b.number))
+        np.testing.assert_array_equal(cols["pt"], np.arange(1, len(b) + 1))
+        made = [f"{t}{k}" if t else "" for t, k in zip(eager["type"], eager["label"])]
+        assert list(cols["label"]) == made == b.label_names()
+        assert dict(cols.items()).keys() == set(names)
+        assert all(v is cols[k] for k, v in zip(cols, cols.values()))  # read once, kept
+        np.testing.assert_array_equal(b.profiles, eager["profiles"])
+        with pytest.raises(KeyError):
+            cols["nope"]
+    assert "UZ1" in bf.labels and bf.labels["UZ1"][0] == 1
+
+
+def test_opening_reads_no_profile_and_only_the_label_columns(bratu_file, reads, monkeypatch):
+    bf = BranchFile(bratu_file)
+    columns = {name for name in reads if "/columns/" in name}
+    assert columns == {f"/branches/{k}/columns/{c}" for k in ("001", "002")
+                       for c in ("type", "label")}
+    assert all(("/columns/" in name or name == "/profile_grid") for name in reads), reads
+    b = bf.branches[0]
+    del reads[:]
+    lam = b.columns["lam"]
+    assert reads == ["/branches/001/columns/lam"]
+    assert b.columns["lam"] is lam
+    b.columns["type"], b.columns["label"], b.columns["pt"], b.label_names(), len(b)
+    assert reads == ["/branches/001/columns/lam"]    # kept, or known from opening
+    b.profiles
+    b.profiles
+    assert reads[1:] == ["/branches/001/profiles"]
+    del reads[:]
+    bf.label("UZ1")
+    assert reads and all(name.startswith("/branches/001/solutions/UZ1/") for name in reads)
+    # items() reads every column not read yet, in one opening of the file
+    opens, File = [], h5py.File
+    monkeypatch.setattr(h5py, "File", lambda *a, **kw: opens.append(a) or File(*a, **kw))
+    del reads[:]
+    cols = dict(bf.branches[1].columns.items())
+    stored = set(cols) - {"branch", "pt", "label", "type"}
+    assert len(opens) == 1 and sorted(reads) == sorted(f"/branches/002/columns/{name}"
+                                                       for name in stored)
+
+
+def _one_line(exc_info, path):
+    msg = str(exc_info.value)
+    assert len(msg.splitlines()) == 1 and str(path) in msg, msg
+    return msg
+
+
+def _truncate(path):
+    os.truncate(path, path.stat().st_size // 2)
+
+
+def _replace(path):
+    """A run's save: another complete file renamed over it."""
+    tmp = path.with_name("other.h5")
+    shutil.copy(path, tmp)
+    with h5py.File(tmp, "a") as f:
+        f["branches/001/columns/lam"][0] = 42.0
+    os.replace(tmp, path)
+
+
+def _edit(path):
+    with h5py.File(path, "a") as f:
+        f["branches/001/columns/lam"][0] = 42.0
+
+
+AFTER_OPENING = {"truncated": (_truncate, "damaged branch file"),
+                 "replaced": (_replace, "changed since it was opened"),
+                 "edited": (_edit, "changed since it was opened"),
+                 "removed": (os.unlink, "no such file (removed since it was opened)")}
+
+
+@pytest.mark.parametrize("change", sorted(AFTER_OPENING))
+def test_a_read_after_the_file_changed_raises_one_line(copy, change):
+    edit, needle = AFTER_OPENING[change]
+    bf = BranchFile(copy)
+    b = bf.branches[0]
+    lam = b.columns["lam"]
+    edit(copy)
+    for read in (lambda: b.columns["u_half"], lambda: b.profiles, lambda: bf.label("UZ1"),
+                 lambda: dict(b.columns.items())):
+        with pytest.raises(StoreError) as exc_info:
+            read()
+        assert needle in _one_line(exc_info, copy)
+    assert b.columns["lam"] is lam and b.label_names()    # what was read stays readable
+
+
+def _in_place(path, edit):
+    """``edit`` applied to the file's bytes in place, keeping its inode, size and times: a
+    change the file's identity does not show, so the read itself must notice it."""
+    st = path.stat()
+    damaged = path.with_name("damaged.h5")
+    shutil.copy(path, damaged)
+    with h5py.File(damaged, "a") as f:
+        edit(f)
+    data = damaged.read_bytes()
+    assert len(data) <= st.st_size
+    with open(path, "r+b") as fh:
+        fh.write(data + bytes(st.st_size - len(data)))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert path.stat().st_size == st.st_size and path.stat().st_ino == st.st_ino
+
+
+def _delete(f):
+    del f["branches/001/columns/u_half"]
+    del f["branches/001/profiles"]
+    del f["branches/001/solutions/UZ1/y"]
+
+
+def _shorten(f):
+    for name in ("branches/001/columns/u_half", "branches/001/profiles"):
+        data = f[name][:-3]
+        del f[name]
+        f[name] = data
+
+
+@pytest.mark.parametrize("edit", [_delete, _shorten])
+def test_a_read_of_a_file_damaged_in_place_raises_one_line(copy, edit):
+    bf = BranchFile(copy)
+    b = bf.branches[0]
+    _in_place(copy, edit)
+    for read, what in ((lambda: b.columns["u_half"], "branch 001: column 'u_half' unreadable"),
+                       (lambda: b.profiles, "branch 001: profiles unreadable")):
+        with pytest.raises(StoreError) as exc_info:
+            read()
+        assert f"damaged branch file: {what}" in _one_line(exc_info, copy)
+    if edit is _delete:
+        with pytest.raises(StoreError) as exc_info:
+            bf.label("UZ1")
+        assert "damaged branch file: solution UZ1 unreadable" in _one_line(exc_info, copy)
+
+
+def test_a_profile_dataset_that_is_a_group_is_damaged(copy):
+    with h5py.File(copy, "a") as f:
+        del f["branches/002/profiles"]
+        f.create_group("branches/002/profiles")
+    with pytest.raises(StoreError) as exc_info:
+        BranchFile(copy)
+    assert "damaged branch file: branch 002: 'profiles' is not a dataset" in _one_line(
+        exc_info, copy)
+
+
+def test_a_run_file_opens_each_restart_file_once(bratu_file, tmp_path, monkeypatch):
+    shutil.copy(bratu_file, tmp_path / "bratu.h5")
+    (tmp_path / "restart.toml").write_text(textwrap.dedent(f"""\
+        equation = "{BRATU}"
+        start = ["bratu.h5:UZ1", "./bratu.h5:UZ2", "{tmp_path / 'bratu.h5'}:UZ3",
+                 {{ file = "bratu.h5", type = "UZ", limit = 2 }},
+                 {{ file = "bratu.h5", type = "EP" }}]
+        [continuation]
+        parameter = "lam"
+        bounds = [-1, 4]
+        """))
+    opened = []
+
+    def counting(path):
+        opened.append(path)
+        return BranchFile(path)
+
+    monkeypatch.setattr(runfile, "BranchFile", counting)
+    plan = runfile.load(tmp_path / "restart.toml")
+    assert len(opened) == 1
+    starts = [spec.start.label for spec in plan.branches]
+    assert {"UZ1", "UZ2", "UZ3", "EP1"} <= set(starts)
