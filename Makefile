@@ -41,19 +41,9 @@ PLOTS   = $(wildcard elastica_auto/plots/*.py)
 
 .PHONY: figures runs gallery fig-rotating-arm
 
-# restart chains: a run's file depends on the files its starts come from
-$(OUT)/arm_length.h5 $(OUT)/rotating_load.h5 $(OUT)/rotating_base.h5: $(OUT)/rotating_arm.h5
-$(OUT)/buckled_load.h5: $(OUT)/rotating_arm.h5
-$(OUT)/rotating_arm_stable.h5: $(OUT)/buckled_load.h5
-$(OUT)/load_magnitude.h5: $(OUT)/rotating_load.h5
-
 # a run that ends with a failed branch (exit status 1) leaves no file behind for make to trust
 $(OUT)/%.h5: $(RUNS)/%.toml $(ENGINE) | $(BIN)/elastica-auto
 	$(BIN)/elastica-auto run $< --out $(OUT) -q || { rm -f $@; exit 1; }
-
-PAPER_RUNS = rotating_arm trivial_buckling arm_length rotating_load load_magnitude \
-             rotating_base buckled_load rotating_arm_stable
-runs: $(PAPER_RUNS:%=$(OUT)/%.h5)
 
 # $(call FIGURE,name,runs): target fig-<name> draws $(FIG)/<name with _>.png and .pdf
 define FIGURE
@@ -64,16 +54,21 @@ $(FIG)/$(subst -,_,$(1)).png $(FIG)/$(subst -,_,$(1)).pdf &: $(2:%=$(OUT)/%.h5) 
 	$(BIN)/python -m elastica_auto.plots $(1) --data $(OUT) --out $(FIG)
 endef
 
-$(eval $(call FIGURE,critical-loads,trivial_buckling))                      # paper fig. 3
-$(eval $(call FIGURE,rotating-arm-short,rotating_arm rotating_arm_stable))  # fig. 4
-$(eval $(call FIGURE,rotating-arm-long,rotating_arm))                       # fig. 5
-$(eval $(call FIGURE,arm-length-straight,rotating_arm arm_length))          # fig. 6
-$(eval $(call FIGURE,arm-length-tilted,arm_length))                         # fig. 7
-$(eval $(call FIGURE,rotating-load,rotating_load))                          # fig. 8
-$(eval $(call FIGURE,load-magnitude-vertical,rotating_load load_magnitude)) # fig. 9
-$(eval $(call FIGURE,load-magnitude-tilted,load_magnitude))                 # fig. 10
-$(eval $(call FIGURE,rotating-base,rotating_base))                          # fig. 11
-$(eval $(call FIGURE,rotating-base-snaps,rotating_base))                    # fig. 12
+# Which figure reads which runs is written once, in the figure registry
+# (elastica_auto/plots/paper.py); which run restarts from which, in the run files. The rules
+# (FIGURE calls, restart chains, PAPER_RUNS) are generated from them into $(PAPER_RULES)
+# whenever a goal other than those above is made. Make reads them before it makes any goal,
+# even with -n: without a venv it creates one first.
+PAPER_RULES = $(OUT)/.paper-rules.mk
+ifneq ($(filter-out install demo test bench clean,$(MAKECMDGOALS)),)
+include $(PAPER_RULES)
+endif
+$(PAPER_RULES): elastica_auto/plots/paper.py elastica_auto/plots/__main__.py \
+                $(wildcard $(RUNS)/*.toml) | $(if $(wildcard $(BIN)/python),,$(BIN)/elastica-auto)
+	@mkdir -p $(@D)
+	@$(BIN)/python -m elastica_auto.plots --make-rules --runs $(RUNS) > $@.tmp && mv $@.tmp $@
+
+runs: $(PAPER_RUNS:%=$(OUT)/%.h5)
 
 fig-rotating-arm: fig-rotating-arm-short fig-rotating-arm-long
 

@@ -53,6 +53,15 @@ def main():
     """AUTO-07p-style continuation of boundary value problems, with stability labels."""
 
 
+def restart_files(doc: dict) -> list[str]:
+    """The branch files a parsed run file's ``start`` and ``switch`` read, as written there."""
+    return sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
+                   for key in ("start", "switch")
+                   for ref in (doc.get(key) if isinstance(doc.get(key), list)
+                               else [doc.get(key)])
+                   if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
+
+
 @main.command("list")
 def list_runs():
     """List the shipped run files (and the branch files each restarts from)."""
@@ -63,11 +72,7 @@ def list_runs():
         except (OSError, tomllib.TOMLDecodeError) as exc:
             click.echo(f"{name:<20} (unreadable: {exc})")
             continue
-        needs = sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
-                        for key in ("start", "switch")
-                        for ref in (doc.get(key) if isinstance(doc.get(key), list)
-                                    else [doc.get(key)])
-                        if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
+        needs = restart_files(doc)
         after = f" [restarts from {', '.join(needs)}]" if needs else ""
         click.echo(f"{name:<20} {doc.get('description', '')}{after}")
 
@@ -251,7 +256,8 @@ def export(file, output):
 @click.option("--fold/--no-fold", "fold", default=False,
               help="Fold a periodic abscissa into [0, period), e.g. psi into [0, 2 pi).")
 def plot(file, xname, yname, output, fold):
-    """Plot a bifurcation diagram of FILE.h5 (reads the file, computes nothing)."""
+    """Plot a bifurcation diagram of FILE.h5, one panel per combination of the values of the
+    parameters fixed along its branches (reads the file, computes nothing)."""
     from .plots import bifurcation_diagram
     bf = _open(file)
     period = None

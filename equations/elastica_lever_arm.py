@@ -1,12 +1,12 @@
 """End-loaded planar elastica with a rigid lever arm (nondimensional: K = l = 1).
 
 State ``[theta, kappa, x, y]`` on s in [0, 1]; theta is the tangent angle from the vertical,
-kappa = theta' the bending moment m.e_z, (x, y) the centreline. Moment balance
-(the paper's eqn:Moment_balance with n = F = P (sin alpha, -cos alpha))::
+kappa = theta' the bending moment m.e_z, (x, y) the centreline. Moment balance, with the
+contact force n equal to the load F = P (sin alpha, -cos alpha)::
 
     theta' = kappa,  kappa' = -P sin(theta - alpha),  x' = -sin theta,  y' = cos theta.
 
-Clamp: theta(0) = theta0, x(0) = y(0) = 0. Free end (eqn:N_BC_2)::
+Clamp: theta(0) = theta0, x(0) = y(0) = 0. Free end (moment balance of the lever arm)::
 
     kappa(1) + eps P sin(psi + alpha - theta(1)) = 0.
 
@@ -17,6 +17,8 @@ the tip tangent). Reduced energy, whose Euler-Lagrange equations are the system 
 
 P and alpha appear in the reduced ODE, but in the paper's formulation (positions with Lagrange
 multipliers n) they enter only the free-end term, so they are declared ``enters="free"``.
+
+``draw`` draws a configuration for the figures: clamp, centreline, lever arm and load.
 """
 
 import math
@@ -163,3 +165,46 @@ def shooting(p):
         return yb[1] + p["eps"] * p["P"] * np.sin(p["psi"] + p["alpha"] - yb[0])
 
     return -bound, bound, initial, residual
+
+
+#: Colours and sizes of the drawn configurations.
+ROD_COLOR, ARM_COLOR, LOAD_COLOR, CLAMP_COLOR = "black", "#555555", "#e66101", "0.2"
+LINE_WIDTH, CLAMP_HALF_WIDTH, ARROW_LENGTH = 1.4, 0.16, 0.42
+
+
+def arm_end(profile, p):
+    """The end of the lever arm (where the load acts) of a profile ``[theta, kappa, x, y]``
+    on the grid (4, m): the arm leaves the tip at angle theta(1) - psi from the vertical."""
+    theta1, x1, y1 = profile[0, -1], profile[2, -1], profile[3, -1]
+    return np.array((x1 + p["eps"] * np.sin(p["psi"] - theta1),
+                     y1 + p["eps"] * np.cos(p["psi"] - theta1)))
+
+
+def draw(ax, profile, p):
+    """Draw the configuration on ``ax``: the clamp (hatched, turned by theta0), the centreline,
+    the lever arm and the load arrow F = P (sin alpha, -cos alpha) ending at the arm's end."""
+    t0 = p["theta0"]
+    tangent = np.array((-np.sin(t0), np.cos(t0)))
+    normal = np.array((np.cos(t0), np.sin(t0)))
+    wall = np.outer(normal, (-CLAMP_HALF_WIDTH, CLAMP_HALF_WIDTH))
+    ax.plot(wall[0], wall[1], color=CLAMP_COLOR, lw=LINE_WIDTH * 0.9, solid_capstyle="butt",
+            zorder=3)
+    for u in np.linspace(-CLAMP_HALF_WIDTH, CLAMP_HALF_WIDTH, 5):
+        a = u * normal
+        b = a - 0.09 * tangent - 0.07 * normal
+        ax.plot((a[0], b[0]), (a[1], b[1]), color="0.35", lw=0.6, zorder=3)
+    x, y = profile[2], profile[3]
+    tip, end = np.array((x[-1], y[-1])), arm_end(profile, p)
+    ax.plot(x, y, color=ROD_COLOR, lw=LINE_WIDTH, zorder=4, solid_capstyle="round", gid="rod")
+    ax.plot((tip[0], end[0]), (tip[1], end[1]), color=ARM_COLOR, lw=LINE_WIDTH * 0.7, zorder=4,
+            solid_capstyle="round", gid="lever arm")
+    ax.plot(*tip, "o", ms=LINE_WIDTH * 1.3, color=ROD_COLOR, zorder=5)
+    ax.plot(*end, "o", ms=LINE_WIDTH * 1.8, color=ARM_COLOR, zorder=5)
+    if p["P"] != 0:
+        a = p["alpha"]
+        tail = end - ARROW_LENGTH * np.sign(p["P"]) * np.array((np.sin(a), -np.cos(a)))
+        ax.annotate("", xy=end, xytext=tail, zorder=6, gid="load",
+                    arrowprops=dict(arrowstyle="-|>", color=LOAD_COLOR, lw=LINE_WIDTH * 0.75,
+                                    mutation_scale=6 + 2 * LINE_WIDTH, shrinkA=0,
+                                    shrinkB=LINE_WIDTH * 1.2))
+        ax.update_datalim([tail])

@@ -1,5 +1,7 @@
 """Every figure target of the Makefile writes its PNG and PDF, from the runs it names, and make
-redraws a figure only when its branch files or the plotting code changed.
+redraws a figure only when its branch files or the plotting code changed. The figure registry
+is the one source of which figure reads which runs: the Makefile's rules are generated from
+it, and docs/figures.md lists the same.
 
 The figures are drawn by ``make figures`` from the same (reduced) branch files as
 tests/test_paper_runs.py; see there.
@@ -9,10 +11,15 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
+from matplotlib.figure import Figure
 from PIL import Image
 
-from elastica_auto.plots.paper import FIGURES
+from elastica_auto.plots.__main__ import make_rules
+from elastica_auto.plots.paper import FIGURES, in_paper_order
+from elastica_auto.problem import load_problem
+from elastica_auto.store import BranchFile
 from test_paper_runs import REPO, build_paper, make
 
 
@@ -27,11 +34,38 @@ def _stem(name):
     return name.replace("-", "_")
 
 
-def test_every_paper_figure_has_a_make_target():
-    text = (REPO / "Makefile").read_text()
-    listed = set(re.findall(r"\$\(eval \$\(call FIGURE,([a-z0-9-]+),", text))
-    assert listed == set(FIGURES)
-    assert {f.paper for f in FIGURES.values()} == {str(n) for n in range(3, 13)}
+def test_the_make_rules_give_each_figure_its_runs_and_each_run_its_restarts():
+    rules = make_rules(REPO / "runs")
+    calls = re.findall(r"^\$\(eval \$\(call FIGURE,([a-z0-9-]+),([a-z_ ]+)\)\)", rules, re.M)
+    assert calls == [(f.name, " ".join(f.runs)) for f in in_paper_order()]
+    assert [f.paper for f in in_paper_order()] == [str(n) for n in range(3, 13)]
+    chains = dict(re.findall(r"^\$\(OUT\)/(\w+)\.h5: (.+)$", rules, re.M))
+    for path in (REPO / "runs").glob("*.toml"):
+        text = "\n".join(ln for ln in path.read_text().splitlines()
+                         if not ln.lstrip().startswith("#"))
+        needs = sorted({a or b for a, b in re.findall(r'file = "(\w+)\.h5"|"(\w+)\.h5:', text)})
+        assert chains.get(path.stem, "") == " ".join(f"$(OUT)/{r}.h5" for r in needs), path.stem
+    runs = re.search(r"^PAPER_RUNS = (.+)$", rules, re.M).group(1).split()
+    assert set(runs) >= {r for f in FIGURES.values() for r in f.runs}
+    for run in runs:       # every run after the runs it restarts from
+        for need in re.findall(r"\$\(OUT\)/(\w+)\.h5", chains.get(run, "")):
+            assert runs.index(need) < runs.index(run)
+    assert "buckled_load" in runs     # read by no figure, restarted from by one
+
+
+def test_the_docs_list_the_figures_of_the_registry():
+    """docs/figures.md: the targets table is the registry, row by row, and the gallery has a
+    heading and the image of every figure."""
+    text = (REPO / "docs" / "figures.md").read_text()
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+            for line in text.splitlines() if line.startswith("| `fig-")]
+    expected = [[f"`fig-{f.name}`", f.paper, f.shows, ", ".join(f.runs)]
+                for f in in_paper_order()]
+    assert rows == expected, "docs/figures.md targets table: expected\n" + "\n".join(
+        "| " + " | ".join(r) + " |" for r in expected)
+    for f in FIGURES.values():
+        assert re.search(rf"^### Figure {f.paper}: .* \u2014 `make fig-{f.name}`$", text, re.M)
+        assert f"(img/{_stem(f.name)}.png)" in text
 
 
 @pytest.mark.parametrize("name", sorted(FIGURES))
@@ -72,6 +106,15 @@ def test_a_changed_restart_file_recomputes_the_chain(drawn):
                                                                        "load_magnitude"]
 
 
+def test_a_changed_registry_rewrites_the_rules_but_draws_nothing_new(drawn):
+    """The generated rules follow the registry; regenerating them is silent and redraws
+    nothing that is up to date."""
+    out = _commands(drawn, "figures", "-W", "elastica_auto/plots/paper.py")
+    assert "elastica-auto run" not in out and "--make-rules" not in out
+    assert sorted(re.findall(r"elastica_auto\.plots ([a-z0-9-]+)", out)) == sorted(FIGURES)
+    assert (drawn / "out" / ".paper-rules.mk").read_text() == make_rules(drawn / "runs")
+
+
 def test_changed_plotting_code_redraws_every_figure_and_recomputes_nothing(drawn):
     out = _commands(drawn, "figures", "-W", "elastica_auto/plots/layout.py")
     assert "elastica-auto run" not in out
@@ -82,21 +125,25 @@ def test_changed_plotting_code_redraws_every_figure_and_recomputes_nothing(drawn
                                  "load_magnitude", "rotating_base"])
 def test_drawn_lever_arm_and_load_balance_the_tip_moment(drawn, run):
     """The configurations are drawn the right way round: the lever arm and the load arrow as
-    drawn (elastica_auto.plots.config) satisfy the free-end moment balance of the paper,
+    the module's draw hook draws them satisfy the free-end moment balance of the paper,
     m(1).e_z = (Psi x F).e_z, on every stored point; an arm drawn at theta(1) + psi, or a
     reversed load, would not."""
-    from elastica_auto.plots.config import geometry
-    from elastica_auto.store import BranchFile
-    import numpy as np
-
     bf = BranchFile(drawn / "out" / f"{run}.h5")
+    problem = load_problem(bf.equation)
     n = 0
     for b in bf.branches:
         for i in range(0, len(b), 7):
             p = {q: float(b.columns[q][i]) for q in bf.parameters}
-            g = geometry(b.profiles[i], p)
-            arm = g.arm_end - g.tip
-            F = abs(p["P"]) * g.load
+            ax = Figure().add_subplot()
+            problem.draw(ax, b.profiles[i], p)
+            (arm,) = [ln for ln in ax.lines if ln.get_gid() == "lever arm"]
+            tip, end = np.array(arm.get_xydata())
+            assert tip == pytest.approx(b.profiles[i][2:4, -1], abs=1e-12)
+            arm = end - tip
+            (load,) = [t for t in ax.texts if t.get_gid() == "load"]
+            head, tail = np.array(load.xy), np.array(load.xyann)
+            assert head == pytest.approx(end, abs=1e-12)
+            F = abs(p["P"]) * (head - tail) / np.hypot(*(head - tail))
             moment = arm[0] * F[1] - arm[1] * F[0]
             assert abs(np.hypot(*arm) - abs(p["eps"])) < 1e-12
             assert moment == pytest.approx(b.profiles[i][1, -1], abs=1e-5 * (1 + abs(p["P"])))

@@ -1,27 +1,33 @@
-"""Bifurcation diagrams: an ordinate against a parameter, every branch of a file.
+"""Bifurcation diagrams of a branch file (``elastica-auto plot``): an ordinate against a
+parameter, one panel per combination of the values of the parameters that stay fixed along
+the branches and differ between them.
 
-Line style and colour follow the stability index (0 solid black; 1, 2, ... dashed and dotted
-in colour); points whose index is not known yet are drawn solid grey. Folds and the other
-labelled points are marked and named (``LP3``).
+Line style and colour follow the stability index (`style.INDEX_STYLE`); folds, branch points
+and failed ends are marked (`style.MARKERS`) and named (``LP3``) where the name has room.
+Each panel's title gives its fixed values, the figure's title the values every branch shares.
+Drawn on a `matplotlib.figure.Figure`, without pyplot; nothing is recomputed.
 """
 
 from __future__ import annotations
 
+import math
+from fractions import Fraction
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from ..store import BranchFile
+from .layout import same_value
+from .style import RC, index_label, index_style, marker_style
 
-from ..store import BranchFile  # noqa: E402
-
-INDEX_STYLE = {0: ("black", "-"), 1: ("tab:red", "--"), 2: ("tab:blue", ":"),
-               3: ("tab:green", "-.")}
-UNKNOWN_STYLE = ("0.35", "-")
-MARKERS = {"LP": ("o", "tab:red"), "BP": ("s", "tab:purple"), "UZ": ("^", "tab:green"),
-           "EP": ("D", "0.3"), "MX": ("X", "black")}
+#: Labelled points that are marked, in the order their names get room.
+MARKED = ("MX", "BP", "LP")
+MARKER_TEXT = {"LP": "fold (LP)", "LP?": "fold not located", "BP": "branch point (BP)",
+               "MX": "failed end (MX)"}
+FONTSIZE = 7.0
 
 
 def index_runs(x, y, index, period):
@@ -40,10 +46,119 @@ def index_runs(x, y, index, period):
     yield x[start:], y[start:], int(index[start])
 
 
-def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
-                        yname: str | None = None, period: float | None = None,
-                        label_types=("LP", "BP", "MX")) -> Path:
-    """Draw ``yname`` against ``xname`` for every branch of ``bf`` and save to ``output``.
+def fixed_parameters(bf: BranchFile, xname: str) -> list[str]:
+    """The parameters other than ``xname`` that keep one value along every branch of ``bf``."""
+    return [q for q in bf.parameters if q != xname
+            and all(np.ptp(b.columns[q].astype(float)) == 0 for b in bf.branches if len(b))]
+
+
+def panel_groups(bf: BranchFile, xname: str):
+    """``(varying, groups)``: the fixed parameters whose value differs between branches, and
+    the branches grouped by those values, ``[(values, branches)]`` sorted by the values."""
+    fixed = fixed_parameters(bf, xname)
+    branches = [b for b in bf.branches if len(b)]
+
+    def first(b, q):
+        return float(b.columns[q][0])
+
+    varying = [q for q in fixed if any(not same_value(first(b, q), first(branches[0], q),
+                                                      bf.periods.get(q)) for b in branches)]
+    groups: list[tuple[tuple, list]] = []
+    for b in branches:
+        key = tuple(first(b, q) for q in varying)
+        for k, members in groups:
+            if all(same_value(u, v, bf.periods.get(q)) for u, v, q in zip(key, k, varying)):
+                members.append(b)
+                break
+        else:
+            groups.append((key, [b]))
+    groups.sort(key=lambda g: g[0])
+    return varying, [(dict(zip(varying, k)), members) for k, members in groups]
+
+
+def value_tex(v: float) -> str:
+    """``v`` in TeX for a title: a small fraction of pi or pi^2 as such (``\\pi/12``,
+    ``9\\pi^2/4``), else with four significant digits."""
+    if v == 0:
+        return "0"
+    for power, pi in ((1, r"\pi"), (2, r"\pi^2")):
+        r = Fraction(v / math.pi ** power).limit_denominator(12)
+        if abs(r.numerator) <= 100 and abs(float(r) * math.pi ** power - v) <= 1e-12 * abs(v):
+            num = {1: "", -1: "-"}.get(r.numerator, str(r.numerator))
+            return num + pi + (f"/{r.denominator}" if r.denominator > 1 else "")
+    return f"{v:.4g}"
+
+
+def _values_tex(bf: BranchFile, values: dict) -> str:
+    return ", ".join(rf"${bf.tex.get(q, q).strip('$')}={value_tex(v)}$"
+                     for q, v in values.items())
+
+
+def _grid(n: int, varying: list, groups) -> tuple[int, int]:
+    """Rows and columns: with two or more varying parameters, a column per value of the last
+    one (up to four); else two columns up to four panels, three beyond."""
+    ncols = min(n, 2 if n <= 4 else 3)
+    if len(varying) > 1:
+        last = len({round(v[varying[-1]], 9) for v, _ in groups})
+        if 1 < last <= 4:
+            ncols = last
+    return math.ceil(n / ncols), ncols
+
+
+def _draw_panel(ax, branches, xname, yname, period):
+    """The branches as lines styled by index and their labelled points marked; returns the
+    indices drawn, the marker types drawn and the points to name [(priority, x, y, name,
+    type)]."""
+    indices, kinds, names = set(), set(), []
+    for b in branches:
+        x, y = b.columns[xname].astype(float), b.columns[yname].astype(float)
+        for xs, ys, k in index_runs(x, y, b.columns["index"], period):
+            color, dash, lw = index_style(k)
+            ax.plot(xs, ys, color=color, ls=dash, lw=lw, solid_capstyle="round",
+                    dash_capstyle="butt", zorder=3 if k == 0 else 2)
+            indices.add(max(k, -1))
+        xm = np.mod(x, period) if period else x
+        label = b.label_names()
+        for i, t in enumerate(b.columns["type"]):
+            if t not in MARKED:
+                continue
+            if not (np.isfinite(xm[i]) and np.isfinite(y[i])):
+                continue
+            kind = "LP?" if t == "LP" and not np.isfinite(b.columns["fold_residual"][i]) else t
+            ax.plot(xm[i], y[i], zorder=5, **marker_style(kind))
+            kinds.add(kind)
+            names.append((MARKED.index(t), xm[i], y[i], label[i], kind))
+    return indices, kinds, names
+
+
+def _name_points(ax, names):
+    """Write the names beside their points, in order of priority, where a name overlaps no
+    name written before and stays inside the axes (positions in points, after the layout)."""
+    to_points = 72.0 / ax.figure.dpi
+    box = ax.get_window_extent()
+    x0, y0, x1, y1 = (v * to_points for v in box.extents)
+    placed = []
+    for _, x, y, name, kind in sorted(names, key=lambda n: n[0]):
+        px, py = ax.transData.transform((x, y)) * to_points
+        w, h = 0.62 * FONTSIZE * len(name), FONTSIZE
+        left, bottom = px + 3, py + 2
+        if left + w > x1 or bottom + h > y1 or px < x0 or py < y0:
+            continue
+        if any(left < r and left + w > q and bottom < t and bottom + h > s
+               for q, s, r, t in placed):
+            continue
+        placed.append((left - 1.5, bottom - 1.5, left + w + 1.5, bottom + h + 1.5))
+        ann = ax.annotate(name, (x, y), xytext=(3, 2), textcoords="offset points",
+                          fontsize=FONTSIZE, color=marker_style(kind)["mec"], zorder=6,
+                          bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none",
+                                    alpha=0.8))
+        ann.set_in_layout(False)
+
+
+def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
+                   period: float | None = None) -> Figure:
+    """The figure of ``yname`` against ``xname`` for every branch of ``bf``, one panel per
+    combination of fixed parameter values (see `panel_groups`).
 
     Defaults: x is the first branch's continued parameter, y its distinguished ordinate.
     ``period`` folds x into [0, period).
@@ -57,36 +172,56 @@ def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
                              f"{', '.join(bf.parameters + bf.ordinates)}")
-    fig, ax = plt.subplots(figsize=(7.0, 4.2), constrained_layout=True)
-    seen = set()
-    for b in bf.branches:
-        x, y, index = b.columns[xname], b.columns[yname], b.columns["index"]
-        for xs, ys, k in index_runs(x, y, index, period):
-            color, ls = (INDEX_STYLE.get(k, (f"C{k % 10}", (0, (1, 1, 3, 1))))
-                         if k >= 0 else UNKNOWN_STYLE)
-            label = None
-            key = k if k >= 0 else "unknown"
-            if key not in seen:
-                seen.add(key)
-                label = f"index {k}" if k >= 0 else "index not computed"
-            ax.plot(xs, ys, color=color, ls=ls, lw=1.3, label=label)
-        names = b.label_names()
-        for i, t in enumerate(b.columns["type"]):
-            if t in label_types:
-                marker, color = MARKERS[t]
-                xi = np.mod(x[i], period) if period else x[i]
-                ax.plot(xi, y[i], marker=marker, color=color, ms=4, ls="none")
-                ax.annotate(names[i], (xi, y[i]), textcoords="offset points", xytext=(3, 3),
-                            fontsize=7, color=color)
-    ax.set_xlabel(bf.tex.get(xname, xname))
-    ax.set_ylabel(bf.tex.get(yname, yname))
-    if period is not None:
-        ax.set_xlim(0, period)
-    ax.set_title(f"{bf.run}: {len(bf.branches)} branches", fontsize=10)
-    ax.grid(alpha=0.25)
-    ax.legend(fontsize=8, loc="best")
+    varying, groups = panel_groups(bf, xname)
+    if not groups:
+        raise ValueError(f"{bf.path}: the branches have no points")
+    common = {q: float(b0.columns[q][0]) for q in fixed_parameters(bf, xname)
+              if q not in varying}
+    nrows, ncols = _grid(len(groups), varying, groups)
+    with matplotlib.rc_context(RC):
+        width = 4.4 if ncols > 1 else 6.4
+        fig = Figure(figsize=(0.6 + width * ncols, 1.0 + 3.0 * nrows), layout="constrained")
+        axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True).ravel()
+        indices, kinds, names = set(), set(), []
+        for ax, (values, branches) in zip(axes, groups):
+            i, k, n = _draw_panel(ax, branches, xname, yname, period)
+            indices |= i
+            kinds |= k
+            names.append(n)
+            if values:
+                ax.set_title(_values_tex(bf, values), fontsize=9)
+            if period is not None:
+                ax.set_xlim(0, period)
+            ax.grid(alpha=0.25)
+        for j, ax in enumerate(axes):
+            if j >= len(groups):
+                ax.remove()
+            elif j + ncols >= len(groups):    # no panel below: this one shows the x axis
+                ax.xaxis.set_tick_params(labelbottom=True)
+                ax.set_xlabel(bf.tex.get(xname, xname))
+        fig.supylabel(bf.tex.get(yname, yname))
+        count = f"{len(bf.branches)} branch{'es' if len(bf.branches) != 1 else ''}"
+        fig.suptitle(f"{bf.run}: {count}" + (f"; {_values_tex(bf, common)}" if common else ""),
+                     fontsize=10)
+        handles = [Line2D([], [], color=c, ls=d, lw=w, label=index_label(k))
+                   for k in sorted(indices, key=lambda k: (k < 0, k))
+                   for c, d, w in [index_style(k)]]
+        handles += [Line2D([], [], label=MARKER_TEXT[k], **marker_style(k))
+                    for k in ("LP", "LP?", "BP", "MX") if k in kinds]
+        fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6),
+                   handlelength=2.6)
+        fig.draw_without_rendering()
+        for ax, n in zip(axes, names):
+            _name_points(ax, n)
+    return fig
+
+
+def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
+                        yname: str | None = None, period: float | None = None) -> Path:
+    """Draw `diagram_figure` and save it to ``output`` (.png, .pdf, .svg)."""
+    fig = diagram_figure(bf, xname, yname, period)
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(output, dpi=150)
-    plt.close(fig)
+    with matplotlib.rc_context(RC):
+        fig.savefig(output, dpi=150)
     return output

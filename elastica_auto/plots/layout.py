@@ -5,33 +5,85 @@ parameter, line style by stability index), the numbered equilibria drawn as conf
 along the top, and the snap-back arrows with their before/after configurations at the side.
 :func:`draw_panel` lays it out in a matplotlib (sub)figure. The helpers here only select,
 interpolate and place what the files hold; nothing is solved.
+
+Configurations are drawn by the ``draw(ax, profile, params)`` hook of the equation module that
+the branch file names (its ``equation`` attribute), loaded when a configuration is drawn; a
+module without the hook gets diagrams without configurations. Nothing here knows the problem.
 """
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Callable
 
-import matplotlib
+import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.patches import ConnectionPatch, FancyArrowPatch
+from matplotlib.ticker import FuncFormatter, MultipleLocator
+from scipy.interpolate import PchipInterpolator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import ConnectionPatch, FancyArrowPatch  # noqa: E402
-from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: E402
-from scipy.interpolate import PchipInterpolator  # noqa: E402
-
-from ..store import BranchFile, StoredBranch  # noqa: E402
-from . import config  # noqa: E402
-from .style import (BP_COLOR, FOLD_COLOR, LABEL_COLOR, SNAP_COLOR, index_label,  # noqa: E402
-                    index_style)
+from ..problem import Problem, load_problem
+from ..store import BranchFile, StoredBranch
+from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
 
 TWO_PI = 2 * math.pi
 
 
 # ----------------------------------------------------------------------------------- data
+@dataclass
+class Configuration:
+    """A solution to draw with the ``draw`` hook of the module ``equation`` (a branch file's
+    ``equation`` attribute): ``profile`` (states, profile grid) at parameter values ``params``;
+    ``extra(ax)`` draws more in its axes (e.g. the path some point took to get there)."""
+
+    equation: str
+    profile: np.ndarray
+    params: dict
+    extra: Callable | None = None
+
+
+@functools.lru_cache(maxsize=None)
+def equation_problem(equation: str) -> Problem:
+    """The problem of the equation module a branch file names, loaded once."""
+    return load_problem(equation)
+
+
+def can_draw(c: Configuration | None) -> bool:
+    """Whether ``c``'s equation module draws configurations (has the ``draw`` hook)."""
+    return c is not None and equation_problem(c.equation).has_draw
+
+
+def draw_configurations(axes, configurations, margin=0.08):
+    """Draw each configuration in its axes, all at one scale: the limits of each axes are
+    centred on its drawing and fit the widest and the tallest one, plus ``margin`` of the
+    larger of the two on every side; equal aspect, no ticks, no frame."""
+    boxes = []
+    for ax, c in zip(axes, configurations):
+        equation_problem(c.equation).draw(ax, c.profile, c.params)
+        if c.extra is not None:
+            c.extra(ax)
+        boxes.append(ax.dataLim.frozen())
+    finite = [b for b in boxes if np.all(np.isfinite(b.extents))]
+    if not finite:
+        return
+    w = max(b.width for b in finite)
+    h = max(b.height for b in finite)
+    pad = margin * max(w, h, 1e-12)
+    for ax, b in zip(axes, boxes):
+        if np.all(np.isfinite(b.extents)):
+            cx, cy = (b.x0 + b.x1) / 2, (b.y0 + b.y1) / 2
+            ax.set_xlim(cx - w / 2 - pad, cx + w / 2 + pad)
+            ax.set_ylim(cy - h / 2 - pad, cy + h / 2 + pad)
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        for sp in ax.spines.values():
+            sp.set_visible(False)
+
+
 @dataclass(frozen=True)
 class Pt:
     """One stored point: file, branch, row."""
@@ -55,16 +107,19 @@ class Pt:
     def label(self) -> str:
         return self.br.label_names()[self.i]
 
-    def geometry(self, trace=None) -> config.Geometry:
-        return config.geometry(self.br.profiles[self.i], self.params, trace)
+    def configuration(self, extra: Callable | None = None) -> Configuration:
+        """The stored solution of this point, to draw (``extra``: see `Configuration`)."""
+        return Configuration(self.bf.equation, self.br.profiles[self.i], self.params, extra)
 
 
 def label_point(bf: BranchFile, name: str) -> Pt:
+    """The stored point of label ``name`` (``LP3``)."""
     br, pt = bf.labels[name]
     return Pt(bf, bf.branches[br - 1], pt - 1)
 
 
 def same_value(a, b, period=None, tol=1e-9) -> bool:
+    """Whether ``a`` and ``b`` agree to ``tol`` relative, modulo ``period`` if given."""
     d = a - b
     if period:
         d = math.remainder(d, period)
@@ -83,13 +138,14 @@ def branches_where(bf: BranchFile, **fixed) -> list[StoredBranch]:
 
 
 def start_point(bf: BranchFile, b: StoredBranch) -> Pt:
+    """The first point of branch ``b``."""
     return Pt(bf, b, 0)
 
 
-def distinct_starts(bf: BranchFile, branches, key="m0", tol=1e-5):
-    """The branches' start points, one per distinct equilibrium (the value of ``key``, which
-    with everything else fixed tells equilibria apart), in branch order; copies (the same
-    equilibrium started twice) are dropped."""
+def distinct_starts(bf: BranchFile, branches, key: str, tol=1e-5):
+    """The branches' start points, one per distinct equilibrium (the value of the column
+    ``key``, which with everything else fixed tells equilibria apart), in branch order; copies
+    (the same equilibrium started twice) are dropped."""
     out = []
     for b in branches:
         p = start_point(bf, b)
@@ -126,11 +182,12 @@ def interpolated(bf, br, i, w, name, value):
     return cols, prof
 
 
-def find_equilibrium(sources, name, value, key, target, fixed, tol=0.03):
-    """A stored branch point (interpolated) at parameter ``name`` = ``value`` (mod period) whose
-    ``key`` column is ``target``, among branches with the ``fixed`` parameter values; returns
-    (columns, profile) or None. Used for snap-back targets: at fixed parameters ``m0`` =
-    theta'(0) tells equilibria apart."""
+def find_equilibrium(sources, name, value, key, target, fixed,
+                     tol=0.03) -> Configuration | None:
+    """The configuration (interpolated between stored points) at parameter ``name`` =
+    ``value`` (mod period) whose ``key`` column is ``target``, among the branches of the files
+    ``sources`` in ``name`` with the ``fixed`` parameter values; None if there is none. Used
+    for snap-back targets, with a ``key`` that tells equilibria at fixed parameters apart."""
     best = None
     for bf in sources:
         period = bf.periods.get(name)
@@ -142,47 +199,9 @@ def find_equilibrium(sources, name, value, key, target, fixed, tol=0.03):
                 cols, prof = interpolated(bf, br, i, w, name, value)
                 err = abs(cols[key] - target)
                 if err <= tol * (1 + abs(target)) and (best is None or err < best[0]):
-                    best = (err, cols, prof)
-    return None if best is None else best[1:]
-
-
-def segments_of(br: StoredBranch, lo: int, hi: int):
-    """Index-0 run of points containing row ``lo``..``hi`` extended as far as it goes."""
-    idx = br.columns["index"]
-    while lo > 0 and idx[lo - 1] == 0:
-        lo -= 1
-    while hi < len(br) - 1 and idx[hi + 1] == 0:
-        hi += 1
-    return lo, hi
-
-
-def tip_trace(bf: BranchFile, br: StoredBranch, lp: int, side: str,
-              span: float | None = None) -> np.ndarray:
-    """Path of the arm's end along the stable segment that ends at the fold in row ``lp``
-    (``side``: 'before' or 'after' it in the branch's point order), ending at the fold; with
-    ``span``, only the part within ``span`` of the fold's parameter value."""
-    idx = br.columns["index"]
-    if side == "before":
-        hi = lp
-        lo = lp
-        while lo > 0 and idx[lo - 1] == 0:
-            lo -= 1
-        rows = range(lo, hi + 1)
-    else:
-        lo = lp
-        hi = lp
-        while hi < len(br) - 1 and idx[hi + 1] == 0:
-            hi += 1
-        rows = range(hi, lo - 1, -1)
-    pts = []
-    lam = br.columns[br.parameter]
-    for i in rows:
-        if span is not None and abs(lam[i] - lam[lp]) > span:
-            continue
-        p = Pt(bf, br, i)
-        prof = br.profiles[i]
-        pts.append(config.arm_end(prof[0, -1], prof[2, -1], prof[3, -1], p.params))
-    return np.array(pts).T
+                    best = (err, Configuration(bf.equation, prof,
+                                               {q: cols[q] for q in bf.parameters}))
+    return None if best is None else best[1]
 
 
 # --------------------------------------------------------------------------- diagram parts
@@ -386,17 +405,15 @@ def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fonts
             a, _, b = tr.partition("->")
             if t == "LP" and not np.isfinite(c["fold_residual"][i]):
                 # the engine saw the parameter turn but could not locate a fold here
-                ax.plot(xi, y[i], "x", ms=4, color="0.4", mew=1.0, zorder=6)
+                ax.plot(xi, y[i], zorder=6, **marker_style("LP?"))
                 continue
+            ax.plot(xi, y[i], zorder=6, **marker_style(t))
             if t == "LP":
-                ax.plot(xi, y[i], "o", ms=3.4, mfc="white", mec=FOLD_COLOR, mew=0.9,
-                        zorder=6)
                 i0, i1 = max(i - 1, 0), min(i + 1, len(x) - 1)
                 if y[i1] < y[i0]:
                     a, b = b, a
                 right = x[i] >= max(x[i0], x[i1])
             else:
-                ax.plot(xi, y[i], "s", ms=3.6, mfc="white", mec=BP_COLOR, mew=1.0, zorder=6)
                 right = True
             if not text or not a or not b or a == b:
                 continue
@@ -406,12 +423,12 @@ def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fonts
             placed.append(key)
             ax.annotate(f"{a}\u2192{b}", (xi, y[i]), xytext=(4 if right else -4, 0),
                         textcoords="offset points", ha="left" if right else "right",
-                        va="center", fontsize=fontsize,
-                        color=FOLD_COLOR if t == "LP" else BP_COLOR, zorder=7,
+                        va="center", fontsize=fontsize, color=marker_style(t)["mec"], zorder=7,
                         bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none"))
 
 
 def mark_number(ax, x, y, label, offset=(5, 6), fontsize=7.5):
+    """A dot at (x, y) with ``label`` in a circle beside it (a configuration drawn above)."""
     ax.plot(x, y, "o", ms=3.2, color=LABEL_COLOR, zorder=8)
     ax.annotate(str(label), (x, y), xytext=offset, textcoords="offset points",
                 fontsize=fontsize, color=LABEL_COLOR, weight="bold", ha="center", va="center",
@@ -420,6 +437,7 @@ def mark_number(ax, x, y, label, offset=(5, 6), fontsize=7.5):
 
 
 def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
+    """The snap-back arrow at parameter ``x`` from ordinate ``y0`` to ``y1``, with ``tag``."""
     ax.add_patch(FancyArrowPatch((x, y0), (x, y1), arrowstyle="-|>", mutation_scale=9,
                                  color=SNAP_COLOR, lw=lw, zorder=7, shrinkA=1.5, shrinkB=1.0))
     if tag:
@@ -428,25 +446,20 @@ def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=SNAP_COLOR, lw=0.7))
 
 
-def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False, unknown=False,
+def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False,
                    unlocated=False):
+    """Legend entries: the index styles of ``indices`` (-1: unknown), then the markers."""
     hs = []
-    for k in sorted(i for i in indices if i >= 0):
+    for k in sorted(i for i in indices if i >= 0) + ([-1] if -1 in indices else []):
         color, dash, lw = index_style(k)
         hs.append(Line2D([], [], color=color, ls=dash, lw=lw, label=index_label(k)))
-    if unknown or -1 in indices:
-        color, dash, lw = index_style(-1)
-        hs.append(Line2D([], [], color=color, ls=dash, lw=lw,
-                         label="index undetermined\n(fold rule \u2260 direct count)"))
     if folds:
-        hs.append(Line2D([], [], ls="none", marker="o", ms=3.6, mfc="white", mec=FOLD_COLOR,
-                         label="fold: index below\u2192above"))
+        hs.append(Line2D([], [], label="fold: index below\u2192above", **marker_style("LP")))
     if unlocated:
-        hs.append(Line2D([], [], ls="none", marker="x", ms=4, color="0.4",
-                         label="turning point not located\n(at a branch point)"))
+        hs.append(Line2D([], [], label="turning point not located\n(at a branch point)",
+                         **marker_style("LP?")))
     if bps:
-        hs.append(Line2D([], [], ls="none", marker="s", ms=3.6, mfc="white", mec=BP_COLOR,
-                         label="branch point"))
+        hs.append(Line2D([], [], label="branch point", **marker_style("BP")))
     if snaps:
         hs.append(Line2D([], [], color=SNAP_COLOR, lw=1.3, marker=">", ms=4,
                          label="snap-back"))
@@ -462,7 +475,7 @@ class Inset:
     """A numbered configuration along the top; ``xy`` is its place in the diagram."""
 
     label: str
-    geom: config.Geometry
+    config: Configuration
     xy: tuple[float, float] | None = None
     offset: tuple[float, float] = (5, 6)
 
@@ -476,12 +489,14 @@ class Snap:
     y0: float
     y1: float
     tag: str | None = None
-    before: config.Geometry | None = None
-    after: config.Geometry | None = None
+    before: Configuration | None = None
+    after: Configuration | None = None
 
 
 @dataclass
 class Panel:
+    """What one diagram shows (see the module docstring)."""
+
     items: list                      # [(BranchFile, StoredBranch)]
     xname: str
     yname: str
@@ -499,16 +514,14 @@ class Panel:
     extra: Callable | None = None    # extra(ax) draws more on the diagram
     legend_cols: int = 1
     zoom: dict | None = None         # {"xlim", "ylim", "bounds" (axes fraction), "text"}
-    inset_scale: tuple | None = None  # common (w, h) of the configuration insets
 
 
-def _inset_row(fig, spec, insets: list[Inset], size):
-    n = max(len(insets), 1)
-    gs = spec.subgridspec(1, n, wspace=0.03)
-    for j, ins in enumerate(insets):
-        ax = fig.add_subplot(gs[0, j])
-        config.draw(ax, ins.geom, lw=1.4)
-        config.frame(ax, ins.geom, size)
+def _inset_row(fig, spec, insets: list[Inset]):
+    """The numbered configurations side by side, at one scale."""
+    gs = spec.subgridspec(1, max(len(insets), 1), wspace=0.03)
+    axes = [fig.add_subplot(gs[0, j]) for j in range(len(insets))]
+    draw_configurations(axes, [ins.config for ins in insets])
+    for ax, ins in zip(axes, insets):
         ax.set_title(ins.label, fontsize=8, color=LABEL_COLOR, weight="bold", pad=1.0)
 
 
@@ -517,17 +530,14 @@ def _snap_column(fig, spec, snaps: list[Snap]):
     shown = [s for s in snaps if s.before is not None]
     gs = spec.subgridspec(2, len(shown), wspace=0.12, hspace=0.3)
     for c, s in enumerate(shown):
-        size = config.extent([g for g in (s.before, s.after) if g is not None], margin=0.06)
         a0 = fig.add_subplot(gs[0, c])
-        config.draw(a0, s.before, lw=1.3)
-        config.frame(a0, s.before, size)
         a0.set_title(f"{s.tag}: before", fontsize=7.5, color=SNAP_COLOR, pad=1.0)
         a1 = fig.add_subplot(gs[1, c])
         if s.after is not None:
-            config.draw(a1, s.after, lw=1.3)
-            config.frame(a1, s.after, size)
+            draw_configurations([a0, a1], [s.before, s.after], margin=0.04)
             a1.set_title(f"{s.tag}: after", fontsize=7.5, color=SNAP_COLOR, pad=1.0)
         else:
+            draw_configurations([a0], [s.before], margin=0.04)
             a1.axis("off")
             a1.text(0.5, 0.5, "target not on a\ncomputed branch", ha="center", va="center",
                     fontsize=6.5, transform=a1.transAxes, color=SNAP_COLOR)
@@ -540,15 +550,19 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
                side_width=0.27):
     """Lay ``panel`` out in ``fig`` (a Figure or SubFigure), or in ``spec`` of it: the
     configuration insets along the top, the diagram below; with snap-backs, a column at the
-    right holding the legend and the before/after configurations."""
+    right holding the legend and the before/after configurations. Configurations whose module
+    has no ``draw`` hook are left out (the insets, their numbers, the snap-back column), the
+    diagram is drawn all the same."""
+    panel = replace(panel, insets=[i for i in panel.insets if can_draw(i.config)],
+                    snaps=[s if can_draw(s.before) else replace(s, before=None, after=None)
+                           for s in panel.snaps])
     has_side = any(s.before is not None for s in panel.snaps)
     rows = [inset_height, main_height] if panel.insets else [main_height]
     kw = dict(width_ratios=[1 - side_width, side_width], wspace=0.04) if has_side else {}
     outer = (spec.subgridspec if spec is not None else fig.add_gridspec)(
         len(rows), 2 if has_side else 1, height_ratios=rows, hspace=0.06, **kw)
-    size = panel.inset_scale or config.extent([i.geom for i in panel.insets], trace=False)
     if panel.insets:
-        _inset_row(fig, outer[0, 0], panel.insets, size)
+        _inset_row(fig, outer[0, 0], panel.insets)
     ax = fig.add_subplot(outer[-1, 0])
     xlim = panel.xlim or ((0, panel.period) if panel.period else None)
     seen = draw_branches(ax, panel.items, panel.xname, panel.yname, panel.period, xlim=xlim)
@@ -611,11 +625,9 @@ def _zoom(ax, panel: Panel):
 
 def save(fig, out_dir, name) -> list:
     """Write ``name``.png and ``name``.pdf into ``out_dir``; return the paths."""
-    from pathlib import Path
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / f"{name}.png", out_dir / f"{name}.pdf"]
     for p in paths:
         fig.savefig(p, dpi=200 if p.suffix == ".png" else None)
-    plt.close(fig)
     return paths

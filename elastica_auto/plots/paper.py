@@ -1,8 +1,14 @@
 """The paper's figures 3-12 (and the stable family it leaves out), from the runs' branch files.
 
 Each figure is a function ``(data_dir, out_dir) -> [png, pdf]`` registered in :data:`FIGURES`
-under its make target name, with the branch files it reads. ``python -m elastica_auto.plots
-NAME --data out --out figures`` draws one; the Makefile has one target per figure.
+under its make target name, with what it shows and the branch files it reads. The registry is
+the one place that says which figure reads which runs: ``python -m elastica_auto.plots
+--make-rules`` writes the Makefile's figure rules from it, and a test checks the table of
+docs/figures.md against it. ``python -m elastica_auto.plots NAME --data out --out figures``
+draws one figure.
+
+Unlike the generic plots (`diagram`, `layout`), this module knows the elastica with a lever
+arm: its parameters, ordinates and the path of the arm's end.
 """
 
 from __future__ import annotations
@@ -13,18 +19,16 @@ from pathlib import Path
 from typing import Callable
 
 import matplotlib
-import matplotlib.patches
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import ConnectionPatch
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..store import BranchFile  # noqa: E402
-from . import config  # noqa: E402
-from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,  # noqa: E402
-                     draw_panel, find_equilibrium, label_point, mark_number, same_value, save,
-                     tip_trace)
-from .style import RC  # noqa: E402
+from ..equations.elastica_lever_arm import arm_end
+from ..store import BranchFile, StoredBranch
+from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
+                     draw_configurations, draw_panel, find_equilibrium, label_point,
+                     mark_number, same_value, save)
+from .style import BP_COLOR, RC, SNAP_COLOR
 
 PI = math.pi
 TWO_PI = 2 * PI
@@ -37,27 +41,71 @@ TEX = {"psi": r"$\psi$", "eps": r"$\epsilon$", "alpha": r"$\alpha$", "P": r"$P$"
        "gamma": r"$\gamma$", "m0": r"$\mathbf{m}(0)\cdot\mathbf{e}_z$"}
 
 
+#: Colour of the path of the arm's end (the tip trace) drawn with a configuration at a fold.
+TRACE_COLOR = "#1a9641"
+
+
 @dataclass
-class Figure:
-    name: str                    # make target fig-<name>; files <name>.png/.pdf
-    paper: str                   # the paper figure it reproduces
-    shows: str                   # one line for docs/figures.md
-    runs: tuple[str, ...]        # branch files read (out/<run>.h5)
+class PaperFigure:
+    """One figure of the paper: its make target ``fig-<name>`` (files ``<name with _>.png``
+    and ``.pdf``), the paper's figure number, what it shows (the row of docs/figures.md), the
+    runs whose branch files it reads (``out/<run>.h5``) and the function that draws it."""
+
+    name: str
+    paper: str
+    shows: str
+    runs: tuple[str, ...]
     draw: Callable
 
 
-FIGURES: dict[str, Figure] = {}
+FIGURES: dict[str, PaperFigure] = {}
 
 
 def figure(name, paper, shows, runs):
+    """Register the decorated ``draw(data_dir, out_dir)`` as figure ``name`` in `FIGURES`."""
     def register(fn):
-        FIGURES[name] = Figure(name, paper, shows, tuple(runs), fn)
+        FIGURES[name] = PaperFigure(name, paper, shows, tuple(runs), fn)
         return fn
     return register
 
 
+def in_paper_order() -> list[PaperFigure]:
+    """The registered figures, by the paper's figure number."""
+    return sorted(FIGURES.values(), key=lambda f: int(f.paper))
+
+
 def _open(data_dir, run) -> BranchFile:
     return BranchFile(Path(data_dir) / f"{run}.h5")
+
+
+# ----------------------------------------------------------------------------- tip traces
+def tip_trace(bf: BranchFile, br: StoredBranch, lp: int, side: str,
+              span: float | None = None) -> np.ndarray:
+    """Path (2, n) of the arm's end along the stable segment that ends at the fold in row
+    ``lp`` (``side``: 'before' or 'after' it in the branch's point order), ending at the fold;
+    with ``span``, only the part within ``span`` of the fold's parameter value."""
+    idx = br.columns["index"]
+    lo = hi = lp
+    if side == "before":
+        while lo > 0 and idx[lo - 1] == 0:
+            lo -= 1
+        rows = range(lo, hi + 1)
+    else:
+        while hi < len(br) - 1 and idx[hi + 1] == 0:
+            hi += 1
+        rows = range(hi, lo - 1, -1)
+    lam = br.columns[br.parameter]
+    return np.array([arm_end(br.profiles[i], Pt(bf, br, i).params) for i in rows
+                     if span is None or abs(lam[i] - lam[lp]) <= span]).T
+
+
+def traced(trace: np.ndarray) -> Callable:
+    """``extra(ax)`` of a configuration: draws the path ``trace`` (2, n) of the arm's end."""
+    def extra(ax):
+        if trace.ndim == 2 and trace.shape[1] > 1:
+            ax.plot(trace[0], trace[1], color=TRACE_COLOR, lw=1.3, zorder=2,
+                    solid_capstyle="round")
+    return extra
 
 
 # ------------------------------------------------------------------------ family diagrams
@@ -96,7 +144,7 @@ def family_insets(bf, br, xname, yname, window, n, index=0, numbering=1):
     out = []
     for k, j in enumerate(picks):
         p = Pt(bf, br, j)
-        out.append(Inset(str(numbering + k), p.geometry(), (p[xname], p[yname])))
+        out.append(Inset(str(numbering + k), p.configuration(), (p[xname], p[yname])))
     return out
 
 
@@ -130,8 +178,8 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
                     shown.append(key)
                     s.tag = tags[len(shown) - len(exclude) - 1]
                     trace = tip_trace(bf, br, lp.i, r["stable_side"], trace_span)
-                    s.before = lp.geometry(trace)
-                    s.after = config.geometry(hit[1], hit[0])
+                    s.before = lp.configuration(traced(trace))
+                    s.after = hit
             snaps.append(s)
         if max_arrows and len(snaps) >= max_arrows:
             break
@@ -144,8 +192,8 @@ def _family_figure(out_dir, name, bf, xname, yname, window, fixed_by_load, title
     """Two stacked diagrams (the two loads) of ``yname`` against ``xname`` over ``window``,
     with configurations along the stable family, snap-backs and before/after configurations.
     ``extra_bf``: a file with a further (stable) family for the higher load."""
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(10.0, 8.6), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 8.6), layout="constrained")
         subs = fig.subfigures(2, 1, hspace=0.02)
         for sub, (P, ptex), tag in zip(subs, LOADS, "ab"):
             fixed = dict(fixed_by_load, P=P)
@@ -182,8 +230,9 @@ def _family_figure(out_dir, name, bf, xname, yname, window, fixed_by_load, title
 
 
 @figure("rotating-arm-short", "4",
-        "rotating arm, eps = 0.25: m(1).e_z against psi for P = pi^2/4 (a) and 9 pi^2/4 (b), "
-        "with the stable family of (b) that the straight rod's branch does not reach",
+        "rotating arm, `eps = 0.25`: `m(1).e_z` against `psi`, (a) `P = pi^2/4`, (b) `P = 9 "
+        "pi^2/4` with the stable family the straight rod's branch does not reach (beyond the "
+        "paper)",
         ["rotating_arm", "rotating_arm_stable"])
 def fig_rotating_arm_short(data_dir, out_dir):
     return _family_figure(out_dir, "rotating_arm_short", _open(data_dir, "rotating_arm"), "psi",
@@ -192,7 +241,7 @@ def fig_rotating_arm_short(data_dir, out_dir):
 
 
 @figure("rotating-arm-long", "5",
-        "rotating arm, eps = 0.5: m(1).e_z against psi for P = pi^2/4 (a) and 9 pi^2/4 (b)",
+        "rotating arm, `eps = 0.5`: (a) `P = pi^2/4`, (b) `P = 9 pi^2/4`",
         ["rotating_arm"])
 def fig_rotating_arm_long(data_dir, out_dir):
     return _family_figure(out_dir, "rotating_arm_long", _open(data_dir, "rotating_arm"), "psi",
@@ -200,8 +249,8 @@ def fig_rotating_arm_long(data_dir, out_dir):
 
 
 @figure("rotating-load", "8",
-        "rotating load, eps = 0.5, psi = pi/2: (m(1) + r(1) x n(1)).e_z against alpha for "
-        "P = pi^2/4 (a) and 9 pi^2/4 (b)",
+        "rotating load, `eps = 0.5`, `psi = pi/2`: `(m(1) + r(1) x n(1)).e_z` against `alpha`, "
+        "(a) `P = pi^2/4`, (b) `P = 9 pi^2/4`",
         ["rotating_load"])
 def fig_rotating_load(data_dir, out_dir):
     return _family_figure(out_dir, "rotating_load", _open(data_dir, "rotating_load"), "alpha",
@@ -210,8 +259,8 @@ def fig_rotating_load(data_dir, out_dir):
 
 
 @figure("rotating-base", "11",
-        "rotating base, eps = 0.5, psi = pi/2: m(0).e_z against theta0 for P = pi^2/4 (a) and "
-        "9 pi^2/4 (b); the mirror image of the rotating load (alpha -> -theta0)",
+        "rotating base, `eps = 0.5`, `psi = pi/2`: `m(0).e_z` against `theta0`, (a) `P = "
+        "pi^2/4`, (b) `P = 9 pi^2/4`; the mirror image of figure 8",
         ["rotating_base"])
 def fig_rotating_base(data_dir, out_dir):
     return _family_figure(out_dir, "rotating_base", _open(data_dir, "rotating_base"), "theta0",
@@ -248,7 +297,7 @@ def _pitchfork_panel(tb, eps, title):
             i = int(np.argmin(np.abs(P - target)))
             p = Pt(tb, b, i)
             off = (8, 7) if p["m0"] > 0 else (8, -8)
-            insets.append(Inset(str(k), p.geometry(), (p["P"], p["m0"]), off))
+            insets.append(Inset(str(k), p.configuration(), (p["P"], p["m0"]), off))
             k += 1
     top = max(float(np.max(b.columns["m0"])) for _, b in items)
     return Panel(items, "P", "m0", TEX["P"], r"$\mathbf{m}(0)\cdot\mathbf{e}_z=\theta'(0)$",
@@ -257,13 +306,14 @@ def _pitchfork_panel(tb, eps, title):
 
 
 @figure("critical-loads", "3",
-        "critical loads of the straight rod, cot sqrt(P) = eps sqrt(P), against eps, with the "
-        "pitchforks at eps = 0.25 and -0.25 and the buckled configurations",
+        "critical loads `cot sqrt(P) = eps sqrt(P)` against `eps` (with the branch points the "
+        "continuation finds on the straight rod), the pitchforks at `eps = 0.25` (a) and "
+        "`-0.25` (b) with the buckled configurations",
         ["trivial_buckling"])
 def fig_critical_loads(data_dir, out_dir):
     tb = _open(data_dir, "trivial_buckling")
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(10.0, 8.4), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 8.4), layout="constrained")
         top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 0.95], hspace=0.03)
         left, right = top.subfigures(1, 2, wspace=0.03)
         for sub, eps, tag in ((left, 0.25, "a"), (right, -0.25, "b")):
@@ -300,7 +350,7 @@ def fig_critical_loads(data_dir, out_dir):
             for i in np.flatnonzero(b.columns["type"] == "BP"):
                 bp_eps.append(float(b.columns["eps"][i]))
                 bp_P.append(float(b.columns["P"][i]))
-        ax.plot(bp_eps, bp_P, "s", ms=5, mfc="white", mec="#008837", mew=1.3, zorder=5,
+        ax.plot(bp_eps, bp_P, "s", ms=5, mfc="white", mec=BP_COLOR, mew=1.3, zorder=5,
                 label="branch points of the straight rod's\nP-branches (trivial_buckling run)")
         ax.plot([], [], color="black", lw=1.4,
                 label=r"$\cot\sqrt{P}=\epsilon\sqrt{P}$, $\sqrt{P}\neq n\pi$")
@@ -330,14 +380,14 @@ def starts_panel(bf, fixed, xname, yname, title, xlim=None, tags="A", legend_loc
     parameter value) and drawn along the top, and the snap-backs at their folds."""
     brs = branches_where(bf, **fixed)
     items = [(bf, b) for b in brs]
-    starts = distinct_starts(bf, brs)
+    starts = distinct_starts(bf, brs, "m0")
     insets, used = [], []
     for k, p in enumerate(starts):
         xy = (p[xname], p[yname])
         n = sum(1 for q in used if abs(q[0] - xy[0]) < 1e-9 and abs(q[1] - xy[1]) <= 1e-6 * (
             1 + abs(xy[1])))
         used.append(xy)
-        insets.append(Inset(str(k + 1), p.geometry(), xy, (8 + 13 * n, 0)))
+        insets.append(Inset(str(k + 1), p.configuration(), xy, (8 + 13 * n, 0)))
     snaps, tagged = [], []
     lo, hi = xlim if xlim else (-np.inf, np.inf)
     for b in brs:
@@ -373,7 +423,7 @@ def _numbered_crossings(src, starts_bf, fixed, xname, value):
     in the folded diagram of ``src``: (x, ordinate of the folded diagram)."""
     out = []
     brs = branches_where(starts_bf, **{xname: value}, **fixed)
-    for k, p in enumerate(distinct_starts(starts_bf, brs)):
+    for k, p in enumerate(distinct_starts(starts_bf, brs, "m0")):
         out.append((k + 1, p))
     return out
 
@@ -406,14 +456,14 @@ def _folded_with_starts(src, starts_bf, fixed, xname, yname, number_at, other_va
 
 
 @figure("arm-length-straight", "6",
-        "(a) the eps = 0.5 psi-branches folded into [0, 2 pi) with the equilibria at psi = 0 "
-        "numbered in the order the continuation crosses psi = 0; (b) beta against eps from "
-        "each of them (psi = 0), both loads",
+        "(a) the `eps = 0.5` psi-branches folded into `[0, 2 pi)`, the equilibria at `psi = 0` "
+        "numbered in the order the continuation crosses `psi = 0`; (b) `beta` against `eps` "
+        "from each of them, both loads",
         ["rotating_arm", "arm_length"])
 def fig_arm_length_straight(data_dir, out_dir):
     ra, al = _open(data_dir, "rotating_arm"), _open(data_dir, "arm_length")
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(13.0, 10.2), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(13.0, 10.2), layout="constrained")
         top, bottom = fig.subfigures(2, 1, height_ratios=[0.62, 1.0], hspace=0.03)
         for sub, (P, ptex), tag in zip(top.subfigures(1, 2, wspace=0.03), LOADS, "ab"):
             panel = _folded_with_starts(
@@ -429,13 +479,13 @@ def fig_arm_length_straight(data_dir, out_dir):
 
 
 @figure("arm-length-tilted", "7",
-        "beta against eps from every eps = 0.5 equilibrium at psi = pi/12 (a), pi/6 (b) and "
-        "pi/2 (c), both loads",
+        "`beta` against `eps` at `psi = pi/12` (a), `pi/6` (b), `pi/2` (c, with the folds "
+        "enlarged), both loads",
         ["arm_length"])
 def fig_arm_length_tilted(data_dir, out_dir):
     al = _open(data_dir, "arm_length")
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(13.0, 14.5), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(13.0, 14.5), layout="constrained")
         rows = fig.subfigures(3, 1, hspace=0.03)
         for row, (psi, stex), tag in zip(rows, ((PI / 12, r"\pi/12"), (PI / 6, r"\pi/6"),
                                                 (PI / 2, r"\pi/2")), "abc"):
@@ -453,14 +503,13 @@ def fig_arm_length_tilted(data_dir, out_dir):
 
 # ----------------------------------------------------------------------- figures 9 and 10
 @figure("load-magnitude-vertical", "9",
-        "(a) the P = 9 pi^2/4 alpha-branch folded into [0, 2 pi) with the equilibria at "
-        "alpha = 0 numbered in the order the continuation crosses alpha = 0; (b) gamma against "
-        "P from each of them (alpha = 0)",
+        "(a) the `P = 9 pi^2/4` alpha-branch folded into `[0, 2 pi)`, the equilibria at `alpha "
+        "= 0` numbered; (b) `gamma` against `P` from each of them",
         ["rotating_load", "load_magnitude"])
 def fig_load_magnitude_vertical(data_dir, out_dir):
     rl, lm = _open(data_dir, "rotating_load"), _open(data_dir, "load_magnitude")
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(10.0, 9.4), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 9.4), layout="constrained")
         top, bottom = fig.subfigures(2, 1, height_ratios=[0.72, 1.0], hspace=0.03)
         panel = _folded_with_starts(
             rl, lm, dict(eps=0.5, psi=PI / 2, P=P2), "alpha", "mA", 0.0,
@@ -476,13 +525,12 @@ def fig_load_magnitude_vertical(data_dir, out_dir):
 
 
 @figure("load-magnitude-tilted", "10",
-        "gamma against P from every equilibrium of the P = 9 pi^2/4 alpha-branch at "
-        "alpha = pi/2 (a), pi (b) and 3 pi/2 (c)",
+        "`gamma` against `P` at `alpha = pi/2` (a), `pi` (b), `3 pi/2` (c)",
         ["load_magnitude"])
 def fig_load_magnitude_tilted(data_dir, out_dir):
     lm = _open(data_dir, "load_magnitude")
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(10.0, 13.0), layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 13.0), layout="constrained")
         for sub, (a, atex), tag in zip(fig.subfigures(3, 1, hspace=0.02),
                                        ((PI / 2, r"\pi/2"), (PI, r"\pi"),
                                         (3 * PI / 2, r"3\pi/2")), "abc"):
@@ -495,8 +543,8 @@ def fig_load_magnitude_tilted(data_dir, out_dir):
 
 # -------------------------------------------------------------------------------- figure 12
 @figure("rotating-base-snaps", "12",
-        "rotating base, P = 9 pi^2/4: every snap-back of one period, the configuration at the "
-        "fold with its tip trace (green) and every stable configuration it can snap to",
+        "rotating base, `P = 9 pi^2/4`: every snap-back of one period, the configuration at the"
+        " fold with its tip trace and every stable configuration it can snap to",
         ["rotating_base"])
 def fig_rotating_base_snaps(data_dir, out_dir):
     rb = _open(data_dir, "rotating_base")
@@ -517,19 +565,16 @@ def fig_rotating_base_snaps(data_dir, out_dir):
         trace = tip_trace(rb, lp.br, lp.i, side, PI)
         after = []
         for r in sorted(targets, key=lambda r: abs(r["target_m0"] - lp["m0"])):
-            hit = find_equilibrium([rb], "theta0", float(r["value"]), "m0", float(r["k"]),
-                                   fixed)
-            after.append((r, None if hit is None else config.geometry(hit[1], hit[0])))
+            after.append((r, find_equilibrium([rb], "theta0", float(r["value"]), "m0",
+                                              float(r["k"]), fixed)))
         nb = lp.i - 1 if side == "before" else lp.i + 1
         way = "increases" if lp.br.columns["theta0"][nb] < lp["theta0"] else "decreases"
-        snaps.append((lp, lp.geometry(trace), after, way))
+        snaps.append((lp, lp.configuration(traced(trace)), after, way))
     ncol = 1 + max(len(a) for _, _, a, _ in snaps)
-    geoms = [g for _, b, a, _ in snaps for g in [b] + [x for _, x in a if x is not None]]
-    size = config.extent(geoms, margin=0.08)
-    with plt.rc_context(RC):
-        fig = plt.figure(figsize=(1.75 * ncol + 0.6, 1.95 * len(snaps) + 0.5),
-                         layout="constrained")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(1.75 * ncol + 0.6, 1.95 * len(snaps) + 0.5), layout="constrained")
         subs = np.atleast_1d(fig.subfigures(len(snaps), 1, hspace=0.0))
+        drawn: list[tuple] = []    # (axes, configuration), drawn at one scale below
         for k, (sub, (lp, before, after, way)) in enumerate(zip(subs, snaps)):
             axs = sub.subplots(1, ncol, gridspec_kw=dict(wspace=0.05))
             sub.suptitle(rf"S{k + 1}: fold at $\theta_0={lp['theta0']:.3f}$ "
@@ -538,25 +583,24 @@ def fig_rotating_base_snaps(data_dir, out_dir):
                          rf"$\theta_0$ {way} past it, the rod snaps to one of "
                          rf"{len(after)} stable configurations", fontsize=8.5, x=0.01,
                          ha="left")
-            config.draw(axs[0], before, lw=1.4)
-            config.frame(axs[0], before, size)
+            drawn.append((axs[0], before))
             axs[0].set_title("at the fold", fontsize=8, color="0.2", pad=1)
             for j in range(1, ncol):
                 ax = axs[j]
                 if j - 1 >= len(after):
                     ax.axis("off")
                     continue
-                r, g = after[j - 1]
-                if g is None:
+                r, c = after[j - 1]
+                if c is None:
                     ax.axis("off")
                     ax.text(0.5, 0.5, "not on a\ncomputed branch", ha="center", va="center",
                             transform=ax.transAxes, fontsize=7)
                 else:
-                    config.draw(ax, g, lw=1.4)
-                    config.frame(ax, g, size)
+                    drawn.append((ax, c))
                 ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={r['target_m0']:.2f}$",
-                             fontsize=8, color="#d7191c", pad=1)
-            sub.add_artist(matplotlib.patches.ConnectionPatch(
+                             fontsize=8, color=SNAP_COLOR, pad=1)
+            sub.add_artist(ConnectionPatch(
                 (1.0, 0.5), (0.0, 0.5), "axes fraction", "axes fraction", axesA=axs[0],
-                axesB=axs[1], arrowstyle="-|>", color="#d7191c", lw=1.4, mutation_scale=11))
+                axesB=axs[1], arrowstyle="-|>", color=SNAP_COLOR, lw=1.4, mutation_scale=11))
+        draw_configurations(*zip(*drawn), margin=0.055)
         return save(fig, out_dir, "rotating_base_snaps")

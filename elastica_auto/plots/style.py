@@ -1,4 +1,8 @@
-"""Shared look of the paper figures: index line styles, colours, fonts."""
+"""The one look of every diagram: stability-index line styles, point markers, colours, fonts.
+
+`elastica-auto plot` (`diagram`), the panels of `layout` and the paper's figures all draw the
+index and the labelled points from these tables.
+"""
 
 from __future__ import annotations
 
@@ -9,16 +13,27 @@ INDEX_STYLE = {
     2: ("#2c6fbb", (0, (1.0, 1.7)), 1.5),
     3: ("#2e8b57", (0, (6.0, 2.0, 1.0, 2.0)), 1.25),
 }
-#: Points whose index is unknown or where the fold rule and the direct count disagree.
+#: Index 4 and above: dash-dot-dot in the colour of ``HIGH_INDEX_COLORS[k % 4]``.
+HIGH_INDEX_DASH = (0, (6.0, 1.5, 1.0, 1.5, 1.0, 1.5))
+HIGH_INDEX_COLORS = ("#8c564b", "#b8860b", "#6a3d9a", "#e377c2")
+#: Points whose index is unknown: not computed (no second variation), or the fold rule and the
+#: direct count disagree there.
 UNKNOWN_STYLE = ("0.62", (0, (3.0, 1.5, 1.0, 1.5)), 1.0)
 
 SNAP_COLOR = "#d7191c"     # snap-back arrows
-TRACE_COLOR = "#1a9641"    # tip traces before a snap
-LOAD_COLOR = "#e66101"     # load arrows
-ARM_COLOR = "#555555"      # lever arms
 FOLD_COLOR = "#7b3294"     # fold markers and their index change
 BP_COLOR = "#008837"       # branch points
-LABEL_COLOR = "#1f4e79"    # numbered equilibria
+MX_COLOR = "black"         # failed ends
+LABEL_COLOR = "#1f4e79"    # numbered configurations
+
+#: Labelled point type -> (marker, face colour, edge colour, size, edge width) in every
+#: diagram; "LP?" is a turning point of the parameter where no fold could be located.
+MARKERS = {
+    "LP": ("o", "white", FOLD_COLOR, 3.4, 0.9),
+    "LP?": ("x", "0.4", "0.4", 4.0, 1.0),
+    "BP": ("s", "white", BP_COLOR, 3.6, 1.0),
+    "MX": ("X", MX_COLOR, MX_COLOR, 5.0, 0.5),
+}
 
 RC = {
     "font.family": "DejaVu Serif",
@@ -44,10 +59,21 @@ RC = {
 
 def index_style(k: int):
     """(colour, dashes, width) of a branch segment of stability index ``k`` (-1: unknown)."""
-    return INDEX_STYLE.get(k, UNKNOWN_STYLE) if k >= 0 else UNKNOWN_STYLE
+    if k < 0:
+        return UNKNOWN_STYLE
+    if k in INDEX_STYLE:
+        return INDEX_STYLE[k]
+    return HIGH_INDEX_COLORS[k % 4], HIGH_INDEX_DASH, 1.25
 
 
 def index_label(k: int) -> str:
+    """Legend text of stability index ``k`` (-1: unknown)."""
     if k < 0:
-        return "index undetermined"
+        return "index unknown"
     return "index 0 (stable)" if k == 0 else f"index {k}"
+
+
+def marker_style(kind: str) -> dict:
+    """Keywords of ``Axes.plot`` that mark a point of type ``kind`` (a key of `MARKERS`)."""
+    marker, face, edge, size, width = MARKERS[kind]
+    return dict(marker=marker, mfc=face, mec=edge, ms=size, mew=width, ls="none")

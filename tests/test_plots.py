@@ -1,0 +1,160 @@
+"""The engine's plots: `elastica-auto plot` draws one panel per combination of fixed parameter
+values, names labelled points without overlap, and configurations are drawn only through an
+equation module's ``draw`` hook."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+import elastica_auto as ea
+from elastica_auto.errors import ProblemError
+from elastica_auto.plots.diagram import diagram_figure, panel_groups, value_tex
+from elastica_auto.plots.layout import Inset, Panel, Pt, draw_panel, equation_problem
+from elastica_auto.store import BranchFile
+from helpers import EXAMPLES
+
+P1, P2 = math.pi ** 2 / 4, 9 * math.pi ** 2 / 4
+
+
+@pytest.fixture(scope="module")
+def arm_figure(rotating_arm):
+    bf = BranchFile(rotating_arm.result.path)
+    fig = diagram_figure(bf)
+    fig.draw_without_rendering()
+    return bf, fig
+
+
+def test_rotating_arm_has_one_panel_per_eps_and_P(arm_figure):
+    bf, fig = arm_figure
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 4
+    titles = sorted(ax.get_title() for ax in axes)
+    assert titles == sorted(rf"$P={p}$, $\epsilon={e}$" for p in (r"\pi^2/4", r"9\pi^2/4")
+                            for e in ("0.25", "0.5"))
+    assert r"$\alpha=0$" in fig.get_suptitle() and r"$\theta_0=0$" in fig.get_suptitle()
+
+
+def test_each_panel_holds_the_branches_of_its_values(rotating_arm):
+    bf = BranchFile(rotating_arm.result.path)
+    varying, groups = panel_groups(bf, "psi")
+    assert varying == ["P", "eps"]
+    assert [(round(v["P"], 6), v["eps"]) for v, _ in groups] == [
+        (round(P1, 6), 0.25), (round(P1, 6), 0.5), (round(P2, 6), 0.25), (round(P2, 6), 0.5)]
+    for values, branches in groups:
+        assert len(branches) == 2                       # both directions
+        for b in branches:
+            assert b.columns["eps"][0] == values["eps"] and b.columns["P"][0] == values["P"]
+
+
+@pytest.mark.parametrize("period", [None, 2 * math.pi])
+def test_point_names_do_not_overlap(rotating_arm, period):
+    """Folded into [0, 2 pi), the folds of each branch repeat at the same place: only one of
+    each gets its name."""
+    fig = diagram_figure(BranchFile(rotating_arm.result.path), period=period)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [t.get_window_extent(renderer) for t in ax.texts if t.get_text()]
+        assert len(boxes) >= 2, "folds left unnamed"
+        for i, a in enumerate(boxes):
+            assert ax.bbox.contains(a.x0, a.y0) and ax.bbox.contains(a.x1, a.y1)
+            for b in boxes[i + 1:]:
+                assert not a.overlaps(b), "two point names overlap"
+
+
+def test_value_tex_writes_fractions_of_pi():
+    assert value_tex(P2) == r"9\pi^2/4"
+    assert value_tex(-math.pi / 12) == r"-\pi/12"
+    assert value_tex(0.25) == "0.25" and value_tex(0.0) == "0" and value_tex(2.5e-7) == "2.5e-07"
+
+
+def test_importing_the_plots_selects_no_backend():
+    """No module of the plots calls matplotlib.use: the backend chosen before stays."""
+    code = ("import matplotlib; matplotlib.use('svg'); import elastica_auto.plots, "
+            "elastica_auto.plots.paper, elastica_auto.plots.__main__, elastica_auto.cli; "
+            "print(matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "svg"
+
+
+# ------------------------------------------------------------------------------ the draw hook
+DRAW = '''
+
+CALLS = []
+
+
+def draw(ax, profile, p):
+    CALLS.append((profile.shape, dict(p)))
+    ax.plot(np.linspace(0, 1, profile.shape[1]), profile[0], color="black")
+'''
+
+
+@pytest.fixture(scope="module")
+def bratu_files(tmp_path_factory):
+    """One Bratu branch saved with a module that has a draw hook and one that has none."""
+    root = tmp_path_factory.mktemp("bratu_draw")
+    text = (EXAMPLES / "bratu.py").read_text()
+    files = {}
+    for name, source in (("with_draw", text + DRAW), ("without_draw", text)):
+        module = root / f"{name}.py"
+        module.write_text(source)
+        problem = ea.load_problem(str(module))
+        branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
+                                   max_points=40)
+        files[name] = BranchFile(ea.save(branches, root / f"{name}.h5"))
+    return files
+
+
+def _panel(bf):
+    br = bf.branches[0]
+    rows = [i for i, t in enumerate(br.columns["type"]) if t == "UZ"]
+    insets = [Inset(str(k + 1), Pt(bf, br, i).configuration(),
+                    (float(br.columns["lam"][i]), float(br.columns["du0"][i])))
+              for k, i in enumerate(rows)]
+    assert len(insets) >= 3
+    return Panel([(bf, br)], "lam", "du0", "lam", "du0", insets=insets)
+
+
+def test_the_draw_hook_gets_each_configuration_on_the_profile_grid(bratu_files):
+    bf = bratu_files["with_draw"]
+    module = equation_problem(bf.equation).module
+    module.CALLS.clear()
+    fig = Figure(layout="constrained")
+    draw_panel(fig, _panel(bf))
+    n = len(_panel(bf).insets)
+    assert len(fig.axes) == n + 1                  # the configurations and the diagram
+    assert [shape for shape, _ in module.CALLS] == [(2, len(bf.profile_grid))] * n
+    uz = [i for i, t in enumerate(bf.branches[0].columns["type"]) if t == "UZ"]
+    assert [p for _, p in module.CALLS] == [{"lam": float(bf.branches[0].columns["lam"][i])}
+                                            for i in uz]
+
+
+def test_a_module_without_draw_gives_the_diagram_alone(bratu_files):
+    bf = bratu_files["without_draw"]
+    assert not equation_problem(bf.equation).has_draw
+    fig = Figure(layout="constrained")
+    ax = draw_panel(fig, _panel(bf))
+    assert fig.axes == [ax]
+    assert len(ax.lines) > 1                        # branch and markers, no numbered points
+    assert not any(t.get_text() in ("1", "2", "3") for t in ax.texts)
+
+
+def test_draw_must_be_a_function_and_gets_a_profile_of_the_states(tmp_path, bratu_files):
+    bad = tmp_path / "bad_draw.py"
+    bad.write_text((EXAMPLES / "bratu.py").read_text() + "\ndraw = 3\n")
+    with pytest.raises(ProblemError, match="draw must be a function"):
+        ea.load_problem(str(bad))
+    problem = equation_problem(bratu_files["with_draw"].equation)
+    fig = Figure()
+    with pytest.raises(ProblemError, match=r"profile of shape \(2, len\(grid\)\)"):
+        problem.draw(fig.add_subplot(), np.zeros((4, 10)), {"lam": 1.0})
+
