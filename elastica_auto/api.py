@@ -26,6 +26,7 @@ from .branch import Branch
 from .errors import PlanError, StoreError
 from .options import ContinuationOptions
 from .plan import StartLike, make_plan
+from .problem import Problem
 from .run import Progress, RunResult, _built, compute, number_labels
 from .store import StoredLabel
 
@@ -48,13 +49,13 @@ class Branches(list):
         Wall-clock time of the whole computation.
     """
 
-    def __init__(self, branches: Iterable[Branch] = (), problem=None, snaps=(), warnings=(),
-                 seconds: float = 0.0):
+    def __init__(self, branches: Iterable[Branch] = (), problem: Problem | None = None,
+                 snaps: Iterable[dict] = (), warnings: Iterable[str] = (), seconds: float = 0.0):
         super().__init__(branches)
         self.problem = problem
         self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
 
-    def __add__(self, other):
+    def __add__(self, other: Iterable[Branch]) -> Branches | list:
         """Branches of one problem put together (``arm + load``): still of that problem."""
         if isinstance(other, Branches) and other.problem is self.problem:
             return Branches([*self, *other], self.problem)
@@ -78,7 +79,7 @@ class Interrupted(KeyboardInterrupt):
         self.branches = branches
 
 
-def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str, *,
+def continuation(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
                  params: Mapping[str, float | Iterable[float]] | None = None,
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
@@ -161,7 +162,8 @@ def continuation(problem, start: StartLike | Iterable[StartLike], parameter: str
     return out
 
 
-def save(branches: Iterable[Branch], path, *, problem=None, run: str | None = None) -> Path:
+def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | None = None,
+         run: str | None = None) -> Path:
     """Write ``branches`` to the branch file ``path`` (HDF5, as ``elastica-auto run``
     writes; read it back with :class:`~elastica_auto.store.BranchFile`).
 

@@ -59,6 +59,7 @@ import importlib.resources
 import importlib.util
 import math
 import numbers
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -447,12 +448,16 @@ def shipped_equations() -> list[str]:
                   if p.name.endswith(".py") and not p.name.startswith("_"))
 
 
-def load_problem(name_or_path: str, base_dir: Path | None = None) -> Problem:
+def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) -> Problem:
     """Load an equation module by shipped name (``elastica_lever_arm``) or by ``.py`` path.
 
     Relative paths are resolved against ``base_dir`` (the run file's folder) first, then the
     current directory.
     """
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ProblemError(f"load_problem: expected a module name or a path to a .py file, "
+                           f"got {name_or_path!r}")
+    name_or_path = os.fspath(name_or_path)
     if name_or_path.endswith(".py"):
         candidates = [Path(name_or_path)]
         if base_dir is not None and not Path(name_or_path).is_absolute():

@@ -504,7 +504,7 @@ class BranchFile:
     or rewritten, since it was opened.
     """
 
-    def __init__(self, path):
+    def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
         self._source = _Source(self.path)
         if not self.path.is_file():

@@ -218,3 +218,46 @@ def test_the_worked_example_prints_what_the_docs_say(tmp_path, monkeypatch):
         exec(compile(code, "python-api.md", "exec"), {})
     assert out.getvalue() == printed
     assert ea.BranchFile(tmp_path / "out" / "arm.h5").label("LP2").branch == 2
+
+
+def test_elastica_critical_loads_by_the_api():
+    """The straight rod continued in P through the API alone: its branch points are the
+    critical loads cot(sqrt P) = eps sqrt(P), and the index (fold rule and direct count
+    agreeing away from them: at a BP the second variation is singular) goes 0, 1, 2 through
+    them."""
+    eps = 0.5
+    problem = ea.load_problem("elastica_lever_arm")
+    (br,) = ea.continuation(problem, {"P": 1.0, "eps": eps}, "P", bounds=(0.5, 30))
+    cols = br.columns
+    bp = cols["type"] == "BP"
+    roots = [brentq(lambda w: math.cos(w) - eps * w * math.sin(w), k * math.pi + 1e-9,
+                    (k + 1) * math.pi - 1e-9, xtol=1e-15) ** 2 for k in range(2)]
+    np.testing.assert_allclose(cols["P"][bp], roots, rtol=0, atol=1e-8)
+    assert np.all(cols["index"] == cols["index_rule"])
+    assert np.all(cols["index_rule"][~bp] == cols["index_direct"][~bp])
+    for P, k in zip(cols["P"], cols["index"]):
+        if min(abs(P - r) for r in roots) > 1e-6:
+            assert k == sum(P > r for r in roots)
+
+
+def test_the_readme_example_runs(tmp_path, monkeypatch):
+    """README.md's Python example runs as written and writes its file; its two folds are
+    the mirror images of each other (psi -> -psi, index change the same)."""
+    import re
+    text = (EXAMPLES.parent / "README.md").read_text()
+    (code,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out").mkdir()
+    scope: dict = {}
+    exec(compile(code, "README.md", "exec"), scope)
+    arm = scope["arm"]
+    lp1, lp2 = (p for br in arm for p in br.folds)
+    assert lp1.params["psi"] == pytest.approx(-lp2.params["psi"], abs=1e-9)
+    uz1 = ea.BranchFile(tmp_path / "out" / "arm.h5").label("UZ1")
+    assert uz1.state.params["psi"] == pytest.approx(math.pi / 2, abs=1e-12)
+
+
+def test_load_problem_takes_a_path_and_refuses_other_types():
+    assert ea.load_problem(BRATU).parameter_names == ["lam"]
+    with pytest.raises(ea.ProblemError, match="expected a module name or a path"):
+        ea.load_problem(3)
