@@ -23,7 +23,7 @@ _PUBLIC = {
     "Switch": "plan", "ContinuationOptions": "options",
     "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",
     "PlanError": "errors", "ProblemError": "errors", "StoreError": "errors",
-    "RunFileError": "errors", "StartError": "run",
+    "RunFileError": "errors", "StartError": "errors",
 }
 
 __all__ = ["__version__", *_PUBLIC]

@@ -26,4 +26,8 @@ class PlanError(ValueError):
         self.key, self.detail = key, message
 
 
+class StartError(RuntimeError):
+    """A start point that cannot be built (no exact solution, corrector failure)."""
+
+
 USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError)

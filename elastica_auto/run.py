@@ -19,21 +19,17 @@ from typing import Callable
 
 import numpy as np
 
-from . import store
+from . import codim2, store
 from .augmented import Augmented
 from .branch import Branch
 from .correctors import CorrectorFailure, make_corrector
-from .errors import USER_ERRORS, RunFileError
+from .errors import USER_ERRORS, RunFileError, StartError
 from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
 from .snaps import snap_targets
 from .stability import label_stability
 from .stepper import Origin, continue_branch, start_point
 from .switching import switch_direction
-
-
-class StartError(RuntimeError):
-    """A start point that cannot be built (no exact solution, corrector failure)."""
 
 
 @dataclass
@@ -66,6 +62,8 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
                                                                    **spec.params}))))
     stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
     state, tangent = stored.state, stored.tangent
+    if spec.start.kind in ("fold", "bp"):
+        return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
     if spec.start.kind == "switch":
         if not spec.start.label.startswith("BP"):
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
@@ -111,6 +109,37 @@ def _from_values(plan: Plan, params: dict) -> State:
                          f"({exc})") from None
     state.params = problem.point_params(state.params, state.y)
     return state
+
+
+def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
+    """The first point of a fold or branch-point curve (`elastica_auto.codim2`) through the
+    LP or BP ``stored`` of the module's problem: its solution with the null vector there,
+    solved at the spec's parameters. At an LP the null vector is the stored tangent (its
+    parameter component is zero at a fold); at a BP of the exact family it is the second
+    direction through the branch point less its component along the family."""
+    base, problem, opt = plan.base, plan.problem, plan.options
+    state, tangent = stored.state, stored.tangent
+    if tangent is None:
+        raise StartError(f"{spec.start}: no tangent stored with the label")
+    if spec.start.kind == "fold":
+        null = tangent.on(state.s).y
+        start = codim2.fold_start(problem, state, null)
+    else:
+        lam = stored.tangent_parameter
+        direction = switch_direction(base, state, tangent, lam, opt)
+        if direction is None:
+            raise StartError(f"{spec.start}: no null vector at the branch point")
+        null = direction.on(state.s).y - direction.lam * codim2.family_slope(base, state, lam)
+        start = codim2.branch_point_start(problem, state, null)
+    start.params = {**start.params, **spec.params}
+    try:
+        start = make_corrector(problem, plan.parameter, opt).point(start).state
+    except CorrectorFailure as exc:
+        raise StartError(f"{spec.start}: the {'fold' if spec.start.kind == 'fold' else 'branch'}"
+                         f"{'' if spec.start.kind == 'fold' else '-point'} system has no solution "
+                         f"there ({exc})") from None
+    start.params = problem.point_params(start.params, start.y)
+    return start
 
 
 def _built(plan: Plan, spec: BranchSpec) -> Job:
@@ -181,6 +210,8 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
 
     t0 = time.perf_counter()
     continue_branch(br, plan.problem, plan.course, job.origin, on_step)
+    if plan.curve == "fold":
+        codim2.label_cusps(br, plan.problem)
     label_stability(br, plan.problem)
     br.seconds = time.perf_counter() - t0
     return br
