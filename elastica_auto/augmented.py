@@ -165,12 +165,14 @@ class Augmented:
         """The module's exact start, completed with the running integrals (trapezoidal) and
         the free parameters' values in ``p``; it satisfies the integral conditions only
         approximately, so it is always solved from (see `elastica_auto.run.build_start`)."""
-        return self._complete(s, self.base.exact_start(s, p), p)
+        return self.complete(s, self.base.exact_start(s, p), p)
 
     def guess(self, s, p):
-        return self._complete(s, self.base.guess(s, p), p)
+        return self.complete(s, self.base.guess(s, p), p)
 
-    def _complete(self, s, y0, p):
+    def complete(self, s, y0, p):
+        """The states (n, len(s)) from the module's states ``y0``: the running integrals of
+        the integrands (trapezoidal) and the free parameters' values in ``p``."""
         if y0 is None:
             return None
         y = np.zeros((self.n, len(s)))

@@ -16,7 +16,7 @@ from .stability import index
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)
 
 #: Label types, AUTO-07p's vocabulary.
-LABEL_TYPES = ("EP", "LP", "BP", "UZ", "MX")
+LABEL_TYPES = ("EP", "LP", "BP", "UZ", "MX", "CP")
 
 #: Index columns hold this until the stability post-processor has filled them.
 INDEX_UNKNOWN = -1
@@ -47,7 +47,8 @@ class StoredLabel:
     """A labelled point: its solution (a restart point) and, if stored, its tangent.
 
     ``path`` and ``equation`` are the branch file's and the module's it was computed with
-    (``path`` is None for a label of branches in memory)."""
+    (``path`` is None for a label of branches in memory); ``states`` names the rows of
+    ``state.y`` (the module's states, then those a two-parameter continuation adds)."""
 
     name: str
     branch: int
@@ -57,6 +58,7 @@ class StoredLabel:
     tangent_parameter: str | None
     path: Path | None = None
     equation: str = ""
+    states: tuple[str, ...] = ()
 
 
 @dataclass
@@ -121,6 +123,7 @@ class Branch:
     equation: str = ""
     parameter_names: tuple[str, ...] = ()
     ordinate_names: tuple[str, ...] = ()
+    state_names: tuple[str, ...] = ()
     singular_start: bool = False
     points: list[Point] = field(default_factory=list)
     end: str = ""
@@ -136,7 +139,8 @@ class Branch:
            **fields) -> "Branch":
         """An empty branch of ``problem``."""
         return cls(parameter, direction, start, options, problem.source,
-                   tuple(problem.parameter_names), tuple(problem.ordinate_names), **fields)
+                   tuple(problem.parameter_names), tuple(problem.ordinate_names),
+                   tuple(problem.states), **fields)
 
     def insert(self, point: Point) -> Point:
         """Put ``point`` at its place in arclength order."""
@@ -166,7 +170,7 @@ class Branch:
         for pt, p in enumerate(self.points, 1):
             if p.type and p.name == name:
                 return StoredLabel(name, self.number, pt, p.state, p.tangent, self.parameter,
-                                   None, self.equation)
+                                   None, self.equation, self.state_names)
         names = [p.name for p in self.points if p.type]
         raise KeyError(f"no label {name!r} on this branch; labels: {', '.join(names) or 'none'}")
 

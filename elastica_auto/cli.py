@@ -110,8 +110,10 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
                 if plan.switch_count else "")
 
     def header():  # once the starts and the output are checked: an error stays one line
-        click.echo(f"{plan.name}: {nbr} branches of {plan.problem.source} in {plan.parameter}"
-                   f"{switched} -> {out_dir / plan.output_name}", err=True)
+        what = {"fold": "fold curves", "bp": "branch-point curves"}.get(plan.curve, "branches")
+        solved = f"{plan.problem.free[0]}, " if plan.curve else ""
+        click.echo(f"{plan.name}: {nbr} {what} of {plan.problem.source} in {solved}"
+                   f"{plan.parameter}{switched} -> {out_dir / plan.output_name}", err=True)
 
     def of(k):
         return f"{k}/{nbr}" if k <= nbr else f"{k}"
@@ -130,10 +132,12 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
         start = f" from {br.start}" if br.start != "trivial" else ""
         bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
                         for p in br.points if p.type == "BP")
+        cps = ", ".join(p.name for p in br.points if p.type == "CP")
         click.echo(f"branch {of(k)} {_fmt_params(br.points[0].params, varying)}{start} "
                    f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
                    f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
-                   + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else ""))
+                   + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
+                   + (f"; cusps {cps}" if cps else ""))
         for w in br.warnings:
             click.echo(f"  warning: {w}")
         if br.disagreements:
@@ -168,7 +172,10 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
                    f"stable branch (elastica-auto snaps {result.path})")
     click.echo(f"{plan.name}: {len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
-               f"{sum(len(b.folds) for b in result.branches)} folds, {result.seconds:.2f} s "
+               f"{sum(len(b.folds) for b in result.branches)} folds, "
+               + (f"{ncp} cusps, " if (ncp := sum(p.type == "CP" for b in result.branches
+                                                  for p in b.points)) else "")
+               + f"{result.seconds:.2f} s "
                f"-> {result.path}")
     if result.failed:
         click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import bordered
 from .collocation import Discretisation, equidistributed_mesh
-from .newton import Linearization, Row, fold_newton, newton
+from .newton import NEWTON_TOL, Linearization, Row, fold_newton, newton
 from .options import ContinuationOptions
 from .solution import State, Tangent, inner
 
@@ -175,7 +175,10 @@ class Collocation:
         raise CorrectorFailure(f"error estimate {worst:.2e} > tol after {MESH_ROUNDS} meshes")
 
     def _newton(self, disc, params, Y, lam, row, lin):
-        res = newton(disc, self.parameter, params, Y, lam, row, lin, self.split)
+        # Newton stops three orders below the discretisation tolerance (NEWTON_TOL at the
+        # default tol = 1e-5), so that a tighter tol also gives a tighter solution.
+        res = newton(disc, self.parameter, params, Y, lam, row, lin, self.split,
+                     tol=min(NEWTON_TOL, 1e-3 * self.options.tol))
         if not res.converged:
             raise CorrectorFailure(res.message, res.correction)
         return res

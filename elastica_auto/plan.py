@@ -9,11 +9,14 @@ report it in its own terms (a keyword, or a run-file key).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Iterable, Mapping, Union
+
+import numpy as np
 
 from .augmented import Augmented
 from .errors import PlanError, ProblemError
@@ -22,6 +25,7 @@ from .expressions import evaluate
 from .options import ContinuationOptions, OptionsError
 from .problem import Problem
 from .stepper import Course, Limit, Stops
+from .solution import State
 from .store import StoredLabel
 
 #: ``directions``: the signs of the steps from each start.
@@ -46,7 +50,8 @@ StartLike = Union[Mapping[str, float], StoredLabel, Switch]
 @dataclass(frozen=True)
 class Start:
     """Where a branch starts: the module's exact solution (``trivial``), a labelled solution
-    (``label``), or the other branch at a branch point (``switch``)."""
+    (``label``), the other branch at a branch point (``switch``), or the fold or branch-point
+    curve through a labelled LP or BP of the module's problem (``fold``, ``bp``)."""
 
     kind: str
     file: Path | None = None
@@ -74,7 +79,9 @@ class Plan:
     """A validated continuation: the problem, the branches and what applies to all of them.
 
     ``name``, ``path`` and ``text`` describe the run file, if there is one (they are stored
-    in the branch file); a plan made from Python has the name ``continuation``."""
+    in the branch file); a plan made from Python has the name ``continuation``. ``curve`` is
+    ``"fold"`` or ``"bp"`` for a two-parameter continuation (`elastica_auto.codim2`): the
+    problem is then the fold or branch-point system, ``base`` the module's own problem."""
 
     problem: Problem
     parameter: str
@@ -84,10 +91,12 @@ class Plan:
     branches: list[BranchSpec] = field(default_factory=list)
     varying: list[str] = field(default_factory=list)
     switch_count: int = 0
+    curve: str | None = None
     name: str = "continuation"
     path: Path | None = None
     text: str = ""
     description: str = ""
+    base: Problem | None = None
 
     @property
     def output_name(self) -> str:
@@ -103,7 +112,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
               bounds: tuple[float, float] | None = None, directions: str = "+",
               uz: Iterable[float] = (), uz_period: float | None = None,
               stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-              options: Mapping[str, object] | ContinuationOptions | None = None) -> Plan:
+              options: Mapping[str, object] | ContinuationOptions | None = None,
+              _starts: list | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
     The branches are, for each combination of the ``params`` values (a list gives one set of
@@ -118,6 +128,10 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
                              or not all(isinstance(q, str) for q in free)):
         raise PlanError("free", f"expected a list of parameter names, got {free!r}")
+    if isinstance(parameter, (list, tuple)):
+        return _two_parameter_plan(problem, start, parameter, params=params, bounds=bounds,
+                                   directions=directions, uz=uz, uz_period=uz_period,
+                                   stop=stop, switch=switch, free=free, options=options)
     try:
         problem = problem.with_free(None if free is None else tuple(free))
     except ProblemError as exc:
@@ -138,7 +152,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
                         f"got {switch!r}")
     opts = _options(options)
     grid = _grid(problem, params)
-    starts = _starts(problem, start)
+    starts = _starts if _starts is not None else _parse_starts(problem, start)
     specs = []
     for st, _ in starts:  # the other branch at a stored BP: both ways, at its parameters
         if st.kind == "switch":
@@ -160,6 +174,52 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     at_fold, limits = _stops(problem, stop)
     return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
                 specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch)
+
+
+def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, **rest) -> Plan:
+    """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
+    of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
+    is solved for, ``mu`` continued (`elastica_auto.codim2`)."""
+    from . import codim2
+    if len(parameter) != 2 or not all(isinstance(q, str) for q in parameter) \
+            or parameter[0] == parameter[1]:
+        raise PlanError("parameter", f"expected one name, or two different names (the fold's "
+                        f"parameter, then the continued one), got {parameter!r}")
+    lam, mu = parameter
+    for q in parameter:
+        if q not in base.parameters:
+            raise PlanError("parameter", f"unknown parameter {q!r}; {base.source} declares "
+                            f"{', '.join(base.parameter_names)}")
+    if free is not None:
+        raise PlanError("free", f"a two-parameter continuation solves for {lam!r}; give no free")
+    if switch:
+        raise PlanError("switch", "no switching on a two-parameter continuation")
+    items = list(start) if isinstance(start, (list, tuple)) else [start]
+    if not items or not all(isinstance(x, StoredLabel) for x in items):
+        raise PlanError("start", "a two-parameter continuation starts from LP or BP labels "
+                        "(BranchFile(path).label(\"LP1\"))")
+    kinds = {x.name[:2] for x in items}
+    if not kinds <= {"LP", "BP"} or len(kinds) != 1:
+        raise PlanError("start", f"expected LP labels (fold curves) or BP labels (branch-point "
+                        f"curves), not a mix; got {', '.join(x.name for x in items)}")
+    for x in items:
+        _start(base, x)
+        if x.tangent_parameter != lam:
+            raise PlanError("start", f"{x.name} is a {'fold' if 'LP' in kinds else 'branch point'}"
+                            f" in {x.tangent_parameter!r}, not in {lam!r}")
+    curve = "fold" if kinds == {"LP"} else "bp"
+    try:
+        problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
+            base, lam)
+    except ProblemError as exc:
+        raise PlanError("parameter", str(exc)) from None
+    if curve == "bp" and base.exact_start(np.linspace(0, 1, 3), items[0].state.params) is None:
+        raise PlanError("start", f"{base.source} has no exact family (exact_start) at "
+                        f"{items[0].name}: branch-point curves follow its branch points")
+    plan = make_plan(problem, [], mu,
+                     _starts=[(Start(curve, x.path, x.name, x), {}) for x in items], **rest)
+    plan.curve, plan.base = curve, base
+    return plan
 
 
 def _finite(key: str, v) -> float:
@@ -250,7 +310,7 @@ def _grid(problem: Problem, params) -> dict[str, list[float]]:
     return grid
 
 
-def _starts(problem: Problem, start) -> list[tuple[Start, dict[str, float]]]:
+def _parse_starts(problem: Problem, start) -> list[tuple[Start, dict[str, float]]]:
     """Each start, with the parameter values it was given (a dict start's)."""
     items = list(start) if isinstance(start, (list, tuple)) else [start]
     if not items:
@@ -279,8 +339,21 @@ def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
         where = label.path.name if label.path is not None else label.name
         raise PlanError("start", f"{where} was computed with {label.equation!r}, not "
                         f"{problem.source!r}")
+    if len(label.state.y) > problem.n \
+            and tuple(label.states[: problem.n]) == tuple(problem.states):
+        label = _module_states(label, problem.n)
     if len(label.state.y) != problem.n:
         raise PlanError("start", f"{label.name} has {len(label.state.y)} states, "
                         f"{problem.source} {problem.n}")
     return Start(kind, label.path, label.name, label), {}
+
+
+def _module_states(label: StoredLabel, n: int) -> StoredLabel:
+    """A label of a two-parameter continuation (a fold curve's CP, say) as a solution of the
+    module's own problem: its first ``n`` states, at all its parameter values (the solved-for
+    one included); no tangent (the stored one is the curve's)."""
+    s = label.state
+    state = State(s.s, s.y[:n], s.yp[:n], s.params)
+    return dataclasses.replace(label, state=state, tangent=None, tangent_parameter=None,
+                               states=label.states[:n])
 

@@ -18,7 +18,9 @@ A run file (``runs/<name>.toml``)::
     P = ["pi^2/4", "9*pi^2/4"]          # numbers or expressions in pi, e, sqrt, sin, cos, ...
 
     [continuation]
-    parameter = "psi"                   # the continued parameter
+    parameter = "psi"                   # the continued parameter; or ["psi", "eps"]: the
+                                        # fold (or branch-point) curves through LP (BP)
+                                        # starts, psi solved for, eps continued
     directions = "both"                 # "both", "+" or "-"
     bounds = ["-6*pi", "6*pi"]          # the branch ends (EP) where the parameter leaves these
     stop = ["LP4", "u_max > 100"]       # optional: end at the 4th fold, or where an ordinate
@@ -228,8 +230,12 @@ class _Document:
                 self.fail(f"[continuation] {key}", f"unknown key; expected one of {sorted(_CONT)}")
         if "parameter" not in cont:
             self.fail("[continuation] parameter", "missing; name the continued parameter")
-        out = {"parameter": self.string("[continuation] parameter", cont["parameter"]),
-               "directions": cont.get("directions", "both")}
+        parameter = cont["parameter"]
+        if isinstance(parameter, list):  # a fold or branch-point curve: [solved, continued]
+            parameter = [self.string("[continuation] parameter", q) for q in parameter]
+        else:
+            parameter = self.string("[continuation] parameter", parameter)
+        out = {"parameter": parameter, "directions": cont.get("directions", "both")}
         if "bounds" in cont:
             b = cont["bounds"]
             if not isinstance(b, list) or len(b) != 2:

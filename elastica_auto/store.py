@@ -642,7 +642,8 @@ class BranchFile:
 
         # checked on opening; what is left: a solution's own datasets and attributes
         state, tangent, tpar = self._source.read(f"solution {name}", read)
-        return StoredLabel(name, br, pt, state, tangent, tpar, self.path, self.equation)
+        return StoredLabel(name, br, pt, state, tangent, tpar, self.path, self.equation,
+                           tuple(self.states))
 
 
 def _fmt(v):

@@ -1,0 +1,182 @@
+"""Two-parameter continuation (`elastica_auto.codim2`): fold curves and branch-point curves.
+
+Checked against methods that are not the engine's: every fold-curve point is a fold of the
+shooting formulation (r = 0 and dr/dk0 = 0, tests/shooting.py); a fold curve through the folds
+of one arm length passes through those of another, located by one-parameter runs; the
+branch-point curves of the straight rod are the closed form cot(sqrt P) = eps sqrt(P); a cusp
+has two folds of the one-parameter family on one side of it and none on the other, and the
+cusps come in mirror pairs (psi, m1) -> (-psi, -m1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import elastica_auto as ea
+import shooting
+from elastica_auto import runfile
+from helpers import run_plan
+
+P1, P2 = math.pi ** 2 / 4, 9 * math.pi ** 2 / 4
+# Fold-curve points are solved to tol; at tol = fold_tol (1e-7) they are as accurate as the
+# one-parameter folds (within ~1e-10 of shooting, tests/test_folds.py); 1e-9 in psi.
+PSI_ATOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def arm_quarter(elastica):
+    """psi-branches at eps = 0.25 and 0.5, P = pi^2/4, over one period each way."""
+    return ea.continuation(elastica, {"P": P1, "psi": 0.0}, "psi", params={"eps": [0.25, 0.5]},
+                           bounds=(-2 * math.pi, 2 * math.pi), directions="both")
+
+
+@pytest.fixture(scope="module")
+def fold_curve(elastica, arm_quarter):
+    """The fold curve through LP1 (eps = 0.25) in (psi, eps), up to eps = 1, with UZ at 0.5."""
+    return ea.continuation(elastica, arm_quarter.label("LP1"), ["psi", "eps"], bounds=(0.1, 1),
+                           uz=[0.5], tol=1e-7)
+
+
+def test_every_fold_curve_point_is_a_fold_by_shooting(fold_curve):
+    (br,) = fold_curve
+    c = br.columns
+    assert br.end == "EP" and c["eps"][-1] == pytest.approx(1.0, abs=1e-12)
+    assert len(br.points) >= 8
+    for eps, psi, m0, P in zip(c["eps"], c["psi"], c["m0"], c["P"]):
+        k0, psi_s, _ = shooting.fold(P, eps, m0, psi)
+        assert abs(psi_s - psi) <= PSI_ATOL and abs(k0 - m0) <= 1e-8
+
+
+def test_the_fold_curve_passes_through_the_folds_of_another_arm_length(arm_quarter, fold_curve):
+    """UZ at eps = 0.5 on the curve from eps = 0.25 is a fold of the eps = 0.5 psi-branch."""
+    c = fold_curve[0].columns
+    (i,) = np.nonzero(c["type"] == "UZ")[0]
+    folds = [p for b in arm_quarter for p in b.folds if p.params["eps"] == 0.5]
+    near = min(folds, key=lambda p: abs(p.params["psi"] - c["psi"][i]))
+    assert abs(near.params["psi"] - c["psi"][i]) <= PSI_ATOL
+    assert abs(near.ordinates["m1"] - c["m1"][i]) <= 1e-8
+    start = fold_curve[0].points[0]
+    assert start.params["psi"] == pytest.approx(arm_quarter.label("LP1").state.params["psi"],
+                                                abs=PSI_ATOL)
+
+
+@pytest.fixture(scope="module")
+def critical_curves(elastica):
+    """The first two branch points of the straight rod (eps = 0.5) continued in (P, eps)."""
+    straight = ea.continuation(elastica, {"P": 0.5, "eps": 0.5}, "P", bounds=(0.1, 20))
+    return ea.continuation(elastica, [straight.label("BP1"), straight.label("BP2")],
+                           ["P", "eps"], bounds=(-1, 1), directions="both", tol=1e-7)
+
+
+def test_branch_point_curves_are_the_critical_loads(critical_curves):
+    assert len(critical_curves) == 4
+    for br in critical_curves:
+        assert br.end == "EP" and abs(abs(br.points[-1].params["eps"]) - 1) < 1e-12
+        for eps, P in zip(br.columns["eps"], br.columns["P"]):
+            w0 = math.sqrt(P)
+            w = brentq(lambda w: math.cos(w) - eps * w * math.sin(w), w0 - 0.1, w0 + 0.1,
+                       xtol=1e-15)
+            assert abs(w * w - P) <= 1e-9
+    ends = sorted(round(br.points[-1].params["P"], 6) for br in critical_curves)
+    # at eps = -1: cot w = -w (w = 2.7984, 6.1212); at eps = 1: cot w = w (0.8603, 3.4256)
+    expected = sorted(round(brentq(lambda w: math.cos(w) - e * w * math.sin(w), a, b,
+                                   xtol=1e-15) ** 2, 6)
+                      for e, a, b in ((1, 0.1, 3.1), (1, 3.2, 6.2), (-1, 1.6, 3.1),
+                                      (-1, 4.8, 6.2)))
+    assert ends == expected
+
+
+@pytest.fixture(scope="module")
+def cusp_curves(rotating_arm, elastica):
+    """The fold curves through the two folds of rotating_arm at eps = 0.5, P = 9 pi^2/4 with
+    psi = 4.7695 and 1.5137 (mirror images, far along the branch), down to eps = 0.15."""
+    bf = ea.BranchFile(rotating_arm.result.path)
+    starts = []
+    for name in bf.labels:
+        if not name.startswith("LP"):
+            continue
+        label = bf.label(name)
+        p = label.state.params
+        if p["eps"] == 0.5 and abs(p["P"] - P2) < 1e-9 and \
+                min(abs(p["psi"] - 4.7695), abs(p["psi"] - 1.5137)) < 1e-3:
+            starts.append(label)
+    assert len(starts) == 2
+    return ea.continuation(elastica, starts, ["psi", "eps"], bounds=(0.15, 0.5),
+                           directions="-")
+
+
+def _cusps(branches):
+    return [p for b in branches for p in b.points if p.type == "CP"]
+
+
+def test_cusps_come_in_mirror_pairs(cusp_curves):
+    cps = _cusps(cusp_curves)
+    eps = sorted({round(p.params["eps"], 6) for p in cps})
+    assert eps == [0.211385, 0.361114]
+    for p in cps:
+        twin = [q for q in cps if abs(q.params["eps"] - p.params["eps"]) < 1e-9
+                and abs(math.remainder(q.params["psi"] + p.params["psi"], 2 * math.pi)) < 1e-7]
+        assert twin and abs(twin[0].ordinates["m1"] + p.ordinates["m1"]) < 1e-6
+
+
+def test_a_cusp_has_two_folds_on_one_side_and_none_on_the_other(cusp_curves, elastica):
+    """psi-branches at eps_c -+ 0.01 near a cusp (reached from it by continuing in eps at
+    fixed psi, which passes through the cusp): folds within 0.2 of its psi on one side only,
+    two of them."""
+    for cp in _cusps(cusp_curves)[:2]:
+        label = next(b.label(cp.name) for b in cusp_curves if cp in b.points)
+        c = label.state.params
+        counts = []
+        for side in (-1, 1):
+            e = c["eps"] + 0.01 * side
+            via = ea.continuation(elastica, label, "eps", uz=[e], directions="both",
+                                  bounds=(c["eps"] - 0.05, c["eps"] + 0.05))
+            uz = [p for b in via for p in b.points if p.type == "UZ"]
+            assert uz, f"eps = {e} not reached from {cp.name}"
+            psi = ea.continuation(elastica, via.label(uz[0].name), "psi", directions="both",
+                                  bounds=(c["psi"] - 0.2, c["psi"] + 0.2))
+            counts.append(len({round(p.params["psi"], 6) for b in psi for p in b.folds}))
+        assert sorted(counts) == [0, 2], (cp.name, counts)
+
+
+def test_a_fold_curve_from_a_run_file(tmp_path, rotating_arm):
+    """parameter = ["psi", "eps"] with an LP selector: both directions from the two distinct
+    folds at eps = 0.25, P = pi^2/4 (periodic copies count once)."""
+    path = tmp_path / "fold_curves.toml"
+    where = '{ eps = 0.25, P = "pi^2/4" }'
+    path.write_text(f"""
+equation = "elastica_lever_arm"
+start = [{{ file = "{rotating_arm.result.path}", type = "LP", where = {where} }}]
+[continuation]
+parameter = ["psi", "eps"]
+bounds = [0.2, 0.3]
+""")
+    plan = runfile.load(path)
+    assert plan.curve == "fold" and plan.parameter == "eps" and plan.problem.free == ("psi",)
+    out = run_plan(plan, tmp_path / "out").result
+    assert len(out.branches) == 4
+    psi = sorted(round(math.remainder(b.points[0].params["psi"], 2 * math.pi), 6)
+                 for b in out.branches)
+    assert psi[0] == psi[1] == -psi[2] == -psi[3] != 0
+    stored = ea.BranchFile(out.path)
+    assert set(stored.branches[0].columns) >= {"P", "eps", "psi", "m1", "type"}
+
+
+@pytest.mark.parametrize("start, parameter, key, words", [
+    ("dict", ["psi", "eps"], "start", "starts from LP or BP labels"),
+    ("LP", ["psi", "psi"], "parameter", "two different names"),
+    ("LP", ["eps", "P"], "start", "is a fold in 'psi', not in 'eps'"),
+    ("LP", ["psi", "nope"], "parameter", "unknown parameter 'nope'"),
+    ("mix", ["psi", "eps"], "start", "not a mix"),
+])
+def test_two_parameter_arguments_are_checked(elastica, arm_quarter, start, parameter, key,
+                                             words):
+    given = {"dict": {"P": 1.0}, "LP": arm_quarter.label("LP1"),
+             "mix": [arm_quarter.label("LP1"), arm_quarter.label("EP1")]}[start]
+    with pytest.raises(ea.PlanError, match=words) as exc_info:
+        ea.continuation(elastica, given, parameter)
+    assert exc_info.value.key == key
