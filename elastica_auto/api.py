@@ -45,15 +45,20 @@ class Branches(list):
         ``shooting`` and ``second_variation`` hooks.
     warnings : list of str
         Branch points where switching failed, a failed snap-back scan.
+    maps : list of StabilityMap
+        For fold curves of a module with the ``shooting`` and ``second_variation`` hooks:
+        the stability map of each plane (`elastica_auto.maps`).
     seconds : float
         Wall-clock time of the whole computation.
     """
 
     def __init__(self, branches: Iterable[Branch] = (), problem: Problem | None = None,
-                 snaps: Iterable[dict] = (), warnings: Iterable[str] = (), seconds: float = 0.0):
+                 snaps: Iterable[dict] = (), warnings: Iterable[str] = (), seconds: float = 0.0,
+                 maps: Iterable = ()):
         super().__init__(branches)
         self.problem = problem
         self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
+        self.maps = list(maps)
 
     def __add__(self, other: Iterable[Branch]) -> Branches | list:
         """Branches of one problem put together (``arm + load``): still of that problem."""
@@ -156,7 +161,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         result.interrupted = True
     number_labels(result.branches)
     out = Branches(result.branches, plan.problem, result.snaps, result.warnings,
-                   time.perf_counter() - t0)
+                   time.perf_counter() - t0, result.maps)
     if result.interrupted:
         raise Interrupted(out)
     return out
@@ -171,7 +176,8 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     through the file in branch and point order (the branches keep their own numbering).
     ``problem``: the branches' (default: that of the :func:`continuation` they came from; a
     list put together from several needs it). ``run`` names the run in the file (default:
-    the file's stem). Snap-back targets are saved if ``branches`` is one continuation's.
+    the file's stem). Snap-back targets and stability maps are saved if ``branches`` is
+    one continuation's.
     """
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
@@ -190,10 +196,11 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     copies = [dataclasses.replace(b, points=[dataclasses.replace(p) for p in b.points])
               for b in branches]
     number_labels(copies)
-    snaps = given.snaps if isinstance(given, Branches) else None  # a whole continuation's
+    whole = isinstance(given, Branches)                  # a whole continuation's
+    snaps, maps = (given.snaps, given.maps) if whole else (None, None)
     writer = store.Writer(path, run or path.stem, problem)
     with writer:
-        writer.save(copies, snaps)
+        writer.save(copies, snaps, maps)
         writer.finish()
     return writer.path
 

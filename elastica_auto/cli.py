@@ -170,6 +170,11 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
         lps = len({(r["branch"], r["lp"]) for r in result.snaps})
         click.echo(f"snap-back: {len(result.snaps)} stable targets at {lps} folds ending a "
                    f"stable branch (elastica-auto snaps {result.path})")
+    for m in result.maps:
+        at = ", ".join(f"{k}={v:.6g}" for k, v in m.fixed.items())
+        counts = ", ".join(map(str, sorted(set(m.stable.tolist()))))
+        click.echo(f"stability map at {at}: {len(m.stable)} regions of ({m.x}, {m.y}), "
+                   f"stable equilibria {counts}")
     click.echo(f"{plan.name}: {len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
                f"{sum(len(b.folds) for b in result.branches)} folds, "

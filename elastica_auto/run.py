@@ -26,6 +26,7 @@ from .correctors import CorrectorFailure, make_corrector
 from .errors import USER_ERRORS, RunFileError, StartError
 from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
+from .maps import stability_maps
 from .snaps import snap_targets
 from .stability import label_stability
 from .stepper import Origin, continue_branch, start_point
@@ -40,6 +41,7 @@ class RunResult:
     interrupted: bool = False
     snaps: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    maps: list = field(default_factory=list)
 
     @property
     def failed(self) -> list[int]:
@@ -284,7 +286,7 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
         try:
             compute(plan, first, result, save, progress, on_branch, jobs)
             if not result.interrupted:
-                writer.save(result.branches, result.snaps)
+                writer.save(result.branches, result.snaps, result.maps)
                 writer.finish()
         except KeyboardInterrupt:  # outside a branch (while saving, say): the last save stands
             result.interrupted = True
@@ -297,7 +299,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
-    for, then the snap-back targets, into ``result`` (labels numbered); ``save()`` after each
+    for, then the snap-back targets (and, for fold curves, the stability maps of their
+    planes, `elastica_auto.maps`), into ``result`` (labels numbered); ``save()`` after each
     branch. An interruption ends it with ``result.interrupted`` set."""
     branches = result.branches
     interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
@@ -311,6 +314,14 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             result.snaps = snap_targets(plan.problem, branches)
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
+        base = plan.base
+        if plan.curve == "fold" and base.has_shooting and base.has_second_variation:
+            try:
+                result.maps = stability_maps(base, branches, plan.problem.free[0],
+                                             plan.parameter,
+                                             (plan.stops.lower, plan.stops.upper))
+            except Exception as exc:  # as for the snap-back scan
+                result.warnings.append(f"stability map failed: {_one_line(exc)}")
 
 
 def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:

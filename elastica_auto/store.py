@@ -188,9 +188,10 @@ class Writer:
     def __exit__(self, *exc_info):
         _unlock(self._fd, self._lock)
 
-    def save(self, branches: list[Branch], snaps: list[dict] | None = None):
+    def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None):
         """Write ``branches`` (labels already numbered); earlier ones are kept as written.
-        ``snaps``: the snap-back target table (replaces any stored one)."""
+        ``snaps``: the snap-back target table, ``maps``: the stability maps (each replaces
+        any stored one)."""
         try:
             tmp = _temporary(self.path)
             try:
@@ -208,6 +209,8 @@ class Writer:
                     f.attrs["labels"] = json.dumps(self.labels)
                     if snaps is not None:
                         _write_snaps(f, snaps)
+                    if maps:
+                        _write_maps(f, maps)
                 os.replace(tmp, self.path)
             except BaseException:
                 Path(tmp).unlink(missing_ok=True)
@@ -255,6 +258,31 @@ def _write_snaps(f, snaps: list[dict]):
             g.create_dataset(k, data=values, dtype=h5py.string_dtype())
         else:
             g[k] = np.asarray(values, dtype=float)
+
+
+def _write_maps(f, maps):
+    """/maps/NNN: one stability map per plane (`elastica_auto.maps.StabilityMap`): attributes
+    x, y, fixed (JSON) and extent; datasets cells and the region table."""
+    if "maps" in f:
+        del f["maps"]
+    for k, m in enumerate(maps, 1):
+        g = f.create_group(f"maps/{k:03d}")
+        g.attrs.update(x=m.x, y=m.y, fixed=json.dumps(m.fixed), extent=np.asarray(m.extent))
+        g.create_dataset("cells", data=m.cells.astype(np.int32), compression="gzip")
+        for name in ("region_x", "region_y", "stable", "equilibria"):
+            g[name] = getattr(m, name)
+
+
+def _read_maps(f) -> list:
+    from .maps import StabilityMap
+    out = []
+    for key in sorted(f.get("maps", {})):
+        g = f["maps"][key]
+        out.append(StabilityMap(str(g.attrs["x"]), str(g.attrs["y"]),
+                                json.loads(g.attrs["fixed"]), tuple(map(float, g.attrs["extent"])),
+                                g["cells"][()], g["region_x"][()], g["region_y"][()],
+                                g["stable"][()], g["equilibria"][()]))
+    return out
 
 
 # The columns of every branch besides its parameters and ordinates.
@@ -507,6 +535,7 @@ class BranchFile:
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
         self._source = _Source(self.path)
+        self._maps = None
         if not self.path.is_file():
             raise StoreError(f"{self.path}: no such file")
         try:
@@ -623,6 +652,14 @@ class BranchFile:
             counts[lab[:2]] = max(counts.get(lab[:2], 0), int(lab[2:]))
         return ", ".join(f"{t}1-{t}{n}" if n > 1 else f"{t}1"
                          for t, n in sorted(counts.items())) or "none"
+
+    @property
+    def maps(self) -> list:
+        """The stability maps a fold-curve run stored (`elastica_auto.maps.StabilityMap`, one
+        per plane; none for other runs), read from the file on first use."""
+        if self._maps is None:
+            self._maps = self._source.read("maps", _read_maps)
+        return self._maps
 
     def label(self, name: str) -> StoredLabel:
         """The solution stored under a label such as ``UZ3`` (StoreError if there is none),

@@ -180,3 +180,57 @@ def test_two_parameter_arguments_are_checked(elastica, arm_quarter, start, param
     with pytest.raises(ea.PlanError, match=words) as exc_info:
         ea.continuation(elastica, given, parameter)
     assert exc_info.value.key == key
+
+
+# ------------------------------------------------------------------------ stability maps
+@pytest.fixture(scope="module")
+def wedge(elastica, arm_quarter):
+    """Both fold curves of the straight rod's branch at P = pi^2/4 (LP1, then on through
+    eps -> 0 to its mirror image), with the map of their plane."""
+    return ea.continuation(elastica, arm_quarter.label("LP1"), ["psi", "eps"], bounds=(0, 1),
+                           directions="both")
+
+
+def _cell_point(m, j, i):
+    x0, x1, y0, y1 = m.extent
+    ny, nx = m.cells.shape
+    return x0 + (i + 0.5) * (x1 - x0) / nx, y0 + (j + 0.5) * (y1 - y0) / ny
+
+
+def _inner_cells(m, rng, per_region, margin=3):
+    """Random cells of each region at least ``margin`` cells from any curve."""
+    from scipy import ndimage
+    inside = ndimage.binary_erosion(m.cells >= 0, iterations=margin)
+    out = []
+    for k in range(len(m.stable)):
+        js, is_ = np.nonzero(inside & (m.cells == k))
+        if len(js):
+            pick = rng.choice(len(js), size=min(per_region, len(js)), replace=False)
+            out += [(k, js[p], is_[p]) for p in pick]
+    return out
+
+
+def test_each_region_of_a_map_holds_one_count(wedge, elastica):
+    """Enumerations at random points of each region (not the one the run used) find the
+    region's number of stable equilibria: the fold curves bound the regions completely."""
+    from elastica_auto.snaps import enumerate_equilibria
+    (m,) = wedge.maps
+    assert sorted(m.stable.tolist()) == [1, 2] and m.fixed["P"] == pytest.approx(P1)
+    for k, j, i in _inner_cells(m, np.random.default_rng(1), per_region=6):
+        x, y = _cell_point(m, j, i)
+        eqs = enumerate_equilibria(elastica, {**m.fixed, m.x: x, m.y: y})
+        assert sum(e.index == 0 for e in eqs) == m.stable[k], (x, y)
+
+
+def test_a_map_is_mirror_symmetric_and_saved_as_computed(wedge, tmp_path):
+    """psi -> -psi maps the plane onto itself: the map's counts are symmetric away from
+    the curves; the file holds the map as computed."""
+    (m,) = wedge.maps
+    counts = m.stable_cells()
+    both = (counts >= 0) & (counts[:, ::-1] >= 0)
+    assert np.mean(both) > 0.9 and np.array_equal(counts[both], counts[:, ::-1][both])
+    (stored,) = ea.BranchFile(ea.save(wedge, tmp_path / "wedge.h5")).maps
+    assert (stored.x, stored.y, stored.fixed) == (m.x, m.y, m.fixed)
+    assert stored.extent == pytest.approx(m.extent)
+    for name in ("cells", "region_x", "region_y", "stable", "equilibria"):
+        np.testing.assert_array_equal(getattr(stored, name), getattr(m, name))

@@ -282,3 +282,41 @@ def test_load_magnitude_branches_reach_the_unloaded_straight_rod(paper):
             assert c["m0"][i] == pytest.approx(0, abs=1e-6)   # no load, no moment
             crossed += 1
     assert crossed >= 4
+
+
+# ---------------------------------------------------------------- fold curves and maps
+def test_the_fold_curves_pass_through_every_fold_of_rotating_arm_at_eps_quarter(paper):
+    """fold_curves_arm starts from the eps = 0.5 folds only; its UZ points at eps = 0.25 are
+    every fold of the eps = 0.25 branches (modulo 2 pi), to 1e-7 in psi (the curves are
+    solved at the default tol; tests/test_codim2.py checks 1e-9 at tol = 1e-7)."""
+    curves, arm = _open(paper, "fold_curves_arm"), _open(paper, "rotating_arm")
+    on_curves = [(float(b.columns["P"][i]), float(b.columns["psi"][i]), float(b.columns["m1"][i]))
+                 for b in curves.branches for i in np.flatnonzero(b.columns["type"] == "UZ")]
+    for b in arm.branches:
+        if b.columns["eps"][0] != 0.25:
+            continue
+        for i in np.flatnonzero(b.columns["type"] == "LP"):
+            P, psi, m1 = (float(b.columns[q][i]) for q in ("P", "psi", "m1"))
+            assert any(abs(P - Q) < 1e-12 and abs(math.remainder(psi - x, TWO_PI)) < 1e-7
+                       and abs(m1 - m) < 1e-6 for Q, x, m in on_curves), (P, psi)
+
+
+@pytest.mark.parametrize("run", ["fold_curves_arm", "fold_curves_load"])
+def test_every_region_of_the_stability_maps_holds_one_count(paper, run, elastica):
+    """Enumerations at random points of the maps' regions, away from the curves, find each
+    region's number of stable equilibria."""
+    from scipy import ndimage
+    from elastica_auto.snaps import enumerate_equilibria
+    maps = _open(paper, run).maps
+    assert maps
+    rng = np.random.default_rng(7)
+    for m in maps:
+        ny, nx = m.cells.shape
+        x0, x1, y0, y1 = m.extent
+        inside = ndimage.binary_erosion(m.cells >= 0, iterations=3)
+        js, is_ = np.nonzero(inside)
+        for p in rng.choice(len(js), size=12, replace=False):
+            j, i = js[p], is_[p]
+            x, y = x0 + (i + 0.5) * (x1 - x0) / nx, y0 + (j + 0.5) * (y1 - y0) / ny
+            eqs = enumerate_equilibria(elastica, {**m.fixed, m.x: x, m.y: y})
+            assert sum(e.index == 0 for e in eqs) == m.stable[m.cells[j, i]], (m.fixed, x, y)

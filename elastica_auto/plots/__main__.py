@@ -41,7 +41,8 @@ def main(argv=None) -> int:
         return 0
     if not args.names:
         for f in in_paper_order():
-            print(f"{f.name:<28} paper figure {f.paper:<4} reads {', '.join(f.runs)}")
+            which = f"paper figure {f.paper:<4}" if f.paper else "beyond the paper "
+            print(f"{f.name:<28} {which} reads {', '.join(f.runs)}")
         return 0
     names = list(FIGURES) if args.names == ["all"] else args.names
     unknown = [n for n in names if n not in FIGURES]
@@ -84,7 +85,8 @@ def make_rules(runs_dir) -> str:
     lines += [f"$(OUT)/{run}.h5: {' '.join(f'$(OUT)/{r}.h5' for r in needs)}"
               for run, needs in restarts.items() if needs]
     lines.append(f"PAPER_RUNS = {' '.join(order)}")
-    lines += [f"$(eval $(call FIGURE,{f.name},{' '.join(f.runs)}))  # paper figure {f.paper}"
+    lines += [f"$(eval $(call FIGURE,{f.name},{' '.join(f.runs)}))  # "
+              + (f"paper figure {f.paper}" if f.paper else "beyond the paper")
               for f in in_paper_order()]
     return "\n".join(lines) + "\n"
 

@@ -24,9 +24,9 @@ from .layout import same_value
 from .style import RC, index_label, index_style, marker_style
 
 #: Labelled points that are marked, in the order their names get room.
-MARKED = ("MX", "BP", "LP")
+MARKED = ("MX", "CP", "BP", "LP")
 MARKER_TEXT = {"LP": "fold (LP)", "LP?": "fold not located", "BP": "branch point (BP)",
-               "MX": "failed end (MX)"}
+               "MX": "failed end (MX)", "CP": "cusp (CP)"}
 FONTSIZE = 7.0
 
 
@@ -167,7 +167,10 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
     xname = xname or b0.parameter
-    yname = yname or b0.attrs.get("ordinate") or bf.ordinates[0]
+    # a fold curve's natural ordinate is the parameter solved for along it
+    solved = [q[len("free:"):] for q in bf.states if q.startswith("free:")]
+    yname = yname or (solved[0] if solved else None) or b0.attrs.get("ordinate") \
+        or bf.ordinates[0]
     for name in (xname, yname):
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
@@ -207,7 +210,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                    for k in sorted(indices, key=lambda k: (k < 0, k))
                    for c, d, w in [index_style(k)]]
         handles += [Line2D([], [], label=MARKER_TEXT[k], **marker_style(k))
-                    for k in ("LP", "LP?", "BP", "MX") if k in kinds]
+                    for k in ("LP", "LP?", "CP", "BP", "MX") if k in kinds]
         fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6),
                    handlelength=2.6)
         fig.draw_without_rendering()

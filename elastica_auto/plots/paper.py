@@ -1,4 +1,5 @@
-"""The paper's figures 3-12 (and the stable family it leaves out), from the runs' branch files.
+"""The paper's figures 3-12 (and the stable family it leaves out), and two stability maps
+beyond the paper, from the runs' branch files.
 
 Each figure is a function ``(data_dir, out_dir) -> [png, pdf]`` registered in :data:`FIGURES`
 under its make target name, with what it shows and the branch files it reads. The registry is
@@ -28,6 +29,7 @@ from ..store import BranchFile, StoredBranch
 from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
                      draw_configurations, draw_panel, find_equilibrium, label_point,
                      mark_number, same_value, save)
+from .stability_map import map_figure
 from .style import BP_COLOR, RC, SNAP_COLOR
 
 PI = math.pi
@@ -70,8 +72,9 @@ def figure(name, paper, shows, runs):
 
 
 def in_paper_order() -> list[PaperFigure]:
-    """The registered figures, by the paper's figure number."""
-    return sorted(FIGURES.values(), key=lambda f: int(f.paper))
+    """The registered figures, by the paper's figure number; then those beyond the paper
+    (``paper`` empty), in the order they were registered."""
+    return sorted(FIGURES.values(), key=lambda f: (not f.paper, int(f.paper or 0)))
 
 
 def _open(data_dir, run) -> BranchFile:
@@ -282,6 +285,22 @@ def _critical_curves(n_modes=4, eps_lim=1.0):
     return out
 
 
+def _computed_critical_curves(cl: BranchFile):
+    """The critical-load curves of the critical_loads run as (eps, P), one per branch point
+    it starts from (its two directions joined), in order of P at the start, eps decreasing
+    (the order of `_critical_curves`)."""
+    by_start: dict[str, list] = {}
+    for b in cl.branches:
+        by_start.setdefault(b.attrs["start"], []).append(b)
+    out = []
+    for pair in by_start.values():
+        e = np.concatenate([b.columns["eps"].astype(float) for b in pair])
+        P = np.concatenate([b.columns["P"].astype(float) for b in pair])
+        order = np.argsort(-e)
+        out.append((e[order], P[order]))
+    return sorted(out, key=lambda c: float(np.interp(0.0, c[0][::-1], c[1][::-1])))
+
+
 def _pitchfork_panel(tb, eps, title):
     items = [(tb, b) for b in branches_where(tb, eps=eps)]
     insets = []
@@ -306,12 +325,13 @@ def _pitchfork_panel(tb, eps, title):
 
 
 @figure("critical-loads", "3",
-        "critical loads `cot sqrt(P) = eps sqrt(P)` against `eps` (with the branch points the "
-        "continuation finds on the straight rod), the pitchforks at `eps = 0.25` (a) and "
+        "critical loads against `eps`, continued as branch-point curves (the closed form "
+        "`cot sqrt(P) = eps sqrt(P)` overlaid), the pitchforks at `eps = 0.25` (a) and "
         "`-0.25` (b) with the buckled configurations",
-        ["trivial_buckling"])
+        ["trivial_buckling", "critical_loads"])
 def fig_critical_loads(data_dir, out_dir):
     tb = _open(data_dir, "trivial_buckling")
+    cl = _open(data_dir, "critical_loads")
     with matplotlib.rc_context(RC):
         fig = Figure(figsize=(10.0, 8.4), layout="constrained")
         top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 0.95], hspace=0.03)
@@ -323,9 +343,11 @@ def fig_critical_loads(data_dir, out_dir):
         ax.set_yscale("function", functions=(lambda P: np.sqrt(np.maximum(P, 0)),
                                              lambda q: q ** 2))
         shade = ["#f7f7f7", "#e4e4e4", "#d0d0d0", "#bdbdbd"]
-        curves = _critical_curves()
+        curves = _computed_critical_curves(cl)
         eg = np.linspace(-1, 1, 801)
         lo = np.zeros_like(eg)
+        for e, P in _critical_curves():
+            ax.plot(e, P, color="white", lw=0.6, ls=(0, (3, 3)), zorder=4)
         for n, (e, P) in enumerate(curves):
             ax.plot(e, P, color="black", lw=1.4, zorder=3)
             # the straight rod's index is the number of critical loads below P
@@ -353,7 +375,9 @@ def fig_critical_loads(data_dir, out_dir):
         ax.plot(bp_eps, bp_P, "s", ms=5, mfc="white", mec=BP_COLOR, mew=1.3, zorder=5,
                 label="branch points of the straight rod's\nP-branches (trivial_buckling run)")
         ax.plot([], [], color="black", lw=1.4,
-                label=r"$\cot\sqrt{P}=\epsilon\sqrt{P}$, $\sqrt{P}\neq n\pi$")
+                label="critical loads continued in $(P, \\epsilon)$ (critical_loads run)")
+        ax.plot([], [], color="0.5", lw=0.6, ls=(0, (3, 3)),
+                label=r"$\cot\sqrt{P}=\epsilon\sqrt{P}$, $\sqrt{P}\neq n\pi$ (closed form)")
         for x, y, s in ((0.6, 1.5, r"$P^+_{cr,1}$"), (-0.6, 6.4, r"$P^-_{cr,1}$"),
                         (0.6, 14.0, r"$P^+_{cr,2}$"), (-0.6, 36.0, r"$P^-_{cr,2}$"),
                         (0.9, 40.6, r"$P^+_{cr,3}$")):
@@ -604,3 +628,28 @@ def fig_rotating_base_snaps(data_dir, out_dir):
                 axesB=axs[1], arrowstyle="-|>", color=SNAP_COLOR, lw=1.4, mutation_scale=11))
         draw_configurations(*zip(*drawn), margin=0.055)
         return save(fig, out_dir, "rotating_base_snaps")
+
+
+# ------------------------------------------------------------------ beyond the paper: maps
+@figure("map-arm", "",
+        "stability map in `(psi, eps)` at `P = pi^2/4` and `9 pi^2/4`: fold curves, cusps, "
+        "and the number of stable equilibria in each region",
+        ["fold_curves_arm"])
+def fig_map_arm(data_dir, out_dir):
+    bf = _open(data_dir, "fold_curves_arm")
+    fig = map_figure(bf, r"rotating arm: stable equilibria in the $(\psi, \epsilon)$ plane "
+                         r"($\alpha=\theta_0=0$)")
+    with matplotlib.rc_context(RC):
+        return save(fig, out_dir, "map_arm")
+
+
+@figure("map-load", "",
+        "stability map in `(alpha, P)` at `eps = 0.5`, `psi = pi/2`: fold curves, cusps, and "
+        "the number of stable equilibria in each region",
+        ["fold_curves_load"])
+def fig_map_load(data_dir, out_dir):
+    bf = _open(data_dir, "fold_curves_load")
+    fig = map_figure(bf, r"rotating load: stable equilibria in the $(\alpha, P)$ plane "
+                         r"($\theta_0=0$)")
+    with matplotlib.rc_context(RC):
+        return save(fig, out_dir, "map_load")

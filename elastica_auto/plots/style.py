@@ -23,6 +23,7 @@ UNKNOWN_STYLE = ("0.62", (0, (3.0, 1.5, 1.0, 1.5)), 1.0)
 SNAP_COLOR = "#d7191c"     # snap-back arrows
 FOLD_COLOR = "#7b3294"     # fold markers and their index change
 BP_COLOR = "#008837"       # branch points
+CP_COLOR = "#e66101"       # cusps of fold curves
 MX_COLOR = "black"         # failed ends
 LABEL_COLOR = "#1f4e79"    # numbered configurations
 
@@ -32,6 +33,7 @@ MARKERS = {
     "LP": ("o", "white", FOLD_COLOR, 3.4, 0.9),
     "LP?": ("x", "0.4", "0.4", 4.0, 1.0),
     "BP": ("s", "white", BP_COLOR, 3.6, 1.0),
+    "CP": ("D", CP_COLOR, CP_COLOR, 4.2, 0.8),
     "MX": ("X", MX_COLOR, MX_COLOR, 5.0, 0.5),
 }
 
