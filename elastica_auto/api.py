@@ -46,8 +46,8 @@ class Branches(list):
     warnings : list of str
         Branch points where switching failed, a failed snap-back scan.
     maps : list of StabilityMap
-        For fold curves of a module with the ``shooting`` and ``second_variation`` hooks:
-        the stability map of each plane (`elastica_auto.maps`).
+        With ``map=True``: the stability map of each plane of the fold curves
+        (`elastica_auto.maps`).
     seconds : float
         Wall-clock time of the whole computation.
     """
@@ -89,7 +89,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
                  stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-                 jobs: int = 1,
+                 map: bool = False, jobs: int = 1,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
 
@@ -122,6 +122,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     free : list of str, optional
         The parameters solved for where the module has more conditions than states (extra
         boundary conditions, integral conditions); default: the module's ``FREE``.
+    map : bool
+        With two parameters and LP starts: also the stability map of each plane of the
+        fold curves (``branches.maps``; `elastica_auto.maps`). Only meaningful when the
+        starts give every fold curve of the plane.
     jobs : int
         Branches computed at once, in forked processes (1: in this process).
     progress : callable, optional
@@ -151,7 +155,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
     plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
                      directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, free=free, options=options)
+                     switch=switch, free=free, options=options, maps=map)
     t0 = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)

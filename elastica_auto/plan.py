@@ -91,6 +91,7 @@ class Plan:
     branches: list[BranchSpec] = field(default_factory=list)
     varying: list[str] = field(default_factory=list)
     switch_count: int = 0
+    maps: bool = False
     curve: str | None = None
     name: str = "continuation"
     path: Path | None = None
@@ -113,15 +114,18 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
               uz: Iterable[float] = (), uz_period: float | None = None,
               stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
               options: Mapping[str, object] | ContinuationOptions | None = None,
-              _starts: list | None = None) -> Plan:
+              maps: bool = False, _starts: list | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
     The branches are, for each combination of the ``params`` values (a list gives one set of
     branches per value; the first parameter varies slowest), each start in order, each
     direction. ``free`` names the parameters solved for where the module has more conditions
     than states (default: its ``FREE``); the plan's problem then carries them
-    (`elastica_auto.augmented`). Raises :class:`PlanError` naming the argument at fault.
+    (`elastica_auto.augmented`). ``maps``: for fold curves, also the stability maps of their
+    planes (`elastica_auto.maps`). Raises :class:`PlanError` naming the argument at fault.
     """
+    if not isinstance(maps, bool):
+        raise PlanError("map", f"expected true or false, got {maps!r}")
     if not isinstance(problem, (Problem, Augmented)):
         raise PlanError("problem", f"expected a problem from load_problem(), got "
                         f"{type(problem).__name__}")
@@ -131,7 +135,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     if isinstance(parameter, (list, tuple)):
         return _two_parameter_plan(problem, start, parameter, params=params, bounds=bounds,
                                    directions=directions, uz=uz, uz_period=uz_period,
-                                   stop=stop, switch=switch, free=free, options=options)
+                                   stop=stop, switch=switch, free=free, options=options,
+                                   maps=maps)
     try:
         problem = problem.with_free(None if free is None else tuple(free))
     except ProblemError as exc:
@@ -139,6 +144,9 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     if not isinstance(parameter, str) or parameter not in problem.parameters:
         raise PlanError("parameter", f"unknown parameter {parameter!r}; {problem.source} "
                         f"declares {', '.join(problem.parameter_names)}")
+    if maps and _starts is None:
+        raise PlanError("map", "stability maps are drawn from fold curves: give two parameters "
+                        "and LP starts")
     if parameter in getattr(problem, "free", ()) and isinstance(problem, Augmented):
         raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
                         "continue in another one")
@@ -176,7 +184,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
                 specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch)
 
 
-def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, **rest) -> Plan:
+def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
+                        **rest) -> Plan:
     """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
     of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
     is solved for, ``mu`` continued (`elastica_auto.codim2`)."""
@@ -218,7 +227,10 @@ def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, **rest
                         f"{items[0].name}: branch-point curves follow its branch points")
     plan = make_plan(problem, [], mu,
                      _starts=[(Start(curve, x.path, x.name, x), {}) for x in items], **rest)
-    plan.curve, plan.base = curve, base
+    if maps and (curve != "fold" or not (base.has_shooting and base.has_second_variation)):
+        raise PlanError("map", "stability maps need fold curves (LP starts) of a module with "
+                        "the shooting and second_variation hooks")
+    plan.curve, plan.base, plan.maps = curve, base, maps
     return plan
 
 

@@ -299,9 +299,9 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
-    for, then the snap-back targets (and, for fold curves, the stability maps of their
-    planes, `elastica_auto.maps`), into ``result`` (labels numbered); ``save()`` after each
-    branch. An interruption ends it with ``result.interrupted`` set."""
+    for, then the snap-back targets (and, if the plan asks, the stability maps of the
+    fold curves' planes, `elastica_auto.maps`), into ``result`` (labels numbered);
+    ``save()`` after each branch. An interruption ends it with ``result.interrupted`` set."""
     branches = result.branches
     interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
     if not interrupted and plan.switch_count:
@@ -314,10 +314,9 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             result.snaps = snap_targets(plan.problem, branches)
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
-        base = plan.base
-        if plan.curve == "fold" and base.has_shooting and base.has_second_variation:
+        if plan.maps:
             try:
-                result.maps = stability_maps(base, branches, plan.problem.free[0],
+                result.maps = stability_maps(plan.base, branches, plan.problem.free[0],
                                              plan.parameter,
                                              (plan.stops.lower, plan.stops.upper))
             except Exception as exc:  # as for the snap-back scan

@@ -57,7 +57,7 @@ __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
-_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free"}
+_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
 
 
@@ -252,6 +252,10 @@ class _Document:
         out["uz"] = [self.number("[continuation] uz", v) for v in out.get("uz", [])]
         if "uz_period" in cont:
             out["uz_period"] = self.number("[continuation] uz_period", cont["uz_period"])
+        if "map" in cont:
+            if not isinstance(cont["map"], bool):
+                self.fail("[continuation] map", f"expected true or false, got {cont['map']!r}")
+            out["maps"] = cont["map"]
         return out
 
     def options(self) -> dict:

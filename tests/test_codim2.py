@@ -164,6 +164,7 @@ bounds = [0.2, 0.3]
     assert psi[0] == psi[1] == -psi[2] == -psi[3] != 0
     stored = ea.BranchFile(out.path)
     assert set(stored.branches[0].columns) >= {"P", "eps", "psi", "m1", "type"}
+    assert stored.maps == []                       # no map = true
 
 
 @pytest.mark.parametrize("start, parameter, key, words", [
@@ -172,13 +173,14 @@ bounds = [0.2, 0.3]
     ("LP", ["eps", "P"], "start", "is a fold in 'psi', not in 'eps'"),
     ("LP", ["psi", "nope"], "parameter", "unknown parameter 'nope'"),
     ("mix", ["psi", "eps"], "start", "not a mix"),
+    ("map", "psi", "map", "stability maps are drawn from fold curves"),
 ])
 def test_two_parameter_arguments_are_checked(elastica, arm_quarter, start, parameter, key,
                                              words):
-    given = {"dict": {"P": 1.0}, "LP": arm_quarter.label("LP1"),
+    given = {"dict": {"P": 1.0}, "LP": arm_quarter.label("LP1"), "map": {"P": 1.0},
              "mix": [arm_quarter.label("LP1"), arm_quarter.label("EP1")]}[start]
     with pytest.raises(ea.PlanError, match=words) as exc_info:
-        ea.continuation(elastica, given, parameter)
+        ea.continuation(elastica, given, parameter, map=start == "map")
     assert exc_info.value.key == key
 
 
@@ -188,7 +190,7 @@ def wedge(elastica, arm_quarter):
     """Both fold curves of the straight rod's branch at P = pi^2/4 (LP1, then on through
     eps -> 0 to its mirror image), with the map of their plane."""
     return ea.continuation(elastica, arm_quarter.label("LP1"), ["psi", "eps"], bounds=(0, 1),
-                           directions="both")
+                           directions="both", map=True)
 
 
 def _cell_point(m, j, i):
