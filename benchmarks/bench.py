@@ -11,6 +11,11 @@
    and with the default (one process per core), ``examples/bratu.toml``, and every run of
    ``make runs`` (in restart order) with their sum.
 
+4. Two-parameter continuation: one fold curve of 500 points (the rotating arm's first fold
+   at P = pi^2/4 followed in eps, ds = ds_max = 0.02), its seconds and milliseconds per
+   point; and the map runs of ``make fig-map-arm`` / ``fig-map-load`` as whole processes
+   (their one-parameter runs first).
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -186,6 +191,36 @@ def memory(sizes=(2500, 10000)):
           f"(a profile alone is {4 * 101 * 8 / 1024:.2f} KiB)")
 
 
+def fold_curve(points=500):
+    """One fold curve of ``points`` points in process, after a warm-up curve."""
+    import elastica_auto as ea
+    problem = ea.load_problem("elastica_lever_arm")
+    arm = ea.continuation(problem, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                          bounds=(-2 * math.pi, 2 * math.pi))
+    lp = arm.label("LP1")
+    ea.continuation(problem, lp, ["psi", "eps"], bounds=(0, 1), max_points=20)
+    t0 = time.perf_counter()
+    (br,) = ea.continuation(problem, lp, ["psi", "eps"], bounds=(0, 50), max_points=points,
+                            ds=0.02, ds_max=0.02)
+    dt = time.perf_counter() - t0
+    print(f"fold curve in (psi, eps) from the first fold at P = pi^2/4: {len(br.points)} "
+          f"points in {dt:.2f} s ({1000 * dt / len(br.points):.2f} ms/point; "
+          f"up to {int(br.columns['nodes'].max())} nodes)")
+
+
+def map_runs():
+    """``make fig-map-arm`` and ``fig-map-load``'s runs from scratch, as whole processes."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        total = 0.0
+        for run in ("rotating_arm", "fold_curves_arm", "rotating_load", "fold_curves_load"):
+            dt = _timed(["run", str(REPO / "runs" / f"{run}.toml"), "--out", str(out),
+                         "-q"], tmp)
+            total += dt
+            print(f"  {run:<18} {dt:6.2f} s")
+        print(f"  {'total':<18} {total:6.2f} s")
+
+
 def main():
     step_cost()
     print("\nrotating_arm in one process (8 branches to |psi| = 6 pi):")
@@ -196,6 +231,10 @@ def main():
     print("\nwhole processes:")
     for corrector in CORRECTORS:
         whole_processes(corrector)
+    print("\ntwo-parameter continuation:")
+    fold_curve()
+    print("the runs of the stability maps, whole processes (default --jobs):")
+    map_runs()
 
 
 if __name__ == "__main__":
