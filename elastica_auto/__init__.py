@@ -20,7 +20,7 @@ FORMAT_VERSION = 1
 _PUBLIC = {
     "load_problem": "problem", "Problem": "problem",
     "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
-    "Switch": "plan", "ContinuationOptions": "options",
+    "Switch": "plan", "ContinuationOptions": "options", "snaps_along": "path",
     "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",
     "PlanError": "errors", "ProblemError": "errors", "StoreError": "errors",
     "RunFileError": "errors", "StartError": "errors",

@@ -284,3 +284,60 @@ def plot(file, xname, yname, output, fold):
     except ValueError as exc:
         _fail(str(exc))
     click.echo(f"wrote {path}")
+
+
+def _values(option: str, items) -> dict[str, float]:
+    """``NAME=VALUE`` items (VALUE an expression such as ``2*pi``) as a dict."""
+    from .expressions import evaluate
+    out = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            _fail(f"{option} {item!r}: expected NAME=VALUE")
+        try:
+            out[name.strip()] = evaluate(text)
+        except ValueError as exc:
+            _fail(f"{option} {item}: {exc}")
+    return out
+
+
+@main.command()
+@click.argument("equation")
+@click.option("--at", "at", multiple=True, metavar="NAME=VALUE",
+              help="Parameter values at the start of the path (repeatable; others: defaults).")
+@click.option("--to", "to", multiple=True, metavar="NAME=VALUE",
+              help="Values at the end of the path of the parameters that move (repeatable).")
+@click.option("--ds-max", "ds_max", default=None, type=float,
+              help="Largest step in the path parameter t (of [0, 1]).")
+def path(equation, at, to, ds_max):
+    """Snap-backs along a straight path in parameter space: every fold where a stable
+    equilibrium ends as the parameters move from --at to --to, and the stable equilibria
+    there (EQUATION: a shipped module name or a .py file with the shooting hook)."""
+    from .path import snaps_along
+    from .problem import load_problem
+    a, b = _values("--at", at), _values("--to", to)
+    if not b:
+        _fail("--to: give at least one NAME=VALUE, the end of the path")
+    try:
+        problem = load_problem(equation)
+        options = {} if ds_max is None else {"ds_max": ds_max, "ds": min(0.05, ds_max)}
+        snaps, branches = snaps_along(problem, a, b, **options)
+    except USER_ERRORS as exc:
+        _fail(str(exc))
+    start = {**problem.defaults(), **a}
+    moving = ", ".join(f"{k} {start[k]:.6g} -> {v:.6g}" for k, v in b.items())
+    fixed = ", ".join(f"{k}={v:.6g}" for k, v in start.items() if k not in b)
+    ords = problem.ordinate_names
+    click.echo(f"path of {problem.source}: {moving} ({fixed}); {len(branches)} branches "
+               f"from the equilibria at the start")
+    if not snaps:
+        click.echo("no snap: no stable equilibrium ends on the path")
+    for n, s in enumerate(snaps, 1):
+        where = ", ".join(f"{k}={s.params[k]:.8g}" for k in b)
+        state = ", ".join(f"{o}={s.ordinates[o]:.6g}" for o in ords[:2])
+        click.echo(f"snap {n} at t={s.t:.6f} ({where}) from {state} to "
+                   f"{len(s.targets)} stable equilibri{'um' if len(s.targets) == 1 else 'a'}:")
+        for r in s.targets:
+            on = f"on branch {r['on_branch']}" if r["on_branch"] else "on no branch followed"
+            click.echo("    " + ", ".join(f"{o}={r['target_' + o]:.6g}" for o in ords[:2])
+                       + f" ({on})")

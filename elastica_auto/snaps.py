@@ -136,9 +136,10 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     want = np.array(list(target.ordinates.values()))
     for nb, br in enumerate(branches, start=1):
         p0 = br.points[0].params
-        if br.parameter != parameter or any(
-                abs(p0[q] - target.state.params[q]) > 1e-12
-                for q in p0 if q != parameter):
+        # the parameters fixed along the branch (on a path, others move with the path's)
+        fixed = [q for q in p0 if q != parameter and np.ptp(br.column(q)) == 0]
+        if br.parameter != parameter or any(abs(p0[q] - target.state.params[q]) > 1e-12
+                                            for q in fixed):
             continue
         lam = br.column(parameter)
         if period:

@@ -236,3 +236,46 @@ def test_a_map_is_mirror_symmetric_and_saved_as_computed(wedge, tmp_path):
     assert stored.extent == pytest.approx(m.extent)
     for name in ("cells", "region_x", "region_y", "stable", "equilibria"):
         np.testing.assert_array_equal(getattr(stored, name), getattr(m, name))
+
+
+# ------------------------------------------------------------------ snap-backs along a path
+def test_turning_the_arm_snaps_at_the_fold_of_the_rotating_arm(elastica, arm_quarter):
+    """eps = 0.25, P = pi^2/4, psi from 0 to 2 pi: one snap, at the fold LP1 of the
+    one-parameter run, to one stable equilibrium, which a followed branch passes through."""
+    from elastica_auto.path import snaps_along
+    snaps, _ = snaps_along(elastica, {"P": P1, "eps": 0.25, "psi": 0.0}, {"psi": 2 * math.pi})
+    (snap,) = snaps
+    lp1 = arm_quarter.label("LP1").state.params["psi"]
+    assert abs(snap.params["psi"] - lp1) <= 1e-8 and snap.t == pytest.approx(lp1 / (2 * math.pi))
+    (target,) = snap.targets
+    assert target["index"] == 0 and target["on_branch"] > 0
+    assert target["target_m1"] * snap.ordinates["m1"] < 0        # to the other side
+
+
+def test_snaps_on_an_oblique_path_are_folds_by_shooting(elastica):
+    """P = 9 pi^2/4, (psi, eps) from (0, 0.2) to (2 pi, 0.5): every snap point is a fold of
+    the shooting formulation at its (eps, psi), and lies on the segment."""
+    from elastica_auto.path import snaps_along
+    snaps, _ = snaps_along(elastica, {"P": P2, "eps": 0.2, "psi": 0.0},
+                           {"psi": 2 * math.pi, "eps": 0.5})
+    assert len(snaps) >= 2
+    for s in snaps:
+        p = s.params
+        assert p["psi"] == pytest.approx(2 * math.pi * s.t, abs=1e-12)
+        assert p["eps"] == pytest.approx(0.2 + 0.3 * s.t, abs=1e-12)
+        _, psi, _ = shooting.fold(P2, p["eps"], s.ordinates["m0"], p["psi"])
+        assert abs(psi - p["psi"]) <= 1e-7
+        assert s.targets and all(r["index"] == 0 for r in s.targets)
+
+
+def test_the_path_command(cli_exe):
+    from helpers import run_cli
+    proc = run_cli(cli_exe, "path", "elastica_lever_arm", "--at", "P=pi^2/4", "--at",
+                   "eps=0.25", "--to", "psi=2*pi")
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("path of elastica_lever_arm: psi 0 -> 6.28319 (P=2.4674")
+    assert lines[1].startswith("snap 1 at t=0.130075 (psi=0.81728493) from m1=0.256")
+    assert "1 stable equilibrium" in lines[1] and len(lines) == 3
+    assert proc.returncode == 0
+    bad = run_cli(cli_exe, "path", "elastica_lever_arm", "--to", "psi")
+    assert bad.returncode == 2 and bad.stderr.strip().endswith("expected NAME=VALUE")
