@@ -233,15 +233,26 @@ def family_slope(base: Problem, state: State, lam: str) -> np.ndarray:
 #: tangent component, relative to the whole tangent, below this. It is ~1e-10 at the cusps
 #: of the elastica and 0.4-0.6 at its other folds of fold curves (docs/two-parameter.md).
 CUSP_SLOPE = 1e-3
+#: A fold of a fold curve is on the exact family where its solution is that family's to
+#: this (relative, max norm): ~1e-6 at the elastica's, where the fold is located to ~1e-6
+#: in eps; 0.1 or more elsewhere.
+ON_FAMILY = 1e-4
 
 
-def label_cusps(branch, problem) -> None:
-    """Label the cusps of a fold curve: of its folds (LP, where the continued parameter
-    turns and two folds of the one-parameter family meet), those where the solved-for
-    parameter is stationary as well (|d lam / d sigma| < CUSP_SLOPE |tangent|) become CP.
-    The others stay LP: there the two folds that meet face opposite ways (the
+def label_fold_curve(branch, problem, base: Problem) -> None:
+    """Label the codimension-two points of a fold curve among its folds (LP, where the
+    continued parameter turns and two folds of the one-parameter family meet):
+
+    - CP, a cusp, where the solved-for parameter is stationary as well
+      (|d lam / d sigma| < CUSP_SLOPE |tangent|);
+    - BP, where the fold's solution is the module's exact solution (its ``exact_start``,
+      the straight rod) at those parameters, to ON_FAMILY: the fold curve meets the
+      exact family's branch-point curve (a critical load).
+
+    The other folds stay LP: there the two folds that meet face opposite ways (the
     one-parameter branches reconnect, or an isola appears), and ``lam`` moves through."""
     row = problem.n - 1                          # the free parameter is the last state
+    n = base.n
     for p in branch.points:
         if p.type != "LP" or p.tangent is None:
             continue
@@ -251,4 +262,9 @@ def label_cusps(branch, problem) -> None:
         note = f"d{problem.free[0]}/ds = {slope:.1e} of the tangent"
         if slope < CUSP_SLOPE:
             p.type = "CP"
+        y = p.state.y[:n]
+        y0 = base.exact_start(p.state.s, p.params)
+        if y0 is not None and np.max(np.abs(y - y0)) <= ON_FAMILY * (1 + np.max(np.abs(y0))):
+            p.type = "BP"
+            note += "; on the exact family: the fold curve meets its branch-point curve"
         p.note = "; ".join(filter(None, (p.note, note)))

@@ -213,7 +213,7 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     t0 = time.perf_counter()
     continue_branch(br, plan.problem, plan.course, job.origin, on_step)
     if plan.curve == "fold":
-        codim2.label_cusps(br, plan.problem)
+        codim2.label_fold_curve(br, plan.problem, plan.base)
     label_stability(br, plan.problem)
     br.seconds = time.perf_counter() - t0
     return br

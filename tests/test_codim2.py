@@ -279,3 +279,15 @@ def test_the_path_command(cli_exe):
     assert proc.returncode == 0
     bad = run_cli(cli_exe, "path", "elastica_lever_arm", "--to", "psi")
     assert bad.returncode == 2 and bad.stderr.strip().endswith("expected NAME=VALUE")
+
+
+def test_a_fold_curve_meets_the_critical_load_curve_on_the_straight_rod(wedge, elastica):
+    """The wedge's two fold curves join at eps -> 0, psi = 0 on the straight rod: labelled
+    BP there, at a load on the critical-load curve cot(sqrt P) = eps sqrt(P)."""
+    bps = [p for b in wedge for p in b.points if p.type == "BP"]
+    assert len(bps) == 1
+    p = bps[0].params
+    w = math.sqrt(p["P"])
+    assert abs(math.cos(w) - p["eps"] * w * math.sin(w)) < 1e-5 and abs(p["psi"]) < 1e-9
+    assert abs(bps[0].ordinates["m0"]) < 1e-9 and "exact family" in bps[0].note
+    assert not [q for b in wedge for q in b.points if q.type == "CP"]
