@@ -291,3 +291,17 @@ def test_a_fold_curve_meets_the_critical_load_curve_on_the_straight_rod(wedge, e
     assert abs(math.cos(w) - p["eps"] * w * math.sin(w)) < 1e-5 and abs(p["psi"]) < 1e-9
     assert abs(bps[0].ordinates["m0"]) < 1e-9 and "exact family" in bps[0].note
     assert not [q for b in wedge for q in b.points if q.type == "CP"]
+
+
+def test_export_marks_the_cusps(cusp_curves, tmp_path):
+    """The exported rows of a fold-curve file: every parameter, the ordinates, type CP."""
+    import csv
+    from elastica_auto.store import export_csv
+    path = ea.save(cusp_curves, tmp_path / "cusps.h5")
+    out = export_csv(ea.BranchFile(path), tmp_path / "cusps.csv")
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {"P", "eps", "psi", "alpha", "theta0", "m1", "m0", "type", "label"} <= set(rows[0])
+    cps = [r for r in rows if r["type"] == "CP"]
+    assert len(cps) == len(_cusps(cusp_curves)) >= 4
+    assert {round(float(r["eps"]), 6) for r in cps} == {0.211385, 0.361114}
