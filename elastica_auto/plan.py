@@ -105,7 +105,8 @@ class Plan:
 
     @property
     def course(self) -> Course:
-        return Course(self.parameter, self.options, self.stops, tuple(self.user_values))
+        return Course(self.parameter, self.options, self.stops, tuple(self.user_values),
+                      all_folds=self.curve == "fold")
 
 
 def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,

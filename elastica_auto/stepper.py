@@ -156,12 +156,15 @@ class Origin:
 
 @dataclass(frozen=True)
 class Course:
-    """How a branch is continued: the parameter, the options, where it ends, its UZ values."""
+    """How a branch is continued: the parameter, the options, where it ends, its UZ values.
+    ``all_folds``: every point is a fold (a fold curve), and its ``fold_residual`` is the
+    point's largest error estimate, of the solution and its null vector together."""
 
     parameter: str
     options: ContinuationOptions
     stops: Stops = Stops()
     user_values: tuple[UserValues, ...] = ()
+    all_folds: bool = False
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -248,6 +251,7 @@ class _Walk:
     def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
+        self.all_folds = course.all_folds
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None
@@ -305,6 +309,12 @@ class _Walk:
             ds = ds_next
 
     def _add(self, state: State, **fields) -> Point:
+        if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
+                and hasattr(self.corr, "disc"):
+            # a start, user or end point of a fold curve: its error estimate, as for a step
+            disc = self.corr.disc(state.s)
+            fields["fold_residual"] = float(np.max(disc.rms_residuals(state.y, state.yp,
+                                                                       state.params)))
         return self.branch.insert(new_point(self.problem, state, **fields))
 
     def end_at_base(self, kind: str, message: str):
@@ -410,8 +420,9 @@ class _Walk:
         if self._add_events(step, found):
             return ds, True
         self.arclength += ds
+        residual = float(np.max(b.rms)) if self.all_folds else math.nan
         self.base_point = self._add(b.state, arclength=self.arclength, ds=ds, niter=b.niter,
-                                    direct=index_b)
+                                    direct=index_b, fold_residual=residual)
         tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
         self.curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
                                  (tb.lam - ta.lam) / step.dist)

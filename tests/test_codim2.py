@@ -305,3 +305,10 @@ def test_export_marks_the_cusps(cusp_curves, tmp_path):
     cps = [r for r in rows if r["type"] == "CP"]
     assert len(cps) == len(_cusps(cusp_curves)) >= 4
     assert {round(float(r["eps"]), 6) for r in cps} == {0.211385, 0.361114}
+
+
+def test_every_fold_curve_point_has_its_fold_residual(fold_curve):
+    """Every point of a fold curve is a fold: its fold_residual, the error estimate of the
+    solution and null vector together, is set and under the curve's tol (1e-7)."""
+    res = fold_curve[0].columns["fold_residual"]
+    assert np.all(np.isfinite(res)) and np.all(res <= 1e-7) and np.any(res > 0)
