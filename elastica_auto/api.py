@@ -89,7 +89,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
                  stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-                 map: bool = False, jobs: int = 1,
+                 map: bool = False, jobs: int = 1, scheduler: str | None = None,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
 
@@ -128,6 +128,9 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         starts give every fold curve of the plane.
     jobs : int
         Branches computed at once, in forked processes (1: in this process).
+    scheduler : str, optional
+        The address of a Dask scheduler (``tcp://host:port``): the branches are computed as
+        tasks of its cluster instead (`elastica_auto.cluster`); ``jobs`` is then unused.
     progress : callable, optional
         Called as ``progress(branch, points, folds, value)`` during the continuation.
     **options
@@ -160,7 +163,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
     try:
-        compute(plan, first, result, lambda: None, progress, jobs=jobs)
+        compute(plan, first, result, lambda: None, progress, jobs=jobs, scheduler=scheduler)
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
     number_labels(result.branches)

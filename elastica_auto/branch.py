@@ -133,6 +133,7 @@ class Branch:
     seconds: float = 0.0
     interrupted: bool = False
     number: int = 0
+    worker: str = "local"
 
     @classmethod
     def of(cls, problem, parameter: str, direction: int, start: str, options: dict,

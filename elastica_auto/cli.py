@@ -93,7 +93,11 @@ def _fmt_params(params: dict, names) -> str:
                    "(repeatable): --set ds_max=0.3 --set eps=0.4 --set 'eps=[0.25, 0.5]'.")
 @click.option("--from", "restart", metavar="FILE.h5:LABEL",
               help="Start from this label instead of the run file's start.")
-def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Compute the branches as tasks of the Dask cluster whose scheduler is at "
+                   "ADDRESS (tcp://host:port); default: the run file's [execution] scheduler, "
+                   "else this machine (--jobs).")
+def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
     from .run import StartError, execute
     from .runfile import load
@@ -117,6 +121,11 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
 
     def of(k):
         return f"{k}/{nbr}" if k <= nbr else f"{k}"
+
+    def on_tasks(done, total, points, workers):
+        if tty:
+            click.echo(f"\r  tasks {done}/{total} done, {points} points, {workers} workers  ",
+                       nl=False, err=True)
 
     def progress(k, npts, nfolds, lam):
         if tty:
@@ -148,7 +157,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart):
     signal.signal(signal.SIGTERM, _terminate)
     try:
         result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1,
-                         on_start=header)
+                         on_start=header, scheduler=scheduler, on_tasks=on_tasks)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:

@@ -26,8 +26,13 @@ class PlanError(ValueError):
         self.key, self.detail = key, message
 
 
+class ClusterError(RuntimeError):
+    """A Dask scheduler that cannot be used: unreachable, without workers, or with workers
+    that cannot run this package."""
+
+
 class StartError(RuntimeError):
     """A start point that cannot be built (no exact solution, corrector failure)."""
 
 
-USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError)
+USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError, ClusterError)

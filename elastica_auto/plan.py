@@ -98,6 +98,7 @@ class Plan:
     text: str = ""
     description: str = ""
     base: Problem | None = None
+    scheduler: str | None = None
 
     @property
     def output_name(self) -> str:

@@ -244,7 +244,8 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
 
 def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
-            on_start: Callable[[], None] | None = None) -> RunResult:
+            on_start: Callable[[], None] | None = None, scheduler: str | None = None,
+            on_tasks=None) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
     Before any branch is computed: a start read from the file this run writes is refused
@@ -252,8 +253,9 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     locked for the whole run (`store.Writer`: StoreError if it cannot be written or another
     run is writing it). Branches switched at this run's own branch points (``switch = N``)
     follow once their parents are done. The file is rewritten after each branch completes, in
-    plan order, so labels are numbered the same way whatever ``jobs`` is. ``on_start`` is
-    called once these checks have passed, before the first branch.
+    plan order, so labels are numbered the same way whatever ``jobs`` is, or whichever Dask
+    cluster computed them (``scheduler``, default the run file's; see `compute`).
+    ``on_start`` is called once these checks have passed, before the first branch.
 
     A run that ends, with failed branches (MX) or not, leaves its complete file as
     ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
@@ -275,38 +277,68 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     t_run = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(writer.path, [], 0.0)
+    scheduler = scheduler or plan.scheduler
+    client = None
+    if scheduler is not None:  # before the output is opened: an error leaves nothing
+        from .cluster import connect
+        client = connect(scheduler)
 
     def save():
         number_labels(result.branches)
         writer.save(result.branches)
 
-    with writer:
-        if on_start is not None:
-            on_start()
-        try:
-            compute(plan, first, result, save, progress, on_branch, jobs)
-            if not result.interrupted:
-                writer.save(result.branches, result.snaps, result.maps)
-                writer.finish()
-        except KeyboardInterrupt:  # outside a branch (while saving, say): the last save stands
-            result.interrupted = True
-            del result.branches[writer.written:]
+    try:
+        with writer:
+            if on_start is not None:
+                on_start()
+            try:
+                compute(plan, first, result, save, progress, on_branch, jobs,
+                        on_tasks=on_tasks, client=client)
+                if not result.interrupted:
+                    writer.save(result.branches, result.snaps, result.maps)
+                    writer.finish()
+            except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
+                result.interrupted = True
+                del result.branches[writer.written:]
+    finally:
+        if client is not None:
+            client.close()
     result.path, result.seconds = writer.path, time.perf_counter() - t_run
     return result
 
 
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
             progress: Progress | None = None,
-            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1):
+            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
+            scheduler: str | None = None, on_tasks=None, client=None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
     fold curves' planes, `elastica_auto.maps`), into ``result`` (labels numbered);
-    ``save()`` after each branch. An interruption ends it with ``result.interrupted`` set."""
+    ``save()`` after each branch. An interruption ends it with ``result.interrupted`` set.
+
+    With a ``scheduler`` address (or a ``client`` of one, left open) the branches are tasks
+    of that Dask cluster (`elastica_auto.cluster`; ``on_tasks`` reports their progress),
+    else they are computed ``jobs`` at a time on this machine."""
     branches = result.branches
-    interrupted = _run_jobs(plan, first, jobs, branches, save, progress, on_branch)
-    if not interrupted and plan.switch_count:
-        second = switch_jobs(plan, list(branches), result.warnings)
-        interrupted = _run_jobs(plan, second, jobs, branches, save, progress, on_branch)
+    own = client is None and scheduler is not None
+    if own:
+        from .cluster import connect
+        client = connect(scheduler)
+
+    def run_jobs(jobs_list):
+        if client is not None:
+            from .cluster import run_on_cluster
+            return run_on_cluster(client, plan, jobs_list, branches, save, on_branch, on_tasks)
+        return _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch)
+
+    try:
+        interrupted = run_jobs(first)
+        if not interrupted and plan.switch_count:
+            second = switch_jobs(plan, list(branches), result.warnings)
+            interrupted = run_jobs(second)
+    finally:
+        if own:
+            client.close()
     number_labels(branches)
     result.interrupted = interrupted
     if not interrupted:

@@ -55,7 +55,8 @@ from .store import BranchFile, StoredLabel
 __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 
-_TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options"}
+_TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options",
+        "execution"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
@@ -90,6 +91,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     except PlanError as exc:
         raise RunFileError(f"{path}: {_toml_key(exc.key)}: {exc.detail}") from None
     plan.name, plan.path, plan.text = path.stem, path, doc.text
+    plan.scheduler = doc.execution()
     plan.description = doc.string("description", doc.doc.get("description", ""))
     return plan
 
@@ -257,6 +259,16 @@ class _Document:
                 self.fail("[continuation] map", f"expected true or false, got {cont['map']!r}")
             out["maps"] = cont["map"]
         return out
+
+    def execution(self) -> str | None:
+        """``[execution] scheduler``: the address of a Dask scheduler to compute on."""
+        table = self.table("execution")
+        for key in table:
+            if key != "scheduler":
+                self.fail(f"[execution] {key}", "unknown key; expected 'scheduler'")
+        if "scheduler" not in table:
+            return None
+        return self.string("[execution] scheduler", table["scheduler"])
 
     def options(self) -> dict:
         """``[options]``: numbers (or expressions), integers and the corrector's name."""

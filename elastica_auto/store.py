@@ -295,7 +295,7 @@ def _write_branch(g, problem, br: Branch):
     g.attrs.update(parameter=br.parameter, ordinate=_ordinate_for(problem, br.parameter),
                    direction=br.direction, start=br.start, options=json.dumps(br.options),
                    end=br.end, message=br.message, diagnostics=json.dumps(br.diagnostics),
-                   warnings=json.dumps(br.warnings), seconds=br.seconds)
+                   warnings=json.dumps(br.warnings), seconds=br.seconds, worker=br.worker)
     cols = g.create_group("columns")
     for name in problem.parameter_names + problem.ordinate_names + list(_FLOAT_COLUMNS):
         cols[name] = br.column(name).astype(float)

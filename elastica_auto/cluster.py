@@ -1,0 +1,153 @@
+"""Branches as tasks on a Dask cluster: ``--scheduler ADDRESS`` (or a run file's
+``[execution] scheduler``, or ``continuation(..., scheduler=...)``).
+
+Each branch is one task, ``_task(plan, k, job)``, that continues the branch on a worker and
+returns it with the worker's address (stored as the branch's ``worker`` attribute). The
+plan travels to the workers once (scattered); the equation module goes with it, by value,
+so a worker needs the elastica-auto package but not the module's file. The client collects
+the branches and writes them in the plan's order, so the branch file is the same whatever
+computed it.
+
+A worker that dies has its task rescheduled by the scheduler (a task that kills three
+workers is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
+finished; the finished ones are written (the branches in progress are lost, unlike on one
+machine, where they end at their next step and are kept). ``distributed`` is imported only
+here, when a scheduler is given: its import alone costs about a second.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+import uuid
+from typing import Callable
+
+from .errors import ClusterError
+
+#: Seconds to reach the scheduler, and to wait for its first worker.
+CONNECT_TIMEOUT = 10.0
+
+#: Seconds between looks at the tasks' states.
+POLL = 0.05
+#: ``on_tasks(done, total, points, workers)``: progress of the tasks of a cluster run.
+TaskProgress = Callable[[int, int, int, int], None]
+
+
+def connect(address: str):
+    """A client of the scheduler at ``address`` with at least one worker that can import
+    elastica-auto; ClusterError (one line) otherwise."""
+    from distributed import Client
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address} "
+                           f"({type(exc).__name__}: {_short(exc)})") from None
+    try:
+        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError):
+        client.close()
+        raise ClusterError(f"the Dask scheduler at {address} has no workers "
+                           f"(none joined within {CONNECT_TIMEOUT:g} s)") from None
+    try:
+        versions = client.run(_version)
+    except Exception as exc:  # the workers cannot unpickle a function of this package
+        client.close()
+        raise ClusterError(f"the workers of {address} cannot run elastica-auto "
+                           f"({type(exc).__name__}: {_short(exc)}); install it on them") from None
+    from . import __version__
+    wrong = sorted(w for w, v in versions.items() if v != __version__)
+    if wrong:
+        client.close()
+        raise ClusterError(f"the workers {', '.join(wrong)} of {address} run elastica-auto "
+                           f"{versions[wrong[0]]}, this is {__version__}")
+    return client
+
+
+def _version() -> str:
+    from . import __version__
+    return __version__
+
+
+def _short(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200] or type(exc).__name__
+
+
+def _task(plan, k: int, job):
+    """Branch number ``k`` of ``plan`` from ``job``, on a worker: (branch, worker address)."""
+    from distributed import get_worker
+
+    from .run import compute_branch
+    branch = compute_branch(plan, k, job)
+    return branch, get_worker().address
+
+
+def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
+                   on_tasks: TaskProgress | None = None) -> bool:
+    """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
+    ``branches`` in plan order and calling ``save()`` after each; True if interrupted."""
+    from .run import _new_branch, _one_line
+    from .stepper import start_point
+    offset = len(branches)
+    token = uuid.uuid4().hex[:8]
+    [shared] = client.scatter([plan], broadcast=True, hash=False)
+    futures = {client.submit(_task, shared, offset + i + 1, job, pure=False,
+                             key=f"elastica-branch-{offset + i + 1}-{token}"): i
+               for i, job in enumerate(jobs_list)}
+    pending, done, points, finished = set(futures), {}, 0, 0
+    last = 0.0
+
+    def report(force=False):
+        nonlocal last
+        now = time.monotonic()
+        if on_tasks is not None and (force or now - last > 0.5):
+            last = now
+            on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
+
+    # Ctrl-C and SIGTERM set a flag that the loop reads: a KeyboardInterrupt raised at an
+    # arbitrary point (inside the client's own callbacks, say) would be reported as an
+    # "exception ignored" traceback, or stop a save half way.
+    stop = threading.Event()
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handlers[sig] = signal.signal(sig, lambda signum, frame: stop.set())
+    try:
+        while pending and not stop.is_set():
+            ready = {f for f in pending if f.done()}
+            if not ready:
+                time.sleep(POLL)
+                report()
+                continue
+            pending -= ready
+            for f in ready:
+                i = futures[f]
+                if f.status == "finished":
+                    br, worker = f.result()
+                    br.worker = worker
+                else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
+                    exc = f.exception()
+                    br = _new_branch(plan, jobs_list[i])
+                    br.end, br.message = "MX", f"not computed: {_one_line(exc)}"
+                    br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
+                    br.points.append(start_point(br, jobs_list[i].origin))
+                done[i] = br
+                finished += 1
+                points += len(br.points)
+            while len(branches) - offset in done:
+                branches.append(done.pop(len(branches) - offset))
+                save()
+                if on_branch is not None:
+                    on_branch(len(branches), branches[-1])
+            report()
+    finally:
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
+    if stop.is_set():
+        client.cancel(list(pending))
+        if done:  # finished beyond a gap in the plan's order
+            branches.extend(done[i] for i in sorted(done))
+            save()
+        return True
+    report(force=True)
+    return False

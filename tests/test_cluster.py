@@ -1,0 +1,171 @@
+"""Branches as tasks of a Dask cluster (``--scheduler``): a real cluster started here as
+subprocesses on 127.0.0.1 (``dask scheduler`` and ``dask worker --nworkers 2``).
+
+The file a cluster writes is the file ``--jobs 1`` writes, number for number (only the
+``worker`` attribute and timings differ); both workers are used; a worker killed mid-run
+costs nothing; Ctrl-C keeps the finished branches; an unreachable scheduler is one line.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from elastica_auto.store import BranchFile
+from helpers import run_cli
+
+BIN = Path(sys.executable).parent
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A scheduler and two single-threaded workers; yields the scheduler's address."""
+    root = tmp_path_factory.mktemp("cluster")
+    info = root / "scheduler.json"
+    common = dict(cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                  start_new_session=True)
+    procs = [subprocess.Popen([BIN / "dask", "scheduler", "--scheduler-file", info, "--port",
+                               "0", "--host", "127.0.0.1", "--no-dashboard"], **common)]
+    deadline = time.monotonic() + 60
+    while not info.is_file() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    procs.append(subprocess.Popen([BIN / "dask", "worker", "--scheduler-file", info,
+                                   "--nworkers", "2", "--nthreads", "1", "--host", "127.0.0.1",
+                                   "--no-dashboard"], **common))
+    address = json.loads(info.read_text())["address"]
+    from distributed import Client
+    with Client(address, timeout=30) as client:
+        client.wait_for_workers(2, timeout=60)
+    yield address
+    for p in reversed(procs):
+        os.killpg(p.pid, signal.SIGTERM)
+    for p in procs:
+        p.wait(timeout=30)
+
+
+def _numbers(path) -> dict:
+    """Every dataset of a branch file and every attribute but the run's timings, creation
+    time and the workers that computed it."""
+    out = {}
+
+    def visit(name, obj):
+        skip = {"created", "seconds", "worker"}
+        for k, v in obj.attrs.items():
+            if k not in skip:
+                out[f"{name}@{k}"] = v
+        if isinstance(obj, h5py.Dataset):
+            out[name] = obj[()]
+
+    with h5py.File(path, "r") as f:
+        visit("/", f)
+        f.visititems(visit)
+    return out
+
+
+@pytest.fixture(scope="module")
+def on_cluster(cluster, tmp_path_factory, cli_exe):
+    out = tmp_path_factory.mktemp("on_cluster")
+    proc = run_cli(cli_exe, "run", "rotating_arm", "--out", out, "--scheduler", cluster)
+    assert proc.returncode == 0, proc.stderr
+    return out / "rotating_arm.h5"
+
+
+def test_a_cluster_writes_the_file_one_process_writes(on_cluster, rotating_arm):
+    here, there = _numbers(rotating_arm.result.path), _numbers(on_cluster)
+    assert here.keys() == there.keys()
+    for key in here:
+        a, b = here[key], there[key]
+        if isinstance(a, np.ndarray) and a.dtype.kind == "f":
+            np.testing.assert_array_equal(a, b, err_msg=key)
+        else:
+            assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, key
+
+
+def test_both_workers_computed_branches_and_are_named(on_cluster, rotating_arm):
+    workers = [b.attrs["worker"] for b in BranchFile(on_cluster).branches]
+    assert len(set(workers)) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
+    assert {b.attrs["worker"] for b in BranchFile(rotating_arm.result.path).branches} == \
+        {"local"}
+
+
+def test_a_worker_killed_mid_run_costs_nothing(cluster, tmp_path, cli_exe):
+    """SIGKILL to one worker while the branches run: its task is rescheduled, the run
+    completes with every branch."""
+    from distributed import Client
+    with Client(cluster, timeout=30) as client:
+        pids = client.run(os.getpid)
+    proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", tmp_path,
+                             "--scheduler", cluster], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(3.0)
+    os.kill(next(iter(pids.values())), signal.SIGKILL)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    bf = BranchFile(tmp_path / "rotating_arm.h5")
+    assert len(bf.branches) == 8 and all(b.attrs["end"] == "EP" for b in bf.branches)
+    with Client(cluster, timeout=30) as client:
+        client.wait_for_workers(2, timeout=60)       # the nanny restarted it
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_cluster_run_keeps_its_finished_branches(cluster, tmp_path, cli_exe,
+                                                                sig):
+    """Branches slowed by smaller steps (ds_max = 0.1, seconds each): the signal comes once
+    the first is saved (the file appears), while the others run."""
+    proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", tmp_path,
+                             "--scheduler", cluster, "--set", "ds_max=0.1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (tmp_path / "rotating_arm.h5").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    saved = BranchFile(tmp_path / "rotating_arm.h5").branches
+    assert f"interrupted: {len(saved)} branches saved to" in err
+    assert all(b.attrs["end"] == "EP" for b in saved) and len(saved) < 8
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path, cli_exe):
+    proc = run_cli(cli_exe, "run", "rotating_arm", "--out", tmp_path / "out", "--scheduler",
+                   "tcp://127.0.0.1:1")
+    assert proc.returncode == 2 and not (tmp_path / "out").exists()
+    assert proc.stderr.strip().splitlines() == [
+        "elastica-auto: error: cannot reach the Dask scheduler at tcp://127.0.0.1:1 (OSError: "
+        "Timed out trying to connect to tcp://127.0.0.1:1 after 10 s)"]
+
+
+def test_a_run_file_names_its_scheduler(cluster, tmp_path):
+    from elastica_auto import runfile
+    from helpers import elastica_run_file
+    path = elastica_run_file(tmp_path / "small.toml", uz=[0])
+    path.write_text(path.read_text() + f'\n[execution]\nscheduler = "{cluster}"\n')
+    plan = runfile.load(path)
+    assert plan.scheduler == cluster
+    path.write_text(path.read_text() + 'jobs = 3\n')
+    with pytest.raises(runfile.RunFileError, match=r"\[execution\] jobs: unknown key"):
+        runfile.load(path)
+
+
+def test_distributed_is_imported_only_for_a_cluster(tmp_path):
+    """--version, a one-process run and the read-only commands never import distributed."""
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
+            "r = CliRunner()\n"
+            "assert r.invoke(main, ['--version']).exit_code == 0\n"
+            f"assert r.invoke(main, ['run', 'rotating_arm', '--out', {str(tmp_path)!r}, '-j', '1',"
+            " '--set', 'max_points=20', '--set', 'eps=0.25', '--set', 'P=pi^2/4']).exit_code == 0\n"
+            f"assert r.invoke(main, ['show', {str(tmp_path / 'rotating_arm.h5')!r}])"
+            ".exit_code == 0\n"
+            "print('distributed' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
