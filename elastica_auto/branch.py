@@ -134,6 +134,7 @@ class Branch:
     interrupted: bool = False
     number: int = 0
     worker: str = "local"
+    cell: str = ""
 
     @classmethod
     def of(cls, problem, parameter: str, direction: int, start: str, options: dict,

@@ -97,7 +97,10 @@ def _fmt_params(params: dict, names) -> str:
               help="Compute the branches as tasks of the Dask cluster whose scheduler is at "
                    "ADDRESS (tcp://host:port); default: the run file's [execution] scheduler, "
                    "else this machine (--jobs).")
-def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler):
+@click.option("--resume", is_flag=True,
+              help="Continue the run's file: compute only the cells (start, parameter values, "
+                   "direction) not in it yet.")
+def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resume):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
     from .run import StartError, execute
     from .runfile import load
@@ -157,7 +160,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler):
     signal.signal(signal.SIGTERM, _terminate)
     try:
         result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1,
-                         on_start=header, scheduler=scheduler, on_tasks=on_tasks)
+                         on_start=header, scheduler=scheduler, on_tasks=on_tasks,
+                         resume=resume)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:
@@ -165,6 +169,10 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler):
     except KeyboardInterrupt:  # execute stops its own interruptions once the output is open
         click.echo("\ninterrupted before the first branch: nothing written", err=True)
         sys.exit(EXIT_INTERRUPTED)
+    if resume and result.kept and not result.branches and not result.interrupted:
+        click.echo(f"{plan.name}: every cell is in {result.path} already "
+                   f"({result.kept} branches); nothing to compute")
+        return
     if result.interrupted:
         out = out_dir / plan.output_name
         saved = (f"{len(result.branches)} branches saved to {result.path}" if result.branches
@@ -184,7 +192,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler):
         counts = ", ".join(map(str, sorted(set(m.stable.tolist()))))
         click.echo(f"stability map at {at}: {len(m.stable)} regions of ({m.x}, {m.y}), "
                    f"stable equilibria {counts}")
-    click.echo(f"{plan.name}: {len(result.branches)} branches, "
+    kept = f"{result.kept} branches kept, " if result.kept else ""
+    click.echo(f"{plan.name}: {kept}{len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
                f"{sum(len(b.folds) for b in result.branches)} folds, "
                + (f"{ncp} cusps, " if (ncp := sum(p.type == "CP" for b in result.branches

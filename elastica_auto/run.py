@@ -7,6 +7,7 @@ and ends with an MX label.
 
 from __future__ import annotations
 
+import json
 import multiprocessing as mp
 import os
 import signal
@@ -29,7 +30,7 @@ from .solution import State, Tangent
 from .maps import stability_maps
 from .snaps import snap_targets
 from .stability import label_stability
-from .stepper import Origin, continue_branch, start_point
+from .stepper import INTERRUPTED, Origin, continue_branch, start_point
 from .switching import switch_direction
 
 
@@ -42,6 +43,7 @@ class RunResult:
     snaps: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     maps: list = field(default_factory=list)
+    kept: int = 0
 
     @property
     def failed(self) -> list[int]:
@@ -180,11 +182,12 @@ def _checked(plan: Plan, job: Job) -> Job:
     return job
 
 
-def number_labels(branches: list[Branch]):
-    """Number the branches from 1, and labels per type through the file in branch and point
-    order (LP1, LP2, ...)."""
-    counters = {}
-    for k, br in enumerate(branches, 1):
+def number_labels(branches: list[Branch], first: int = 1, counters: dict | None = None):
+    """Number the branches from ``first``, and labels per type through the file in branch and
+    point order (LP1, LP2, ...), after the ``counters`` (type -> last number) of branches
+    already in the file."""
+    counters = dict(counters or {})
+    for k, br in enumerate(branches, first):
         br.number = k
         for p in br.points:
             if p.type:
@@ -222,7 +225,15 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
 def _new_branch(plan: Plan, job: Job) -> Branch:
     spec = job.spec
     return Branch.of(plan.problem, plan.parameter, spec.direction, str(spec.start),
-                     plan.options.to_dict(), singular_start=job.origin.kind != "regular")
+                     plan.options.to_dict(), singular_start=job.origin.kind != "regular",
+                     cell=cell(spec))
+
+
+def cell(spec: BranchSpec) -> str:
+    """The cell of the plan a branch computes, as stored with it (``--resume`` skips the
+    cells already in the file): its start, the parameter values given to it, its direction."""
+    return json.dumps({"start": str(spec.start), "direction": spec.direction,
+                       "params": {k: spec.params[k] for k in sorted(spec.params)}})
 
 
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
@@ -245,7 +256,7 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
 def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
             on_start: Callable[[], None] | None = None, scheduler: str | None = None,
-            on_tasks=None) -> RunResult:
+            on_tasks=None, resume: bool = False) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
     Before any branch is computed: a start read from the file this run writes is refused
@@ -262,9 +273,14 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     branch computed so far, the ones in progress up to their last point: in ``<run>.h5`` if
     there was none, else in ``<run>.partial.h5``, leaving the earlier ``<run>.h5`` as it was.
     ``result.path`` is the file written and ``result.branches`` the branches it holds.
+
+    ``resume``: continue the run's file (``<run>.partial.h5`` if an interrupted rerun left
+    one, else ``<run>.h5``): the cells of the plan already in it (`cell`) are not computed
+    again, the others follow its branches. ``result.kept`` is the number of branches kept.
     """
     out = Path(out_dir) / plan.output_name
     writer = store.Writer(out, plan.name, plan.problem, plan.text)
+    kept = _resumed(plan, writer) if resume else None
     for spec in plan.branches:
         # the start is read before the run writes, but the run would destroy its own input
         own = next((p for p in (writer.target, writer.partial)
@@ -275,8 +291,16 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
             raise RunFileError(f"{plan.path}: {key}: {spec.start.file} is the file this run "
                                f"writes ({own}); restart from a copy, or write elsewhere")
     t_run = time.perf_counter()
-    first = [_built(plan, spec) for spec in plan.branches]
-    result = RunResult(writer.path, [], 0.0)
+    # an interrupted run's file ends with its interrupted branches: computed again
+    count = len(kept.branches) if kept is not None else 0
+    while count and kept.branches[count - 1].attrs["message"] == INTERRUPTED:
+        count -= 1
+    done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
+    first = [_built(plan, spec) for spec in plan.branches if cell(spec) not in done]
+    result = RunResult(writer.path, [], 0.0, kept=count)
+    if kept is not None and not first and count == len(kept.branches):  # all there already
+        result.path, result.seconds = kept.path, time.perf_counter() - t_run
+        return result
     scheduler = scheduler or plan.scheduler
     client = None
     if scheduler is not None:  # before the output is opened: an error leaves nothing
@@ -284,22 +308,24 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
         client = connect(scheduler)
 
     def save():
-        number_labels(result.branches)
+        number_labels(result.branches, result.kept + 1, _label_counters(kept, result.kept))
         writer.save(result.branches)
 
     try:
         with writer:
+            if kept is not None:
+                writer.resume(kept, count)
             if on_start is not None:
                 on_start()
             try:
                 compute(plan, first, result, save, progress, on_branch, jobs,
-                        on_tasks=on_tasks, client=client)
+                        on_tasks=on_tasks, client=client, kept=kept)
                 if not result.interrupted:
                     writer.save(result.branches, result.snaps, result.maps)
                     writer.finish()
             except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
                 result.interrupted = True
-                del result.branches[writer.written:]
+                del result.branches[writer.written - result.kept:]
     finally:
         if client is not None:
             client.close()
@@ -307,10 +333,36 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     return result
 
 
+def _resumed(plan: Plan, writer) -> store.BranchFile | None:
+    """The file a ``--resume`` continues, opened and checked to be this run's (None if there
+    is none yet). Its branches interrupted by the user (at its end) are computed again."""
+    source = next((p for p in (writer.partial, writer.target) if p.is_file()), None)
+    if source is None:
+        return None
+    if plan.switch_count:
+        raise RunFileError(f"{plan.path}: switch: a run that switches at its branch points "
+                           "cannot be resumed; run it again whole")
+    bf = store.BranchFile(source)
+    if bf.run != plan.name or Path(bf.equation).stem != plan.problem.name:
+        raise RunFileError(f"{source}: --resume: written by run {bf.run!r} of {bf.equation!r}, "
+                           f"not {plan.name!r} of {plan.problem.source!r}")
+    return bf
+
+
+def _label_counters(kept, count: int) -> dict[str, int]:
+    """Type -> the last label number on the first ``count`` branches of the kept file (the
+    labels of the branches computed now continue after them)."""
+    out: dict[str, int] = {}
+    for name, (br, _) in (kept.labels.items() if kept is not None else ()):
+        if br <= count:
+            out[name[:2]] = max(out.get(name[:2], 0), int(name[2:]))
+    return out
+
+
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
             progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
-            scheduler: str | None = None, on_tasks=None, client=None):
+            scheduler: str | None = None, on_tasks=None, client=None, kept=None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
     fold curves' planes, `elastica_auto.maps`), into ``result`` (labels numbered);
@@ -339,16 +391,23 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     finally:
         if own:
             client.close()
-    number_labels(branches)
+    number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
     result.interrupted = interrupted
     if not interrupted:
         try:
             result.snaps = snap_targets(plan.problem, branches)
+            for row in result.snaps:           # numbered after the kept branches
+                row["branch"] += result.kept
+                row["on_branch"] += result.kept if row["on_branch"] else 0
+            if kept is not None:
+                result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
+                                + result.snaps)
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
         if plan.maps:
+            every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
             try:
-                result.maps = stability_maps(plan.base, branches, plan.problem.free[0],
+                result.maps = stability_maps(plan.base, every, plan.problem.free[0],
                                              plan.parameter,
                                              (plan.stops.lower, plan.stops.upper))
             except Exception as exc:  # as for the snap-back scan

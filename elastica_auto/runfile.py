@@ -289,12 +289,29 @@ class _Document:
         return values
 
     def parameters(self) -> dict[str, list[float]]:
-        """``[parameters]``: a value or a list of values per parameter."""
+        """``[parameters]``: a value, a list of values or a range per parameter."""
         grid = {}
         for key, v in self.table("parameters").items():
-            vals = v if isinstance(v, list) else [v]
-            grid[key] = [self.number(f"[parameters] {key}", x) for x in vals]
+            where = f"[parameters] {key}"
+            if isinstance(v, dict):
+                grid[key] = self.span(where, v)
+            else:
+                vals = v if isinstance(v, list) else [v]
+                grid[key] = [self.number(where, x) for x in vals]
         return grid
+
+    def span(self, where: str, v: dict) -> list[float]:
+        """``{ from = A, to = B, num = N }``: N equally spaced values from A to B, both
+        included (A alone if N = 1)."""
+        if set(v) != {"from", "to", "num"}:
+            self.fail(where, f"a range is {{ from = A, to = B, num = N }}, got {v!r}")
+        num = v["num"]
+        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            self.fail(f"{where}.num", f"expected a positive integer, got {num!r}")
+        a, b = self.number(f"{where}.from", v["from"]), self.number(f"{where}.to", v["to"])
+        if num == 1:
+            return [a]
+        return [a + (b - a) * i / (num - 1) if i < num - 1 else b for i in range(num)]
 
     def starts(self, problem: Problem) -> tuple[list, int]:
         """``start`` and ``switch``: the starts (``{}`` for the module's exact solution, a

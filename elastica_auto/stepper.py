@@ -135,6 +135,10 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
 
 
+#: The message of a branch ended by Ctrl-C or SIGTERM (a ``--resume`` computes it again).
+INTERRUPTED = "interrupted by the user"
+
+
 @dataclass(frozen=True)
 class Origin:
     """Where a branch starts: a solution, a tangent to start along (or None: the bordered
@@ -192,7 +196,7 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
         walk.run(a)
     except KeyboardInterrupt:
         branch.interrupted = True
-        _end_early(branch, problem, walk, origin, "interrupted by the user")
+        _end_early(branch, problem, walk, origin, INTERRUPTED)
     except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
         frames = traceback.extract_tb(exc.__traceback__)
         # the module's own line if it raised, else where the engine met what it returned

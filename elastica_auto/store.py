@@ -157,6 +157,7 @@ class Writer:
         self.path = self.target
         self.run, self.problem, self.text = run, problem, run_file_text
         self.written = 0
+        self.kept = 0
         self.labels: dict[str, list[int]] = {}
         self._lock = self.target.with_name(f".{self.target.name}.lock")
         self._fd = -1
@@ -188,6 +189,25 @@ class Writer:
     def __exit__(self, *exc_info):
         _unlock(self._fd, self._lock)
 
+    def resume(self, kept: BranchFile, count: int):
+        """Continue the branch file ``kept`` (opened) with its first ``count`` branches (the
+        others, interrupted, are dropped): they stay as they are, and the branches saved from
+        now on follow them, numbered from there."""
+        self.labels = {name: list(where) for name, where in kept.labels.items()
+                       if where[0] <= count}
+        tmp = _temporary(self.path)
+        try:
+            shutil.copyfile(kept.path, tmp)
+            with h5py.File(tmp, "a") as f:
+                for b in kept.branches[count:]:
+                    del f[f"branches/{b.number:03d}"]
+                f.attrs["labels"] = json.dumps(self.labels)
+            os.replace(tmp, self.path)
+        except OSError as exc:
+            Path(tmp).unlink(missing_ok=True)
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
+        self.written = self.kept = count
+
     def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None):
         """Write ``branches`` (labels already numbered); earlier ones are kept as written.
         ``snaps``: the snap-back target table, ``maps``: the stability maps (each replaces
@@ -200,8 +220,8 @@ class Writer:
                 with h5py.File(tmp, "a" if self.written else "w") as f:
                     if not self.written:
                         self._write_header(f)
-                    for k in range(self.written + 1, len(branches) + 1):
-                        br = branches[k - 1]
+                    for k in range(self.written + 1, self.kept + len(branches) + 1):
+                        br = branches[k - self.kept - 1]
                         _write_branch(f.create_group(f"branches/{k:03d}"), self.problem, br)
                         for pt, p in enumerate(br.points, start=1):
                             if p.type:
@@ -217,7 +237,7 @@ class Writer:
                 raise
         except OSError as exc:
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
-        self.written = len(branches)
+        self.written = self.kept + len(branches)
 
     def finish(self):
         """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class)."""
@@ -295,7 +315,8 @@ def _write_branch(g, problem, br: Branch):
     g.attrs.update(parameter=br.parameter, ordinate=_ordinate_for(problem, br.parameter),
                    direction=br.direction, start=br.start, options=json.dumps(br.options),
                    end=br.end, message=br.message, diagnostics=json.dumps(br.diagnostics),
-                   warnings=json.dumps(br.warnings), seconds=br.seconds, worker=br.worker)
+                   warnings=json.dumps(br.warnings), seconds=br.seconds, worker=br.worker,
+                   cell=br.cell)
     cols = g.create_group("columns")
     for name in problem.parameter_names + problem.ordinate_names + list(_FLOAT_COLUMNS):
         cols[name] = br.column(name).astype(float)
