@@ -16,6 +16,10 @@
    point; and the map runs of ``make fig-map-arm`` / ``fig-map-load`` as whole processes
    (their one-parameter runs first).
 
+5. A sweep of 64 short branches (32 arm lengths, both directions) on a local Dask cluster of
+   1 and 2 workers, and in one process: branches per second, and the scheduling overhead per
+   task (the cluster's busy time not spent in the branches, over the tasks).
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -221,6 +225,35 @@ def map_runs():
         print(f"  {'total':<18} {total:6.2f} s")
 
 
+def sweep(branches=64):
+    """The sweep in one process and on local clusters of 1 and 2 workers (started before the
+    clock, so that only the branches' scheduling is timed)."""
+    import elastica_auto as ea
+    from elastica_auto import cluster
+    from elastica_auto.plan import make_plan
+    from elastica_auto.run import RunResult, _built, compute
+    problem = ea.load_problem("elastica_lever_arm")
+    eps = [0.2 + 0.3 * k / (branches // 2 - 1) for k in range(branches // 2)]
+    plan = make_plan(problem, {"P": math.pi ** 2 / 4, "psi": 0.0}, "psi",
+                     params={"eps": eps}, bounds=(-1.0, 1.0), directions="both")
+    first = [_built(plan, spec) for spec in plan.branches]
+    print(f"sweep of {len(first)} branches (psi in [-1, 1], 32 arm lengths):")
+    for workers in (0, 1, 2):
+        client = cluster.local(workers) if workers else None
+        result = RunResult(None, [], 0.0)
+        t0 = time.perf_counter()
+        compute(plan, first, result, lambda: None, client=client)
+        wall = time.perf_counter() - t0
+        if client is not None:
+            cluster.close(client)
+        busy = sum(b.seconds for b in result.branches)
+        where = f"{workers} worker{'s' if workers > 1 else ''}" if workers else "one process"
+        overhead = ((wall * max(workers, 1) - busy) / len(first)) * 1000
+        print(f"  {where:<12} {wall:6.2f} s, {len(first) / wall:5.1f} branches/s; mean branch "
+              f"{1000 * busy / len(first):.0f} ms, overhead {overhead:.0f} ms per task "
+              f"({100 * overhead / (1000 * busy / len(first)):.0f}%)")
+
+
 def main():
     step_cost()
     print("\nrotating_arm in one process (8 branches to |psi| = 6 pi):")
@@ -235,10 +268,14 @@ def main():
     fold_curve()
     print("the runs of the stability maps, whole processes (default --jobs):")
     map_runs()
+    print()
+    sweep()
 
 
 if __name__ == "__main__":
     if sys.argv[1:] == ["--memory"]:
         memory()
+    elif sys.argv[1:] == ["--sweep"]:
+        sweep()
     else:
         main()

@@ -127,7 +127,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         fold curves (``branches.maps``; `elastica_auto.maps`). Only meaningful when the
         starts give every fold curve of the plane.
     jobs : int
-        Branches computed at once, in forked processes (1: in this process).
+        Branches computed at once, as tasks of a local Dask cluster of ``jobs`` worker
+        processes (1: in this process; a script needs ``if __name__ == "__main__":``).
     scheduler : str, optional
         The address of a Dask scheduler (``tcp://host:port``): the branches are computed as
         tasks of its cluster instead (`elastica_auto.cluster`); ``jobs`` is then unused.

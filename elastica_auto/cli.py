@@ -174,6 +174,9 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
                    f"({result.kept} branches); nothing to compute")
         return
     if result.interrupted:
+        # what was computed is saved: a further Ctrl-C while the command ends changes nothing
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         out = out_dir / plan.output_name
         saved = (f"{len(result.branches)} branches saved to {result.path}" if result.branches
                  else "no branch saved")

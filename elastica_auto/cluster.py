@@ -1,5 +1,6 @@
-"""Branches as tasks on a Dask cluster: ``--scheduler ADDRESS`` (or a run file's
-``[execution] scheduler``, or ``continuation(..., scheduler=...)``).
+"""Branches as tasks on a Dask cluster: a local one of ``--jobs N`` worker processes, or the
+one whose scheduler is at ``--scheduler ADDRESS`` (or a run file's ``[execution]
+scheduler``, or ``continuation(..., scheduler=...)``).
 
 Each branch is one task, ``_task(plan, k, job)``, that continues the branch on a worker and
 returns it with the worker's address (stored as the branch's ``worker`` attribute). The
@@ -10,13 +11,14 @@ computed it.
 
 A worker that dies has its task rescheduled by the scheduler (a task that kills three
 workers is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
-finished; the finished ones are written (the branches in progress are lost, unlike on one
-machine, where they end at their next step and are kept). ``distributed`` is imported only
-here, when a scheduler is given: its import alone costs about a second.
+finished; the finished ones are written (the branches in progress are lost; with ``--jobs
+1``, in this process, the branch in progress ends at its next step and is kept).
+``distributed`` is imported only here, for a cluster: its import alone costs about a second.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -64,6 +66,36 @@ def connect(address: str):
     return client
 
 
+def local(workers: int):
+    """A client of a new Dask cluster of ``workers`` single-threaded worker processes on this
+    machine (`close` ends both). Its workers are this process's children and watch it: they
+    end at once if it is killed outright (SIGKILL), even in the middle of a task
+    (tests/test_robustness_failures.py checks it)."""
+    import logging
+
+    from distributed import Client, LocalCluster
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR, memory_limit=0)
+    return Client(cluster, set_as_default=False)
+
+
+def close(client, interrupted: bool = False):
+    """Close ``client`` and, if it made one, its local cluster; after an interruption, its
+    workers are ended first, at once (a task in a slow step would hold up a graceful close)."""
+    cluster = client.cluster
+    if cluster is not None and interrupted:
+        for nanny in list(cluster.workers.values()):
+            process = getattr(getattr(nanny, "process", None), "process", None)
+            if process is not None and process.pid:
+                try:
+                    os.kill(process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+    client.close()
+    if cluster is not None:
+        cluster.close(timeout=10)
+
+
 def _version() -> str:
     from . import __version__
     return __version__
@@ -82,10 +114,32 @@ def _task(plan, k: int, job):
     return branch, get_worker().address
 
 
+class Interruptions:
+    """While active, Ctrl-C and SIGTERM set ``stop`` instead of raising KeyboardInterrupt
+    (which, raised at an arbitrary point, inside the client's own callbacks say, would be
+    reported as an "exception ignored" traceback or stop a save half way); the handlers
+    before are restored on exit. In the main thread only (elsewhere, signals are not ours)."""
+
+    def __init__(self):
+        self.stop = threading.Event()
+        self._before = {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._before[sig] = signal.signal(sig, lambda signum, frame: self.stop.set())
+        return self
+
+    def __exit__(self, *exc_info):
+        for sig, handler in self._before.items():
+            signal.signal(sig, handler)
+
+
 def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
-                   on_tasks: TaskProgress | None = None) -> bool:
+                   on_tasks: TaskProgress | None = None, stop=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
-    ``branches`` in plan order and calling ``save()`` after each; True if interrupted."""
+    ``branches`` in plan order and calling ``save()`` after each; True if interrupted
+    (``stop``, a `threading.Event`, set: see `Interruptions`)."""
     from .run import _new_branch, _one_line
     from .stepper import start_point
     offset = len(branches)
@@ -104,45 +158,36 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
             last = now
             on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
 
-    # Ctrl-C and SIGTERM set a flag that the loop reads: a KeyboardInterrupt raised at an
-    # arbitrary point (inside the client's own callbacks, say) would be reported as an
-    # "exception ignored" traceback, or stop a save half way.
-    stop = threading.Event()
-    handlers = {}
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            handlers[sig] = signal.signal(sig, lambda signum, frame: stop.set())
-    try:
-        while pending and not stop.is_set():
-            ready = {f for f in pending if f.done()}
-            if not ready:
-                time.sleep(POLL)
-                report()
-                continue
-            pending -= ready
-            for f in ready:
-                i = futures[f]
-                if f.status == "finished":
-                    br, worker = f.result()
-                    br.worker = worker
-                else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
-                    exc = f.exception()
-                    br = _new_branch(plan, jobs_list[i])
-                    br.end, br.message = "MX", f"not computed: {_one_line(exc)}"
-                    br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
-                    br.points.append(start_point(br, jobs_list[i].origin))
-                done[i] = br
-                finished += 1
-                points += len(br.points)
-            while len(branches) - offset in done:
-                branches.append(done.pop(len(branches) - offset))
-                save()
-                if on_branch is not None:
-                    on_branch(len(branches), branches[-1])
+    stop = stop if stop is not None else threading.Event()
+    while pending and not stop.is_set():
+        ready = {f for f in pending if f.done()}
+        if not ready:
+            time.sleep(POLL)
             report()
-    finally:
-        for sig, handler in handlers.items():
-            signal.signal(sig, handler)
+            continue
+        pending -= ready
+        for f in ready:
+            i = futures[f]
+            if f.status == "finished":
+                br, worker = f.result()
+                br.worker = worker
+            else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
+                exc = f.exception() if f.status == "error" else None
+                if exc is None:
+                    exc = RuntimeError(f"the task was {f.status} (its workers died)")
+                br = _new_branch(plan, jobs_list[i])
+                br.end, br.message = "MX", f"not computed: {_one_line(exc)}"
+                br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
+                br.points.append(start_point(br, jobs_list[i].origin))
+            done[i] = br
+            finished += 1
+            points += len(br.points)
+        while len(branches) - offset in done:
+            branches.append(done.pop(len(branches) - offset))
+            save()
+            if on_branch is not None:
+                on_branch(len(branches), branches[-1])
+        report()
     if stop.is_set():
         client.cancel(list(pending))
         if done:  # finished beyond a gap in the plan's order

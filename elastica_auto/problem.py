@@ -60,6 +60,7 @@ import importlib.util
 import math
 import numbers
 import os
+import types
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -142,6 +143,15 @@ class Problem:
     source : str
         Where it came from (shipped name or file path), for messages and for the HDF5 file.
     """
+
+    #: The module's source text, if it was loaded from a file (`load_problem`): a problem
+    #: pickles as that text (see `_from_text`), not as its module object.
+    _text: str | None = None
+
+    def __reduce_ex__(self, protocol):
+        if self._text is None:
+            return super().__reduce_ex__(protocol)
+        return _from_text, (self.source, self.module.__file__, self._text)
 
     def __init__(self, module, source: str):
         self.module = module
@@ -483,5 +493,19 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) 
     except SystemExit as exc:  # else the command would end, with status 0, having done nothing
         raise ProblemError(f"{source}: importing the module called sys.exit({exc.code!r}); "
                            "put script code under if __name__ == \"__main__\":") from exc
-    return Problem(module, source)
+    problem = Problem(module, source)
+    problem._text = path.read_text(encoding="utf-8")
+    return problem
+
+
+def _from_text(source: str, filename: str, text: str) -> Problem:
+    """A problem from its module's source text (how a problem travels to a Dask worker): the
+    module is executed under its own file name, so tracebacks and diagnostics name its lines
+    as on the machine it came from, whether or not the file exists here."""
+    module = types.ModuleType(f"elastica_auto_eq_{Path(filename).stem}")
+    module.__file__ = filename
+    exec(compile(text, filename, "exec"), module.__dict__)
+    problem = Problem(module, source)
+    problem._text = text
+    return problem
 

@@ -8,12 +8,7 @@ and ends with an MX label.
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
-import os
-import signal
-import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -30,7 +25,7 @@ from .solution import State, Tangent
 from .maps import stability_maps
 from .snaps import snap_targets
 from .stability import label_stability
-from .stepper import INTERRUPTED, Origin, continue_branch, start_point
+from .stepper import INTERRUPTED, Origin, continue_branch
 from .switching import switch_direction
 
 
@@ -368,29 +363,36 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     fold curves' planes, `elastica_auto.maps`), into ``result`` (labels numbered);
     ``save()`` after each branch. An interruption ends it with ``result.interrupted`` set.
 
-    With a ``scheduler`` address (or a ``client`` of one, left open) the branches are tasks
-    of that Dask cluster (`elastica_auto.cluster`; ``on_tasks`` reports their progress),
-    else they are computed ``jobs`` at a time on this machine."""
+    The branches are computed as tasks of a Dask cluster (`elastica_auto.cluster`;
+    ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
+    ``scheduler`` address, or else a local one of ``jobs`` worker processes. With ``jobs = 1``
+    (or one branch) they are computed in this process, with no cluster."""
     branches = result.branches
-    own = client is None and scheduler is not None
+    workers = jobs if plan.switch_count else min(jobs, len(first))
+    own = client is None and (scheduler is not None or workers > 1)
     if own:
-        from .cluster import connect
-        client = connect(scheduler)
+        from . import cluster
+        client = cluster.connect(scheduler) if scheduler is not None else cluster.local(workers)
 
-    def run_jobs(jobs_list):
-        if client is not None:
-            from .cluster import run_on_cluster
-            return run_on_cluster(client, plan, jobs_list, branches, save, on_branch, on_tasks)
-        return _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch)
-
-    try:
-        interrupted = run_jobs(first)
+    if client is None:
+        interrupted = _in_process(plan, first, branches, save, progress, on_branch)
         if not interrupted and plan.switch_count:
             second = switch_jobs(plan, list(branches), result.warnings)
-            interrupted = run_jobs(second)
-    finally:
-        if own:
-            client.close()
+            interrupted = _in_process(plan, second, branches, save, progress, on_branch)
+    else:
+        from .cluster import Interruptions, close, run_on_cluster
+        interrupted = True      # until the jobs have run
+        with Interruptions() as signals:   # until the cluster is closed
+            try:
+                interrupted = run_on_cluster(client, plan, first, branches, save, on_branch,
+                                             on_tasks, signals.stop)
+                if not interrupted and plan.switch_count:
+                    second = switch_jobs(plan, list(branches), result.warnings)
+                    interrupted = run_on_cluster(client, plan, second, branches, save,
+                                                 on_branch, on_tasks, signals.stop)
+            finally:
+                if own:
+                    close(client, interrupted)
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
     result.interrupted = interrupted
     if not interrupted:
@@ -414,127 +416,20 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                 result.warnings.append(f"stability map failed: {_one_line(exc)}")
 
 
-def _run_jobs(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
-    """Compute ``jobs_list`` (appending to ``branches``); True if interrupted."""
-    if not jobs_list:
-        return False
-    jobs = max(1, min(jobs, len(jobs_list)))
-    if jobs == 1 or "fork" not in mp.get_all_start_methods():
-        for job in jobs_list:
-            k = len(branches) + 1
-            br = compute_branch(plan, k, job, progress)
-            branches.append(br)
-            save()
-            if br.interrupted:
-                return True
-            if on_branch is not None:
-                on_branch(k, br)
-        return False
-    return _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch)
-
-
-_WORKER: dict = {}
-
-
-def _init_worker(plan, jobs_list, offset, queue, stop):
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
-    # not the command's SIGTERM handler (fork copies it): the pool terminates its workers when
-    # one of them dies, and they must end quietly then, not with a KeyboardInterrupt traceback
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _WORKER.update(plan=plan, jobs=jobs_list, offset=offset, queue=queue, stop=stop)
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
-
-
-def _exit_with_parent(parent: int, every: float = 0.5):
-    """A worker outlives a command killed outright (SIGKILL), computing for nobody or blocked
-    on a queue no one reads: once its parent is gone (it is adopted, so its parent pid
-    changes), it ends itself."""
-    while os.getppid() == parent:
-        time.sleep(every)
-    os._exit(1)
-
-
-def _worker_branch(i: int) -> Branch | None:
-    plan, queue, stop = _WORKER["plan"], _WORKER["queue"], _WORKER["stop"]
-    if stop.is_set():  # queued before the interruption: not started
-        return None
-    last = [0.0]
-
-    def progress(k, npts, nfolds, lam):
-        now = time.perf_counter()
-        if now - last[0] > 0.2:
-            last[0] = now
-            queue.put((k, npts, nfolds, lam))
-
-    return compute_branch(plan, _WORKER["offset"] + i + 1, _WORKER["jobs"][i], progress,
-                          stop.is_set)
-
-
-def _run_parallel(plan, jobs_list, jobs, branches, save, progress, on_branch) -> bool:
-    """Branches in worker processes (fork); results are saved in order as they arrive."""
-    ctx = mp.get_context("fork")
-    queue, stop = ctx.Queue(), ctx.Event()
-    offset = len(branches)
-    done: dict[int, Branch] = {}
-    interrupted = False
-    previous = None
-    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
-                             initargs=(plan, jobs_list, offset, queue, stop)) as pool:
-        futures = {pool.submit(_worker_branch, i): i for i in range(len(jobs_list))}
-        pending = set(futures)
-        while pending:
-            try:
-                finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-                while not queue.empty():
-                    msg = queue.get_nowait()
-                    if progress is not None:
-                        progress(*msg)
-            except KeyboardInterrupt:
-                # The workers end their branches at their next step. A second Ctrl-C (or
-                # SIGTERM) does not wait for a slow step: it ends the workers at once (their
-                # branches in progress are lost, the completed ones saved); it must not abort
-                # the saving itself.
-                def now(signum, frame):
-                    for process in list(pool._processes.values()):  # the pool's own workers
-                        process.terminate()
-
-                previous = signal.signal(signal.SIGINT, now), signal.signal(signal.SIGTERM, now)
-                interrupted = True
-                stop.set()
-                for f in pending:
-                    f.cancel()
-                finished, pending = wait(pending)
-            for f in finished:
-                if f.cancelled():
-                    continue
-                exc = f.exception()
-                if exc is not None:
-                    # compute_branch reports its own failures: this is its worker dying (the
-                    # module ending the process, say), which breaks the pool for every branch
-                    # not finished yet; they end MX at their start, the others are kept
-                    job = jobs_list[futures[f]]
-                    br = _new_branch(plan, job)
-                    br.end = "MX"
-                    br.message = f"not computed: {_one_line(exc)}"
-                    br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
-                    br.points.append(start_point(br, job.origin))
-                elif f.result() is None:
-                    continue
-                else:
-                    br = f.result()
-                done[futures[f]] = br
-            while len(branches) - offset in done:
-                branches.append(done.pop(len(branches) - offset))
-                save()
-                if on_branch is not None and not branches[-1].interrupted:
-                    on_branch(len(branches), branches[-1])
-    if done:  # after an interruption: branches that finished beyond a gap
-        branches.extend(done[i] for i in sorted(done))
+def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
+    """Compute ``jobs_list`` one after the other in this process (appending to ``branches``,
+    ``save()`` after each); True if interrupted (the branch in progress is kept up to its last
+    point)."""
+    for job in jobs_list:
+        k = len(branches) + 1
+        br = compute_branch(plan, k, job, progress)
+        branches.append(br)
         save()
-    if previous is not None:  # the command's own handlers again, after a parallel run
-        signal.signal(signal.SIGINT, previous[0])
-        signal.signal(signal.SIGTERM, previous[1])
-    return interrupted or any(b.interrupted for b in branches)
+        if br.interrupted:
+            return True
+        if on_branch is not None:
+            on_branch(k, br)
+    return False
 
 
 __all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",

@@ -79,8 +79,16 @@ def on_cluster(cluster, tmp_path_factory, cli_exe):
     return out / "rotating_arm.h5"
 
 
-def test_a_cluster_writes_the_file_one_process_writes(on_cluster, rotating_arm):
-    here, there = _numbers(rotating_arm.result.path), _numbers(on_cluster)
+@pytest.fixture(scope="module")
+def in_one_process(tmp_path_factory, cli_exe):
+    out = tmp_path_factory.mktemp("one_process")
+    proc = run_cli(cli_exe, "run", "rotating_arm", "--out", out, "-j", "1")
+    assert proc.returncode == 0, proc.stderr
+    return out / "rotating_arm.h5"
+
+
+def _same_numbers(a_path, b_path):
+    here, there = _numbers(a_path), _numbers(b_path)
     assert here.keys() == there.keys()
     for key in here:
         a, b = here[key], there[key]
@@ -90,11 +98,35 @@ def test_a_cluster_writes_the_file_one_process_writes(on_cluster, rotating_arm):
             assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, key
 
 
-def test_both_workers_computed_branches_and_are_named(on_cluster, rotating_arm):
+def test_a_cluster_writes_the_file_one_process_writes(on_cluster, in_one_process):
+    _same_numbers(in_one_process, on_cluster)
+
+
+def test_a_local_cluster_writes_the_file_one_process_writes(rotating_arm, in_one_process):
+    """The conftest's rotating_arm is computed with jobs = 2: a local cluster of 2 workers."""
+    _same_numbers(in_one_process, rotating_arm.result.path)
+    workers = {b.attrs["worker"] for b in BranchFile(rotating_arm.result.path).branches}
+    assert len(workers) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
+
+
+def test_both_workers_computed_branches_and_are_named(on_cluster, in_one_process):
     workers = [b.attrs["worker"] for b in BranchFile(on_cluster).branches]
     assert len(set(workers)) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
-    assert {b.attrs["worker"] for b in BranchFile(rotating_arm.result.path).branches} == \
-        {"local"}
+    assert {b.attrs["worker"] for b in BranchFile(in_one_process).branches} == {"local"}
+
+
+def test_a_cluster_run_reports_its_tasks(tmp_path):
+    """on_tasks: tasks done of all, points so far, workers; the last call has every task."""
+    from elastica_auto import runfile
+    from elastica_auto.run import execute
+    from helpers import elastica_run_file
+    calls = []
+    plan = runfile.load(elastica_run_file(tmp_path / "small.toml", uz=[0]))
+    result = execute(plan, tmp_path / "out", jobs=2, on_tasks=lambda *a: calls.append(a))
+    total = len(plan.branches)
+    assert calls[-1] == (total, total, sum(len(b.points) for b in result.branches), 2)
+    assert all(c[1] == total and c[3] == 2 for c in calls)
+    assert [c[0] for c in calls] == sorted(c[0] for c in calls)
 
 
 def test_a_worker_killed_mid_run_costs_nothing(cluster, tmp_path, cli_exe):

@@ -184,12 +184,12 @@ CUSP = dict(eps="0.362", P="9*pi^2/4", bounds=("-6*pi", "6*pi"))
 GAPS = {"0.3612": 2.555434e-5, "0.3615": 2.436414e-4, "0.362": 8.515e-4}
 
 
-def _cusp_folds(tmp_path, eps=CUSP["eps"], **options):
+def _cusp_folds(tmp_path, eps=CUSP["eps"], jobs=2, **options):
     tmp_path.mkdir(exist_ok=True)
     path = elastica_run_file(tmp_path / "cusp.toml", eps=eps, P=CUSP["P"], bounds=CUSP["bounds"])
     plan = runfile.load(path)
     plan.options = dataclasses.replace(plan.options, **options)
-    return run_plan(plan, tmp_path, jobs=2).result.branches
+    return run_plan(plan, tmp_path, jobs=jobs).result.branches
 
 
 def _check_cusp(branches, eps=0.362, gap=GAPS["0.362"]):
@@ -222,15 +222,16 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     """Without the probe of a dipping parameter slope, steps pass over some translates of the
     pair; the periodic translates of the folds that were found bring every missing one back.
     (Without the probe the translate check is all there is: where every translate of a pair
-    is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.)"""
+    is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.) In this
+    process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
     from elastica_auto import stepper
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
     monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
-    missed = _cusp_folds(tmp_path / "without", ds_max=1.0)
+    missed = _cusp_folds(tmp_path / "without", jobs=1, ds_max=1.0)
     assert all(len(b.folds) < 17 for b in missed), "choose a case where pairs are missed"
     monkeypatch.undo()
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
-    _check_cusp(_cusp_folds(tmp_path / "with", ds_max=1.0))
+    _check_cusp(_cusp_folds(tmp_path / "with", jobs=1, ds_max=1.0))
 
 
 def test_the_rotating_arm_folds_do_not_depend_on_ds_max(tmp_path):
