@@ -226,27 +226,31 @@ def map_runs():
 
 
 def sweep(branches=64):
-    """The sweep in one process and on local clusters of 1 and 2 workers (started before the
-    clock, so that only the branches' scheduling is timed)."""
+    """The sweep's branches in one process and on local clusters of 1 and 2 workers (started
+    before the clock, so that only the branches and their scheduling are timed; no snap-back
+    scan)."""
     import elastica_auto as ea
     from elastica_auto import cluster
     from elastica_auto.plan import make_plan
-    from elastica_auto.run import RunResult, _built, compute
+    from elastica_auto.run import _built, _in_process
     problem = ea.load_problem("elastica_lever_arm")
     eps = [0.2 + 0.3 * k / (branches // 2 - 1) for k in range(branches // 2)]
     plan = make_plan(problem, {"P": math.pi ** 2 / 4, "psi": 0.0}, "psi",
-                     params={"eps": eps}, bounds=(-1.0, 1.0), directions="both")
+                     params={"eps": eps}, bounds=(-math.pi, math.pi), directions="both")
     first = [_built(plan, spec) for spec in plan.branches]
-    print(f"sweep of {len(first)} branches (psi in [-1, 1], 32 arm lengths):")
+    print(f"sweep of {len(first)} branches (psi in [-pi, pi], 32 arm lengths):")
     for workers in (0, 1, 2):
         client = cluster.local(workers) if workers else None
-        result = RunResult(None, [], 0.0)
+        branches = []
         t0 = time.perf_counter()
-        compute(plan, first, result, lambda: None, client=client)
+        if client is None:
+            _in_process(plan, first, branches, lambda: None, None, None)
+        else:
+            cluster.run_on_cluster(client, plan, first, branches, lambda: None)
         wall = time.perf_counter() - t0
         if client is not None:
             cluster.close(client)
-        busy = sum(b.seconds for b in result.branches)
+        busy = sum(b.seconds for b in branches)
         where = f"{workers} worker{'s' if workers > 1 else ''}" if workers else "one process"
         overhead = ((wall * max(workers, 1) - busy) / len(first)) * 1000
         print(f"  {where:<12} {wall:6.2f} s, {len(first) / wall:5.1f} branches/s; mean branch "
