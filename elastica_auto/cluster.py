@@ -74,8 +74,10 @@ def local(workers: int):
     import logging
 
     from distributed import Client, LocalCluster
+    # the scheduler's HTTP server on any free port: its default, 8787, may be taken (by
+    # another run), and taking another would print a warning
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR, memory_limit=0)
+                           dashboard_address=":0", silence_logs=logging.ERROR, memory_limit=0)
     return Client(cluster, set_as_default=False)
 
 

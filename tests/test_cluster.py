@@ -20,6 +20,8 @@ import h5py
 import numpy as np
 import pytest
 
+import elastica_auto
+
 from elastica_auto.store import BranchFile
 from helpers import run_cli
 
@@ -201,3 +203,37 @@ def test_distributed_is_imported_only_for_a_cluster(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+def test_workers_without_the_package_are_one_line(tmp_path, cli_exe):
+    """A cluster whose worker finds another elastica_auto first on its path (here one that
+    says it is version 0.0.0): exit 2, one line naming the worker, nothing written."""
+    fake = tmp_path / "fake" / "elastica_auto"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('__version__ = "0.0.0"\n')
+    info = tmp_path / "scheduler.json"
+    common = dict(cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                  start_new_session=True)
+    procs = [subprocess.Popen([BIN / "dask", "scheduler", "--scheduler-file", info, "--port",
+                               "0", "--host", "127.0.0.1", "--no-dashboard"], **common)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.is_file() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        procs.append(subprocess.Popen(
+            [BIN / "dask", "worker", "--scheduler-file", info, "--nworkers", "1", "--nthreads",
+             "1", "--host", "127.0.0.1", "--no-dashboard"],
+            env={**os.environ, "PYTHONPATH": str(tmp_path / "fake")}, **common))
+        address = json.loads(info.read_text())["address"]
+        proc = run_cli(cli_exe, "run", "rotating_arm", "--out", tmp_path / "out",
+                       "--scheduler", address)
+        assert proc.returncode == 2 and not (tmp_path / "out").exists()
+        (line,) = proc.stderr.strip().splitlines()
+        assert line.startswith("elastica-auto: error: the workers tcp://127.0.0.1:")
+        assert line.endswith(f" of {address} run elastica-auto 0.0.0, this is "
+                             f"{elastica_auto.__version__}")
+    finally:
+        for p in procs:
+            os.killpg(p.pid, signal.SIGTERM)
+        for p in procs:
+            p.wait(timeout=30)
