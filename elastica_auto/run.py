@@ -1,8 +1,9 @@
 """Execute a plan: build each start, continue each branch, number labels, write the file.
 
 The branch file is rewritten (atomically) after every branch, so an interrupted or failing run
-leaves every completed branch on disk; the branch in progress is kept up to its last point
-and ends with an MX label.
+leaves every completed branch on disk. Computed in this process (``jobs = 1``), the branch in
+progress is kept up to its last point and ends with an MX label; on a Dask cluster
+(`elastica_auto.cluster`) the unfinished tasks are cancelled.
 """
 
 from __future__ import annotations
@@ -265,8 +266,9 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
 
     A run that ends, with failed branches (MX) or not, leaves its complete file as
     ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
-    branch computed so far, the ones in progress up to their last point: in ``<run>.h5`` if
-    there was none, else in ``<run>.partial.h5``, leaving the earlier ``<run>.h5`` as it was.
+    branch computed so far (in process, also the one in progress up to its last point): in
+    ``<run>.h5`` if there was none, else in ``<run>.partial.h5``, leaving the earlier
+    ``<run>.h5`` as it was.
     ``result.path`` is the file written and ``result.branches`` the branches it holds.
 
     ``resume``: continue the run's file (``<run>.partial.h5`` if an interrupted rerun left
