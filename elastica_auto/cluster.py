@@ -4,8 +4,8 @@ scheduler``, or ``continuation(..., scheduler=...)``).
 
 Each branch is one task, ``_task(plan, k, job)``, that continues the branch on a worker and
 returns it with the worker's address (stored as the branch's ``worker`` attribute). The
-plan travels to the workers once (scattered); the equation module goes with it, by value,
-so a worker needs the elastica-auto package but not the module's file. The client collects
+plan travels with each task; the equation module goes with it, as its source text, so a
+worker needs the elastica-auto package but not the module's file. The client collects
 the branches and writes them in the plan's order, so the branch file is the same whatever
 computed it.
 
@@ -73,11 +73,16 @@ def local(workers: int):
     (tests/test_robustness_failures.py checks it)."""
     import logging
 
+    import dask
     from distributed import Client, LocalCluster
-    # the scheduler's HTTP server on any free port: its default, 8787, may be taken (by
-    # another run), and taking another would print a warning
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR, memory_limit=0)
+    # One task per worker at a time (saturation 1.0; Dask's default queues a second): a task
+    # that kills its worker then takes no queued branch down with it. The scheduler's HTTP
+    # server on any free port: its default, 8787, may be taken (by another run), and taking
+    # another would print a warning.
+    with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR,
+                               memory_limit=0)
     return Client(cluster, set_as_default=False)
 
 
@@ -146,8 +151,10 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     from .stepper import start_point
     offset = len(branches)
     token = uuid.uuid4().hex[:8]
-    [shared] = client.scatter([plan], broadcast=True, hash=False)
-    futures = {client.submit(_task, shared, offset + i + 1, job, pure=False,
+    # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
+    # data the scheduler cannot recompute, and a worker that dies would take it, and every
+    # task waiting for it, down with it.
+    futures = {client.submit(_task, plan, offset + i + 1, job, pure=False,
                              key=f"elastica-branch-{offset + i + 1}-{token}"): i
                for i, job in enumerate(jobs_list)}
     pending, done, points, finished = set(futures), {}, 0, 0
