@@ -631,16 +631,21 @@ def fig_rotating_base_snaps(data_dir, out_dir):
 
 
 # ------------------------------------------------------------------ beyond the paper: maps
+def _map(data_dir, out_dir, run: str, stem: str, title: str) -> list:
+    """The stability maps the fold-curve run ``run`` stored, as ``stem``.png and .pdf."""
+    fig = map_figure(_open(data_dir, run), title)
+    with matplotlib.rc_context(RC):
+        return save(fig, out_dir, stem)
+
+
 @figure("map-arm", "",
         "stability map in `(psi, eps)` at `P = pi^2/4` and `9 pi^2/4`: fold curves, cusps, "
         "and the number of stable equilibria in each region",
         ["fold_curves_arm"])
 def fig_map_arm(data_dir, out_dir):
-    bf = _open(data_dir, "fold_curves_arm")
-    fig = map_figure(bf, r"rotating arm: stable equilibria in the $(\psi, \epsilon)$ plane "
-                         r"($\alpha=\theta_0=0$)")
-    with matplotlib.rc_context(RC):
-        return save(fig, out_dir, "map_arm")
+    return _map(data_dir, out_dir, "fold_curves_arm", "map_arm",
+                r"rotating arm: stable equilibria in the $(\psi, \epsilon)$ plane "
+                r"($\alpha=\theta_0=0$)")
 
 
 @figure("map-load", "",
@@ -648,8 +653,5 @@ def fig_map_arm(data_dir, out_dir):
         "the number of stable equilibria in each region",
         ["fold_curves_load"])
 def fig_map_load(data_dir, out_dir):
-    bf = _open(data_dir, "fold_curves_load")
-    fig = map_figure(bf, r"rotating load: stable equilibria in the $(\alpha, P)$ plane "
-                         r"($\theta_0=0$)")
-    with matplotlib.rc_context(RC):
-        return save(fig, out_dir, "map_load")
+    return _map(data_dir, out_dir, "fold_curves_load", "map_load",
+                r"rotating load: stable equilibria in the $(\alpha, P)$ plane ($\theta_0=0$)")
