@@ -130,8 +130,9 @@ def _timed(args, cwd) -> float:
 
 
 def whole_processes(corrector):
-    runs = re.search(r"PAPER_RUNS\s*=\s*((?:[^\n\\]|\\\n)*)",
-                     (REPO / "Makefile").read_text()).group(1).replace("\\\n", " ").split()
+    from elastica_auto.plots.__main__ import make_rules
+    # the runs of `make runs`, in restart order, as the Makefile's generated rules list them
+    runs = re.search(r"^PAPER_RUNS = (.+)$", make_rules(REPO / "runs"), re.M).group(1).split()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         files = _run_files(corrector, tmp / "runs")
