@@ -60,3 +60,13 @@ def trivial_buckling(tmp_path_factory) -> RunOutput:
         assert spec.start.kind == "trivial"
         assert all(spec.params.get(k, 0.0) == 0.0 for k in ("psi", "alpha", "theta0", "P"))
     return run_plan(plan, tmp_path_factory.mktemp("trivial_buckling"), jobs=2)
+
+
+@pytest.fixture(scope="session")
+def good_file(tmp_path_factory, cli_exe):
+    """A small complete branch file (test_robustness's SMALL run), computed once."""
+    from test_robustness import SMALL
+    d = tmp_path_factory.mktemp("good")
+    (d / "small.toml").write_text(SMALL)
+    assert run_cli(cli_exe, "run", d / "small.toml", "--out", d).returncode == 0
+    return d / "small.h5"

@@ -186,14 +186,6 @@ def test_interruption_keeps_every_completed_point(tmp_path, cli_exe, sig):
 
 # -- 4. reading -----------------------------------------------------------------------------------
 
-@pytest.fixture(scope="module")
-def good_file(tmp_path_factory, cli_exe):
-    d = tmp_path_factory.mktemp("good")
-    (d / "small.toml").write_text(SMALL)
-    assert run_cli(cli_exe, "run", d / "small.toml", "--out", d).returncode == 0
-    return d / "small.h5"
-
-
 def test_truncated_file(good_file, tmp_path, cli_exe):
     bad = tmp_path / "cut.h5"
     data = good_file.read_bytes()

@@ -32,14 +32,6 @@ FAILS = SMALL.replace('parameter = "psi"', 'parameter = "psi"\ndirections = "+"'
     "[options]\nds = 0.05\nds_min = 0.04\nmax_angle = 0.005\n")
 
 
-@pytest.fixture(scope="module")
-def good_file(tmp_path_factory, cli_exe):
-    d = tmp_path_factory.mktemp("good")
-    (d / "small.toml").write_text(SMALL)
-    assert run_cli(cli_exe, "run", d / "small.toml", "--out", d).returncode == 0
-    return d / "small.h5"
-
-
 def hidden(folder):
     """Names in ``folder`` starting with a dot: temporary and lock files."""
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
