@@ -26,6 +26,7 @@ This machine's speed drifts: compare two commits by running this alternately on 
 
 from __future__ import annotations
 
+import importlib
 import math
 import os
 import re
@@ -227,9 +228,9 @@ def map_runs():
 
 
 def sweep(branches=64):
-    """The sweep's branches in one process and on local clusters of 1 and 2 workers (started
-    before the clock, so that only the branches and their scheduling are timed; no snap-back
-    scan)."""
+    """The sweep's branches in one process and on local clusters of 1 and 2 workers (started,
+    and the engine imported on each worker, before the clock, so that only the branches and
+    their scheduling are timed; no snap-back scan)."""
     import elastica_auto as ea
     from elastica_auto import cluster
     from elastica_auto.plan import make_plan
@@ -242,6 +243,8 @@ def sweep(branches=64):
     print(f"sweep of {len(first)} branches (psi in [-pi, pi], 32 arm lengths):")
     for workers in (0, 1, 2):
         client = cluster.local(workers) if workers else None
+        if client is not None:
+            client.run(importlib.import_module, "elastica_auto.run")
         branches = []
         t0 = time.perf_counter()
         if client is None:

@@ -32,6 +32,11 @@ CONNECT_TIMEOUT = 10.0
 
 #: Seconds between looks at the tasks' states.
 POLL = 0.05
+#: Tasks a local cluster gives each worker thread at a time (Dask's worker-saturation): the
+#: one it runs and the next. A worker that dies takes both; the queued one is suspected of
+#: the death once, then Dask reruns the suspect on its own, so the innocent branch is well
+#: within the three deaths a task is allowed (tests/test_robustness_failures.py).
+SATURATION = 2.0
 #: ``on_tasks(done, total, points, workers)``: progress of the tasks of a cluster run.
 TaskProgress = Callable[[int, int, int, int], None]
 
@@ -75,11 +80,11 @@ def local(workers: int):
 
     import dask
     from distributed import Client, LocalCluster
-    # One task per worker at a time (saturation 1.0; Dask's default queues a second): a task
-    # that kills its worker then takes no queued branch down with it. The scheduler's HTTP
-    # server on any free port: its default, 8787, may be taken (by another run), and taking
-    # another would print a warning.
-    with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+    # Two tasks per single-threaded worker (SATURATION): the next branch waits on the worker,
+    # not behind a round trip to the scheduler (4-5 ms a task here, 5% of a short branch).
+    # The scheduler's HTTP server on any free port: its default, 8787, may be taken (by
+    # another run), and taking another would print a warning.
+    with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION}):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR,
                                memory_limit=0)
@@ -153,10 +158,12 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     token = uuid.uuid4().hex[:8]
     # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
     # data the scheduler cannot recompute, and a worker that dies would take it, and every
-    # task waiting for it, down with it.
-    futures = {client.submit(_task, plan, offset + i + 1, job, pure=False,
-                             key=f"elastica-branch-{offset + i + 1}-{token}"): i
-               for i, job in enumerate(jobs_list)}
+    # task waiting for it, down with it. One `map` is one message to the scheduler: a
+    # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64.
+    numbers = [offset + i + 1 for i in range(len(jobs_list))]
+    futures = {f: i for i, f in enumerate(client.map(
+        _task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
+        key=[f"elastica-branch-{k}-{token}" for k in numbers]))}
     pending, done, points, finished = set(futures), {}, 0, 0
     last = 0.0
 

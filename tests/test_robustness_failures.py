@@ -200,6 +200,24 @@ def test_a_worker_process_dying_costs_only_its_branches(tmp_path, cli_exe):
     assert "failed branches (MX): 1" in proc.stderr
 
 
+def test_a_branch_queued_behind_a_crashing_one_is_computed(tmp_path, cli_exe):
+    """A worker holds two tasks (the one it runs and the next); one that crashes its worker
+    each time takes the other with it, three times over, until Dask gives up on both
+    (KilledWorker). Computed again alone, every branch but the crashing one is complete."""
+    source = BRATU.replace(
+        'Parameter("lam", 0.0,',
+        'Parameter("c", 0.0, "c", "ode", doc="enters nothing: tells the branches apart"),\n'
+        '    Parameter("lam", 0.0,')
+    _module(tmp_path, source, "def rhs(s, y, p):\n",
+            'if p["lam"] > 2 and p["c"] == 0:\n    import os\n    os._exit(3)\n')
+    run = RUN.replace('directions = "both"', 'directions = "+"').replace(
+        "lam = 0", "lam = 0\nc = [0, 1, 2, 3, 4, 5]")
+    proc, bf = _run(tmp_path, cli_exe, 2, run)
+    assert [b.attrs["end"] for b in bf.branches] == ["MX"] + ["EP"] * 5, proc.stderr
+    assert "failed branches (MX): 1\n" in proc.stderr
+    assert "KilledWorker" in bf.branches[0].attrs["message"]
+
+
 # -- the module failing outside any branch: at the start, in the snap-back scan, at a switch ----
 
 def test_a_module_failing_in_its_exact_start_is_one_line(tmp_path, cli_exe):
