@@ -9,7 +9,7 @@ worker needs the elastica-auto package but not the module's file. The client col
 the branches and writes them in the plan's order, so the branch file is the same whatever
 computed it.
 
-A worker that dies has its task rescheduled by the scheduler (a task that kills three
+A worker that dies has its task rescheduled by the scheduler (a task whose workers die four
 workers is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
 finished; the finished ones are written (the branches in progress are lost; with ``--jobs
 1``, in this process, the branch in progress ends at its next step and is kept).
