@@ -10,7 +10,7 @@ the branches and writes them in the plan's order, so the branch file is the same
 computed it.
 
 A worker that dies has its task rescheduled by the scheduler (a task whose workers die four
-workers is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
+times is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
 finished; the finished ones are written (the branches in progress are lost; with ``--jobs
 1``, in this process, the branch in progress ends at its next step and is kept).
 ``distributed`` is imported only here, for a cluster: its import alone costs about a second.
