@@ -156,6 +156,8 @@ class Augmented:
     #: The shooting scan enumerates the module's states at fixed parameters; with free
     #: parameters it has no meaning.
     has_shooting = False
+    #: Nor have the module's dynamics (`elastica_auto.landing`), which hold them fixed.
+    has_gradient_flow = False
 
     @property
     def has_guess(self) -> bool:

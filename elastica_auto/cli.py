@@ -245,22 +245,30 @@ def show(file, all_points):
 @click.argument("file", type=click.Path(dir_okay=False))
 def snaps(file):
     """Snap-back targets of FILE.h5: at each fold where a stable branch ends, every stable
-    equilibrium at the same parameters (all of them, by a shooting scan) and the branch, if
-    any, that passes through it."""
+    equilibrium at the same parameters (all of them, by a shooting scan), the branch, if
+    any, that passes through it, and (for modules with dynamics) the one the rod lands on."""
     bf = _open(file)
     if not bf.snaps:
         click.echo("no snap-back targets (no fold bounds a stable segment, or the equation "
                    "module has no shooting/second_variation hooks)")
         return
     ords = [c[len("target_"):] for c in bf.snaps[0] if c.startswith("target_")]
+    landing = "landed" in bf.snaps[0]
     click.echo(f"{'LP':>6} {'BR':>3} {'param':>6} {'value':>12} {'stable':>7} "
-               + " ".join(f"{o:>11}" for o in ords) + f" {'index':>5} {'on branch':>9}")
+               + " ".join(f"{o:>11}" for o in ords) + f" {'index':>5} {'on branch':>9}"
+               + (f" {'landed':>6} {'released':>9} {'transit':>8}" if landing else ""))
     for r in bf.snaps:
         on = int(r["on_branch"])
-        click.echo(f"{r['lp']:>6} {int(r['branch']):>3} {r['parameter']:>6} {r['value']:>12.7g} "
-                   f"{r['stable_side']:>7} "
-                   + " ".join(f"{r['target_' + o]:>11.6g}" for o in ords)
-                   + f" {int(r['index']):>5} {on if on else 'none':>9}")
+        line = (f"{r['lp']:>6} {int(r['branch']):>3} {r['parameter']:>6} {r['value']:>12.7g} "
+                f"{r['stable_side']:>7} "
+                + " ".join(f"{r['target_' + o]:>11.6g}" for o in ords)
+                + f" {int(r['index']):>5} {on if on else 'none':>9}")
+        if landing and r["landed"]:
+            line += f" {'<-':>6} {r['energy_released']:>9.5g} {r['transit_time']:>8.4g}"
+        click.echo(line)
+    if landing:
+        click.echo("landed: where the rod's overdamped dynamics from the fold end; released: "
+                   "the energy given up on the way; transit: the time to release 99% of it")
 
 
 @main.command()

@@ -45,6 +45,10 @@ and optionally
     a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
     [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
     (see `elastica_auto.snaps`).
+``gradient_flow(p, nodes)`` -> `elastica_auto.landing.Flow`
+    the energy of the equilibria at ``p`` discretised on ``nodes`` (a uniform grid of
+    [0, 1]) and its overdamped dynamics; enables where a snap lands (see
+    `elastica_auto.landing`).
 ``draw(ax, profile, params)``
     draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
     solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
@@ -197,6 +201,7 @@ class Problem:
         self._exact_start = getattr(module, "exact_start", None)
         self._second_variation = getattr(module, "second_variation", None)
         self._shooting = getattr(module, "shooting", None)
+        self._gradient_flow = getattr(module, "gradient_flow", None)
         self._draw = getattr(module, "draw", None)
         if self._draw is not None and not callable(self._draw):
             raise ProblemError(f"{source}: draw must be a function draw(ax, profile, params), "
@@ -378,6 +383,14 @@ class Problem:
     def shooting(self, p):
         """(k_lo, k_hi, initial(k) -> y(0), residual(y(0), y(1))) for enumerating equilibria."""
         return self._shooting(p)
+
+    @property
+    def has_gradient_flow(self) -> bool:
+        return self._gradient_flow is not None
+
+    def gradient_flow(self, p, nodes):
+        """The module's `elastica_auto.landing.Flow` at ``p`` on ``nodes``."""
+        return self._gradient_flow(dict(p), np.asarray(nodes, dtype=float))
 
     @property
     def has_draw(self) -> bool:

@@ -155,12 +155,18 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     return 0
 
 
-def snap_targets(problem, branches) -> list[dict]:
+def snap_targets(problem, branches, warnings: list | None = None) -> list[dict]:
     """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
-    values (excluding the fold's own solution), with the branch that passes through it."""
+    values (excluding the fold's own solution), with the branch that passes through it.
+
+    With the module's ``gradient_flow`` hook, the row of the equilibrium the rod's overdamped
+    dynamics reach from the fold (`elastica_auto.landing`) has ``landed = 1`` and the energy
+    released and transit time; the other rows ``landed = 0`` and NaN. A fold whose dynamics
+    fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
+    gets a line saying why."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
-    cache = {}
+    cache, landings = {}, {}
     rows = []
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
@@ -173,17 +179,50 @@ def snap_targets(problem, branches) -> list[dict]:
             if key not in cache:
                 cache[key] = enumerate_equilibria(problem, params)
             k_fold = p.state.y[:, 0]
-            for eq in cache[key]:
+            landing = None
+            if problem.has_gradient_flow:
+                k = br.points.index(p)
+                beyond = int(np.sign(params[name] - br.points[k - 1 if side == "before"
+                                                             else k + 1].params[name]))
+                # periodic copies of a fold land alike: the same state at the same parameters
+                at = (key, beyond, round(float(p.state.y[1, 0]), 8))
+                if at not in landings:
+                    landings[at] = _landing(problem, p, cache[key], name, beyond,
+                                            warnings if warnings is not None else [])
+                landing = landings[at]
+            for j, eq in enumerate(cache[key]):
                 if eq.index != 0:
                     continue
                 shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
                 if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
                     continue  # the fold's own (vanishing, numerically a near-double) root
                 target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
-                rows.append({"lp": p.name, "branch": nb, "parameter": name,
-                             "value": params[name], "stable_side": side, "k": eq.k,
-                             "index": eq.index, **{f"target_{o}": v
-                                                   for o, v in eq.ordinates.items()},
-                             "on_branch": _on_branch(branches, name, period, target),
-                             "profile": eq.state(PROFILE_GRID)})
+                row = {"lp": p.name, "branch": nb, "parameter": name,
+                       "value": params[name], "stable_side": side, "k": eq.k,
+                       "index": eq.index, **{f"target_{o}": v
+                                             for o, v in eq.ordinates.items()},
+                       "on_branch": _on_branch(branches, name, period, target)}
+                if problem.has_gradient_flow:
+                    here = landing is not None and landing.target == j
+                    row.update(landed=int(here),
+                               energy_released=landing.energy_released if here else np.nan,
+                               transit_time=landing.transit_time if here else np.nan)
+                rows.append({**row, "profile": eq.state(PROFILE_GRID)})
     return rows
+
+
+def _landing(problem, point, equilibria, name, beyond, warnings: list):
+    """`elastica_auto.landing.land` from ``point``, or None with a line in ``warnings``: a
+    failure of the module's dynamics costs the fold its landing, not the run its snap-back
+    table."""
+    from .landing import land
+    try:
+        landing = land(problem, point, equilibria, name, beyond)
+    except Exception as exc:  # the module's hook failing: the targets stand without a landing
+        warnings.append(f"{point.name}: the dynamics from the fold failed: "
+                        f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+        return None
+    if landing.target is None:
+        warnings.append(f"{point.name}: the dynamics from the fold ended at no enumerated "
+                        f"stable equilibrium (the nearest is {landing.distance:.3g} away)")
+    return landing

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from elastica_auto.landing import Flow
 from elastica_auto.problem import Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y")
@@ -167,6 +168,56 @@ def shooting(p):
         return yb[1] + p["eps"] * p["P"] * np.sin(p["psi"] + p["alpha"] - yb[0])
 
     return -bound, bound, initial, residual
+
+
+def gradient_flow(p, nodes):
+    """The overdamped dynamics theta_t = -dE/dtheta = theta'' + P sin(theta - alpha) with
+    theta(0) = theta0 and the free-end condition theta'(1) + eps P sin(psi + alpha - theta(1))
+    = 0, by the method of lines on ``nodes`` (for `elastica_auto.landing`).
+
+    u is theta at the nodes s_1..s_N (theta_0 = theta0 is clamped). The energy of the
+    docstring, discretised with differences for kappa and the trapezoidal rule::
+
+        E_h(u) = sum_j (theta_{j+1} - theta_j)^2 / (2 h_j) + sum_j w_j P cos(theta_j - alpha)
+                 + eps P cos(psi + alpha - theta_N),
+
+    w_j the trapezoidal weights (the lumped mass), and u_t = -grad E_h / w: at interior
+    nodes of a uniform grid, (theta_{j+1} - 2 theta_j + theta_{j-1}) / h^2 + P sin(theta_j -
+    alpha); at s = 1 the end condition enters through the half cell, second-order accurate.
+    Its equilibria are the second-order finite-difference solutions of the BVP."""
+    from scipy.sparse import diags
+
+    from elastica_auto.solution import trapezoid_weights
+    h = np.diff(nodes)
+    w = trapezoid_weights(nodes)[1:]
+    big_p, a, eps, t0 = p["P"], p["alpha"], p["eps"], p["theta0"]
+
+    def full(u):
+        return np.concatenate(([t0], u))
+
+    def energy(u):
+        th = full(u)
+        return float(np.sum(np.diff(th) ** 2 / (2 * h))
+                     + np.sum(trapezoid_weights(nodes) * big_p * np.cos(th - a))
+                     + eps * big_p * np.cos(p["psi"] + a - th[-1]))
+
+    def gradient(u):
+        th = full(u)
+        flux = np.diff(th) / h                     # theta' on each interval
+        g = -w * big_p * np.sin(u - a)
+        g += flux
+        g[:-1] -= flux[1:]
+        g[-1] += eps * big_p * np.sin(p["psi"] + a - u[-1])
+        return g
+
+    def jacobian(u):
+        d = 1 / h + np.append(1 / h[1:], 0.0) - w * big_p * np.cos(u - a)
+        d[-1] -= eps * big_p * np.cos(p["psi"] + a - u[-1])
+        off = -1 / h[1:]
+        return -diags([off / w[1:], d / w, off / w[:-1]], [-1, 0, 1], format="csc")
+
+    return Flow(nodes, lambda y: np.asarray(y)[0, 1:], w, energy, lambda u: -gradient(u) / w,
+                jacobian)
 
 
 #: Colours and sizes of the drawn configurations.

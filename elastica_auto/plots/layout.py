@@ -436,10 +436,15 @@ def mark_number(ax, x, y, label, offset=(5, 6), fontsize=7.5):
                                     lw=0.6, alpha=0.95))
 
 
-def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
-    """The snap-back arrow at parameter ``x`` from ordinate ``y0`` to ``y1``, with ``tag``."""
+def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3, landed=None):
+    """The snap-back arrow at parameter ``x`` from ordinate ``y0`` to ``y1``, with ``tag``.
+    Where the file says where the rod lands (``landed`` not None), the arrow to that target
+    is drawn solid and the others dotted and thin."""
+    style = {} if landed is None else (dict(lw=lw * 1.3) if landed
+                                       else dict(lw=lw * 0.6, linestyle=":", alpha=0.8))
     ax.add_patch(FancyArrowPatch((x, y0), (x, y1), arrowstyle="-|>", mutation_scale=9,
-                                 color=SNAP_COLOR, lw=lw, zorder=7, shrinkA=1.5, shrinkB=1.0))
+                                 color=SNAP_COLOR, zorder=7, shrinkA=1.5, shrinkB=1.0,
+                                 **{"lw": lw, **style}))
     if tag:
         ax.annotate(tag, (x, y0 + 0.5 * (y1 - y0)), fontsize=7, color=SNAP_COLOR,
                     weight="bold", ha="center", va="center", zorder=10,
@@ -447,8 +452,9 @@ def snap_arrow(ax, x, y0, y1, tag=None, lw=1.3):
 
 
 def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False,
-                   unlocated=False):
-    """Legend entries: the index styles of ``indices`` (-1: unknown), then the markers."""
+                   unlocated=False, landing=False):
+    """Legend entries: the index styles of ``indices`` (-1: unknown), then the markers;
+    ``landing``: the snap-back arrows tell where the rod lands from the others."""
     hs = []
     for k in sorted(i for i in indices if i >= 0) + ([-1] if -1 in indices else []):
         color, dash, lw = index_style(k)
@@ -461,8 +467,11 @@ def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False,
     if bps:
         hs.append(Line2D([], [], label="branch point", **marker_style("BP")))
     if snaps:
-        hs.append(Line2D([], [], color=SNAP_COLOR, lw=1.3, marker=">", ms=4,
-                         label="snap-back"))
+        hs.append(Line2D([], [], color=SNAP_COLOR, lw=1.3 * (1.3 if landing else 1),
+                         marker=">", ms=4, label="snap-back: lands" if landing else "snap-back"))
+    if snaps and landing:
+        hs.append(Line2D([], [], color=SNAP_COLOR, lw=0.8, ls=":", marker=">", ms=3,
+                         label="snap-back: other stable"))
     if labels:
         hs.append(Line2D([], [], ls="none", marker="o", ms=3.4, color=LABEL_COLOR,
                          label="configuration shown"))
@@ -483,7 +492,8 @@ class Inset:
 @dataclass
 class Snap:
     """A snap-back arrow at parameter ``x`` from ordinate ``y0`` (the fold) to ``y1``; with
-    ``before``/``after`` configurations it is also drawn at the side under ``tag``."""
+    ``before``/``after`` configurations it is also drawn at the side under ``tag``.
+    ``landed``: whether the rod's dynamics end at this target (None: not known)."""
 
     x: float
     y0: float
@@ -491,6 +501,7 @@ class Snap:
     tag: str | None = None
     before: Configuration | None = None
     after: Configuration | None = None
+    landed: bool | None = None
 
 
 @dataclass
@@ -574,7 +585,8 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
     draw_folds(ax, panel.items, panel.xname, panel.yname, panel.period, xlim,
                text=panel.fold_text)
     for s in panel.snaps:
-        snap_arrow(ax, s.x, s.y0, s.y1, s.tag if s.before is not None else None)
+        snap_arrow(ax, s.x, s.y0, s.y1, s.tag if s.before is not None else None,
+                   landed=s.landed)
     place_labels(ax, panel.insets, taken=[(t.x, t.y0 + 0.5 * (t.y1 - t.y0))
                                           for t in panel.snaps if t.tag and t.before])
     for ins in panel.insets:
@@ -593,7 +605,8 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
     has_lp = any(np.any(f) for f in lps)
     has_unlocated = any(np.any(~f) for f in lps)
     handles = legend_handles(seen, folds=has_lp, bps=has_bp, snaps=bool(panel.snaps),
-                             labels=bool(panel.insets), unlocated=has_unlocated)
+                             labels=bool(panel.insets), unlocated=has_unlocated,
+                             landing=any(s.landed is not None for s in panel.snaps))
     if has_side:
         lax = fig.add_subplot(outer[0, 1]) if panel.insets else ax.inset_axes((1.02, 0, .3, 1))
         lax.axis("off")
@@ -616,7 +629,7 @@ def _zoom(ax, panel: Panel):
     draw_folds(sub, panel.items, panel.xname, panel.yname, panel.period, z["xlim"],
                text=z.get("text", True), fontsize=6)
     for s in panel.snaps:
-        snap_arrow(sub, s.x, s.y0, s.y1)
+        snap_arrow(sub, s.x, s.y0, s.y1, landed=s.landed)
     sub.set_xlim(*z["xlim"])
     sub.set_ylim(*z["ylim"])
     sub.tick_params(labelsize=6.5)

@@ -30,7 +30,7 @@ from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
                      draw_configurations, draw_panel, find_equilibrium, label_point,
                      mark_number, same_value, save)
 from .stability_map import map_figure
-from .style import BP_COLOR, RC, SNAP_COLOR
+from .style import BP_COLOR, LANDED_FACE, RC, SNAP_COLOR
 
 PI = math.pi
 TWO_PI = 2 * PI
@@ -157,8 +157,9 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
     (the file's /snaps table), one to every stable target. The first ``len(tags)`` distinct
     folds (``exclude``: fold keys tagged elsewhere) also get before/after configurations: the
     configuration at the fold with the tip trace along the stable segment leading to it
-    (the last ``trace_span`` of the parameter), and the nearest target (in the ordinate) that
-    lies on a computed branch."""
+    (the last ``trace_span`` of the parameter), and the target the rod lands on if the file
+    says which and it lies on a computed branch, else the nearest (in the ordinate) that
+    does."""
     period = bf.periods.get(xname)
     by_lp: dict[str, list] = {}
     for r in sorted(bf.snaps, key=lambda r: r["value"]):
@@ -169,11 +170,12 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
         lp = label_point(bf, name)
         y0 = lp[yname]
         x = float(rows[0]["value"])
-        rows.sort(key=lambda r: abs(float(r[f"target_{yname}"]) - y0))
+        rows.sort(key=lambda r: (-r.get("landed", 0), abs(float(r[f"target_{yname}"]) - y0)))
         key = (round(math.remainder(x, period) if period else x, 4), round(y0, 4))
         tagged = False
         for r in rows:
-            s = Snap(x, y0, float(r[f"target_{yname}"]))
+            s = Snap(x, y0, float(r[f"target_{yname}"]),
+                     landed=bool(r["landed"]) if "landed" in r else None)
             if not tagged and len(shown) - len(exclude) < len(tags) and key not in shown:
                 hit = find_equilibrium(sources, xname, x, "m0", float(r["k"]), fixed)
                 if hit is not None:
@@ -609,6 +611,7 @@ def fig_rotating_base_snaps(data_dir, out_dir):
                          ha="left")
             drawn.append((axs[0], before))
             axs[0].set_title("at the fold", fontsize=8, color="0.2", pad=1)
+            landed = next((j for j, (r, _) in enumerate(after, 1) if r.get("landed") == 1), None)
             for j in range(1, ncol):
                 ax = axs[j]
                 if j - 1 >= len(after):
@@ -621,11 +624,17 @@ def fig_rotating_base_snaps(data_dir, out_dir):
                             transform=ax.transAxes, fontsize=7)
                 else:
                     drawn.append((ax, c))
-                ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={r['target_m0']:.2f}$",
-                             fontsize=8, color=SNAP_COLOR, pad=1)
+                ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={r['target_m0']:.2f}$"
+                             + (" (lands)" if j == landed else ""), fontsize=8,
+                             color=SNAP_COLOR, pad=1,
+                             fontweight="bold" if j == landed else "normal")
+                if j == landed:    # the rod's dynamics from the fold end here
+                    ax.set_facecolor(LANDED_FACE)
+            # the snap arrow points at the configuration the rod lands on (the first if unknown)
             sub.add_artist(ConnectionPatch(
                 (1.0, 0.5), (0.0, 0.5), "axes fraction", "axes fraction", axesA=axs[0],
-                axesB=axs[1], arrowstyle="-|>", color=SNAP_COLOR, lw=1.4, mutation_scale=11))
+                axesB=axs[landed or 1], arrowstyle="-|>", color=SNAP_COLOR, lw=1.4,
+                mutation_scale=11))
         draw_configurations(*zip(*drawn), margin=0.055)
         return save(fig, out_dir, "rotating_base_snaps")
 

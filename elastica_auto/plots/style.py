@@ -21,6 +21,7 @@ HIGH_INDEX_COLORS = ("#8c564b", "#b8860b", "#6a3d9a", "#e377c2")
 UNKNOWN_STYLE = ("0.62", (0, (3.0, 1.5, 1.0, 1.5)), 1.0)
 
 SNAP_COLOR = "#d7191c"     # snap-back arrows
+LANDED_FACE = "#fbe3e3"    # behind the configuration a snap lands on
 FOLD_COLOR = "#7b3294"     # fold markers and their index change
 BP_COLOR = "#008837"       # branch points
 CP_COLOR = "#e66101"       # cusps of fold curves
