@@ -23,6 +23,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import ConnectionPatch
+from matplotlib.ticker import MultipleLocator
 
 from ..equations.elastica_lever_arm import arm_end
 from ..store import BranchFile, StoredBranch
@@ -664,3 +665,26 @@ def fig_map_load(data_dir, out_dir):
     return _map(data_dir, out_dir, "fold_curves_load", "map_load",
                 r"rotating load: stable equilibria in the $(\alpha, P)$ plane ($\theta_0=0$)")
 
+
+# ------------------------------------------------------------ beyond the paper: higher loads
+P3 = 25 * PI ** 2 / 4
+
+
+@figure("higher-loads", "",
+        "rotating arm at `P = 25 pi^2/4`, between the third and fourth critical loads (the "
+        "straight rod has index 3): `m(1).e_z` against `psi` over one period of folds of each "
+        "direction, (a) `eps = 0.25`, (b) `eps = 0.5`, where the rod winds up to five turns",
+        ["higher_loads"])
+def fig_higher_loads(data_dir, out_dir):
+    bf = _open(data_dir, "higher_loads")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 8.6), layout="constrained")
+        subs = fig.subfigures(2, 1, hspace=0.02)
+        for sub, eps, window, tag in zip(subs, (0.25, 0.5), (3 * PI, 12 * PI), "ab"):
+            panel = _family_panel(bf, dict(eps=eps, P=P3), "psi", "m1", (-window, window),
+                                  rf"({tag}) $\epsilon={eps:g}$, $P=25\pi^2/4$")
+            ax = draw_panel(sub, panel)
+            if window > 6 * PI:   # a tick at every pi would crowd the labels
+                ax.xaxis.set_major_locator(MultipleLocator(2 * PI))
+                ax.xaxis.set_minor_locator(MultipleLocator(PI))
+        return save(fig, out_dir, "higher_loads")
