@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
+from scipy.optimize import brentq
 
+import shooting
 from elastica_auto.store import BranchFile
 
 REPO = Path(__file__).resolve().parents[1]
@@ -31,6 +33,9 @@ REDUCED = {
     # eps > 0 only: the buckled branches reaching the pitchfork at eps = 0 are the slow ones
     "arm_length": [("bounds = [-0.5, 0.5]", "bounds = [0.05, 0.5]")],
     "load_magnitude": [('bounds = ["-9*pi^2/4", "9*pi^2/4"]', 'bounds = [-2, "9*pi^2/4"]')],
+    # eps = 0.25 keeps its whole period of folds; eps = 0.5 stops in the first excursion, whose
+    # winding up to psi = 28.6 is most of the shipped run's 25 s (reduced: 13 s)
+    "higher_loads": [('bounds = ["-12*pi", "12*pi"]', 'bounds = ["-3*pi", "3*pi"]')],
 }
 
 _BUILT: dict = {}
@@ -320,3 +325,111 @@ def test_every_region_of_the_stability_maps_holds_one_count(paper, run, elastica
             x, y = x0 + (i + 0.5) * (x1 - x0) / nx, y0 + (j + 0.5) * (y1 - y0) / ny
             eqs = enumerate_equilibria(elastica, {**m.fixed, m.x: x, m.y: y})
             assert sum(e.index == 0 for e in eqs) == m.stable[m.cells[j, i]], (m.fixed, x, y)
+
+
+# ---- higher loads (beyond the paper): the straight rod at index 3 ---------------------------
+
+P3 = 25 * math.pi ** 2 / 4
+
+
+def _critical_loads_below(P, eps):
+    """The critical loads of the straight rod below P: q^2 for the roots q of cot q = eps q,
+    one in each (n pi, n pi + pi/2) for eps > 0 (paper section 3.2), by brentq."""
+    out, n = [], 0
+    while (n * math.pi) ** 2 < P:
+        q = brentq(lambda q: math.cos(q) - eps * q * math.sin(q), n * math.pi + 1e-12,
+                   (n + 0.5) * math.pi, xtol=1e-14)
+        if q * q < P:
+            out.append(q * q)
+        n += 1
+    return out
+
+
+def _higher_loads(paper):
+    bf = _open(paper, "higher_loads")
+    assert len(bf.branches) == 4
+    assert {(float(b.columns["eps"][0]), int(b.attrs["direction"])) for b in bf.branches} == {
+        (0.25, 1), (0.25, -1), (0.5, 1), (0.5, -1)}
+    return bf
+
+
+def test_higher_loads_start_at_the_index_of_the_critical_loads_below_P(paper):
+    """At psi = 0 the straight rod's index is the number of critical loads below P (the
+    closed form, solved here); P = 25 pi^2/4 lies between the third and the fourth at both eps,
+    so the run starts at index 3."""
+    for b in _higher_loads(paper).branches:
+        c = b.columns
+        eps, P = float(c["eps"][0]), float(c["P"][0])
+        assert P == pytest.approx(P3, rel=1e-14)
+        assert c["psi"][0] == 0 and c["m0"][0] == 0 and c["m1"][0] == 0
+        below = _critical_loads_below(P, eps)
+        assert len(below) == 3, (eps, below)
+        assert c["index"][0] == c["index_direct"][0] == len(below)
+
+
+def test_higher_loads_reach_index_three_and_rule_and_count_agree_everywhere(paper):
+    """No point has an unknown index (-1): off the folds the fold rule and the direct count give
+    the same index, along the whole branch, and each fold changes it by one. Index 3 is reached
+    again a period from the start (the straight rod's stretch moved by 2 pi, eps = 0.25)."""
+    top, away = 0, 0
+    for b in _higher_loads(paper).branches:
+        c = b.columns
+        assert np.all(c["index"] >= 0), c["note"][c["index"] < 0][:5]
+        regular = ~np.isin(c["type"], ["LP", "BP"])
+        np.testing.assert_array_equal(c["index_rule"][regular], c["index_direct"][regular])
+        np.testing.assert_array_equal(c["index"][regular], c["index_direct"][regular])
+        for i in np.flatnonzero(c["type"][:-1] == "LP"):   # a final LP has no far side
+            a, _, z = str(c["transition"][i]).partition("->")
+            assert abs(int(a) - int(z)) == 1, c["transition"][i]
+        top = max(top, int(c["index"].max()))
+        away += int(np.sum((c["index"] == 3) & (np.abs(c["psi"].astype(float)) > math.pi)))
+    assert top >= 3
+    assert away > 0
+
+
+def test_higher_loads_the_two_directions_are_mirror_images(paper):
+    """(theta, psi) -> (-theta, -psi) maps equilibria to equilibria (alpha = theta0 = 0): the
+    branch leaving psi = 0 downward is, point by point, the upward one with (psi, m1, m0)
+    negated and the same index."""
+    by_eps: dict = {}
+    for b in _higher_loads(paper).branches:
+        by_eps.setdefault(float(b.columns["eps"][0]), {})[int(b.attrs["direction"])] = b
+    for eps, d in by_eps.items():
+        up, down = d[1].columns, d[-1].columns
+        assert len(up["psi"]) == len(down["psi"]), eps
+        for q in ("psi", "m1", "m0"):
+            u, w = up[q].astype(float), down[q].astype(float)
+            np.testing.assert_allclose(u, -w, rtol=0, atol=1e-8 * (1 + np.abs(u).max()))
+        np.testing.assert_array_equal(up["index"], down["index"])
+
+
+def test_higher_loads_folds_are_folds_by_shooting_and_recur_a_period_on(paper):
+    """Every located fold of the upward branches is a fold of the shooting formulation
+    (tests/shooting.py, independent of the engine) at the same psi and m0 = theta'(0); a
+    branch ended at its 11th fold (stop = LP11) is back at its 1st fold moved by 2 pi, with
+    the same ordinates, approached at the same index."""
+    checked = periodic = 0
+    for b in _higher_loads(paper).branches:
+        c = b.columns
+        eps = float(c["eps"][0])
+        # one direction: the other is its mirror image (the test above)
+        for i in np.flatnonzero(c["type"] == "LP") if b.attrs["direction"] == 1 else ():
+            assert np.isfinite(c["fold_residual"][i])
+            psi, m0, m1 = (float(c[q][i]) for q in ("psi", "m0", "m1"))
+            k0, psi_s, m1_s = shooting.fold(P3, eps, m0, psi)
+            assert abs(psi - psi_s) <= 1e-9, (eps, psi, psi_s)
+            assert abs(m0 - k0) <= 1e-8 * (1 + abs(k0))
+            assert abs(m1 - m1_s) <= 1e-8 * (1 + abs(m1_s))
+            checked += 1
+        if b.attrs["end"] == "LP":
+            lp = np.flatnonzero(c["type"] == "LP")
+            assert len(lp) == 11 and lp[-1] == len(b) - 1
+            first, last = lp[0], lp[-1]
+            assert abs(abs(c["psi"][last] - c["psi"][first]) - TWO_PI) < 1e-8
+            for q in ("m1", "m0"):
+                y = float(c[q][first])
+                assert c[q][last] == pytest.approx(y, abs=1e-7 * (1 + abs(y)))
+            # the same side of the same fold: approached at the same index
+            assert c["index"][last] == c["index"][first]
+            periodic += 1
+    assert checked >= 10 and periodic >= 2

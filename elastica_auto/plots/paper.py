@@ -23,6 +23,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import ConnectionPatch
+from matplotlib.ticker import MultipleLocator
 
 from ..equations.elastica_lever_arm import arm_end
 from ..store import BranchFile, StoredBranch
@@ -192,44 +193,52 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
 
 
 # ------------------------------------------------------------------ figures 4, 5, 8 and 11
+def _family_panel(bf, fixed, xname, yname, window, title, extra_bf=None, n_insets=7):
+    """The diagram of ``yname`` against ``xname`` over ``window`` of the branches of ``bf``
+    with the ``fixed`` parameter values, with configurations along the stable family (along
+    the index-1 points where there is none), snap-backs and before/after configurations.
+    ``extra_bf``: a file with a further (stable) family at the same values."""
+    items = [(bf, b) for b in branches_where(bf, **fixed)]
+    fam_bf, fam = bf, [b for _, b in items]
+    sources = [bf]
+    if extra_bf is not None:
+        more = branches_where(extra_bf, **fixed)
+        items += [(extra_bf, b) for b in more]
+        fam_bf, fam = extra_bf, more
+        sources.append(extra_bf)
+        title += "; with the stable family from the buckled rod (beyond the paper)"
+    br = main_branch(fam_bf, fam, xname, window)
+    insets = family_insets(fam_bf, br, xname, yname, window, n_insets)
+    if not insets:  # no stable family: configurations along the branch
+        insets = family_insets(fam_bf, br, xname, yname, window, n_insets, index=1)
+    # snap-backs at the folds of every branch of the family, the main branch's first
+    snaps = family_snaps(fam_bf, br, xname, yname, window, sources, fixed)
+    for other in fam:
+        if other is br:
+            continue
+        tagged = [(round(math.remainder(t.x, TWO_PI), 4), round(t.y0, 4))
+                  for t in snaps if t.tag]
+        more = family_snaps(fam_bf, other, xname, yname, window, sources, fixed,
+                            tags="AB"[len(tagged):], exclude=tagged)
+        snaps += [t for t in more if not any(
+            abs(t.x - u.x) < 1e-6 and abs(t.y0 - u.y0) < 1e-6 and abs(t.y1 - u.y1)
+            < 1e-6 for u in snaps)]
+    return Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=window,
+                 xpi=True, insets=insets, snaps=snaps, legend_loc="lower right")
+
+
 def _family_figure(out_dir, name, bf, xname, yname, window, fixed_by_load, title_by_load,
                    extra_bf=None, n_insets=7):
-    """Two stacked diagrams (the two loads) of ``yname`` against ``xname`` over ``window``,
-    with configurations along the stable family, snap-backs and before/after configurations.
-    ``extra_bf``: a file with a further (stable) family for the higher load."""
+    """Two stacked diagrams (the two loads) of ``yname`` against ``xname`` over ``window``
+    (`_family_panel`). ``extra_bf``: a file with a further (stable) family for the higher
+    load."""
     with matplotlib.rc_context(RC):
         fig = Figure(figsize=(10.0, 8.6), layout="constrained")
         subs = fig.subfigures(2, 1, hspace=0.02)
         for sub, (P, ptex), tag in zip(subs, LOADS, "ab"):
-            fixed = dict(fixed_by_load, P=P)
-            items = [(bf, b) for b in branches_where(bf, **fixed)]
-            fam_bf, fam = bf, [b for _, b in items]
-            sources = [bf]
-            title = rf"({tag}) {title_by_load}, ${ptex}$"
-            if extra_bf is not None and P == P2:
-                more = branches_where(extra_bf, **fixed)
-                items += [(extra_bf, b) for b in more]
-                fam_bf, fam = extra_bf, more
-                sources.append(extra_bf)
-                title += "; with the stable family from the buckled rod (beyond the paper)"
-            br = main_branch(fam_bf, fam, xname, window)
-            insets = family_insets(fam_bf, br, xname, yname, window, n_insets)
-            if not insets:  # no stable family: configurations along the branch
-                insets = family_insets(fam_bf, br, xname, yname, window, n_insets, index=1)
-            # snap-backs at the folds of every branch of the family, the main branch's first
-            snaps = family_snaps(fam_bf, br, xname, yname, window, sources, fixed)
-            for other in fam:
-                if other is br:
-                    continue
-                tagged = [(round(math.remainder(t.x, TWO_PI), 4), round(t.y0, 4))
-                          for t in snaps if t.tag]
-                more = family_snaps(fam_bf, other, xname, yname, window, sources, fixed,
-                                    tags="AB"[len(tagged):], exclude=tagged)
-                snaps += [t for t in more if not any(
-                    abs(t.x - u.x) < 1e-6 and abs(t.y0 - u.y0) < 1e-6 and abs(t.y1 - u.y1)
-                    < 1e-6 for u in snaps)]
-            panel = Panel(items, xname, yname, TEX[xname], TEX[yname], title, xlim=window,
-                          xpi=True, insets=insets, snaps=snaps, legend_loc="lower right")
+            panel = _family_panel(bf, dict(fixed_by_load, P=P), xname, yname, window,
+                                  rf"({tag}) {title_by_load}, ${ptex}$",
+                                  extra_bf=extra_bf if P == P2 else None, n_insets=n_insets)
             draw_panel(sub, panel)
         return save(fig, out_dir, name)
 
@@ -664,3 +673,27 @@ def fig_map_arm(data_dir, out_dir):
 def fig_map_load(data_dir, out_dir):
     return _map(data_dir, out_dir, "fold_curves_load", "map_load",
                 r"rotating load: stable equilibria in the $(\alpha, P)$ plane ($\theta_0=0$)")
+
+
+# ------------------------------------------------------------ beyond the paper: higher loads
+P3 = 25 * PI ** 2 / 4
+
+
+@figure("higher-loads", "",
+        "rotating arm at `P = 25 pi^2/4`, between the third and fourth critical loads (the "
+        "straight rod has index 3): `m(1).e_z` against `psi` over one period of folds of each "
+        "direction, (a) `eps = 0.25`, (b) `eps = 0.5`, where the rod winds up to five turns",
+        ["higher_loads"])
+def fig_higher_loads(data_dir, out_dir):
+    bf = _open(data_dir, "higher_loads")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 8.6), layout="constrained")
+        subs = fig.subfigures(2, 1, hspace=0.02)
+        for sub, eps, window, tag in zip(subs, (0.25, 0.5), (3 * PI, 12 * PI), "ab"):
+            panel = _family_panel(bf, dict(eps=eps, P=P3), "psi", "m1", (-window, window),
+                                  rf"({tag}) $\epsilon={eps:g}$, $P=25\pi^2/4$")
+            ax = draw_panel(sub, panel)
+            if window > 6 * PI:   # a tick at every pi would crowd the labels
+                ax.xaxis.set_major_locator(MultipleLocator(2 * PI))
+                ax.xaxis.set_minor_locator(MultipleLocator(PI))
+        return save(fig, out_dir, "higher_loads")
