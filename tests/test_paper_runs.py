@@ -31,6 +31,7 @@ REDUCED = {
     # eps > 0 only: the buckled branches reaching the pitchfork at eps = 0 are the slow ones
     "arm_length": [("bounds = [-0.5, 0.5]", "bounds = [0.05, 0.5]")],
     "load_magnitude": [('bounds = ["-9*pi^2/4", "9*pi^2/4"]', 'bounds = [-2, "9*pi^2/4"]')],
+    "pinned_arm": [('stop = ["n_abs > 80"]', 'stop = ["n_abs > 40"]')],
 }
 
 _BUILT: dict = {}
