@@ -11,6 +11,16 @@ whose eigenproblem is ``-(a h')' + b h = mu h`` with the natural end condition
 point (the tests check it against a Jacobi-field count, a dense Galerkin count and the straight
 rod's critical loads).
 
+A constrained problem (an end held by a pin: isoperimetric constraints with Lagrange
+multipliers) returns a fourth element, the linearised constraints as a list of pairs
+``(g_i(s), d_i)``; the index is then that of the second variation restricted to the variations
+with ``int_0^1 g_i h ds + d_i h(1) = 0`` for every i. With K the stiffness matrix and C the
+discretised constraints (full row rank r), the bordered matrix M = [[K, C^T], [C, 0]] has
+In(M) = In(K) + In(-S), S = C K^{-1} C^T (Haynsworth), and n_-(M) = n_-(K restricted to
+ker C) + r; so, S being nonsingular, ::
+
+    index_constrained = n_-(K) - n_-(S).
+
 The fold rule (:func:`fold_rule`) propagates a known index along a branch: at a simple fold of
 a parameter xi entering the free end (or the ODE), ``d/dtau delta^2 J = -xi'' dB_xi/dtau``
 (the paper's eqn:Distinguished_biff_diagram_free_end) so the index changes by
@@ -21,6 +31,7 @@ a parameter xi entering the free end (or the ODE), ``d/dtau delta^2 J = -xi'' dB
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import solve_banded
 
 from .solution import at_fractions
 
@@ -47,7 +58,8 @@ MAX_PHASE = 0.2
 
 def _coefficients(problem, state, s):
     """a, b at the nodes and midpoints of each interval of the mesh ``s`` ((m-1, 3) each: left
-    node, midpoint, right node) and c, from the state's interpolant (on its own mesh, or a
+    node, midpoint, right node), c, and the constraints as a list of (g, d) with g laid out
+    like a and b (empty without them), from the state's interpolant (on its own mesh, or a
     refinement of it)."""
     mid = 0.5 * (s[:-1] + s[1:])
     if s is state.s:
@@ -55,13 +67,46 @@ def _coefficients(problem, state, s):
     else:
         y = state(np.concatenate((mid, s)))
     # the hook reads the end term from the last column: the nodes come last, s = 1 at the end
-    a, b, c = problem.second_variation(np.concatenate((mid, s)), y, state.params)
+    a, b, c, *rest = problem.second_variation(np.concatenate((mid, s)), y, state.params)
     k = len(mid)
-    out = []
-    for v in (a, b):
+
+    def layout(v):
         v = np.broadcast_to(np.asarray(v, dtype=float), (2 * k + 1,))
-        out.append(np.stack((v[k:-1], v[:k], v[k + 1:]), axis=1))
-    return out[0], out[1], float(c)
+        return np.stack((v[k:-1], v[:k], v[k + 1:]), axis=1)
+
+    constraints = [(layout(g), float(d)) for g, d in (rest[0] if rest else ())]
+    return layout(a), layout(b), float(c), constraints
+
+
+def _constraint_count(k, kmm, diag, off, h, constraints) -> int | None:
+    """n_-(S), S = C K^{-1} C^T, of the discretised constraints ``int g h ds + d h(1)``
+    (Simpson's rule, like the stiffness: a node or midpoint value times its weight), with K
+    condensed like the stiffness: S = C_m K_mm^{-1} C_m^T + C' T^{-1} C'^T, C' = C_n -
+    K_nm K_mm^{-1} C_m, T the tridiagonal node matrix (``diag``, ``off``, node 0 clamped).
+    None if T is singular."""
+    n = len(diag)
+    cm, cn = [], []
+    for g, d in constraints:
+        m = h * _GAUSS_W[1] * g[:, 1]
+        nodes = np.zeros(n + 1)
+        nodes[:-1] += h * _GAUSS_W[0] * g[:, 0] - k[:, 0, 1] / kmm * m
+        nodes[1:] += h * _GAUSS_W[2] * g[:, 2] - k[:, 2, 1] / kmm * m
+        nodes[-1] += d
+        cm.append(m)
+        cn.append(nodes[1:])
+    cm, cn = np.array(cm), np.array(cn)
+    ab = np.zeros((3, n))
+    ab[0, 1:] = off
+    ab[1] = diag
+    ab[2, :-1] = off
+    try:
+        x = solve_banded((1, 1), ab, cn.T)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    s = (cm / kmm) @ cm.T + cn @ x
+    if not np.all(np.isfinite(s)):
+        return None
+    return int(np.count_nonzero(np.linalg.eigvalsh(0.5 * (s + s.T)) < 0))
 
 
 def index(problem, state) -> int:
@@ -79,7 +124,9 @@ def index(problem, state) -> int:
     inertia additivity, In(K) = In(K_mm) + In(K / K_mm), K_mm the (diagonal) midpoint block
     and K / K_mm a tridiagonal matrix on the nodes, whose negative LDL^T pivots are counted.
     The count is exact unless an eigenvalue lies within the discretisation error of zero (at
-    a fold or a branch point, where it is zero)."""
+    a fold or a branch point, where it is zero). With constraints (a fourth element of the
+    hook's result) the count of the restricted form, n_-(K) - n_-(C K^{-1} C^T) (module
+    docstring), the constraint vectors condensed like K (:func:`_constraint_count`)."""
     if not problem.has_second_variation:
         return -1
     # NaN compares false with everything, so the count below would call such a point stable
@@ -87,8 +134,9 @@ def index(problem, state) -> int:
             and all(np.isfinite(v) for v in state.params.values())):
         return -1
     s = state.s
-    a, b, c = _coefficients(problem, state, s)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.isfinite(c)):
+    a, b, c, cons = _coefficients(problem, state, s)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.isfinite(c)
+            and all(np.all(np.isfinite(g)) and np.isfinite(d) for g, d in cons)):
         return -1
     h = np.diff(s)
     parts = np.ceil(h * np.sqrt(np.max(np.abs(b) / a, axis=1)) / MAX_PHASE).astype(int)
@@ -96,7 +144,7 @@ def index(problem, state) -> int:
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
-        a, b, c = _coefficients(problem, state, s)
+        a, b, c, cons = _coefficients(problem, state, s)
         h = np.diff(s)
     k = (((a * _GAUSS_W) @ _STIFF) / h[:, None]
          + ((b * _GAUSS_W) @ _MASS) * h[:, None]).reshape(-1, 3, 3)
@@ -110,6 +158,11 @@ def index(problem, state) -> int:
     diag[1:] += right
     diag[-1] += c
     negative = int(np.count_nonzero(kmm < 0))
+    if cons:
+        removed = _constraint_count(k, kmm, diag[1:], off[1:], h, cons)
+        if removed is None:
+            return -1
+        negative -= removed
     diag, off2 = diag[1:].tolist(), (off[1:] ** 2).tolist()    # node 0 is clamped
     d = diag[0]
     for dj, e2 in zip(diag[1:], off2):

@@ -36,6 +36,7 @@ REDUCED = {
     # eps = 0.25 keeps its whole period of folds; eps = 0.5 stops in the first excursion, whose
     # winding up to psi = 28.6 is most of the shipped run's 25 s (reduced: 13 s)
     "higher_loads": [('bounds = ["-12*pi", "12*pi"]', 'bounds = ["-3*pi", "3*pi"]')],
+    "pinned_arm": [('stop = ["n_abs > 80"]', 'stop = ["n_abs > 40"]')],
 }
 
 _BUILT: dict = {}

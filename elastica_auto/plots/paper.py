@@ -697,3 +697,29 @@ def fig_higher_loads(data_dir, out_dir):
                 ax.xaxis.set_major_locator(MultipleLocator(2 * PI))
                 ax.xaxis.set_minor_locator(MultipleLocator(PI))
         return save(fig, out_dir, "higher_loads")
+
+
+# ------------------------------------------------------------- beyond the paper: pinned end
+@figure("pinned-end", "",
+        "pinned end: the lever arm's end pinned at `(0, 0.4)`, `m(1).e_z` against `psi` "
+        "(constrained index), (a) `eps = 0.25`, (b) `eps = 0.5`, configurations with the pin "
+        "and the reaction",
+        ["pinned_arm"])
+def fig_pinned_end(data_dir, out_dir):
+    bf = _open(data_dir, "pinned_arm")
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(10.0, 8.6), layout="constrained")
+        eps_values = sorted({float(b.columns["eps"][0]) for b in bf.branches})
+        subs = np.atleast_1d(fig.subfigures(len(eps_values), 1, hspace=0.02))
+        for sub, eps, tag in zip(subs, eps_values, "abcd"):
+            items = [(bf, b) for b in branches_where(bf, eps=eps)]
+            insets, numbering = [], 1
+            for _, br in items:
+                window = (float(np.min(br.columns["psi"])), float(np.max(br.columns["psi"])))
+                insets += family_insets(bf, br, "psi", "m1", window, 3, numbering=numbering)
+                numbering = len(insets) + 1
+            panel = Panel(items, "psi", "m1", TEX["psi"], TEX["m1"],
+                          rf"({tag}) pinned end at $(X, Y) = (0, 0.4)$, $\epsilon={eps:g}$",
+                          xpi=True, insets=insets, legend_loc="lower right")
+            draw_panel(sub, panel)
+        return save(fig, out_dir, "pinned_end")
