@@ -56,6 +56,10 @@ T_MAX = 1e4
 #: The integrator's tolerances (BDF): tight enough that the energy it reports decreases
 #: monotonically from step to step.
 RTOL, ATOL = 1e-7, 1e-10
+#: The damped model's (Radau): it integrates until settled in a well, within ``SETTLE`` of
+#: its equilibrium (Newton step) with kinetic energy below ``SETTLE^2``, then Newton ends it.
+DAMPED_RTOL, DAMPED_ATOL = 1e-6, 1e-8
+SETTLE = 1e-3
 
 
 @dataclass
@@ -96,22 +100,24 @@ class Landing:
     energies: np.ndarray
 
 
-def land(problem, point, equilibria, parameter: str, beyond: int,
+def land(problem, state, null, equilibria, parameter: str, beyond: int,
          damping: float | None = None, push: float = PUSH, nodes: int = NODES) -> Landing:
-    """Follow the dynamics of ``problem`` from the fold ``point`` (a labelled LP with its
-    tangent), pushed off it, with ``parameter`` moved `BEYOND` past it in the direction
-    ``beyond`` (+1 or -1), to the equilibrium it ends at among ``equilibria``
-    (`elastica_auto.snaps.Equilibrium`, every one at the fold's parameters). ``damping``:
-    None for the overdamped flow, else ``c`` of the damped model."""
+    """Follow the dynamics of ``problem`` from the fold's solution ``state`` pushed along
+    its null vector ``null`` (the tangent stored with the LP), with ``parameter`` moved
+    `BEYOND` past the fold in the direction ``beyond`` (+1 or -1), to the equilibrium it
+    ends at among ``equilibria`` (`elastica_auto.snaps.Equilibrium`, every one at the fold's
+    parameters). ``damping``: None for the overdamped flow, else ``c`` of the damped
+    model."""
     from scipy.integrate import solve_ivp
     from scipy.sparse import bmat, identity
+    from scipy.sparse.linalg import spsolve
 
-    params = dict(point.params)
+    params = dict(state.params)
     params[parameter] += beyond * BEYOND
     s = np.linspace(0.0, 1.0, nodes + 1)
     flow = problem.gradient_flow(params, s)
-    u_fold = flow.to_u(point.state(s))
-    phi = flow.to_u(point.tangent(s))
+    u_fold = flow.to_u(state(s))
+    phi = flow.to_u(null(s))
     phi = phi / np.max(np.abs(phi))
     side = 1 if flow.energy(u_fold + push * phi) <= flow.energy(u_fold - push * phi) else -1
     u0 = u_fold + side * push * phi
@@ -141,7 +147,11 @@ def land(problem, point, equilibria, parameter: str, beyond: int,
         z0 = np.concatenate((u0, np.zeros(m)))
 
         def residual(z):
-            return max(np.max(np.abs(flow.force(z[:m]))), np.max(np.abs(z[m:])))
+            # settled: the Newton step to the equilibrium nearby and the kinetic energy both
+            # small (the force itself carries the integration error of the fastest modes)
+            step = spsolve(flow.jacobian(z[:m]), flow.force(z[:m]))
+            kinetic = 0.5 * np.sum(flow.mass * z[m:] ** 2)
+            return FORCE_TOL * max(np.max(np.abs(step)) / SETTLE, kinetic / SETTLE ** 2)
 
         def total(z):
             return flow.energy(z[:m]) + 0.5 * np.sum(flow.mass * z[m:] ** 2)
@@ -150,15 +160,21 @@ def land(problem, point, equilibria, parameter: str, beyond: int,
         return residual(z) - FORCE_TOL
     arrived.terminal = True
 
+    # BDF for the flow; Radau (L-stable at every order) for the damped model, whose fast
+    # modes oscillate, with the tolerances it needs only to settle (then Newton)
     sol = solve_ivp(rhs, (0.0, T_MAX), z0, method="BDF" if damping is None else "Radau",
-                    jac=jac, events=arrived,
-                    rtol=RTOL, atol=ATOL)
+                    jac=jac, events=arrived, rtol=RTOL if damping is None else DAMPED_RTOL,
+                    atol=ATOL if damping is None else DAMPED_ATOL)
     if sol.status == -1:
-        raise RuntimeError(f"the dynamics from {point.name} failed: {sol.message}")
+        raise RuntimeError(f"the integration failed: {sol.message}")
     energies = np.array([total(z) for z in sol.y.T])
-    released = energies[0] - energies[-1]
-    reached = np.flatnonzero(energies[0] - energies >= TRANSIT_FRACTION * released)
     u_end = sol.y[:m, -1]
+    for _ in range(30):   # to the discrete equilibrium the flow has settled by
+        if np.max(np.abs(flow.force(u_end))) < FORCE_TOL:
+            break
+        u_end = u_end - spsolve(flow.jacobian(u_end), flow.force(u_end))
+    released = energies[0] - flow.energy(u_end)
+    reached = np.flatnonzero(energies[0] - energies >= TRANSIT_FRACTION * released)
     distances = [np.max(np.abs(u_end - flow.to_u(eq.state(s)))) for eq in equilibria]
     j = int(np.argmin(distances)) if distances else None
     target = j if j is not None and distances[j] < MATCH and equilibria[j].index == 0 else None

@@ -217,7 +217,7 @@ def _landing(problem, point, equilibria, name, beyond, warnings: list):
     table."""
     from .landing import land
     try:
-        landing = land(problem, point, equilibria, name, beyond)
+        landing = land(problem, point.state, point.tangent, equilibria, name, beyond)
     except Exception as exc:  # the module's hook failing: the targets stand without a landing
         warnings.append(f"{point.name}: the dynamics from the fold failed: "
                         f"{type(exc).__name__}: {' '.join(str(exc).split())}")
