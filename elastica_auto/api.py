@@ -89,7 +89,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
                  stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-                 map: bool = False, jobs: int = 1, scheduler: str | None = None,
+                 map: bool = False, landing: bool = False, jobs: int = 1,
+                 scheduler: str | None = None,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
 
@@ -126,6 +127,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         With two parameters and LP starts: also the stability map of each plane of the
         fold curves (``branches.maps``; `elastica_auto.maps`). Only meaningful when the
         starts give every fold curve of the plane.
+    landing : bool
+        Also where each snap lands: the rod's dynamics from every fold that ends a stable
+        branch, to the snap-back target it reaches (``branches.snaps``, column ``landed``;
+        `elastica_auto.landing`). Needs the module's ``gradient_flow`` hook.
     jobs : int
         Branches computed at once, as tasks of a local Dask cluster of ``jobs`` worker
         processes (1: in this process; a script needs ``if __name__ == "__main__":``).
@@ -159,7 +164,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
     plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
                      directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, free=free, options=options, maps=map)
+                     switch=switch, free=free, options=options, maps=map, landing=landing)
     t0 = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)

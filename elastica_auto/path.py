@@ -100,8 +100,6 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
         module.shooting = shooting
     if base.has_second_variation:
         module.second_variation = second_variation
-    if base.has_gradient_flow:
-        module.gradient_flow = lambda p, nodes: base.gradient_flow(eff(p), nodes)
     return PathProblem(module, base.source, {**a, PATH: 0.0}, {**b, PATH: 1.0})
 
 

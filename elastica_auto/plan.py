@@ -92,6 +92,7 @@ class Plan:
     varying: list[str] = field(default_factory=list)
     switch_count: int = 0
     maps: bool = False
+    landing: bool = False
     curve: str | None = None
     name: str = "continuation"
     path: Path | None = None
@@ -116,7 +117,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
               uz: Iterable[float] = (), uz_period: float | None = None,
               stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
               options: Mapping[str, object] | ContinuationOptions | None = None,
-              maps: bool = False, _starts: list | None = None) -> Plan:
+              maps: bool = False, landing: bool = False,
+              _starts: list | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
     The branches are, for each combination of the ``params`` values (a list gives one set of
@@ -124,13 +126,21 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     direction. ``free`` names the parameters solved for where the module has more conditions
     than states (default: its ``FREE``); the plan's problem then carries them
     (`elastica_auto.augmented`). ``maps``: for fold curves, also the stability maps of their
-    planes (`elastica_auto.maps`). Raises :class:`PlanError` naming the argument at fault.
+    planes (`elastica_auto.maps`). ``landing``: where each snap lands, by the module's
+    dynamics (`elastica_auto.landing`). Raises :class:`PlanError` naming the argument at
+    fault.
     """
     if not isinstance(maps, bool):
         raise PlanError("map", f"expected true or false, got {maps!r}")
+    if not isinstance(landing, bool):
+        raise PlanError("landing", f"expected true or false, got {landing!r}")
     if not isinstance(problem, (Problem, Augmented)):
         raise PlanError("problem", f"expected a problem from load_problem(), got "
                         f"{type(problem).__name__}")
+    if landing and (isinstance(parameter, (list, tuple)) or not (
+            problem.has_gradient_flow and problem.has_shooting and problem.has_second_variation)):
+        raise PlanError("landing", "where a snap lands needs one continued parameter and the "
+                        "module's gradient_flow, shooting and second_variation hooks")
     if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
                              or not all(isinstance(q, str) for q in free)):
         raise PlanError("free", f"expected a list of parameter names, got {free!r}")
@@ -183,7 +193,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
             specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
     at_fold, limits = _stops(problem, stop)
     return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
-                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch)
+                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
+                landing=landing)
 
 
 def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,

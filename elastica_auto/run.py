@@ -399,7 +399,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     result.interrupted = interrupted
     if not interrupted:
         try:
-            result.snaps = snap_targets(plan.problem, branches, result.warnings)
+            result.snaps = snap_targets(plan.problem, branches, result.warnings,
+                                        landing=plan.landing)
             for row in result.snaps:           # numbered after the kept branches
                 row["branch"] += result.kept
                 row["on_branch"] += result.kept if row["on_branch"] else 0

@@ -58,7 +58,8 @@ __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 _TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options",
         "execution"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
-_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map"}
+_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map",
+         "landing"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
 
 
@@ -258,6 +259,11 @@ class _Document:
             if not isinstance(cont["map"], bool):
                 self.fail("[continuation] map", f"expected true or false, got {cont['map']!r}")
             out["maps"] = cont["map"]
+        if "landing" in cont:
+            if not isinstance(cont["landing"], bool):
+                self.fail("[continuation] landing",
+                          f"expected true or false, got {cont['landing']!r}")
+            out["landing"] = cont["landing"]
         return out
 
     def execution(self) -> str | None:

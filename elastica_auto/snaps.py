@@ -155,17 +155,20 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     return 0
 
 
-def snap_targets(problem, branches, warnings: list | None = None) -> list[dict]:
+def snap_targets(problem, branches, warnings: list | None = None,
+                 landing: bool = False) -> list[dict]:
     """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
     values (excluding the fold's own solution), with the branch that passes through it.
 
-    With the module's ``gradient_flow`` hook, the row of the equilibrium the rod's overdamped
-    dynamics reach from the fold (`elastica_auto.landing`) has ``landed = 1`` and the energy
-    released and transit time; the other rows ``landed = 0`` and NaN. A fold whose dynamics
+    With ``landing`` (and the module's ``gradient_flow`` hook), the row of the equilibrium
+    the rod's overdamped dynamics reach from the fold (`elastica_auto.landing`) has
+    ``landed = 1`` and the energy released and transit time; the other rows ``landed = 0``
+    and NaN. A fold whose dynamics
     fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
     gets a line saying why."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
+    landing = landing and problem.has_gradient_flow
     cache, landings = {}, {}
     rows = []
     for nb, br in enumerate(branches, start=1):
@@ -179,8 +182,8 @@ def snap_targets(problem, branches, warnings: list | None = None) -> list[dict]:
             if key not in cache:
                 cache[key] = enumerate_equilibria(problem, params)
             k_fold = p.state.y[:, 0]
-            landing = None
-            if problem.has_gradient_flow:
+            reached = None
+            if landing:
                 k = br.points.index(p)
                 beyond = int(np.sign(params[name] - br.points[k - 1 if side == "before"
                                                              else k + 1].params[name]))
@@ -189,7 +192,7 @@ def snap_targets(problem, branches, warnings: list | None = None) -> list[dict]:
                 if at not in landings:
                     landings[at] = _landing(problem, p, cache[key], name, beyond,
                                             warnings if warnings is not None else [])
-                landing = landings[at]
+                reached = landings[at]
             for j, eq in enumerate(cache[key]):
                 if eq.index != 0:
                     continue
@@ -202,11 +205,11 @@ def snap_targets(problem, branches, warnings: list | None = None) -> list[dict]:
                        "index": eq.index, **{f"target_{o}": v
                                              for o, v in eq.ordinates.items()},
                        "on_branch": _on_branch(branches, name, period, target)}
-                if problem.has_gradient_flow:
-                    here = landing is not None and landing.target == j
+                if landing:
+                    here = reached is not None and reached.target == j
                     row.update(landed=int(here),
-                               energy_released=landing.energy_released if here else np.nan,
-                               transit_time=landing.transit_time if here else np.nan)
+                               energy_released=reached.energy_released if here else np.nan,
+                               transit_time=reached.transit_time if here else np.nan)
                 rows.append({**row, "profile": eq.state(PROFILE_GRID)})
     return rows
 

@@ -2,7 +2,7 @@
 
 The rod of ``elastica_lever_arm``: clamped at s = 0 (turned by theta0), a rigid lever arm of
 length eps at the tip, at angle psi (clockwise) to the tip tangent. Instead of a dead load,
-the END OF THE ARM is pinned at a prescribed point R = (X, Y), free to rotate; the reaction
+the end of the arm is pinned at a prescribed point R = (X, Y), free to rotate; the reaction
 n = (n_x, n_y), the force of the pin on the arm, is an unknown constant of the solution.
 
 State ``[theta, kappa, x, y, nx, ny]`` on s in [0, 1]; theta is the tangent angle from the

@@ -12,26 +12,38 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from elastica_auto.landing import NODES, PUSH, land
 from elastica_auto.snaps import enumerate_equilibria, snap_lps
 
 
-def _folds(rotating_arm, P, count=None):
-    """(point, beyond, equilibria) of the folds ending a stable segment at load P."""
+P_HIGH = 9 * math.pi ** 2 / 4
+
+
+@pytest.fixture(scope="module")
+def arm(elastica, tmp_path_factory):
+    """The rotating arm at eps = 0.5, P = 9 pi^2/4 (rotating_arm's last two branches), both
+    ways, with where every snap lands; saved for the command line."""
+    import elastica_auto as ea
+    branches = ea.continuation(elastica, {"eps": 0.5, "P": P_HIGH}, "psi", directions="both",
+                               bounds=(-6 * math.pi, 6 * math.pi), landing=True)
+    path = ea.save(branches, tmp_path_factory.mktemp("landing") / "arm.h5")
+    return branches, path
+
+
+def _folds(branches, problem, count=None):
+    """(point, beyond, equilibria) of the folds ending a stable segment."""
     out = []
-    for br in rotating_arm.result.branches:
+    for br in branches:
         for p, side in snap_lps(br):
-            if abs(p.params["P"] - P) > 1e-9:
-                continue
             k = br.points.index(p)
             nb = br.points[k - 1 if side == "before" else k + 1]
             beyond = int(np.sign(p.params["psi"] - nb.params["psi"]))
-            out.append((p, beyond, enumerate_equilibria(rotating_arm.plan.problem, p.params)))
+            out.append((p, beyond, enumerate_equilibria(problem, p.params)))
     return out[:count]
 
 
-P_HIGH = 9 * math.pi ** 2 / 4
 
 
 def test_the_flow_is_the_gradient_of_its_energy(elastica):
@@ -71,10 +83,11 @@ def test_the_method_of_lines_converges_at_second_order(elastica):
     assert 3.5 < min(ratios) and max(ratios) < 4.5, ratios
 
 
-def test_every_fold_lands_on_a_stable_equilibrium_of_the_table(rotating_arm):
+def test_every_fold_lands_on_a_stable_equilibrium_of_the_table(arm):
     """Each fold of the snap-back table has exactly one target marked landed, with the energy
     released and the transit time; the others have none."""
-    rows = rotating_arm.file.snaps
+    rows = arm[0].snaps
+    assert len({(r["branch"], r["lp"]) for r in rows}) >= 10
     folds = {(int(r["branch"]), r["lp"]) for r in rows}
     for fold in folds:
         mine = [r for r in rows if (int(r["branch"]), r["lp"]) == fold]
@@ -85,23 +98,23 @@ def test_every_fold_lands_on_a_stable_equilibrium_of_the_table(rotating_arm):
         assert all(math.isnan(r["energy_released"]) for r in mine if r["landed"] == 0)
 
 
-def test_mirrored_folds_land_on_mirrored_equilibria(rotating_arm):
+def test_mirrored_folds_land_on_mirrored_equilibria(arm):
     """At alpha = theta0 = 0 the fold at psi has a mirror image at -psi (theta -> -theta);
     the rod lands from it on the mirror image (k = theta'(0) -> -k) of the first landing."""
-    rows = [r for r in rotating_arm.file.snaps if r["landed"] == 1]
-    assert len(rows) >= 20
+    rows = [r for r in arm[0].snaps if r["landed"] == 1]
+    assert len(rows) >= 10
     for r in rows:
         assert any(abs(q["value"] + r["value"]) < 1e-6 and abs(q["k"] + r["k"]) < 1e-6
                    for q in rows), (r["lp"], r["value"], r["k"])
 
 
-def test_the_energy_decreases_and_the_landing_is_robust(rotating_arm):
+def test_the_energy_decreases_and_the_landing_is_robust(arm, elastica):
     """Along the dynamics the energy never increases; halving the push or doubling the
     spatial resolution lands on the same equilibrium. The folds at P = 9 pi^2/4, where each
     fold has three or more stable equilibria to choose from."""
-    folds = _folds(rotating_arm, P_HIGH, count=3)
+    folds = _folds(arm[0], elastica, count=3)
     assert len(folds) == 3
-    problem = rotating_arm.plan.problem
+    problem = elastica
     for p, beyond, eqs in folds:
         assert sum(e.index == 0 for e in eqs) >= 3
         first = land(problem, p.state, p.tangent, eqs, "psi", beyond)
@@ -114,11 +127,11 @@ def test_the_energy_decreases_and_the_landing_is_robust(rotating_arm):
             assert again.target == first.target, (p.name, change)
 
 
-def test_the_damped_model_loses_energy_and_lands(rotating_arm):
+def test_the_damped_model_loses_energy_and_lands(arm, elastica):
     """The damped model's total energy (potential + kinetic) never increases; with strong
     damping it lands where the overdamped flow does."""
-    p, beyond, eqs = _folds(rotating_arm, P_HIGH, count=1)[0]
-    problem = rotating_arm.plan.problem
+    p, beyond, eqs = _folds(arm[0], elastica, count=1)[0]
+    problem = elastica
     over = land(problem, p.state, p.tangent, eqs, "psi", beyond)
     strong = land(problem, p.state, p.tangent, eqs, "psi", beyond, damping=50.0)
     assert strong.target == over.target
@@ -128,8 +141,11 @@ def test_the_damped_model_loses_energy_and_lands(rotating_arm):
     assert weak.target is not None and eqs[weak.target].index == 0
 
 
-def test_modules_without_dynamics_have_targets_but_no_landing(rotating_arm, tmp_path):
-    """The landing columns come with the hook: without it the table is as before."""
+def test_landing_is_asked_for_and_needs_the_hook(arm, elastica, tmp_path):
+    """The landing columns come with ``landing`` and the hook: without either the table is
+    as before; asking a module without the hook is an error naming the argument."""
+    import elastica_auto as ea
+    from elastica_auto.errors import PlanError
     from elastica_auto.problem import load_problem
     from elastica_auto.snaps import snap_targets
     from helpers import REPO
@@ -138,5 +154,28 @@ def test_modules_without_dynamics_have_targets_but_no_landing(rotating_arm, tmp_
                                                         "def _gradient_flow("))
     problem = load_problem(tmp_path / "no_flow.py")
     assert not problem.has_gradient_flow
-    rows = snap_targets(problem, rotating_arm.result.branches[:2])
+    branches = arm[0][:1]
+    rows = snap_targets(problem, branches, landing=True)
     assert rows and not any("landed" in r for r in rows)
+    rows = snap_targets(elastica, branches)
+    assert rows and not any("landed" in r for r in rows)
+    with pytest.raises(PlanError) as err:
+        ea.continuation(problem, {"P": P_HIGH}, "psi", landing=True)
+    assert err.value.key == "landing"
+
+
+def test_the_snaps_command_marks_the_landing(arm, cli_exe):
+    """One row marked ``<-`` per fold, with its energy and time; the legend last."""
+    from helpers import run_cli
+    proc = run_cli(cli_exe, "snaps", arm[1])
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    rows = arm[0].snaps
+    assert len(lines) == 2 + len(rows)                 # the header, a row each, the legend
+    marked = [ln.split() for ln in lines[1:-1] if ln.split()[-3] == "<-"]
+    assert len(marked) == sum(r["landed"] for r in rows)
+    landed = [r for r in rows if r["landed"] == 1]
+    for cols, r in zip(marked, landed):
+        assert cols[0] == r["lp"]
+        assert float(cols[-2]) == pytest.approx(r["energy_released"], rel=1e-4)
+    assert lines[-1].startswith("landed: ")
