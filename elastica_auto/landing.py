@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 
 #: Intervals of the uniform grid of the method of lines (the discrete equilibria are within
-#: O(h^2) of the BVP's: 1e-4 of theta for the elastica at P = 9 pi^2/4 with 200).
+#: O(h^2) of the BVP's; tests/test_landing.py measures the order).
 NODES = 200
 #: Size of the push off the fold along its null vector (max norm of u; radians of theta).
 PUSH = 1e-2
