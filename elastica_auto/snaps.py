@@ -187,8 +187,9 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 k = br.points.index(p)
                 beyond = int(np.sign(params[name] - br.points[k - 1 if side == "before"
                                                              else k + 1].params[name]))
-                # periodic copies of a fold land alike: the same state at the same parameters
-                at = (key, beyond, round(float(p.state.y[1, 0]), 8))
+                # periodic copies of a fold land alike: the same parameters (mod the period)
+                # and the same initial values y(0), hence the same solution
+                at = (key, beyond, tuple(np.round(p.state.y[:, 0], 8)))
                 if at not in landings:
                     landings[at] = _landing(problem, p, cache[key], name, beyond,
                                             warnings if warnings is not None else [])
