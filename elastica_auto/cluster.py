@@ -83,10 +83,12 @@ def local(workers: int):
     # Two tasks per single-threaded worker (SATURATION): the next branch waits on the worker,
     # not behind a round trip to the scheduler (4-5 ms a task here, 5% of a short branch).
     # The scheduler's HTTP server on any free port: its default, 8787, may be taken (by
-    # another run), and taking another would print a warning.
+    # another run), and taking another would print a warning. Dask's own logs are silenced up
+    # to CRITICAL, in the workers too: a failure reaches the user as the branch's MX line, and
+    # a worker closing after its scheduler logs a heartbeat traceback at ERROR (seen in CI).
     with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION}):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR,
+                               dashboard_address=":0", silence_logs=logging.CRITICAL,
                                memory_limit=0)
     return Client(cluster, set_as_default=False)
 
