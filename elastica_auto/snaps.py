@@ -169,7 +169,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
     if not (problem.has_shooting and problem.has_second_variation):
         return []
     landing = landing and problem.has_gradient_flow
-    cache, landings = {}, {}
+    cache, exact, landings = {}, {}, {}
     rows = []
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
@@ -179,8 +179,9 @@ def snap_targets(problem, branches, warnings: list | None = None,
             key = tuple(sorted((q, round(v if q != name or not period
                                          else float(np.remainder(v, period)), 10))
                                for q, v in params.items()))
+            own = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
             if key not in cache:
-                cache[key] = enumerate_equilibria(problem, params)
+                cache[key] = exact[own] = enumerate_equilibria(problem, params)
             k_fold = p.state.y[:, 0]
             reached = None
             if landing:
@@ -191,8 +192,21 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 # and the same initial values y(0), hence the same solution
                 at = (key, beyond, tuple(np.round(p.state.y[:, 0], 8)))
                 if at not in landings:
-                    landings[at] = _landing(problem, p, cache[key], name, beyond,
+                    # the dynamics' end is compared with equilibria at the fold's own
+                    # parameters: a periodic copy of the cached ones (a parameter moved by
+                    # its period) may differ from them by a period in the states (theta0)
+                    if own not in exact:
+                        exact[own] = enumerate_equilibria(problem, params)
+                    there = exact[own]
+                    landings[at] = _landing(problem, p, there, name, beyond,
                                             warnings if warnings is not None else [])
+                    if landings[at] is not None and landings[at].target is not None:
+                        # the same equilibrium in the cached list: by its ordinates, which
+                        # are physical and so the same on every periodic copy
+                        hit = there[landings[at].target].ordinates
+                        landings[at].target = int(np.argmin(
+                            [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
+                             for eq in cache[key]]))
                 reached = landings[at]
             for j, eq in enumerate(cache[key]):
                 if eq.index != 0:

@@ -158,6 +158,34 @@ def test_folds_repeat_every_period_of_the_angle(paper, run):
     assert checked >= 2, f"{run}: too few branches run through enough periods to check"
 
 
+def test_rotating_base_folds_a_period_apart_land_alike(paper):
+    """Moving theta0 by 2 pi turns theta by 2 pi: the same rod. Every fold of rotating_base
+    ending a stable branch has one landing (run file: landing = true), and folds a period
+    apart (same branch, same stable side, theta0 differing by a multiple of 2 pi) land on
+    the same equilibrium (its shooting value k) with the same energy released."""
+    rows = _open(paper, "rotating_base").snaps
+    folds = {}
+    for r in rows:
+        folds.setdefault((int(r["branch"]), r["lp"]), []).append(r)
+    assert len(folds) >= 20
+    landed = {}
+    for fold, mine in folds.items():
+        hit = [r for r in mine if r["landed"] == 1]
+        assert len(hit) == 1, fold
+        landed[fold] = hit[0]
+    copies = 0
+    for a in landed.values():
+        for b in landed.values():
+            turns = (b["value"] - a["value"]) / TWO_PI
+            if (a["branch"] != b["branch"] or a["stable_side"] != b["stable_side"]
+                    or a["lp"] == b["lp"] or abs(turns - round(turns)) > 1e-6):
+                continue
+            copies += 1
+            assert b["k"] == pytest.approx(a["k"], abs=1e-6), (a["lp"], b["lp"])
+            assert b["energy_released"] == pytest.approx(a["energy_released"], rel=1e-3)
+    assert copies >= 10
+
+
 # ---- 2. the rotating base is the rotating load mirrored ----------------------------------------
 
 def test_rotating_base_is_the_rotating_load_mirrored(paper):
