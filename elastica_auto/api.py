@@ -48,17 +48,20 @@ class Branches(list):
     maps : list of StabilityMap
         With ``map=True``: the stability map of each plane of the fold curves
         (`elastica_auto.maps`).
+    landings : list of dict
+        With ``damping``: where the damped model lands, a row per fold and damping value
+        (`elastica_auto.landing.damping_sweep`).
     seconds : float
         Wall-clock time of the whole computation.
     """
 
     def __init__(self, branches: Iterable[Branch] = (), problem: Problem | None = None,
                  snaps: Iterable[dict] = (), warnings: Iterable[str] = (), seconds: float = 0.0,
-                 maps: Iterable = ()):
+                 maps: Iterable = (), landings: Iterable[dict] = ()):
         super().__init__(branches)
         self.problem = problem
         self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
-        self.maps = list(maps)
+        self.maps, self.landings = list(maps), list(landings)
 
     def __add__(self, other: Iterable[Branch]) -> Branches | list:
         """Branches of one problem put together (``arm + load``): still of that problem."""
@@ -89,7 +92,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
                  stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-                 map: bool = False, landing: bool = False, jobs: int = 1,
+                 map: bool = False, landing: bool = False, damping: Iterable[float] = (),
+                 damping_folds: Iterable[str] | None = None, jobs: int = 1,
                  scheduler: str | None = None,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
@@ -131,6 +135,13 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         Also where each snap lands: the rod's dynamics from every fold that ends a stable
         branch, to the snap-back target it reaches (``branches.snaps``, column ``landed``;
         `elastica_auto.landing`). Needs the module's ``gradient_flow`` hook.
+    damping : list of float, optional
+        With ``landing``: also where the damped model ``u_tt + c u_t = -grad E`` lands, for
+        each ``c``, from each fold ending a stable branch (``branches.landings``, a row per
+        fold and ``c``). Each costs 2-10 s on the elastica.
+    damping_folds : list of str, optional
+        The folds (``["LP6"]``) the damped model starts from; default every fold ending a
+        stable branch.
     jobs : int
         Branches computed at once, as tasks of a local Dask cluster of ``jobs`` worker
         processes (1: in this process; a script needs ``if __name__ == "__main__":``).
@@ -164,7 +175,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
     plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
                      directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, free=free, options=options, maps=map, landing=landing)
+                     switch=switch, free=free, options=options, maps=map, landing=landing,
+                     damping=damping, damping_folds=damping_folds)
     t0 = time.perf_counter()
     first = [_built(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
@@ -174,7 +186,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         result.interrupted = True
     number_labels(result.branches)
     out = Branches(result.branches, plan.problem, result.snaps, result.warnings,
-                   time.perf_counter() - t0, result.maps)
+                   time.perf_counter() - t0, result.maps, result.landings)
     if result.interrupted:
         raise Interrupted(out)
     return out
@@ -189,8 +201,8 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     through the file in branch and point order (the branches keep their own numbering).
     ``problem``: the branches' (default: that of the :func:`continuation` they came from; a
     list put together from several needs it). ``run`` names the run in the file (default:
-    the file's stem). Snap-back targets and stability maps are saved if ``branches`` is
-    one continuation's.
+    the file's stem). Snap-back targets, damped landings and stability maps are saved if
+    ``branches`` is one continuation's.
     """
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
@@ -210,10 +222,11 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
               for b in branches]
     number_labels(copies)
     whole = isinstance(given, Branches)                  # a whole continuation's
-    snaps, maps = (given.snaps, given.maps) if whole else (None, None)
+    snaps, maps, landings = ((given.snaps, given.maps, given.landings) if whole
+                             else (None, None, None))
     writer = store.Writer(path, run or path.stem, problem)
     with writer:
-        writer.save(copies, snaps, maps)
+        writer.save(copies, snaps, maps, landings)
         writer.finish()
     return writer.path
 

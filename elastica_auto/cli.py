@@ -157,11 +157,18 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
                        + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
                                    for p in br.disagreements[:5]))
 
+    def on_landing(done, total, row):
+        if tty:
+            click.echo(f"\r  damped landing {done}/{total}: {row['lp']} c = "
+                       f"{row['damping']:g}" + " " * 20, nl=False, err=True)
+            if done == total:
+                click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
+
     signal.signal(signal.SIGTERM, _terminate)
     try:
         result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1,
                          on_start=header, scheduler=scheduler, on_tasks=on_tasks,
-                         resume=resume)
+                         resume=resume, on_landing=on_landing)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:
@@ -190,6 +197,10 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         lps = len({(r["branch"], r["lp"]) for r in result.snaps})
         click.echo(f"snap-back: {len(result.snaps)} stable targets at {lps} folds ending a "
                    f"stable branch (elastica-auto snaps {result.path})")
+    if result.landings:
+        lps = len({(r["branch"], r["lp"]) for r in result.landings})
+        click.echo(f"damped model: {len(result.landings)} landings from {lps} folds "
+                   f"(elastica-auto snaps {result.path})")
     for m in result.maps:
         at = ", ".join(f"{k}={v:.6g}" for k, v in m.fixed.items())
         counts = ", ".join(map(str, sorted(set(m.stable.tolist()))))
@@ -246,7 +257,8 @@ def show(file, all_points):
 def snaps(file):
     """Snap-back targets of FILE.h5: at each fold where a stable branch ends, every stable
     equilibrium at the same parameters (all of them, by a shooting scan), the branch, if
-    any, that passes through it, and (for modules with dynamics) the one the rod lands on."""
+    any, that passes through it, and (for modules with dynamics) the one the rod lands on;
+    then the damped model's landings, if the run asked for them."""
     bf = _open(file)
     if not bf.snaps:
         click.echo("no snap-back targets (no fold bounds a stable segment, or the equation "
@@ -269,6 +281,19 @@ def snaps(file):
     if landing:
         click.echo("landed: where the rod's overdamped dynamics from the fold end; released: "
                    "the energy given up on the way; transit: the time to release 99% of it")
+    if bf.landings:
+        click.echo("\ndamped model (u_tt + c u_t = -grad E): the equilibrium reached from each "
+                   "fold, for each damping")
+        click.echo(f"{'LP':>6} {'BR':>3} {'param':>6} {'value':>12} {'damping':>8} "
+                   + " ".join(f"{o:>11}" for o in ords) + f" {'released':>9} {'transit':>8}")
+        for r in bf.landings:
+            head = (f"{r['lp']:>6} {int(r['branch']):>3} {r['parameter']:>6} "
+                    f"{r['value']:>12.7g} {r['damping']:>8.4g} ")
+            if not r["landed"]:
+                click.echo(head + "no stable equilibrium reached")
+                continue
+            click.echo(head + " ".join(f"{r['target_' + o]:>11.6g}" for o in ords)
+                       + f" {r['energy_released']:>9.5g} {r['transit_time']:>8.4g}")
 
 
 @main.command()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Iterable, Mapping, Union
@@ -93,6 +94,8 @@ class Plan:
     switch_count: int = 0
     maps: bool = False
     landing: bool = False
+    damping: tuple[float, ...] = ()
+    damping_folds: tuple[str, ...] | None = None
     curve: str | None = None
     name: str = "continuation"
     path: Path | None = None
@@ -118,6 +121,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
               stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
               options: Mapping[str, object] | ContinuationOptions | None = None,
               maps: bool = False, landing: bool = False,
+              damping: Iterable[float] = (), damping_folds: Iterable[str] | None = None,
               _starts: list | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
@@ -127,7 +131,9 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     than states (default: its ``FREE``); the plan's problem then carries them
     (`elastica_auto.augmented`). ``maps``: for fold curves, also the stability maps of their
     planes (`elastica_auto.maps`). ``landing``: where each snap lands, by the module's
-    dynamics (`elastica_auto.landing`). Raises :class:`PlanError` naming the argument at
+    dynamics (`elastica_auto.landing`); ``damping``: also the damped model's landing for
+    each of these ``c``, from the folds labelled ``damping_folds`` (default every fold
+    ending a stable branch). Raises :class:`PlanError` naming the argument at
     fault.
     """
     if not isinstance(maps, bool):
@@ -141,6 +147,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
             problem.has_gradient_flow and problem.has_shooting and problem.has_second_variation)):
         raise PlanError("landing", "where a snap lands needs one continued parameter and the "
                         "module's gradient_flow, shooting and second_variation hooks")
+    damping, damping_folds = _damping(damping, damping_folds, landing)
     if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
                              or not all(isinstance(q, str) for q in free)):
         raise PlanError("free", f"expected a list of parameter names, got {free!r}")
@@ -194,7 +201,30 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     at_fold, limits = _stops(problem, stop)
     return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
                 specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
-                landing=landing)
+                landing=landing, damping=damping, damping_folds=damping_folds)
+
+
+def _damping(damping, folds, landing: bool):
+    """The checked ``damping`` values (positive, finite) and fold labels (``LP<n>``)."""
+    if isinstance(damping, (str, bytes)) or not isinstance(damping, Iterable):
+        raise PlanError("damping", f"expected a list of damping values, got {damping!r}")
+    damping = tuple(damping)
+    if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+               and c > 0 for c in damping):
+        raise PlanError("damping", f"expected positive numbers, got {list(damping)!r}")
+    if damping and not landing:
+        raise PlanError("damping", "the damped model's landings need landing = true")
+    if folds is None:
+        return damping, None
+    if isinstance(folds, (str, bytes)) or not isinstance(folds, Iterable):
+        raise PlanError("damping_folds", f"expected a list of fold labels, got {folds!r}")
+    folds = tuple(folds)
+    if not all(isinstance(f, str) and re.fullmatch(r"LP[1-9][0-9]*", f) for f in folds):
+        raise PlanError("damping_folds", f"expected fold labels such as \"LP3\", got "
+                        f"{list(folds)!r}")
+    if not damping:
+        raise PlanError("damping_folds", "give the damping values too")
+    return damping, folds
 
 
 def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,

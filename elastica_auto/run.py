@@ -39,6 +39,7 @@ class RunResult:
     snaps: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     maps: list = field(default_factory=list)
+    landings: list = field(default_factory=list)
     kept: int = 0
 
     @property
@@ -252,7 +253,8 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
 def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
             on_start: Callable[[], None] | None = None, scheduler: str | None = None,
-            on_tasks=None, resume: bool = False) -> RunResult:
+            on_tasks=None, resume: bool = False,
+            on_landing: Callable[[int, int, dict], None] | None = None) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
     Before any branch is computed: a start read from the file this run writes is refused
@@ -316,9 +318,9 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
                 on_start()
             try:
                 compute(plan, first, result, save, progress, on_branch, jobs,
-                        on_tasks=on_tasks, client=client, kept=kept)
+                        on_tasks=on_tasks, client=client, kept=kept, on_landing=on_landing)
                 if not result.interrupted:
-                    writer.save(result.branches, result.snaps, result.maps)
+                    writer.save(result.branches, result.snaps, result.maps, result.landings)
                     writer.finish()
             except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
                 result.interrupted = True
@@ -359,11 +361,14 @@ def _label_counters(kept, count: int) -> dict[str, int]:
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
             progress: Progress | None = None,
             on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
-            scheduler: str | None = None, on_tasks=None, client=None, kept=None):
+            scheduler: str | None = None, on_tasks=None, client=None, kept=None,
+            on_landing: Callable[[int, int, dict], None] | None = None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
-    fold curves' planes, `elastica_auto.maps`), into ``result`` (labels numbered);
-    ``save()`` after each branch. An interruption ends it with ``result.interrupted`` set.
+    fold curves' planes, `elastica_auto.maps`, and the damped model's landings,
+    `elastica_auto.landing.damping_sweep`, each reported to ``on_landing``), into
+    ``result`` (labels numbered); ``save()`` after each branch. An interruption ends it
+    with ``result.interrupted`` set.
 
     The branches are computed as tasks of a Dask cluster (`elastica_auto.cluster`;
     ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
@@ -409,6 +414,15 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                                 + result.snaps)
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
+        if plan.damping:
+            from .landing import damping_sweep
+            result.landings = damping_sweep(plan.problem, branches, plan.damping,
+                                            plan.damping_folds, result.warnings, on_landing)
+            for row in result.landings:
+                row["branch"] += result.kept
+            if kept is not None:
+                result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
+                                   + result.landings)
         if plan.maps:
             every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
             try:

@@ -59,7 +59,7 @@ _TOP = {"description", "equation", "start", "switch", "parameters", "continuatio
         "execution"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map",
-         "landing"}
+         "landing", "damping", "damping_folds"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
 
 
@@ -264,6 +264,17 @@ class _Document:
                 self.fail("[continuation] landing",
                           f"expected true or false, got {cont['landing']!r}")
             out["landing"] = cont["landing"]
+        if "damping" in cont:
+            if not isinstance(cont["damping"], list):
+                self.fail("[continuation] damping",
+                          f"expected a list of damping values, got {cont['damping']!r}")
+            out["damping"] = [self.number("[continuation] damping", v) for v in cont["damping"]]
+        if "damping_folds" in cont:
+            folds = cont["damping_folds"]
+            if not isinstance(folds, list):
+                self.fail("[continuation] damping_folds",
+                          f"expected a list of fold labels such as [\"LP3\"], got {folds!r}")
+            out["damping_folds"] = [self.string("[continuation] damping_folds", f) for f in folds]
         return out
 
     def execution(self) -> str | None:

@@ -127,6 +127,15 @@ def snap_lps(branch):
     return out
 
 
+def beyond_fold(branch, point, side: str) -> int:
+    """The direction (+1 or -1) in which ``branch``'s parameter moves past the fold
+    ``point`` from its stable side (``side``, as `snap_lps` gives it): where the stable
+    equilibrium no longer exists."""
+    k = branch.points.index(point)
+    other = branch.points[k - 1 if side == "before" else k + 1]
+    return int(np.sign(point.params[branch.parameter] - other.params[branch.parameter]))
+
+
 def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     """Number (1-based) of a branch with the target's fixed parameters that passes through the
     target, or 0: the branch, interpolated at the target's parameter value (modulo the
@@ -185,9 +194,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
             k_fold = p.state.y[:, 0]
             reached = None
             if landing:
-                k = br.points.index(p)
-                beyond = int(np.sign(params[name] - br.points[k - 1 if side == "before"
-                                                             else k + 1].params[name]))
+                beyond = beyond_fold(br, p, side)
                 # periodic copies of a fold land alike: the same parameters (mod the period)
                 # and the same initial values y(0), hence the same solution
                 at = (key, beyond, tuple(np.round(p.state.y[:, 0], 8)))

@@ -20,7 +20,11 @@ Layout of ``out/<run>.h5``::
     /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
                             parameters): lp, branch, parameter, value, stable_side, k,
                             index, target_<ordinate>..., on_branch (0: no computed branch);
+                            with landings: landed, energy_released, transit_time;
                             profiles (targets, states, grid): each target on /profile_grid
+    /landings/              the damped model's landings, one row per (LP, damping): lp,
+                            branch, parameter, value, damping, landed, k,
+                            target_<ordinate>..., energy_released, transit_time
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
 reader never sees a half-written file. A run holds an exclusive lock on its output for as long
@@ -208,10 +212,11 @@ class Writer:
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         self.written = self.kept = count
 
-    def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None):
+    def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None,
+             landings: list[dict] | None = None):
         """Write ``branches`` (labels already numbered); earlier ones are kept as written.
-        ``snaps``: the snap-back target table, ``maps``: the stability maps (each replaces
-        any stored one)."""
+        ``snaps``: the snap-back target table, ``maps``: the stability maps, ``landings``:
+        the damped model's landings (each replaces any stored one)."""
         try:
             tmp = _temporary(self.path)
             try:
@@ -228,7 +233,9 @@ class Writer:
                                 self.labels[p.name] = [k, pt]
                     f.attrs["labels"] = json.dumps(self.labels)
                     if snaps is not None:
-                        _write_snaps(f, snaps)
+                        _write_table(f, "snaps", snaps)
+                    if landings:
+                        _write_table(f, "landings", landings)
                     if maps:
                         _write_maps(f, maps)
                 os.replace(tmp, self.path)
@@ -263,21 +270,36 @@ class Writer:
         f["profile_grid"] = PROFILE_GRID
 
 
-def _write_snaps(f, snaps: list[dict]):
-    """/snaps: one row per (LP, stable target); numbers as float columns, names as strings."""
-    if "snaps" in f:
-        del f["snaps"]
-    g = f.create_group("snaps")
-    keys = [k for k in snaps[0] if k != "profile"] if snaps else []
+def _write_table(f, name: str, rows: list[dict]):
+    """/``name``: a table of ``rows`` (/snaps, /landings); numbers as float columns, names
+    as strings, and the rows' ``profile`` (if any) as ``profiles``."""
+    if name in f:
+        del f[name]
+    g = f.create_group(name)
+    keys = [k for k in rows[0] if k != "profile"] if rows else []
     g.attrs["columns"] = json.dumps(keys)
-    if snaps:
-        g["profiles"] = np.array([row["profile"] for row in snaps])
+    if rows and "profile" in rows[0]:
+        g["profiles"] = np.array([row["profile"] for row in rows])
     for k in keys:
-        values = [row[k] for row in snaps]
+        values = [row[k] for row in rows]
         if isinstance(values[0], str):
             g.create_dataset(k, data=values, dtype=h5py.string_dtype())
         else:
             g[k] = np.asarray(values, dtype=float)
+
+
+def _read_table(f, name: str) -> list[dict]:
+    """The rows of the table /``name`` (`_write_table`), [] if there is none."""
+    if name not in f:
+        return []
+    keys = json.loads(f[name].attrs["columns"])
+    cols = {k: [x.decode() if isinstance(x, bytes) else x for x in f[name][k][()]]
+            for k in keys}
+    rows = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
+    if "profiles" in f[name]:
+        for row, prof in zip(rows, f[f"{name}/profiles"][()]):
+            row["profile"] = prof
+    return rows
 
 
 def _write_maps(f, maps):
@@ -542,7 +564,8 @@ class StoredBranch:
 class BranchFile:
     """A read-only view of an elastica-auto HDF5 file; raises StoreError with one line.
 
-    Opening reads the file's attributes, profile grid and snap-back table, and checks the
+    Opening reads the file's attributes, profile grid, snap-back table and landings (the
+    damped model's: ``landings``), and checks the
     whole layout from the datasets' shapes: each branch has every column, each a
     one-dimensional dataset of one length, and a profile per point; the ``labels`` attribute
     maps each label to a point of that label whose solution is stored (for which the ``type``
@@ -577,15 +600,7 @@ class BranchFile:
                 self.periods = json.loads(self.attrs.get("periods", "{}"))
                 self.labels = self._labels(self.attrs["labels"])
                 self.profile_grid = f["profile_grid"][()]
-                self.snaps = []
-                if "snaps" in f:
-                    keys = json.loads(f["snaps"].attrs["columns"])
-                    cols = {k: [x.decode() if isinstance(x, bytes) else x
-                                for x in f["snaps"][k][()]] for k in keys}
-                    self.snaps = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
-                    if "profiles" in f["snaps"]:
-                        for row, prof in zip(self.snaps, f["snaps/profiles"][()]):
-                            row["profile"] = prof
+                self.snaps, self.landings = _read_table(f, "snaps"), _read_table(f, "landings")
                 self.branches = [self._branch(key, f["branches"][key])
                                  for key in sorted(f.get("branches", {}))]
                 self._check_labels(f)
@@ -596,6 +611,7 @@ class BranchFile:
 
     def _damaged(self, what: str) -> StoreError:
         return self._source.damaged(what)
+
 
     def _labels(self, text: str) -> dict[str, tuple[int, int]]:
         try:

@@ -14,20 +14,24 @@ import math
 import numpy as np
 import pytest
 
+import elastica_auto.landing as landing_module
 from elastica_auto.landing import NODES, PUSH, land
 from elastica_auto.snaps import enumerate_equilibria, snap_lps
 
 
 P_HIGH = 9 * math.pi ** 2 / 4
+DAMPING = 2.0
 
 
 @pytest.fixture(scope="module")
 def arm(elastica, tmp_path_factory):
     """The rotating arm at eps = 0.5, P = 9 pi^2/4 (rotating_arm's last two branches), both
-    ways, with where every snap lands; saved for the command line."""
+    ways, with where every snap lands, and the damped model's landing at ``c = DAMPING``
+    from every fold; saved for the command line."""
     import elastica_auto as ea
     branches = ea.continuation(elastica, {"eps": 0.5, "P": P_HIGH}, "psi", directions="both",
-                               bounds=(-6 * math.pi, 6 * math.pi), landing=True)
+                               bounds=(-6 * math.pi, 6 * math.pi), landing=True,
+                               damping=[DAMPING])
     path = ea.save(branches, tmp_path_factory.mktemp("landing") / "arm.h5")
     return branches, path
 
@@ -141,6 +145,113 @@ def test_the_damped_model_loses_energy_and_lands(arm, elastica):
     assert weak.target is not None and eqs[weak.target].index == 0
 
 
+def test_below_the_lowest_saddle_the_damped_well_is_decided(arm, elastica, monkeypatch):
+    """The damped model stops once its total energy is below every saddle's (the well can no
+    longer change) and the overdamped flow finishes: it lands where integrating on until
+    the rod has settled does, and where it does with the integrator's tolerances / 100."""
+    folds = _folds(arm[0], elastica)
+    # the folds whose start lies above the lowest saddle: there the stop is a real shortcut
+    p, beyond, eqs = next(f for f in folds if landing_module._lowest_saddle(
+        *_flow_at(elastica, f)) < _start_energy(elastica, f))
+    # the lowest saddle against the energy of the module's docstring on the shooting
+    # equilibria, by quadrature on a fine grid (the discrete one is O(h^2) away)
+    s = np.linspace(0.0, 1.0, 4001)
+    q = dict(p.params)
+    q["psi"] += beyond * landing_module.BEYOND
+
+    def energy(eq):
+        theta, kappa = eq.state(s)[0], eq.state(s)[1]
+        density = kappa ** 2 / 2 + q["P"] * np.cos(theta - q["alpha"])
+        return (np.sum((density[1:] + density[:-1]) / 2) * (s[1] - s[0])
+                + q["eps"] * q["P"] * np.cos(q["psi"] + q["alpha"] - theta[-1]))
+    lowest = min(energy(e) for e in eqs
+                 if e.index > 0 and np.max(np.abs(e.state(s)[0] - p.state(s)[0])) > 0.2)
+    assert landing_module._lowest_saddle(*_flow_at(elastica, (p, beyond, eqs))) == \
+        pytest.approx(lowest, abs=1e-3 * (1 + abs(lowest)))
+    first = land(elastica, p.state, p.tangent, eqs, "psi", beyond, damping=DAMPING)
+    assert first.target is not None
+    e = first.energies
+    assert np.all(np.diff(e) <= 1e-6 * (1 + np.abs(e[:-1])))
+    monkeypatch.setattr(landing_module, "_lowest_saddle", lambda *args: -np.inf)
+    settled = land(elastica, p.state, p.tangent, eqs, "psi", beyond, damping=DAMPING)
+    assert settled.target == first.target
+    assert len(settled.times) > len(first.times)
+    monkeypatch.undo()
+    monkeypatch.setattr(landing_module, "DAMPED_RTOL", landing_module.DAMPED_RTOL / 100)
+    monkeypatch.setattr(landing_module, "DAMPED_ATOL", landing_module.DAMPED_ATOL / 100)
+    tight = land(elastica, p.state, p.tangent, eqs, "psi", beyond, damping=DAMPING)
+    assert tight.target == first.target
+
+
+def _flow_at(problem, fold):
+    """(flow, unstable equilibria's nodal values, the fold's) as `land` has them."""
+    p, beyond, eqs = fold
+    params = dict(p.params)
+    params["psi"] += beyond * landing_module.BEYOND
+    s = np.linspace(0.0, 1.0, NODES + 1)
+    flow = problem.gradient_flow(params, s)
+    return flow, [flow.to_u(e.state(s)) for e in eqs if e.index > 0], flow.to_u(p.state(s))
+
+
+def _start_energy(problem, fold):
+    flow, _, u_fold = _flow_at(problem, fold)
+    return flow.energy(u_fold)
+
+
+def test_the_damped_landings_of_mirrored_folds_are_mirrored(arm):
+    """``damping=[c]`` lands from every fold ending a stable branch on a stable target of
+    the fold, and mirrored folds (psi -> -psi) on mirrored equilibria (k -> -k)."""
+    rows, snaps = arm[0].landings, arm[0].snaps
+    assert len(rows) == len({(r["branch"], r["lp"]) for r in snaps}) >= 10
+    for r in rows:
+        assert r["landed"] == 1 and r["damping"] == DAMPING
+        assert any(q["lp"] == r["lp"] and abs(q["k"] - r["k"]) < 1e-9 for q in snaps), r["lp"]
+        assert any(abs(q["value"] + r["value"]) < 1e-6 and abs(q["k"] + r["k"]) < 1e-6
+                   for q in rows), (r["lp"], r["value"], r["k"])
+
+
+def test_the_damping_sweep_is_checked_saved_and_listed(arm, elastica, tmp_path, cli_exe):
+    """Bad ``damping``/``damping_folds`` are errors naming the argument (a run file's name
+    the key); a fold that ends no stable branch is a warning; the landings survive a save
+    and ``snaps`` lists them."""
+    import elastica_auto as ea
+    from elastica_auto.errors import PlanError
+    from elastica_auto.landing import damping_sweep
+    from elastica_auto.store import BranchFile
+    from helpers import run_cli
+    start = {"eps": 0.5, "P": P_HIGH}
+    for kwargs, key in ((dict(damping=[1.0]), "damping"),          # without landing
+                        (dict(landing=True, damping=[0.0]), "damping"),
+                        (dict(landing=True, damping=[1.0], damping_folds=["S3"]),
+                         "damping_folds"),
+                        (dict(landing=True, damping_folds=["LP1"]), "damping_folds")):
+        with pytest.raises(PlanError) as err:
+            ea.continuation(elastica, start, "psi", **kwargs)
+        assert err.value.key == key, kwargs
+    toml = tmp_path / "bad.toml"
+    toml.write_text('equation = "elastica_lever_arm"\nstart = "trivial"\n[continuation]\n'
+                    'parameter = "psi"\nlanding = true\ndamping = [-1]\n')
+    proc = run_cli(cli_exe, "run", toml, "--out", tmp_path)
+    assert proc.returncode == 2 and "[continuation] damping" in proc.stderr, proc.stderr
+    not_a_snap = next(p.name for b in arm[0] for p in b.folds
+                      if p.name not in {r["lp"] for r in arm[0].snaps})
+    warnings = []
+    assert damping_sweep(elastica, arm[0], [DAMPING], [not_a_snap], warnings) == []
+    assert warnings == [f"{not_a_snap}: not a fold ending a stable branch; no damping sweep"]
+    kept = BranchFile(arm[1]).landings
+    assert [(r["lp"], r["k"], r["target_m1"]) for r in kept] == [
+        (r["lp"], pytest.approx(r["k"], abs=0), pytest.approx(r["target_m1"], abs=0))
+        for r in arm[0].landings]
+    proc = run_cli(cli_exe, "snaps", arm[1])
+    lines = proc.stdout.splitlines()
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("damped model"))
+    table = [ln.split() for ln in lines[at + 2:]]
+    assert len(table) == len(kept)
+    for cols, r in zip(table, kept):
+        assert cols[0] == r["lp"] and float(cols[4]) == DAMPING
+        assert float(cols[5]) == pytest.approx(r["target_m1"], rel=1e-5)
+
+
 def test_landing_is_asked_for_and_needs_the_hook(arm, elastica, tmp_path):
     """The landing columns come with ``landing`` and the hook: without either the table is
     as before; asking a module without the hook is an error naming the argument."""
@@ -171,6 +282,7 @@ def test_the_snaps_command_marks_the_landing(arm, cli_exe):
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
     rows = arm[0].snaps
+    lines = lines[:lines.index("")] if "" in lines else lines   # the damped model's after
     assert len(lines) == 2 + len(rows)                 # the header, a row each, the legend
     marked = [ln.split() for ln in lines[1:-1] if ln.split()[-3] == "<-"]
     assert len(marked) == sum(r["landed"] for r in rows)
