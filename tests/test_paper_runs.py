@@ -37,6 +37,11 @@ REDUCED = {
     # winding up to psi = 28.6 is most of the shipped run's 25 s (reduced: 13 s)
     "higher_loads": [('bounds = ["-12*pi", "12*pi"]', 'bounds = ["-3*pi", "3*pi"]')],
     "pinned_arm": [('stop = ["n_abs > 80"]', 'stop = ["n_abs > 40"]')],
+    # S3 and its copy a period on, weakly and strongly damped (about 4 s a landing)
+    "snap_damping": [("damping = [0.05, 0.1, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, "
+                      "2.0, 4.0, 8.0]", "damping = [0.5, 20.0]"),
+                     ('damping_folds = ["LP13", "LP10", "LP18", "LP20"]',
+                      'damping_folds = ["LP18", "LP1"]')],
 }
 
 _BUILT: dict = {}
@@ -184,6 +189,27 @@ def test_rotating_base_folds_a_period_apart_land_alike(paper):
             assert b["k"] == pytest.approx(a["k"], abs=1e-6), (a["lp"], b["lp"])
             assert b["energy_released"] == pytest.approx(a["energy_released"], rel=1e-3)
     assert copies >= 10
+
+
+def test_damped_snaps_a_period_apart_land_alike_and_strong_damping_as_the_flow(paper):
+    """snap_damping (reduced): the damped model from S3 (LP18) and from its copy a period
+    of theta0 on (LP1) lands on the same equilibrium for each damping, always a stable one
+    at the fold (of its snap-back table); strongly damped (c = 20), where the overdamped
+    flow lands (its limit)."""
+    bf = _open(paper, "snap_damping")
+    by = {(r["lp"], r["damping"]): r for r in bf.landings}
+    assert sorted(by) == [("LP1", 0.5), ("LP1", 20.0), ("LP18", 0.5), ("LP18", 20.0)]
+    assert by["LP1", 0.5]["value"] - by["LP18", 0.5]["value"] == pytest.approx(TWO_PI)
+    for (lp, c), r in by.items():
+        assert r["landed"] == 1, (lp, c)
+        assert any(abs(t["target_m0"] - r["target_m0"]) < 1e-6
+                   for t in bf.snaps if t["lp"] == lp), (lp, c)
+        copy = by["LP1" if lp == "LP18" else "LP18", c]
+        assert r["target_m0"] == pytest.approx(copy["target_m0"], abs=1e-6)
+        assert r["energy_released"] == pytest.approx(copy["energy_released"], rel=1e-3)
+    for lp in ("LP1", "LP18"):
+        over = next(t for t in bf.snaps if t["lp"] == lp and t["landed"] == 1)
+        assert by[lp, 20.0]["target_m0"] == pytest.approx(over["target_m0"], abs=1e-6)
 
 
 # ---- 2. the rotating base is the rotating load mirrored ----------------------------------------

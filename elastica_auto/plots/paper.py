@@ -723,3 +723,70 @@ def fig_pinned_end(data_dir, out_dir):
                           xpi=True, insets=insets, legend_loc="lower right")
             draw_panel(sub, panel)
         return save(fig, out_dir, "pinned_end")
+
+
+# ------------------------------------------------------- beyond the paper: snaps under damping
+@figure("snap-damping", "",
+        "where figure 12's snaps land under the damped model `u_tt + c u_t = -grad E`: the "
+        "`m(0).e_z` of the equilibrium reached against the damping `c`, among the stable "
+        "targets at the fold, with the overdamped flow's landing",
+        ["snap_damping"])
+def fig_snap_damping(data_dir, out_dir):
+    bf = _open(data_dir, "snap_damping")
+    folds: dict = {}
+    for r in bf.landings:
+        folds.setdefault(r["lp"], []).append(r)
+    # named as in figure 12: by theta0 modulo 2 pi, largest first
+    order = sorted(folds, key=lambda lp: -np.mod(folds[lp][0]["value"], TWO_PI))
+    ncol = min(2, len(order))
+    nrow = -(-len(order) // ncol)
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(4.6 * ncol, 2.9 * nrow + 0.3), layout="constrained")
+        axs = np.atleast_1d(fig.subplots(nrow, ncol, squeeze=False)).ravel()
+        for ax in axs[len(order):]:
+            ax.axis("off")
+        for k, (ax, lp) in enumerate(zip(axs, order)):
+            rows = sorted(folds[lp], key=lambda r: r["damping"])
+            targets = [r for r in bf.snaps if r["lp"] == lp]
+            c = np.array([r["damping"] for r in rows])
+            x_over = c.max() * 2.5     # the overdamped flow, drawn right of every c
+            values = sorted(t["target_m0"] for t in targets)
+            close = 0.05 * (np.ptp(values) or 1.0)   # two labels this close: apart
+            for i, v in enumerate(values):           # every stable equilibrium at the fold
+                ax.axhline(v, color="0.75", lw=0.8, ls=":", zorder=1)
+                va = ("top" if i + 1 < len(values) and values[i + 1] - v < close else
+                      "bottom" if i > 0 and v - values[i - 1] < close else "center")
+                ax.annotate(f"{v:.2f}", (1.0, v), xycoords=("axes fraction", "data"),
+                            xytext=(3, 0), textcoords="offset points", va=va, fontsize=7,
+                            color="0.4")
+            got = [r for r in rows if r["landed"] == 1]
+            ax.step([r["damping"] for r in got], [r["target_m0"] for r in got],
+                    where="mid", color=SNAP_COLOR, lw=1.0, alpha=0.5, zorder=2)
+            ax.plot([r["damping"] for r in got], [r["target_m0"] for r in got], "o",
+                    color=SNAP_COLOR, ms=4.5, zorder=3, label="damped model")
+            missed = [r["damping"] for r in rows if r["landed"] != 1]
+            if missed:
+                ax.plot(missed, np.full(len(missed), ax.get_ylim()[0]), "x", color="black",
+                        zorder=3, label="no stable equilibrium reached")
+            over = next((t for t in targets if t.get("landed") == 1), None)
+            if over is not None:
+                ax.plot([x_over], [over["target_m0"]], "*", color=SNAP_COLOR, ms=9,
+                        mec="black", mew=0.5, zorder=3, label="overdamped flow")
+            ax.set_xscale("log")
+            ax.set_xlim(c.min() / 1.5, x_over * 1.6)
+            ticks = [v for v in (0.01, 0.1, 1, 10, 100) if c.min() / 1.5 <= v <= c.max()]
+            ax.set_xticks(ticks + [x_over], [f"{v:g}" for v in ticks] + [r"$\infty$"])
+            ax.minorticks_off()
+            pad = 0.08 * (np.ptp([t["target_m0"] for t in targets]) or 1.0)
+            ax.set_ylim(min(t["target_m0"] for t in targets) - pad,
+                        max(t["target_m0"] for t in targets) + pad)
+            ax.set_xlabel(r"damping $c$")
+            ax.set_ylabel(r"landing: " + TEX["m0"])
+            ax.set_title(rf"S{k + 1}: {lp} at $\theta_0={rows[0]['value']:.3f}$ "
+                         rf"($\equiv{np.mod(rows[0]['value'], TWO_PI):.3f}$)", fontsize=9)
+            if k == 0:
+                ax.legend(loc="best", fontsize=7)
+        fig.suptitle(r"rotating base, $\epsilon=0.5$, $\psi=\pi/2$, $P=9\pi^2/4$: where "
+                     r"each snap of figure 12 lands under $u_{tt} + c\,u_t = -\nabla E$ "
+                     "(dotted: every stable equilibrium at the fold)", fontsize=9)
+        return save(fig, out_dir, "snap_damping")
