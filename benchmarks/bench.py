@@ -20,6 +20,11 @@
    1 and 2 workers, and in one process: branches per second, and the scheduling overhead per
    task (the cluster's busy time not spent in the branches, over the tasks).
 
+6. Where a snap lands: the rotating arm at eps = 0.5, P = 9 pi^2/4 (psi both ways to 6 pi),
+   the overdamped landing from each of its folds that end a stable branch, and the damped
+   model's at c = 0.5 and 2 from the first three (``make runs`` times ``snap_damping`` without
+   its damping sweep, which this measures per landing).
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -113,6 +118,8 @@ def _run_files(corrector, folder: Path) -> Path:
         if src.parent.name == "examples":
             text = text.replace('equation = "bratu.py"',
                                 f'equation = "{REPO / "examples" / "bratu.py"}"')
+        # the damped landings of snap_damping are timed per landing (`landing`), not here
+        text = re.sub(r"(?m)^damping(_folds)? = .*$", "", text)
         if "[options]" in text:
             text = text.replace("[options]", f'[options]\ncorrector = "{corrector}"', 1)
         else:
@@ -262,6 +269,40 @@ def sweep(branches=64):
               f"({100 * overhead / (1000 * busy / len(first)):.0f}%)")
 
 
+def landing(damped=3, damping=(0.5, 2.0)):
+    """Seconds of the overdamped landing of every fold ending a stable branch, and of the
+    damped model's from the first ``damped`` of them for each ``damping``."""
+    import numpy as np
+
+    import elastica_auto as ea
+    from elastica_auto.landing import land
+    from elastica_auto.snaps import enumerate_equilibria, snap_lps
+    problem = ea.load_problem("elastica_lever_arm")
+    branches = ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi ** 2 / 4}, "psi",
+                               directions="both", bounds=(-6 * math.pi, 6 * math.pi))
+    folds = []
+    for br in branches:
+        for p, side in snap_lps(br):
+            k = br.points.index(p)
+            other = br.points[k - 1 if side == "before" else k + 1]
+            folds.append((p, int(np.sign(p.params["psi"] - other.params["psi"])),
+                          enumerate_equilibria(problem, p.params)))
+    t0 = time.perf_counter()
+    for p, beyond, eqs in folds:
+        land(problem, p.state, p.tangent, eqs, "psi", beyond)
+    over = time.perf_counter() - t0
+    print(f"where a snap lands (rotating arm, eps = 0.5, P = 9 pi^2/4): overdamped, "
+          f"{len(folds)} folds {over:.2f} s ({1000 * over / len(folds):.0f} ms a fold)")
+    for c in damping:
+        times = []
+        for p, beyond, eqs in folds[:damped]:
+            t0 = time.perf_counter()
+            land(problem, p.state, p.tangent, eqs, "psi", beyond, damping=c)
+            times.append(time.perf_counter() - t0)
+        print(f"  damped, c = {c:g}: " + ", ".join(f"{t:.2f}" for t in times)
+              + f" s (the first {damped} folds; sum {sum(times):.2f} s)")
+
+
 def main():
     step_cost()
     print("\nrotating_arm in one process (8 branches to |psi| = 6 pi):")
@@ -278,6 +319,8 @@ def main():
     map_runs()
     print()
     sweep()
+    print()
+    landing()
 
 
 if __name__ == "__main__":
@@ -285,5 +328,7 @@ if __name__ == "__main__":
         memory()
     elif sys.argv[1:] == ["--sweep"]:
         sweep()
+    elif sys.argv[1:] == ["--landing"]:
+        landing()
     else:
         main()
