@@ -416,8 +416,11 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
         if plan.damping:
             from .landing import damping_sweep
-            result.landings = damping_sweep(plan.problem, branches, plan.damping,
-                                            plan.damping_folds, result.warnings, on_landing)
+            try:
+                result.landings = damping_sweep(plan.problem, branches, plan.damping,
+                                                plan.damping_folds, result.warnings, on_landing)
+            except Exception as exc:  # the module failing in the scan: keep the branches
+                result.warnings.append(f"damped landings failed: {_one_line(exc)}")
             for row in result.landings:
                 row["branch"] += result.kept
             if kept is not None:

@@ -232,17 +232,21 @@ def test_a_module_failing_in_its_exact_start_is_one_line(tmp_path, cli_exe):
 
 
 
-def test_a_module_failing_in_the_snap_scan_keeps_the_branches(tmp_path, cli_exe):
+@pytest.mark.parametrize("damped", [False, True])
+def test_a_module_failing_in_the_snap_scan_keeps_the_branches(tmp_path, cli_exe, damped):
     """The scan runs after the branches (the run has a fold ending a stable segment): a
-    ``shooting`` hook that raises costs the snap-back targets only, with a warning."""
+    ``shooting`` hook that raises costs the snap-back targets only, with a warning; and,
+    with ``damping``, the damped landings, with another."""
     _module(tmp_path, ELASTICA, "def shooting(p):\n", 'raise ValueError("no shooting")\n')
-    (tmp_path / "mine.toml").write_text(PSI_RUN.format(directions="+"))
+    (tmp_path / "mine.toml").write_text(PSI_RUN.format(directions="+") + (
+        "landing = true\ndamping = [1.0]\n" if damped else ""))
     proc = run_cli(cli_exe, "run", tmp_path / "mine.toml", "--out", tmp_path / "out")
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert "warning: snap-back scan failed: ValueError: no shooting" in proc.stdout
+    assert ("warning: damped landings failed: ValueError: no shooting" in proc.stdout) == damped
     bf = BranchFile(tmp_path / "out" / "mine.h5")
     assert len(bf.branches) == 1 and bf.branches[0].attrs["end"] == "EP"
-    assert any(n.startswith("LP") for n in bf.labels) and bf.snaps == []
+    assert any(n.startswith("LP") for n in bf.labels) and bf.snaps == [] and bf.landings == []
 
 
 def test_a_module_failing_at_a_stored_branch_point_is_one_line(tmp_path, cli_exe):
