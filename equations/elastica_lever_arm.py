@@ -226,8 +226,9 @@ LINE_WIDTH, CLAMP_HALF_WIDTH, ARROW_LENGTH = 1.4, 0.16, 0.42
 
 
 def arm_end(profile, p):
-    """The end of the lever arm (where the load acts) of a profile ``[theta, kappa, x, y]``
-    on the grid (4, m): the arm leaves the tip at angle theta(1) - psi from the vertical."""
+    """The end of the lever arm (where the load acts) of a profile ``[theta, kappa, x, y,
+    ...]`` on the grid (n, m): the arm leaves the tip at angle theta(1) - psi from the
+    vertical."""
     theta1, x1, y1 = profile[0, -1], profile[2, -1], profile[3, -1]
     return np.array((x1 + p["eps"] * np.sin(p["psi"] - theta1),
                      y1 + p["eps"] * np.cos(p["psi"] - theta1)))
@@ -236,6 +237,17 @@ def arm_end(profile, p):
 def draw(ax, profile, p):
     """Draw the configuration on ``ax``: the clamp (hatched, turned by theta0), the centreline,
     the lever arm and the load arrow F = P (sin alpha, -cos alpha) ending at the arm's end."""
+    _, end = draw_rod(ax, profile, p)
+    ax.plot(*end, "o", ms=LINE_WIDTH * 1.8, color=ARM_COLOR, zorder=5)
+    if p["P"] != 0:
+        a = p["alpha"]
+        draw_force(ax, end, np.sign(p["P"]) * np.array((np.sin(a), -np.cos(a))), "load")
+
+
+def draw_rod(ax, profile, p):
+    """The clamp (hatched, turned by theta0), the centreline and the lever arm of ``profile``
+    (rows theta, kappa, x, y, ...) on ``ax``; the rod's tip and the arm's end. Shared with
+    the modules of this rod under other end conditions (elastica_pinned)."""
     t0 = p["theta0"]
     tangent = np.array((-np.sin(t0), np.cos(t0)))
     normal = np.array((np.cos(t0), np.sin(t0)))
@@ -252,12 +264,15 @@ def draw(ax, profile, p):
     ax.plot((tip[0], end[0]), (tip[1], end[1]), color=ARM_COLOR, lw=LINE_WIDTH * 0.7, zorder=4,
             solid_capstyle="round", gid="lever arm")
     ax.plot(*tip, "o", ms=LINE_WIDTH * 1.3, color=ROD_COLOR, zorder=5)
-    ax.plot(*end, "o", ms=LINE_WIDTH * 1.8, color=ARM_COLOR, zorder=5)
-    if p["P"] != 0:
-        a = p["alpha"]
-        tail = end - ARROW_LENGTH * np.sign(p["P"]) * np.array((np.sin(a), -np.cos(a)))
-        ax.annotate("", xy=end, xytext=tail, zorder=6, gid="load",
-                    arrowprops=dict(arrowstyle="-|>", color=LOAD_COLOR, lw=LINE_WIDTH * 0.75,
-                                    mutation_scale=6 + 2 * LINE_WIDTH, shrinkA=0,
-                                    shrinkB=LINE_WIDTH * 1.2))
-        ax.update_datalim([tail])
+    return tip, end
+
+
+def draw_force(ax, head, direction, gid: str):
+    """A force on ``ax``: an arrow along ``direction`` ending at ``head``, its length
+    ARROW_LENGTH whatever the force's size."""
+    tail = head - ARROW_LENGTH * np.asarray(direction) / np.hypot(*direction)
+    ax.annotate("", xy=head, xytext=tail, zorder=6, gid=gid,
+                arrowprops=dict(arrowstyle="-|>", color=LOAD_COLOR, lw=LINE_WIDTH * 0.75,
+                                mutation_scale=6 + 2 * LINE_WIDTH, shrinkA=0,
+                                shrinkB=LINE_WIDTH * 1.2))
+    ax.update_datalim([tail])

@@ -50,6 +50,8 @@ import math
 
 import numpy as np
 
+from elastica_auto.equations.elastica_lever_arm import (ARM_COLOR, CLAMP_COLOR, LINE_WIDTH,
+                                                       draw_force, draw_rod)
 from elastica_auto.problem import Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y", "nx", "ny")
@@ -247,41 +249,16 @@ def guess(s, p):
     return np.vstack((y, np.full(len(s), z[best, 1]), np.full(len(s), z[best, 2])))
 
 
-#: Colours and sizes of the drawn configurations (those of ``elastica_lever_arm``).
-ROD_COLOR, ARM_COLOR, LOAD_COLOR, CLAMP_COLOR = "black", "#555555", "#e66101", "0.2"
-LINE_WIDTH, CLAMP_HALF_WIDTH, ARROW_LENGTH, PIN_SIZE = 1.4, 0.16, 0.42, 0.07
-
-
-def arm_end(profile, p):
-    """The end of the lever arm (at the pin, up to the solution's accuracy) of a profile on
-    the grid (6, m)."""
-    theta1, x1, y1 = profile[0, -1], profile[2, -1], profile[3, -1]
-    return np.array((x1 + p["eps"] * np.sin(p["psi"] - theta1),
-                     y1 + p["eps"] * np.cos(p["psi"] - theta1)))
+#: Size of the drawn pin (the rest is drawn as ``elastica_lever_arm`` draws it).
+PIN_SIZE = 0.07
 
 
 def draw(ax, profile, p):
-    """Draw the configuration on ``ax``: the clamp (hatched, turned by theta0), the centreline,
-    the lever arm, the pin (a triangle with its hinge) at (X, Y), and the reaction n as an
-    arrow ending at the pin, its length ARROW_LENGTH whatever |n|."""
-    t0 = p["theta0"]
-    tangent = np.array((-np.sin(t0), np.cos(t0)))
-    normal = np.array((np.cos(t0), np.sin(t0)))
-    wall = np.outer(normal, (-CLAMP_HALF_WIDTH, CLAMP_HALF_WIDTH))
-    ax.plot(wall[0], wall[1], color=CLAMP_COLOR, lw=LINE_WIDTH * 0.9, solid_capstyle="butt",
-            zorder=3)
-    for u in np.linspace(-CLAMP_HALF_WIDTH, CLAMP_HALF_WIDTH, 5):
-        a = u * normal
-        b = a - 0.09 * tangent - 0.07 * normal
-        ax.plot((a[0], b[0]), (a[1], b[1]), color="0.35", lw=0.6, zorder=3)
-    x, y = profile[2], profile[3]
-    tip, end = np.array((x[-1], y[-1])), arm_end(profile, p)
-    pin = np.array((p["X"], p["Y"]))
-    ax.plot(x, y, color=ROD_COLOR, lw=LINE_WIDTH, zorder=4, solid_capstyle="round", gid="rod")
-    ax.plot((tip[0], end[0]), (tip[1], end[1]), color=ARM_COLOR, lw=LINE_WIDTH * 0.7, zorder=4,
-            solid_capstyle="round", gid="lever arm")
-    ax.plot(*tip, "o", ms=LINE_WIDTH * 1.3, color=ROD_COLOR, zorder=5)
-    h = PIN_SIZE
+    """Draw the configuration on ``ax``: the clamp, centreline and lever arm (as
+    ``elastica_lever_arm`` draws them), the pin (a triangle with its hinge) at (X, Y), and
+    the reaction n as an arrow ending at the pin, its length fixed whatever |n|."""
+    draw_rod(ax, profile, p)
+    pin, h = np.array((p["X"], p["Y"])), PIN_SIZE
     tri = pin + np.array(((0.0, 0.0), (-h, -1.6 * h), (h, -1.6 * h), (0.0, 0.0)))
     ax.fill(tri[:, 0], tri[:, 1], facecolor="white", edgecolor=CLAMP_COLOR, lw=0.8, zorder=5,
             gid="pin")
@@ -290,11 +267,5 @@ def draw(ax, profile, p):
     ax.plot(*pin, "o", ms=LINE_WIDTH * 2.2, markerfacecolor="white", markeredgecolor=ARM_COLOR,
             zorder=6)
     n = profile[4:6, -1]
-    size = math.hypot(*n)
-    if size > 0:
-        tail = pin - ARROW_LENGTH * n / size
-        ax.annotate("", xy=pin, xytext=tail, zorder=7, gid="reaction",
-                    arrowprops=dict(arrowstyle="-|>", color=LOAD_COLOR, lw=LINE_WIDTH * 0.75,
-                                    mutation_scale=6 + 2 * LINE_WIDTH, shrinkA=0,
-                                    shrinkB=LINE_WIDTH * 1.2))
-        ax.update_datalim([tail])
+    if math.hypot(*n) > 0:
+        draw_force(ax, pin, n, "reaction")
