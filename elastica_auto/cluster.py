@@ -128,32 +128,11 @@ def _task(plan, k: int, job):
     return branch, get_worker().address
 
 
-class Interruptions:
-    """While active, Ctrl-C and SIGTERM set ``stop`` instead of raising KeyboardInterrupt
-    (which, raised at an arbitrary point, inside the client's own callbacks say, would be
-    reported as an "exception ignored" traceback or stop a save half way); the handlers
-    before are restored on exit. In the main thread only (elsewhere, signals are not ours)."""
-
-    def __init__(self):
-        self.stop = threading.Event()
-        self._before = {}
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._before[sig] = signal.signal(sig, lambda signum, frame: self.stop.set())
-        return self
-
-    def __exit__(self, *exc_info):
-        for sig, handler in self._before.items():
-            signal.signal(sig, handler)
-
-
 def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                    on_tasks: TaskProgress | None = None, stop=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
     ``branches`` in plan order and calling ``save()`` after each; True if interrupted
-    (``stop``, a `threading.Event`, set: see `Interruptions`)."""
+    (``stop``, a `threading.Event`, set: see `elastica_auto.interrupts.Interruptions`)."""
     from .run import _new_branch, _one_line
     from .stepper import start_point
     offset = len(branches)

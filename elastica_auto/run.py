@@ -21,6 +21,7 @@ from .augmented import Augmented
 from .branch import Branch
 from .correctors import CorrectorFailure, make_corrector
 from .errors import USER_ERRORS, RunFileError, StartError
+from .interrupts import Interruptions
 from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
 from .maps import stability_maps
@@ -201,7 +202,9 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     """Continue branch number ``k`` of the file from ``job``'s start, then label its
     stability. Ctrl-C (or ``should_stop()`` turning true) or a failure ends the branch early
     with MX, keeping every point computed so far (`elastica_auto.stepper.continue_branch`):
-    one failing branch does not cost the run its other branches."""
+    one failing branch does not cost the run its other branches. A Ctrl-C once the
+    continuation is over waits for the labelling, and sets ``interrupted`` on the branch,
+    which is kept whole."""
     br = _new_branch(plan, job)
 
     def on_step(b, lam):
@@ -212,9 +215,11 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
 
     t0 = time.perf_counter()
     continue_branch(br, plan.problem, plan.course, job.origin, on_step)
-    if plan.curve == "fold":
-        codim2.label_fold_curve(br, plan.problem, plan.base)
-    label_stability(br, plan.problem)
+    with Interruptions() as late:  # raised here, it would throw the computed branch away
+        if plan.curve == "fold":
+            codim2.label_fold_curve(br, plan.problem, plan.base)
+        label_stability(br, plan.problem)
+    br.interrupted = br.interrupted or late.stop.is_set()
     br.seconds = time.perf_counter() - t0
     return br
 
@@ -387,7 +392,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             second = switch_jobs(plan, list(branches), result.warnings)
             interrupted = _in_process(plan, second, branches, save, progress, on_branch)
     else:
-        from .cluster import Interruptions, close, run_on_cluster
+        from .cluster import close, run_on_cluster
         interrupted = True      # until the jobs have run
         with Interruptions() as signals:   # until the cluster is closed
             try:
@@ -439,16 +444,17 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
 def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
     """Compute ``jobs_list`` one after the other in this process (appending to ``branches``,
     ``save()`` after each); True if interrupted (the branch in progress is kept up to its last
-    point)."""
+    point). A Ctrl-C while a computed branch is saved and reported waits for them."""
     for job in jobs_list:
         k = len(branches) + 1
         br = compute_branch(plan, k, job, progress)
-        branches.append(br)
-        save()
-        if br.interrupted:
+        with Interruptions() as late:
+            branches.append(br)
+            save()
+            if on_branch is not None and not br.interrupted:
+                on_branch(k, br)
+        if br.interrupted or late.stop.is_set():
             return True
-        if on_branch is not None:
-            on_branch(k, br)
     return False
 
 
