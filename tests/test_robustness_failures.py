@@ -370,13 +370,19 @@ def test_a_second_ctrl_c_does_not_wait_for_a_slow_step(tmp_path, cli_exe):
     import signal
     import subprocess
     import time
+    slow, near_end = tmp_path / "slow", tmp_path / "near_end"   # touched by the branches
     _module(tmp_path, BRATU, "def rhs(s, y, p):\n",
-            'if p["lam"] > 1:\n    import time\n    time.sleep(60)\n')
+            f'import pathlib\nif p["lam"] < -0.9:\n    pathlib.Path({str(near_end)!r}).touch()\n'
+            f'if p["lam"] > 1:\n    import time\n    pathlib.Path({str(slow)!r}).touch()\n'
+            '    time.sleep(60)\n')
     toml = tmp_path / "mine.toml"
     toml.write_text(RUN)
     proc = subprocess.Popen([cli_exe, "run", toml, "--out", tmp_path / "out", "-j", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4)                     # both branches started; one is in its slow step
+    deadline = time.monotonic() + 60  # one branch in its slow step, the other near its end
+    while not (slow.exists() and near_end.exists()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(1)                     # the other one done
     proc.send_signal(signal.SIGINT)
     time.sleep(1)
     t0 = time.monotonic()
