@@ -200,7 +200,12 @@ def locate_branch_point(corr, step: Step) -> Located:
     """The branch point between a and b, where the determinant changes sign: the root of
     ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
     and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
-    equidistributed ones. ``value``: the scaled determinant there."""
+    equidistributed ones. ``value``: the scaled determinant there.
+
+    The sign change must survive a re-solve of a and b on that mesh with every interval
+    halved: a change of sign that an under-resolved mesh makes (a discrete eigenvalue that
+    crosses zero on one mesh only) is not a branch point. CorrectorFailure where it does
+    not."""
     name = step.name
     s, lo, hi = step.b.mesh, 0.0, step.dist
     for _ in range(4):
@@ -211,12 +216,24 @@ def locate_branch_point(corr, step: Step) -> Located:
         rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
                                                            v, v_lam, name))
         if rms.max() <= corr.options.fold_tol:
+            _check_on_finer_mesh(corr, step, sol.mesh)
             return bp
         s = corr.regrid(s, rms, corr.options.fold_tol)
         width = 0.02 * step.dist
         lo, hi = max(bp.sigma - width, 0.0), min(bp.sigma + width, step.dist)
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
+
+
+def _check_on_finer_mesh(corr, step: Step, s):
+    """CorrectorFailure unless the determinant has opposite signs at a and b solved again on
+    the mesh ``s`` with its intervals halved."""
+    fine = np.sort(np.concatenate([s, (s[:-1] + s[1:]) / 2]))
+    signs = [_det_on(corr, corr.on_plane(step.a, step.secant, sigma, fine, regrid=False),
+                     step.secant, fine)[0] for sigma in (0.0, step.dist)]
+    if signs[0] * signs[1] >= 0:
+        raise CorrectorFailure("the determinant's change of sign does not survive a finer "
+                               f"mesh ({len(fine)} nodes)")
 
 
 def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:

@@ -38,7 +38,7 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from .correctors import CorrectorFailure, Solution, make_corrector
-from .events import (Step, UserValues, crossings, locate_branch_point, locate_fold,
+from .events import (Located, Step, UserValues, crossings, locate_branch_point, locate_fold,
                      locate_limit, locate_value, pair_suspected, tangent_between)
 from .newton import Row
 from .options import ContinuationOptions
@@ -111,7 +111,12 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     """The start as a linearised solution, its tangent oriented so that the parameter moves in
     ``direction`` (along a stored tangent ``guess`` where the parameter is stationary).
     ``exact``: ``guess`` is the direction to follow as it is (the other branch at a branch
-    point, where the bordered Jacobian is singular)."""
+    point, where the bordered Jacobian is singular).
+
+    The two directions always leave along +t and -t of one tangent t. Where the parameter is
+    stationary to first order (|t_lam| <= STATIONARY: a fold, a cusp, a hysteresis point),
+    the sign of t_lam is rounding and says nothing; t is then oriented along ``guess``, or
+    else by :func:`_orientation`, which does not depend on the sign the solver returned."""
     name = corr.parameter
     disc = corr.disc(start.s)
     lam = start.params[name]
@@ -127,12 +132,61 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     else:
         row = Row.value(disc, 0.0)
     t = corr.solution(disc, start.params, start.y, lam, row).tangent
-    if abs(t.lam) > 1e-6:
+    if abs(t.lam) > STATIONARY:
         sign = 1.0 if t.lam * direction > 0 else -1.0
-    else:
+    elif guess is not None:  # t is oriented along the stored tangent: <guess, t> > 0
         sign = float(direction)
+    else:
+        sign = direction * _orientation(corr, disc, start, t)
     t = t.scaled(sign)
     return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
+
+
+#: A unit tangent whose parameter component is at most this leaves the parameter stationary
+#: to first order: its orientation is then decided by :func:`_orientation`.
+STATIONARY = 1e-6
+
+
+def _orientation(corr, disc, start: State, t: Tangent) -> float:
+    """+1 if t, else -1 (-t), is the way a stationary start goes up in the parameter.
+
+    A probe on the hyperplanes at +-ds along t (ds the options' first step): at a cusp or
+    hysteresis point, lam - lam_0 ~ c sigma^3, and the side where the parameter rose is
+    +. Where both sides agree (a fold or a pitchfork, lam - lam_0 ~ c sigma^2) or a probe
+    fails, the side of t whose largest component (in absolute value, over every state and
+    node) is positive: a choice made by the solution, not by the sign the solver returned."""
+    name = corr.parameter
+    sol = corr.solution(disc, start.params, start.y, start.params[name],
+                        Row(disc.weights * t.y, t.lam, 0.0))
+    ds = abs(corr.options.ds)
+    try:
+        rise = [corr.on_plane(sol, t, side * ds, regrid=False).lam - sol.lam
+                for side in (1.0, -1.0)]
+    except CorrectorFailure:
+        rise = [0.0, 0.0]
+    if rise[0] * rise[1] < 0:
+        return 1.0 if rise[0] > 0 else -1.0
+    flat = t.y.ravel()
+    return 1.0 if flat[np.argmax(np.abs(flat))] > 0 else -1.0
+
+
+#: At most this many solves look for the minimum of the parameter's slope inside a step
+#: where the cubic model suspects a fold pair (`_Walk._probe`).
+PROBES = 4
+
+
+def _vertex(points) -> float | None:
+    """The abscissa of the vertex of the parabola through three (u, f) points, if it is a
+    minimum inside (0, 1); else None."""
+    (u0, f0), (u1, f1), (u2, f2) = points
+    if not u0 < u1 < u2:
+        return None
+    d01, d12 = (f1 - f0) / (u1 - u0), (f2 - f1) / (u2 - u1)
+    curvature = (d12 - d01) / (u2 - u0)
+    if not curvature > 0:
+        return None
+    u = (u0 + u1) / 2 - d01 / (2 * curvature)
+    return u if 0.0 < u < 1.0 else None
 
 
 #: The message of a branch ended by Ctrl-C or SIGTERM (a ``--resume`` computes it again).
@@ -388,9 +442,10 @@ class _Walk:
             if u is not None:
                 self._probe(step, u, ds, index_a)
         found = []
+        located = self._branch_point(step, can_retry) if bp else None
         if fold:
             try:
-                found.append(self._fold_event(step, bp))
+                found.append(self._fold_event(step, located is not None))
             except CorrectorFailure as exc:
                 if can_retry:
                     self.event_retries += 1
@@ -398,10 +453,12 @@ class _Walk:
                 self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not located: {exc}")
                 found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
                                     note=f"fold not located: {exc}"))
-        elif bp:
-            event = self._branch_point(step, index_a, index_b)
-            if event is not None:
-                found.append(event)
+        elif located is not None:
+            note = ""
+            if index_a >= 0 and index_b >= 0 and abs(index_b - index_a) != 1:
+                note = f"index {index_a} -> {index_b} across the branch point"
+            found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
+                                abs(located.value), note=note))
         if index_a >= 0 and index_b >= 0 and not skip:
             expected = self._rule(step, found, index_a)
             if expected is not None and expected != index_b:
@@ -539,20 +596,32 @@ class _Walk:
 
     # -- detection helpers ------------------------------------------------------------------
     def _probe(self, step: Step, u: float, ds: float, index_a: int):
-        """The slope of the parameter dips inside the step: solve at the dip and look at the
-        tangent and index there; a sign change (or an index that differs from a's) means a
-        fold pair: retry with a step that ends before the dip."""
-        try:
-            mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
-        except CorrectorFailure:
-            raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
-        t = mid.tangent
-        if inner(t, step.secant, mid.mesh) < 0:
-            t = t.scaled(-1.0)
-        if t.lam * step.a.tangent.lam <= 0 or (
-                index_a >= 0 and index(self.problem, mid.state) != index_a):
-            raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
-                          max(u * ds / 2, ds / 8))
+        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
+        look for the slope's minimum along the step. Each probe solves on the hyperplane at
+        u and reads the tangent and index there; a tangent turned over (or an index that
+        differs from a's) means a fold pair: retry with a step that ends before it. Else the
+        next u is the vertex of the parabola through the three lowest slopes known (the
+        ends' and the probes'), up to PROBES probes or until u moves by less than 1e-3: a
+        pair narrower than the model's error (near a cusp) is found all the same."""
+        sign = math.copysign(1.0, step.a.tangent.lam)
+        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
+        for _ in range(PROBES):
+            try:
+                mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
+            except CorrectorFailure:
+                raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
+            t = mid.tangent
+            if inner(t, step.secant, mid.mesh) < 0:
+                t = t.scaled(-1.0)
+            if sign * t.lam <= 0 or (
+                    index_a >= 0 and index(self.problem, mid.state) != index_a):
+                raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
+                              max(u * ds / 2, ds / 8))
+            known.append((u, sign * t.lam))
+            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
+            if nxt is None or abs(nxt - u) < 1e-3:
+                return
+            u = nxt
 
     def _fold_event(self, step: Step, bp: bool) -> _Event:
         before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
@@ -566,18 +635,25 @@ class _Walk:
                           note="turning point without index change")
         return _Event(sigma, "LP", fp.state, phi, fp.residual)
 
-    def _branch_point(self, step: Step, index_a: int, index_b: int) -> _Event | None:
-        name = self.name
+    def _branch_point(self, step: Step, can_retry: bool) -> Located | None:
+        """The branch point where the determinant changed sign in the step, located, or
+        None (with a warning) once retries are spent.
+
+        A step whose branch point cannot be located is retried shorter: where the step
+        jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
+        has the other sign), the solutions on the hyperplanes between the two branches fail
+        or the sign change does not survive a finer mesh, and a shorter step follows the
+        branch round its corner."""
         try:
-            bp = locate_branch_point(self.corr, step)
+            return locate_branch_point(self.corr, step)
         except CorrectorFailure as exc:
-            self.branch.warnings.append(f"branch point between {name} = {step.a.lam:.6g} and "
-                                        f"{step.b.lam:.6g} not located: {exc}")
+            if can_retry:
+                self.event_retries += 1
+                raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
+            self.branch.warnings.append(f"branch point between {self.name} = "
+                                        f"{step.a.lam:.6g} and {step.b.lam:.6g} not located: "
+                                        f"{exc}")
             return None
-        note = ""
-        if index_a >= 0 and index_b >= 0 and abs(index_b - index_a) != 1:
-            note = f"index {index_a} -> {index_b} across the branch point"
-        return _Event(bp.sigma, "BP", bp.solution.state, step.secant, abs(bp.value), note=note)
 
     def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
         """The index at b by the fold rule from a's (None where the rule does not apply)."""
