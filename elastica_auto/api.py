@@ -166,8 +166,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     PlanError
         An argument that cannot be used (``exc.key`` names it).
     StartError
-        A start that cannot be built (no exact solution there, no solution at the changed
-        parameters).
+        A start that cannot be built (no exact solution there, a changed parameter value
+        that the continuation from the label does not reach).
     Interrupted
         Ctrl-C; ``exc.branches`` holds what was computed.
     """

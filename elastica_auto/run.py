@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import codim2, store
+from . import codim2, restart, store
 from .augmented import Augmented
 from .branch import Branch
 from .correctors import CorrectorFailure, make_corrector
@@ -57,7 +57,9 @@ class Job:
 
 
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
-    """The start of a branch: an exact solution, a stored label, or the other branch at a BP."""
+    """The start of a branch: an exact solution, a stored label (continued to the spec's
+    parameter values where they change its own, `elastica_auto.restart`), or the other branch
+    at a BP."""
     problem, opt = plan.problem, plan.options
     if spec.start.kind == "trivial":
         return _checked(plan, Job(spec, Origin(_from_values(plan, {**problem.defaults(),
@@ -70,18 +72,17 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
         if not spec.start.label.startswith("BP"):
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent)
-    if stored.tangent_parameter != plan.parameter:
+    # free parameters are solved for: a value given to one is no place to move to
+    free = problem.free if isinstance(problem, Augmented) else ()
+    targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
+    if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
+        state = restart.move(problem, state, targets, opt, tangent=tangent,
+                             tangent_parameter=stored.tangent_parameter,
+                             singular=spec.start.label[:2] in ("LP", "BP", "CP"),
+                             where=str(spec.start))
+    if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
-    params = {**state.params, **spec.params}
-    if params != state.params:
-        corr = make_corrector(problem, plan.parameter, opt)
-        try:
-            state = corr.at_value(state, params, params[plan.parameter])
-        except CorrectorFailure as exc:
-            raise StartError(f"{spec.start}: no solution at the changed parameters "
-                             f"({exc})") from None
-        tangent = None
-    singular = spec.start.label[:2] in ("LP", "BP") and params == stored.state.params
+    singular = spec.start.label[:2] in ("LP", "BP") and not targets
     return _checked(plan, Job(spec, Origin(state, tangent,
                                            "singular" if singular else "regular")))
 

@@ -1,4 +1,5 @@
-"""Restarts: continuing a different parameter from a labelled solution of an earlier run."""
+"""Restarts: continuing a different parameter from a labelled solution of an earlier run, at its
+parameter values or at changed ones."""
 
 from __future__ import annotations
 
@@ -7,10 +8,13 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
+import elastica_auto as ea
 import shooting
 from helpers import elastica_run_file, invariant, invariant_bound, run_cli, run_plan
 from elastica_auto import runfile
+from elastica_auto.errors import StartError
 from elastica_auto.store import BranchFile
 
 
@@ -184,3 +188,231 @@ def test_restart_from_a_branch_point_in_both_directions(tmp_path, cli_exe):
         assert np.all(np.sign(np.diff(bc["P"])) == np.sign(end - bp.params["P"]))
         assert np.max(np.abs(bc["m0"])) < 1e-9 and np.max(np.abs(bc["m1"])) < 1e-9   # straight
         assert np.all(bc["index"][1:] == index)
+
+
+# ---- restarts at changed parameter values: the label continued to them --------------------------
+# Checked against the shooting solver (tests/shooting.py, no elastica_auto code): the start is an
+# equilibrium at exactly the new values, next to the label, and exists exactly where shooting
+# finds equilibria next to the label.
+
+P2 = 9 * math.pi ** 2 / 4
+
+
+@pytest.fixture(scope="module")
+def cusps(rotating_arm, elastica):
+    """The four CP labels of the fold curves through rotating_arm's folds at eps = 0.5,
+    P = 9 pi^2/4, psi = 4.7695 and 1.5137 (as tests/test_codim2.py's cusp_curves): two mirror
+    pairs, at eps = 0.3611 and 0.2114."""
+    bf = BranchFile(rotating_arm.result.path)
+    starts = [bf.label(n) for n in bf.labels if n.startswith("LP")]
+    starts = [x for x in starts if x.state.params["eps"] == 0.5
+              and abs(x.state.params["P"] - P2) < 1e-9
+              and min(abs(x.state.params["psi"] - v) for v in (4.7695, 1.5137)) < 1e-3]
+    curves = ea.continuation(elastica, starts, ["psi", "eps"], bounds=(0.2, 0.5), directions="-")
+    labels = [curves.label(p.name) for b in curves for p in b.points if p.type == "CP"]
+    assert len(labels) == 4
+    return labels
+
+
+@pytest.fixture(scope="module")
+def folds(rotating_arm):
+    """The first LP label of rotating_arm at each of its four (eps, P), with the side of the
+    fold (+1, -1) on which the branch lies in psi (that of the points next to it)."""
+    bf = BranchFile(rotating_arm.result.path)
+    out = {}
+    for name in sorted(bf.labels, key=lambda n: bf.labels[n]):
+        if name.startswith("LP"):
+            k, pt = bf.labels[name]
+            label = bf.label(name)
+            psi = bf.branches[k - 1].columns["psi"]
+            side = np.sign(psi[pt] - psi[pt - 1])
+            assert side == np.sign(psi[pt - 2] - psi[pt - 1])    # psi turns there
+            out.setdefault((label.state.params["eps"], label.state.params["P"]), (label, side))
+    assert len(out) == 4
+    return list(out.values())
+
+
+def _start(elastica, label, params, parameter, **options):
+    """The start of a restart from ``label`` at ``params`` continued in ``parameter``: the
+    first point of its branch."""
+    (branch,) = ea.continuation(elastica, label, parameter, params=params, max_points=2,
+                                **options)
+    return branch.points[0]
+
+
+def _psi_error(state) -> float:
+    """How far psi is from one at which the state is an equilibrium, by shooting from its own
+    theta(0), kappa(0): the free-end residual r = kappa(1) + eps P sin(psi + alpha - theta(1))
+    over dr/dpsi."""
+    p = state.params
+    th1, k1, _, _ = shooting.integrate(p["P"], p["alpha"], state.y[0, 0], state.y[1, 0])
+    a = p["psi"] + p["alpha"] - th1
+    return abs(k1 + p["eps"] * p["P"] * math.sin(a)) / abs(p["eps"] * p["P"] * math.cos(a))
+
+
+def _assert_equilibrium(point, params, psi_error=1e-9):
+    """``point`` is at exactly ``params``, and its state is an equilibrium there: shot from its
+    own theta(0), kappa(0), the IVP reproduces the whole state, and its psi is within
+    ``psi_error`` of one where it is exact (by default a hundred times below the smallest
+    change tested, 1e-7)."""
+    assert point.params == params
+    st = point.state
+    p = st.params
+    np.testing.assert_allclose(shooting.profile(p["P"], p["alpha"], st.y[:, 0], st.s), st.y,
+                               rtol=0, atol=1e-7)
+    assert _psi_error(st) <= psi_error
+
+
+def _distance(point, label) -> float:
+    """The rms distance between the start and the label's solution, on the label's mesh."""
+    s, y = label.state.s, label.state.y[:4]
+    return float(np.sqrt(np.mean((point.state(s) - y) ** 2)))
+
+
+def _roots_beside(label, params, change):
+    """The equilibria at ``params`` next to the fold ``label``, by shooting: the roots of
+    r(kappa(0)) on either side of the fold's kappa(0), within 10 sqrt(|change|) of it (at a
+    fold they are about sqrt(|change|) away); none if r has one sign there (no equilibria
+    on this side of the fold)."""
+    k0 = label.state.y[1, 0]
+
+    def r(k):
+        return shooting.residual(k, params["psi"], params["P"], params["eps"], params["alpha"],
+                                 params["theta0"])[0]
+
+    w = 10 * math.sqrt(abs(change))
+    lo, mid, hi = r(k0 - w), r(k0), r(k0 + w)
+    if lo * mid > 0 and mid * hi > 0:
+        return []
+    assert lo * mid < 0 and mid * hi < 0
+    return [brentq(r, k0 - w, k0, xtol=1e-15), brentq(r, k0, k0 + w, xtol=1e-15)]
+
+
+@pytest.mark.parametrize("change", [1e-7, -1e-7, 1e-3, -1e-3])
+@pytest.mark.parametrize("q, parameter", [("psi", "eps"), ("eps", "psi")])
+def test_a_restart_from_a_cusp_at_changed_values_reaches_both_sides(cusps, elastica, q,
+                                                                   parameter, change):
+    """At a cusp the Jacobian is singular (a Newton solve at the new values fails there, even
+    1e-7 away); psi and eps at the other fixed pass through it, so both sides are reached:
+    an equilibrium at exactly the new values, moved from the label as the cube root of the
+    change (the cusp's normal form, lam ~ x^3)."""
+    for label in cusps:
+        params = {**label.state.params, q: label.state.params[q] + change}
+        point = _start(elastica, label, {q: params[q]}, parameter)
+        _assert_equilibrium(point, params)
+        assert 0.03 <= _distance(point, label) / abs(change) ** (1 / 3) <= 3, label.name
+
+
+@pytest.mark.parametrize("change", [1e-7, -1e-7, 1e-3, -1e-3])
+@pytest.mark.parametrize("q, parameter", [("psi", "eps"), ("eps", "psi"), ("P", "eps")])
+def test_a_restart_from_a_fold_at_changed_values_reaches_its_side(folds, elastica, q,
+                                                                 parameter, change):
+    """At an LP the solutions at a changed value lie on one side of the fold only: there the
+    restart is one of the two equilibria shooting finds next to the fold (at exactly the new
+    values); on the other side it is refused, naming the parameter and the fold. In psi, the
+    side is the branch's."""
+    for label, side in folds:
+        params = {**label.state.params, q: label.state.params[q] + change}
+        roots = _roots_beside(label, params, change)
+        if q == "psi":
+            assert bool(roots) == (np.sign(change) == side), label.name
+        if not roots:
+            with pytest.raises(StartError, match=f"{q} = .* not reached .* turns back at "
+                                                 f"{q} = .* \\(a fold\\)"):
+                _start(elastica, label, {q: params[q]}, parameter)
+            continue
+        point = _start(elastica, label, {q: params[q]}, parameter)
+        _assert_equilibrium(point, params)
+        k0 = point.state.y[1, 0]
+        assert min(abs(k0 - r) for r in roots) <= 0.01 * abs(roots[1] - roots[0]), label.name
+
+
+def test_a_restart_at_changed_values_is_the_user_point_of_a_plain_continuation(
+        cusps, folds, rotating_arm, elastica):
+    """Another route to the same solution: a continuation in the changed parameter from the
+    label, both ways, with a user point at the new value (UZ). The restart's start is that
+    UZ point, at the same tol; from a fold, where both ways reach it, the one nearer in
+    arclength. From an ordinary label (a UZ of the run), too."""
+    bf = BranchFile(rotating_arm.result.path)
+    cases = [(cusps[0], "psi", 1e-7), (cusps[1], "eps", -1e-3),
+             *[(label, "psi", side * d) for label, side in folds[:2] for d in (1e-7, 1e-3)],
+             (bf.label("UZ3"), "P", 0.1), (bf.label("UZ41"), "psi", -1e-3)]
+    for label, q, change in cases:
+        c = label.state.params
+        value = c[q] + change
+        point = _start(elastica, label, {q: value}, "alpha", tol=1e-7)
+        plain = ea.continuation(elastica, label, q, uz=[value], directions="both",
+                                bounds=(c[q] - 2 * abs(change), c[q] + 2 * abs(change)),
+                                tol=1e-7)
+        uz = min((p for b in plain for p in b.points if p.type == "UZ"),
+                 key=lambda p: p.arclength)
+        assert uz.params == point.params == {**c, q: value}
+        np.testing.assert_allclose(uz.state(point.state.s), point.state.y, rtol=0, atol=1e-10,
+                                   err_msg=label.name)
+
+
+def test_a_restart_by_whole_periods_is_the_labels_translate(folds, rotating_arm, elastica):
+    """psi (period 2 pi) changed by whole periods: the solution set repeats, so the start is
+    the label's own solution at the new psi, also at a fold (where Newton does not start, and
+    a continuation over a period would pass other folds); 1e-7 beyond a fold's translate, on
+    the branch's side: an equilibrium there, as next to the fold. theta0 by 2 pi: the clamp
+    turned once, the same rod with theta + 2 pi."""
+    label, side = folds[0]
+    c, s = label.state.params, label.state.s
+    for change in (2 * math.pi, -4 * math.pi, -2 * math.pi + side * 1e-7):
+        params = {**c, "psi": c["psi"] + change}
+        point = _start(elastica, label, {"psi": params["psi"]}, "eps")
+        _assert_equilibrium(point, params)
+        if change == round(change / math.pi) * math.pi:
+            np.testing.assert_allclose(point.state(s), label.state.y, rtol=0, atol=1e-12)
+        else:
+            roots = _roots_beside(label, params, 1e-7)
+            assert min(abs(point.state.y[1, 0] - r) for r in roots) \
+                <= 0.01 * abs(roots[1] - roots[0])
+    uz = BranchFile(rotating_arm.result.path).label("UZ3")
+    params = {**uz.state.params, "theta0": uz.state.params["theta0"] + 2 * math.pi}
+    point = _start(elastica, uz, {"theta0": params["theta0"]}, "eps")
+    _assert_equilibrium(point, params, 2 * _psi_error(uz.state))   # as exact as the label
+    turned = point.state(uz.state.s) - uz.state.y
+    np.testing.assert_allclose(turned, np.outer([2 * math.pi, 0, 0, 0], np.ones(len(uz.state.s))),
+                               rtol=0, atol=1e-8)
+
+
+def test_a_restart_past_a_fold_says_which_parameter_and_where_it_turned(folds, elastica):
+    """psi moved off a fold to the side without solutions: a one-line StartError with the
+    parameter, the value asked for, and where the continuation turned back (the fold)."""
+    label, side = folds[0]
+    psi = label.state.params["psi"]
+    value = psi - side * 1e-3
+    with pytest.raises(StartError) as exc:
+        ea.continuation(elastica, label, "eps", params={"psi": value})
+    assert str(exc.value) == (f"{label.path.name}:{label.name}: psi = {value:.12g} not reached "
+                              f"by continuation from psi = {psi:.12g}: the branch turns back at "
+                              f"psi = {psi:.12g} (a fold)")
+
+
+def test_restart_from_a_fold_at_changed_values_from_the_command_line(small_cli_run, cli_exe,
+                                                                    tmp_path):
+    """start = "small.h5:LP1" with [parameters] psi 1e-7 past the fold on the branch's side:
+    the branches start at exactly that psi; on the other side: exit status 2 and one line
+    naming psi and the fold."""
+    out, h5, _ = small_cli_run
+    src = BranchFile(h5)
+    k, pt = src.labels["LP1"]
+    psi = src.branches[k - 1].columns["psi"]
+    side = np.sign(psi[pt] - psi[pt - 1])
+    for sign in (side, -side):
+        value = float(psi[pt - 1] + sign * 1e-7)
+        toml = _restart_toml(tmp_path / f"lp_{sign:+.0f}.toml", "small.h5:LP1",
+                             bounds=("0.2", "0.3"))
+        toml.write_text(toml.read_text() + f"[parameters]\npsi = {value!r}\n")
+        proc = run_cli(cli_exe, "run", toml, "--out", out, "-j", "1", "-q")
+        if sign == side:
+            assert proc.returncode == 0, proc.stderr
+            rf = BranchFile(out / f"{toml.stem}.h5")
+            assert [b.columns["psi"][0] for b in rf.branches] == [value, value]
+        else:
+            assert proc.returncode == 2 and "Traceback" not in proc.stderr
+            assert len(proc.stderr.strip().splitlines()) == 1
+            assert f"psi = {value:.12g} not reached" in proc.stderr
+            assert f"turns back at psi = {psi[pt - 1]:.12g} (a fold)" in proc.stderr
