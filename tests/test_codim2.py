@@ -143,6 +143,81 @@ def test_a_cusp_has_two_folds_on_one_side_and_none_on_the_other(cusp_curves, ela
         assert sorted(counts) == [0, 2], (cp.name, counts)
 
 
+def _mirror(cp, cps):
+    """The cusp that is ``cp``'s mirror image (psi -> -psi, modulo 2 pi)."""
+    return next(q for q in cps if abs(q.params["eps"] - cp.params["eps"]) < 1e-9
+                and abs(math.remainder(q.params["psi"] + cp.params["psi"], 2 * math.pi)) < 1e-7)
+
+
+@pytest.fixture(scope="module")
+def perturbed_cusps(cusp_curves, elastica):
+    """{(cusp, dpsi): the eps-branches from the cusp's label restarted at psi + dpsi, both
+    ways, with UZ at eps_c -+ 0.01}: starts a hair to either side of each cusp, down to
+    1e-10, below the accuracy a cusp is located to, where rounding decides what the
+    linearisation at the start says."""
+    out = {}
+    for cp in _cusps(cusp_curves):
+        label = next(b.label(cp.name) for b in cusp_curves if cp in b.points)
+        c = label.state.params
+        for dpsi in (1e-10, -1e-10, 1e-8, -1e-8):
+            out[cp.name, dpsi] = ea.continuation(
+                elastica, label, "eps", params={"psi": c["psi"] + dpsi}, directions="both",
+                uz=[c["eps"] - 0.01, c["eps"] + 0.01], bounds=(c["eps"] - 0.02, c["eps"] + 0.02))
+    return out
+
+
+def test_starts_beside_a_cusp_pass_it_whatever_the_rounding(cusp_curves, perturbed_cusps):
+    """From either side of each cusp: + reaches eps_c + 0.01 and - eps_c - 0.01, with no
+    branch point (there is none: the family is a smooth curve through the cusp's
+    neighbourhood), and folds come in pairs at eps_c, both located or neither (a start
+    between them finds one each way). Mirror cusps at -dpsi give the same folds."""
+    cps = _cusps(cusp_curves)
+    assert len(cps) == 4
+    folds = {}
+    for (name, dpsi), via in perturbed_cusps.items():
+        cp = next(p for p in cps if p.name == name)
+        e = cp.params["eps"]
+        assert [b.direction for b in via] == [1, -1]
+        for b, target in zip(via, (e + 0.01, e - 0.01)):
+            assert b.end == "EP", (name, dpsi, b.message)
+            assert not [p for p in b.points if p.type == "BP"], (name, dpsi)
+            uz = [p.params["eps"] for p in b.points if p.type == "UZ"]
+            assert uz == [pytest.approx(target, abs=1e-12)], (name, dpsi, b.direction, uz)
+        lp = [p for b in via for p in b.folds]
+        assert len(lp) in (0, 2), (name, dpsi, [p.params["eps"] for p in lp])
+        for p in lp:  # a fold by shooting, at the start's psi
+            k0, psi, _ = shooting.fold(p.params["P"], p.params["eps"], p.ordinates["m0"],
+                                       p.params["psi"])
+            assert abs(p.params["eps"] - e) < 1e-6 and abs(psi - p.params["psi"]) <= PSI_ATOL
+            assert abs(k0 - p.ordinates["m0"]) <= 1e-6
+        if lp:
+            assert abs(lp[0].ordinates["m1"] - lp[1].ordinates["m1"]) > 1e-4  # two, not one
+        folds[name, dpsi] = len(lp)
+    for (name, dpsi), n in folds.items():
+        twin = _mirror(next(p for p in cps if p.name == name), cps)
+        assert folds[twin.name, -dpsi] == n, (name, twin.name, dpsi)
+    # 1e-8 to the side of the cusps at eps_c = 0.3611 with a pair: both folds are found
+    assert sum(n for (_, dpsi), n in folds.items() if abs(dpsi) == 1e-8) == 4
+
+
+def test_beside_a_cusp_two_folds_on_one_side_and_none_on_the_other(cusp_curves, elastica,
+                                                                 perturbed_cusps):
+    """The psi-branches from the UZ points of the perturbed starts at eps_c -+ 0.01 have, within
+    0.2 of the cusp's psi, two folds on one side of the cusp and none on the other, whichever
+    side of it (by 1e-10 or 1e-8) the start was."""
+    for (name, dpsi), via in perturbed_cusps.items():
+        if abs(dpsi) != 1e-10 and name not in ("CP1", "CP2"):
+            continue  # the mirror images are checked at 1e-10; 1e-8 for two cusps
+        c = next(p for p in _cusps(cusp_curves) if p.name == name).params
+        counts = []
+        for b in via:
+            (uz,) = [p for p in b.points if p.type == "UZ"]
+            psi = ea.continuation(elastica, via.label(uz.name), "psi", directions="both",
+                                  bounds=(c["psi"] - 0.2, c["psi"] + 0.2))
+            counts.append(len({round(p.params["psi"], 6) for b in psi for p in b.folds}))
+        assert sorted(counts) == [0, 2], (name, dpsi, counts)
+
+
 def test_a_fold_curve_from_a_run_file(tmp_path, rotating_arm):
     """parameter = ["psi", "eps"] with an LP selector: both directions from the two distinct
     folds at eps = 0.25, P = pi^2/4 (periodic copies count once)."""
