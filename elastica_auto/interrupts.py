@@ -18,16 +18,27 @@ class Interruptions:
     (which, raised at an arbitrary point, inside the Dask client's own callbacks say, would
     be reported as an "exception ignored" traceback or stop a save half way); the handlers
     before are restored on exit. In the main thread only (elsewhere, signals are not ours,
-    and ``stop`` stays clear)."""
+    and ``stop`` stays clear).
 
-    def __init__(self):
+    ``raising``: while it is true, a signal raises KeyboardInterrupt as usual (inside a
+    continuation, which ends its branch at its last point); the owner clears it once that
+    work is over. One context over the whole of a branch's work, with ``raising`` switched
+    off, leaves no moment between the two behaviours where a signal would meet neither."""
+
+    def __init__(self, raising: bool = False):
         self.stop = threading.Event()
+        self.raising = raising
         self._before = {}
+
+    def _handle(self, signum, frame):
+        self.stop.set()
+        if self.raising:
+            raise KeyboardInterrupt
 
     def __enter__(self) -> Interruptions:
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
-                self._before[sig] = signal.signal(sig, lambda signum, frame: self.stop.set())
+                self._before[sig] = signal.signal(sig, self._handle)
         return self
 
     def __exit__(self, *exc_info):

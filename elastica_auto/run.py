@@ -215,8 +215,15 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
             progress(k, len(b.points), len(b.folds), lam)
 
     t0 = time.perf_counter()
-    continue_branch(br, plan.problem, plan.course, job.origin, on_step)
-    with Interruptions() as late:  # raised here, it would throw the computed branch away
+    # raised after the continuation, a signal would throw the computed branch away: one
+    # context raises during the continuation (which ends the branch at its last point) and
+    # only records after it
+    with Interruptions(raising=True) as late:
+        try:
+            continue_branch(br, plan.problem, plan.course, job.origin, on_step)
+            late.raising = False
+        except KeyboardInterrupt:  # between the continuation's own handling and the line above
+            late.raising = False
         if plan.curve == "fold":
             codim2.label_fold_curve(br, plan.problem, plan.base)
         label_stability(br, plan.problem)
@@ -448,8 +455,10 @@ def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
     point). A Ctrl-C while a computed branch is saved and reported waits for them."""
     for job in jobs_list:
         k = len(branches) + 1
-        br = compute_branch(plan, k, job, progress)
+        # one context from the branch's start to its save: compute_branch's own raises in the
+        # continuation, and this one records a signal wherever else it lands
         with Interruptions() as late:
+            br = compute_branch(plan, k, job, progress, late.stop.is_set)
             branches.append(br)
             save()
             if on_branch is not None and not br.interrupted:

@@ -283,6 +283,13 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
         except Exception:  # the module fails at the start itself
             branch.insert(start_point(branch, origin))
         return
+    base = walk.base_point if walk is not None else None
+    at = next((k for k, p in enumerate(branch.points) if p is base), None)
+    if at is not None:
+        # a step interrupted while it was being accepted may have put in its end point before
+        # the walk moved on to it: the branch ends at the last point accepted whole (the step's
+        # located LP, BP and UZ points stay)
+        branch.points[at + 1:] = [p for p in branch.points[at + 1:] if p.type]
     last = branch.points[-1]
     if last.type:  # keep its label (the start's EP, say); end with an MX of its own
         branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.resources
 import math
 import subprocess
 import textwrap
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,6 +63,85 @@ def run_cli(exe, *args, cwd=None):
     """Run the console script; return CompletedProcess with text stdout/stderr."""
     return subprocess.run([exe, *map(str, args)], capture_output=True, text=True, cwd=cwd,
                           timeout=300)
+
+
+# -- synchronising with a running command ---------------------------------------------------------
+# A test that signals or kills a running command waits for an event it can observe (a file
+# that the command or a test module writes, a process's state), never for a fixed time: under
+# load, a fixed sleep lands in another window than the one the test was written for.
+
+def wait_for(what: str, condition, proc=None, seconds: float = 120.0):
+    """Poll ``condition()`` until it is true and return its value. Fails, naming ``what``,
+    if ``proc`` (a Popen, to be running while it is waited for) ends first, or if
+    ``seconds`` pass (``proc`` is then killed, not left behind)."""
+    deadline = time.monotonic() + seconds
+    while True:
+        value = condition()
+        if value:
+            return value
+        if proc is not None and proc.poll() is not None:
+            _, err = proc.communicate()
+            raise AssertionError(f"the command ended (status {proc.returncode}) before "
+                                 f"{what}; its stderr: {err!r}")
+        if time.monotonic() > deadline:
+            err = ""
+            if proc is not None:
+                proc.kill()
+                err = f"; the command (killed) wrote to stderr: {proc.communicate()[1]!r}"
+            raise AssertionError(f"timed out after {seconds:g} s waiting for {what}{err}")
+        time.sleep(0.02)
+
+
+ELASTICA = (importlib.resources.files("elastica_auto.equations")
+            / "elastica_lever_arm.py").read_text()
+
+_SIGNALLING = """
+
+import os as _os
+import time as _time
+
+_done = set()
+
+
+def _signal_the_test(p):
+    if {mark_file!r} and "mark" not in _done and ({mark}):
+        _done.add("mark")
+        open({mark_file!r}, "a").close()
+    if {hold_file!r} and "hold" not in _done and ({hold}):
+        _done.add("hold")
+        try:  # one hold in all the processes of the run, and of its reruns
+            _os.close(_os.open({hold_file!r} + ".claimed", _os.O_CREAT | _os.O_EXCL))
+        except FileExistsError:
+            return
+        with open({hold_file!r} + ".tmp", "w") as fh:
+            fh.write(str(_os.getpid()))
+        _os.replace({hold_file!r} + ".tmp", {hold_file!r})
+        deadline = _time.monotonic() + 600
+        while _time.monotonic() < deadline:  # until a signal, a kill or the release
+            if _os.path.exists({hold_file!r} + ".release"):
+                raise RuntimeError("released by the test")
+            _time.sleep(0.02)
+"""
+
+
+def signalling_elastica(path: Path, *, mark=None, hold=None) -> Path:
+    """Write the shipped elastica as the module ``path``, its rhs telling the test where the
+    run is; the numbers are the shipped module's.
+
+    ``mark = (condition, file)``: the first call of rhs where ``condition`` (an expression
+    in the parameters ``p``) is true, in each process, touches ``file``.
+    ``hold = (condition, file)``: the first call where it is true, in whichever process of
+    the run gets there first (once only, reruns included), writes that process's id to
+    ``file`` and waits there: a step that does not end by itself, until a signal
+    interrupts it, the process is killed, or ``file.release`` appears (the step then
+    fails, which ends its branch at once)."""
+    (mark_cond, mark_file), (hold_cond, hold_file) = mark or ("False", ""), hold or ("False", "")
+    head = "def rhs(s, y, p):\n"
+    assert ELASTICA.count(head) == 1
+    path.write_text(ELASTICA.replace(head, head + "    _signal_the_test(p)\n")
+                    + _SIGNALLING.format(mark=mark_cond, mark_file=str(mark_file),
+                                         hold=hold_cond, hold_file=str(hold_file)))
+    return path
 
 
 # Solution accuracy bounds that follow from scipy's solve_bvp success criterion (scipy/integrate/

@@ -13,7 +13,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import h5py
@@ -23,7 +22,7 @@ import pytest
 import elastica_auto
 
 from elastica_auto.store import BranchFile
-from helpers import run_cli
+from helpers import ROTATING_ARM, run_cli, signalling_elastica, wait_for
 
 BIN = Path(sys.executable).parent
 
@@ -37,9 +36,7 @@ def cluster(tmp_path_factory):
                   start_new_session=True)
     procs = [subprocess.Popen([BIN / "dask", "scheduler", "--scheduler-file", info, "--port",
                                "0", "--host", "127.0.0.1", "--no-dashboard"], **common)]
-    deadline = time.monotonic() + 60
-    while not info.is_file() and time.monotonic() < deadline:
-        time.sleep(0.1)
+    wait_for("the scheduler's file", info.is_file, procs[0])
     procs.append(subprocess.Popen([BIN / "dask", "worker", "--scheduler-file", info,
                                    "--nworkers", "2", "--nthreads", "1", "--host", "127.0.0.1",
                                    "--no-dashboard"], **common))
@@ -131,21 +128,40 @@ def test_a_cluster_run_reports_its_tasks(tmp_path):
     assert [c[0] for c in calls] == sorted(c[0] for c in calls)
 
 
-def test_a_worker_killed_mid_run_costs_nothing(cluster, tmp_path, cli_exe):
-    """SIGKILL to one worker while the branches run: its task is rescheduled, the run
-    completes with every branch."""
+def _rotating_arm(tmp_path, **signals) -> Path:
+    """The shipped rotating_arm run with a copy of the elastica whose rhs tells the test where
+    the run is (`helpers.signalling_elastica`: ``mark``, ``hold``)."""
+    signalling_elastica(tmp_path / "mine.py", **signals)
+    run = tmp_path / "rotating_arm.toml"
+    run.write_text(ROTATING_ARM.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
+    return run
+
+
+def test_a_worker_killed_mid_run_costs_nothing(cluster, tmp_path, cli_exe, in_one_process):
+    """SIGKILL to the worker computing a branch, in one of its steps (held there until the
+    kill): its task is rescheduled, the run completes with every branch, number for number
+    the branches one process computes."""
+    held, out = tmp_path / "held", tmp_path / "out"
+    run = _rotating_arm(tmp_path, hold=('abs(p["psi"]) > 1', held))
+    proc = subprocess.Popen([cli_exe, "run", run, "--out", out, "--scheduler", cluster],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     from distributed import Client
-    with Client(cluster, timeout=30) as client:
-        pids = client.run(os.getpid)
-    proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", tmp_path,
-                             "--scheduler", cluster], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    time.sleep(3.0)
-    os.kill(next(iter(pids.values())), signal.SIGKILL)
-    out, err = proc.communicate(timeout=300)
+    try:
+        pid = int(wait_for("a branch in a step on a worker", lambda: held.is_file()
+                           and held.read_text(), proc))
+        with Client(cluster, timeout=30) as client:
+            assert pid in client.run(os.getpid).values()      # one of the cluster's workers
+        os.kill(pid, signal.SIGKILL)
+        _, err = proc.communicate(timeout=300)
+    finally:  # a step still held (the test failed before the kill) fails: its worker is free
+        (tmp_path / "held.release").touch()
     assert proc.returncode == 0, err
-    bf = BranchFile(tmp_path / "rotating_arm.h5")
+    bf = BranchFile(out / "rotating_arm.h5")
     assert len(bf.branches) == 8 and all(b.attrs["end"] == "EP" for b in bf.branches)
+    for a, b in zip(BranchFile(in_one_process).branches, bf.branches, strict=True):
+        for name, col in a.columns.items():
+            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+        np.testing.assert_array_equal(a.profiles, b.profiles)
     with Client(cluster, timeout=30) as client:
         client.wait_for_workers(2, timeout=60)       # the nanny restarted it
 
@@ -153,20 +169,25 @@ def test_a_worker_killed_mid_run_costs_nothing(cluster, tmp_path, cli_exe):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_cluster_run_keeps_its_finished_branches(cluster, tmp_path, cli_exe,
                                                                 sig):
-    """Branches slowed by smaller steps (ds_max = 0.1, seconds each): the signal comes once
+    """Branches slowed by smaller steps (ds_max = 0.1, seconds each), and one of the last two
+    (eps = 0.5, P = 9 pi^2 / 4) held in a step until the run is over: the signal comes once
     the first is saved (the file appears), while the others run."""
-    proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", tmp_path,
-                             "--scheduler", cluster, "--set", "ds_max=0.1"],
+    held, out = tmp_path / "held", tmp_path / "out"
+    run = _rotating_arm(tmp_path, hold=('p["eps"] == 0.5 and p["P"] > 20 and abs(p["psi"]) > 1',
+                                        held))
+    proc = subprocess.Popen([cli_exe, "run", run, "--out", out, "--scheduler", cluster,
+                             "--set", "ds_max=0.1"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while not (tmp_path / "rotating_arm.h5").exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    proc.send_signal(sig)
-    out, err = proc.communicate(timeout=60)
+    try:
+        wait_for("the first branch saved", (out / "rotating_arm.h5").exists, proc)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:  # the held step, if it was reached, fails: its worker is free again
+        (tmp_path / "held.release").touch()
     assert proc.returncode == 130 and "Traceback" not in err, err
-    saved = BranchFile(tmp_path / "rotating_arm.h5").branches
+    saved = BranchFile(out / "rotating_arm.h5").branches
     assert f"interrupted: {len(saved)} branches saved to" in err
-    assert all(b.attrs["end"] == "EP" for b in saved) and len(saved) < 8
+    assert all(b.attrs["end"] == "EP" for b in saved) and 1 <= len(saved) < 8
 
 
 def test_an_unreachable_scheduler_is_one_line(tmp_path, cli_exe):
@@ -217,9 +238,7 @@ def test_workers_without_the_package_are_one_line(tmp_path, cli_exe):
     procs = [subprocess.Popen([BIN / "dask", "scheduler", "--scheduler-file", info, "--port",
                                "0", "--host", "127.0.0.1", "--no-dashboard"], **common)]
     try:
-        deadline = time.monotonic() + 60
-        while not info.is_file() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        wait_for("the scheduler's file", info.is_file, procs[0])
         procs.append(subprocess.Popen(
             [BIN / "dask", "worker", "--scheduler-file", info, "--nworkers", "1", "--nthreads",
              "1", "--host", "127.0.0.1", "--no-dashboard"],

@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from elastica_auto import runfile
 from elastica_auto.run import StartError, build_start, compute_branch
 from elastica_auto.store import BranchFile
-from helpers import REPO, run_cli
+from helpers import REPO, run_cli, signalling_elastica, wait_for
 
 SMALL = textwrap.dedent("""\
     description = "small"
@@ -149,56 +149,108 @@ def test_corrector_failure_ends_the_branch_with_mx_and_the_others_still_run(tmp_
 LONG = SMALL.replace("eps = 0.25", "eps = [0.25, 0.5]").replace('P = "pi^2/4"',
                                                                  'P = "9*pi^2/4"').replace(
     'bounds = ["-pi", "pi"]', 'bounds = ["-6*pi", "6*pi"]')
+#: LONG with a copy of the elastica (`helpers.signalling_elastica`) whose rhs tells the test
+#: where the run is. Its four branches (eps, direction): (0.25, +) stays below psi = 0.75,
+#: (0.25, -) goes up to psi = 6 pi, (0.5, +) stays above psi = -9.5, (0.5, -) goes down to
+#: -6 pi: the conditions below hold in one branch's continuation only.
+LONG_MINE = LONG.replace('equation = "elastica_lever_arm"', 'equation = "mine.py"')
+IN_BRANCH_2 = 'p["eps"] == 0.25 and p["psi"] > 6'
+IN_BRANCH_4 = 'p["eps"] == 0.5 and p["psi"] < -12'
 
 
+@pytest.mark.parametrize("where", ["in a step", "anywhere"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_interruption_keeps_every_completed_point(tmp_path, cli_exe, sig):
-    out = tmp_path / "out"
-    run = tmp_path / "long.toml"
-    run.write_text(LONG)
+def test_interruption_keeps_every_completed_point(tmp_path, cli_exe, sig, where):
+    """The signal comes once the second branch's continuation is under way: held in one of
+    its steps (it comes in that step), or running on (it comes wherever the run is by then,
+    while the last branch cannot end: its continuation holds a step until the signal).
+    In every window: exit 130, the branches before the last complete, the last either cut
+    short at its last point (MX, interrupted) or, for a signal that came while a branch
+    whose continuation was over was labelled and saved, complete (the run then stopped
+    after it); every point kept is the point the uninterrupted run computes."""
+    out, run, marked, held = tmp_path / "out", tmp_path / "long.toml", tmp_path / "marked", \
+        tmp_path / "held"
+    run.write_text(LONG_MINE)
+    if where == "in a step":
+        signalling_elastica(tmp_path / "mine.py", hold=(IN_BRANCH_2, held))
+    else:
+        signalling_elastica(tmp_path / "mine.py", mark=(IN_BRANCH_2, marked),
+                            hold=(IN_BRANCH_4, held))
     proc = subprocess.Popen([cli_exe, "run", str(run), "--out", str(out), "-j", "1"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    path = out / "long.h5"
-    deadline = time.time() + 60
-    while not path.exists() and time.time() < deadline:  # the first branch has been written
-        time.sleep(0.05)
-    time.sleep(0.3)
+    wait_for("the second branch's continuation", (held if where == "in a step" else
+                                                   marked).exists, proc)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
+    path = out / "long.h5"
     assert proc.returncode == 130, err
-    assert "interrupted" in err and "Traceback" not in err
+    assert "Traceback" not in err
     bf = BranchFile(path)
-    assert len(bf.branches) >= 2
+    assert f"interrupted: {len(bf.branches)} branches saved to {path}" in err
+    assert 2 <= len(bf.branches) <= 4
     *done, last = bf.branches
     for b in done:
         assert b.attrs["end"] == "EP" and b.columns["type"][-1] == "EP"
-    assert last.attrs["end"] == "MX" and last.columns["type"][-1] == "MX"
-    assert "interrupted" in last.attrs["message"]
+    if last.attrs["end"] == "MX":
+        assert last.columns["type"][-1] == "MX" and "interrupted" in last.attrs["message"]
+    else:  # complete, and the run stopped after it (the last branch holds until the signal)
+        assert last.attrs["end"] == "EP" and last.columns["type"][-1] == "EP"
+        assert where == "anywhere" and len(bf.branches) < 4
+    if where == "in a step":
+        assert len(bf.branches) == 2 and last.attrs["end"] == "MX"
     assert sorted(p.name for p in out.iterdir()) == ["long.h5"]   # no temporary files
     # every label is readable as a restart point
     for name in bf.labels:
         assert bf.label(name).state.y.shape[0] == 4
-    # the next run is not confused: it starts afresh and completes
+    cut = [(b.attrs["end"], dict(b.columns.items())) for b in bf.branches]
+    # the next run is not confused: it starts afresh and completes (with no step held)
+    signalling_elastica(tmp_path / "mine.py")
     rerun = run_cli(cli_exe, "run", run, "--out", out, "-q")
     assert rerun.returncode == 0, rerun.stderr
-    assert all(b.attrs["end"] == "EP" for b in BranchFile(path).branches)
+    whole = BranchFile(path).branches
+    assert len(whole) == 4 and all(b.attrs["end"] == "EP" for b in whole)
+    # what the interrupted run kept is what the whole run computes: its complete branches
+    # number for number, and the points of the one cut short up to its MX, which is the
+    # last point it accepted (or a copy of it, if that point is labelled)
+    for (end, kept), b in zip(cut, whole):
+        full = dict(b.columns.items())
+        assert kept.keys() == full.keys()
+        if end == "EP":
+            for name, col in kept.items():
+                assert np.array_equal(col, full[name], equal_nan=col.dtype.kind == "f"), name
+            continue
+        n = len(kept["psi"])
+        assert n <= len(full["psi"])
+        for name in ("psi", "arclength", "m1", "type"):
+            assert np.array_equal(kept[name][:-1], full[name][:n - 1]), name
+        assert kept["psi"][-1] == full["psi"][n - 1] or (
+            n > 1 and kept["type"][-2] != "" and kept["psi"][-1] == kept["psi"][-2])
 
 
-@pytest.mark.parametrize("where", ["labelling", "saving"])
+@pytest.mark.parametrize("where", ["continuation's end", "labelling", "computed", "saving"])
 def test_an_interruption_after_a_branch_is_computed_keeps_it(tmp_path, monkeypatch, where):
-    """Ctrl-C between the end of a branch's continuation and the end of its save (while its
-    stability is labelled, or half way through writing the file) waits for both: the branch
-    is kept whole and the run stops after it. Raised there, it lost the branch (CI saw
-    "no branch saved" once in 50 runs of the two-runs-one-file test)."""
+    """Ctrl-C between the end of a branch's continuation and the end of its save (just after
+    the continuation returns, while its stability is labelled, just after the branch is
+    computed, or half way through writing the file) waits for both: the branch is kept whole
+    and the run stops after it. Raised there, it lost the branch (CI saw "no branch saved"
+    once in 50 runs of the two-runs-one-file test; the moments just after the continuation
+    and just after the branch lay between two signal handlers)."""
     from elastica_auto import run as run_module
     from elastica_auto import store
     (tmp_path / "two.toml").write_text(SMALL.replace("eps = 0.25", "eps = [0.25, 0.5]"))
     plan = runfile.load(tmp_path / "two.toml")
-    target = (run_module, "label_stability") if where == "labelling" else (store.Writer, "save")
+    target, after = {"continuation's end": ((run_module, "continue_branch"), True),
+                     "labelling": ((run_module, "label_stability"), False),
+                     "computed": ((run_module, "compute_branch"), True),
+                     "saving": ((store.Writer, "save"), False)}[where]
     real = getattr(*target)
 
     def interrupted(*args, **kwargs):
-        signal.raise_signal(signal.SIGINT)     # as a Ctrl-C arriving here
+        if after:
+            out = real(*args, **kwargs)
+            signal.raise_signal(signal.SIGINT)     # as a Ctrl-C arriving just then
+            return out
+        signal.raise_signal(signal.SIGINT)
         return real(*args, **kwargs)
 
     monkeypatch.setattr(*target, interrupted)
@@ -207,6 +259,34 @@ def test_an_interruption_after_a_branch_is_computed_keeps_it(tmp_path, monkeypat
     saved = BranchFile(tmp_path / "out" / "two.h5").branches
     assert len(saved) == 1 and saved[0].attrs["end"] == "EP"
     assert np.all(saved[0].columns["index"] >= 0)      # labelled: the fold rule ran
+
+
+def test_a_step_interrupted_while_it_is_accepted_ends_at_the_point_before(tmp_path,
+                                                                       monkeypatch):
+    """Ctrl-C after a step's end point is put in the branch but before the walk moves on to
+    it: the branch ends MX at the point accepted before, every point in order, as the same
+    branch computed without the interruption up to there."""
+    from elastica_auto import run as run_module
+    from elastica_auto.branch import Branch
+    (tmp_path / "one.toml").write_text(SMALL)
+    plan = runfile.load(tmp_path / "one.toml")
+    full = run_module.execute(plan, tmp_path / "full", jobs=1).branches[0]
+    real, count = Branch.insert, [0]
+
+    def insert(self, point):
+        out = real(self, point)
+        count[0] += 1
+        if count[0] == 6:
+            raise KeyboardInterrupt            # as a Ctrl-C arriving just then
+        return out
+
+    assert [p.type for p in full.points[:6]] == ["EP"] + [""] * 5
+    monkeypatch.setattr(Branch, "insert", insert)
+    cut = run_module.execute(plan, tmp_path / "cut", jobs=1).branches[0]
+    assert cut.end == "MX" and cut.message == "interrupted by the user"
+    assert [p.type for p in cut.points] == ["EP"] + [""] * 3 + ["MX"]
+    for p, q in zip(cut.points, full.points):
+        assert p.params == q.params and p.arclength == q.arclength
 
 
 # -- 4. reading -----------------------------------------------------------------------------------

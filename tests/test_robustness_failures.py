@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from elastica_auto.store import BranchFile
-from helpers import EXAMPLES, run_cli
+from helpers import EXAMPLES, run_cli, wait_for
 
 BRATU = (EXAMPLES / "bratu.py").read_text()
 
@@ -333,7 +333,6 @@ def test_workers_end_when_the_command_is_killed(tmp_path, cli_exe):
     import os
     import signal
     import subprocess
-    import time
     import uuid
     marker = f"ELASTICA_TEST_{uuid.uuid4().hex}"
     proc = subprocess.Popen([cli_exe, "run", "rotating_arm", "--out", tmp_path / "out",
@@ -351,44 +350,59 @@ def test_workers_end_when_the_command_is_killed(tmp_path, cli_exe):
                 continue
         return pids
 
-    deadline = time.monotonic() + 60
-    while len(started()) < 3 and time.monotonic() < deadline:   # the command and 2 workers
-        time.sleep(0.1)
-    assert len(started()) >= 3, started()
+    wait_for("the command and its 2 workers", lambda: len(started()) >= 3, proc)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    deadline = time.monotonic() + 10
-    while started() and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert started() == []
+    try:     # "within seconds" is the deadline
+        wait_for("the workers to end after the command was killed", lambda: not started(),
+                 seconds=10)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}; still running: {started()}") from None
+
+
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (a zombie, not reaped yet, has)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rpartition(")")[2].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
 
 
 def test_a_second_ctrl_c_does_not_wait_for_a_slow_step(tmp_path, cli_exe):
     """In a module whose step takes a minute, Ctrl-C cancels the branches and ends the
     workers at once; a second Ctrl-C while the command ends changes nothing. The run exits
-    130 in seconds and says truthfully what it saved."""
+    130 in seconds and says truthfully what it saved.
+
+    The first Ctrl-C comes once the first branch (lam up to its fold) is saved and the
+    second (down to lam = -1) is in its slow step, whose worker's process id the module
+    writes as the step begins; the second Ctrl-C once that worker has been ended (the
+    command closes its cluster then) or the command has ended."""
     import signal
     import subprocess
     import time
-    slow, near_end = tmp_path / "slow", tmp_path / "near_end"   # touched by the branches
+    slow, out = tmp_path / "slow", tmp_path / "out"
     _module(tmp_path, BRATU, "def rhs(s, y, p):\n",
-            f'import pathlib\nif p["lam"] < -0.9:\n    pathlib.Path({str(near_end)!r}).touch()\n'
-            f'if p["lam"] > 1:\n    import time\n    pathlib.Path({str(slow)!r}).touch()\n'
+            f'if p["lam"] < -0.5:\n    import os, pathlib, time\n'
+            f'    pathlib.Path({str(slow)!r} + ".tmp").write_text(str(os.getpid()))\n'
+            f'    os.replace({str(slow)!r} + ".tmp", {str(slow)!r})\n'
             '    time.sleep(60)\n')
     toml = tmp_path / "mine.toml"
     toml.write_text(RUN)
-    proc = subprocess.Popen([cli_exe, "run", toml, "--out", tmp_path / "out", "-j", "2"],
+    proc = subprocess.Popen([cli_exe, "run", toml, "--out", out, "-j", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60  # one branch in its slow step, the other near its end
-    while not (slow.exists() and near_end.exists()) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    time.sleep(1)                     # the other one done
-    proc.send_signal(signal.SIGINT)
-    time.sleep(1)
+    wait_for("the first branch saved, the second in its slow step",
+             lambda: slow.exists() and (out / "mine.h5").exists(), proc)
+    worker = int(slow.read_text())
     t0 = time.monotonic()
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=30)
+    wait_for("the slow step's worker to end after a Ctrl-C",
+             lambda: _gone(worker) or proc.poll() is not None)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
     assert time.monotonic() - t0 < 10
     assert proc.returncode == 130 and "Traceback" not in err, err
-    saved = BranchFile(tmp_path / "out" / "mine.h5")
+    saved = BranchFile(out / "mine.h5")
     assert f"interrupted: {len(saved.branches)} branches saved to" in err
+    # the branch saved before the signal; the one in its slow step is cancelled
+    assert [b.attrs["end"] for b in saved.branches] == ["EP"]

@@ -16,7 +16,7 @@ import pytest
 
 from elastica_auto import runfile
 from elastica_auto.store import BranchFile
-from helpers import run_cli
+from helpers import run_cli, signalling_elastica, wait_for
 
 SWEEP = """\
 equation = "elastica_lever_arm"
@@ -64,20 +64,24 @@ def _by_cell(path):
 
 
 def test_an_interrupted_sweep_resumes_to_the_whole_file(sweep, tmp_path, cli_exe):
+    """The signal comes in a step of the second branch, held until it comes (by a copy of
+    the elastica that says so): the first branch is saved whole, the second up to there."""
     whole = tmp_path / "whole"
     assert run_cli(cli_exe, "run", sweep, "--out", whole, "-j", "1").returncode == 0
-    out = tmp_path / "out"
+    out, held = tmp_path / "out", tmp_path / "held"
+    sweep.write_text(SWEEP.replace('"elastica_lever_arm"', '"mine.py"'))
+    # the first step beyond |psi| = 1 once the first branch is saved
+    signalling_elastica(tmp_path / "mine.py", hold=(
+        f'abs(p["psi"]) > 1 and _os.path.exists({str(out / "sweep.h5")!r})', held))
     proc = subprocess.Popen([cli_exe, "run", sweep, "--out", out, "-j", "1"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    import time
-    deadline = time.monotonic() + 60
-    while not (out / "sweep.h5").exists() and time.monotonic() < deadline:
-        time.sleep(0.02)
+    wait_for("a step of the second branch", held.exists, proc)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     first = BranchFile(out / "sweep.h5").branches
-    assert 1 <= len(first) < 8
+    assert [b.attrs["end"] for b in first] == ["EP", "MX"]
+    assert first[1].attrs["message"] == "interrupted by the user"
     again = run_cli(cli_exe, "run", sweep, "--out", out, "-j", "1", "--resume")
     assert again.returncode == 0, again.stderr
     kept = sum(b.attrs["message"] != "interrupted by the user" for b in first)
