@@ -178,7 +178,11 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                      switch=switch, free=free, options=options, maps=map, landing=landing,
                      damping=damping, damping_folds=damping_folds)
     t0 = time.perf_counter()
-    first = [_built(plan, spec) for spec in plan.branches]
+    try:
+        first = [_built(plan, spec) for spec in plan.branches]
+    except KeyboardInterrupt:  # while a start was built (a restart's continuation, say)
+        raise Interrupted(Branches([], plan.problem, [], [], time.perf_counter() - t0, [],
+                                   [])) from None
     result = RunResult(None, [], 0.0)
     try:
         compute(plan, first, result, lambda: None, progress, jobs=jobs, scheduler=scheduler)

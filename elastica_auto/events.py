@@ -227,8 +227,10 @@ def locate_branch_point(corr, step: Step) -> Located:
 
 def _check_on_finer_mesh(corr, step: Step, s):
     """CorrectorFailure unless the determinant has opposite signs at a and b solved again on
-    the mesh ``s`` with its intervals halved."""
-    fine = np.sort(np.concatenate([s, (s[:-1] + s[1:]) / 2]))
+    the mesh ``s`` with its intervals halved (with as many halved as ``max_nodes`` allows)."""
+    room = max(corr.options.max_nodes - len(s), 0)
+    widest = np.argsort(np.diff(s))[::-1][:room]
+    fine = np.sort(np.concatenate([s, (s[widest] + s[widest + 1]) / 2]))
     signs = [_det_on(corr, corr.on_plane(step.a, step.secant, sigma, fine, regrid=False),
                      step.secant, fine)[0] for sigma in (0.0, step.dist)]
     if signs[0] * signs[1] >= 0:

@@ -20,10 +20,11 @@ class Interruptions:
     before are restored on exit. In the main thread only (elsewhere, signals are not ours,
     and ``stop`` stays clear).
 
-    ``raising``: while it is true, a signal raises KeyboardInterrupt as usual (inside a
-    continuation, which ends its branch at its last point); the owner clears it once that
-    work is over. One context over the whole of a branch's work, with ``raising`` switched
-    off, leaves no moment between the two behaviours where a signal would meet neither."""
+    ``raising``: while it is true, the next signal raises KeyboardInterrupt as usual (inside
+    a continuation, which ends its branch at its last point) and clears it, so that a second
+    signal cannot break into the branch's own ending; the owner clears it once that work is
+    over. One context over the whole of a branch's work, with ``raising`` switched off, leaves
+    no moment between the two behaviours where a signal would meet neither."""
 
     def __init__(self, raising: bool = False):
         self.stop = threading.Event()
@@ -33,6 +34,7 @@ class Interruptions:
     def _handle(self, signum, frame):
         self.stop.set()
         if self.raising:
+            self.raising = False
             raise KeyboardInterrupt
 
     def __enter__(self) -> Interruptions:

@@ -221,9 +221,9 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     with Interruptions(raising=True) as late:
         try:
             continue_branch(br, plan.problem, plan.course, job.origin, on_step)
-            late.raising = False
-        except KeyboardInterrupt:  # between the continuation's own handling and the line above
-            late.raising = False
+        except KeyboardInterrupt:  # after the continuation's own handling: the branch is whole
+            pass
+        late.raising = False
         if plan.curve == "fold":
             codim2.label_fold_curve(br, plan.problem, plan.base)
         label_stability(br, plan.problem)

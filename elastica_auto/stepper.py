@@ -153,8 +153,9 @@ def _orientation(corr, disc, start: State, t: Tangent) -> float:
     A probe on the hyperplanes at +-ds along t (ds the options' first step): at a cusp or
     hysteresis point, lam - lam_0 ~ c sigma^3, and the side where the parameter rose is
     +. Where both sides agree (a fold or a pitchfork, lam - lam_0 ~ c sigma^2) or a probe
-    fails, the side of t whose largest component (in absolute value, over every state and
-    node) is positive: a choice made by the solution, not by the sign the solver returned."""
+    fails, or a rise is within RISE_NOISE, the side of t whose largest component (in absolute
+    value, over every state and node; the first of equals) is positive: a choice made by the
+    solution, not by the sign the solver returned."""
     name = corr.parameter
     sol = corr.solution(disc, start.params, start.y, start.params[name],
                         Row(disc.weights * t.y, t.lam, 0.0))
@@ -164,10 +165,17 @@ def _orientation(corr, disc, start: State, t: Tangent) -> float:
                 for side in (1.0, -1.0)]
     except CorrectorFailure:
         rise = [0.0, 0.0]
-    if rise[0] * rise[1] < 0:
+    noise = RISE_NOISE * (1.0 + abs(sol.lam))
+    if rise[0] * rise[1] < 0 and min(abs(r) for r in rise) > noise:
         return 1.0 if rise[0] > 0 else -1.0
-    flat = t.y.ravel()
-    return 1.0 if flat[np.argmax(np.abs(flat))] > 0 else -1.0
+    # the first of the largest components (an antisymmetric kernel has two of one size)
+    size = np.abs(t.y.ravel())
+    first = int(np.argmax(size >= (1.0 - 1e-8) * size.max()))
+    return 1.0 if t.y.ravel()[first] > 0 else -1.0
+
+
+#: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
+RISE_NOISE = 1e-10
 
 
 #: At most this many solves look for the minimum of the parameter's slope inside a step
@@ -284,12 +292,10 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
             branch.insert(start_point(branch, origin))
         return
     base = walk.base_point if walk is not None else None
-    at = next((k for k, p in enumerate(branch.points) if p is base), None)
-    if at is not None:
-        # a step interrupted while it was being accepted may have put in its end point before
-        # the walk moved on to it: the branch ends at the last point accepted whole (the step's
-        # located LP, BP and UZ points stay)
-        branch.points[at + 1:] = [p for p in branch.points[at + 1:] if p.type]
+    # a step interrupted while it was being accepted may have put in its end point before the
+    # walk moved on to it: the branch ends at the last point accepted whole
+    while base is not None and branch.points[-1] is not base and not branch.points[-1].type:
+        branch.points.pop()
     last = branch.points[-1]
     if last.type:  # keep its label (the start's EP, say); end with an MX of its own
         branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,
@@ -452,7 +458,7 @@ class _Walk:
         located = self._branch_point(step, can_retry) if bp else None
         if fold:
             try:
-                found.append(self._fold_event(step, located is not None))
+                found.append(self._fold_event(step, bp))
             except CorrectorFailure as exc:
                 if can_retry:
                     self.event_retries += 1
@@ -487,14 +493,16 @@ class _Walk:
         opt, a, b, ds = self.opt, step.a, step.b, step.ds
         if self._add_events(step, found):
             return ds, True
-        self.arclength += ds
+        arclength = self.arclength + ds
         residual = float(np.max(b.rms)) if self.all_folds else math.nan
-        self.base_point = self._add(b.state, arclength=self.arclength, ds=ds, niter=b.niter,
-                                    direct=index_b, fold_residual=residual)
         tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
-        self.curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
-                                 (tb.lam - ta.lam) / step.dist)
-        self.a, self.first = b, False
+        curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
+                            (tb.lam - ta.lam) / step.dist)
+        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter, direct=index_b,
+                          fold_residual=residual)
+        # the walk moves on to b in one statement that calls nothing (no signal lands inside)
+        self.base_point, self.a, self.arclength, self.curvature, self.first = \
+            point, b, arclength, curvature, False
         if self.progress is not None:
             self.progress(self.branch, b.lam)
         if self.until is not None:
