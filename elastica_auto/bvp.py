@@ -80,12 +80,15 @@ def solve_fixed(problem: Problem, guess: Curve, params: dict, tol: float,
 
 
 def solve_arclength(problem: Problem, base: State, tangent: Tangent, name: str, ds: float,
-                    tol: float, max_nodes: int, mesh=None) -> SolveResult:
+                    tol: float, max_nodes: int, mesh=None,
+                    predictor: Tangent | None = None) -> SolveResult:
     """One Keller pseudo-arclength corrector solve from ``base`` along ``tangent``.
 
     Unknowns: y(s) and lam = p[name]. Equations: the BVP and the arclength condition
     ``int (y - y0).ydot0 ds + (lam - lam0) lamdot0 = ds``. The initial guess is the Euler
-    predictor ``(y0 + ds ydot0, lam0 + ds lamdot0)`` on ``mesh`` (default: the base mesh).
+    predictor ``(y0 + ds ydot0, lam0 + ds lamdot0)`` on ``mesh`` (default: the base mesh), or
+    ``base + ds predictor`` where a ``predictor`` direction is given (the stepper's, which
+    includes the curve's curvature).
     """
     n = problem.n
     fixed = base.params
@@ -131,9 +134,10 @@ def solve_arclength(problem: Problem, base: State, tangent: Tangent, name: str, 
         return dya, dyb, dp
 
     s = base.s if mesh is None else np.asarray(mesh, dtype=float)
-    y_guess = base(s) + ds * tangent(s)
+    guess = tangent if predictor is None else predictor
+    y_guess = base(s) + ds * guess(s)
     z_guess = np.zeros((1, len(s)))
-    sol = solve_bvp(fun, bc, s, np.vstack((y_guess, z_guess)), p=[lam0 + ds * tangent.lam],
+    sol = solve_bvp(fun, bc, s, np.vstack((y_guess, z_guess)), p=[lam0 + ds * guess.lam],
                     fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1], sol.p)

@@ -321,14 +321,25 @@ class SolveBVP(Collocation):
             raise CorrectorFailure(res.message)
         return res.state
 
+    def step(self, a: Solution, ds: float, curvature: Tangent | None = None) -> Solution:
+        """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` by solve_bvp, predicted as the
+        collocation corrector's (the inherited step would run the collocation Newton, and
+        the cross-check of the two correctors would not be one)."""
+        return self.on_plane(a, a.tangent, ds, curvature=curvature)
+
     def on_plane(self, a: Solution, direction: Tangent, sigma: float, s=None,
-                 regrid: bool = True) -> Solution:
+                 regrid: bool = True, curvature: Tangent | None = None) -> Solution:
         from .bvp import solve_arclength
         opt = self.options
         mesh = a.mesh if s is None else s
+        predictor = None
+        if curvature is not None:
+            t, k = direction.on(mesh), curvature.on(mesh)
+            predictor = Tangent(mesh, t.y + sigma / 2 * k.y, t.yp + sigma / 2 * k.yp,
+                                t.lam + sigma / 2 * k.lam)
         # solve_bvp answers a failing Newton by refining; a smaller step is the cheaper cure
         res = solve_arclength(self.problem, a.state, direction, self.parameter, sigma, opt.tol,
-                              min(opt.max_nodes, 3 * len(mesh)), mesh=mesh)
+                              min(opt.max_nodes, 3 * len(mesh)), mesh=mesh, predictor=predictor)
         return self._bvp_solution(res, lambda disc: Row.hyperplane(
             disc, a.state, direction, self.parameter, sigma))
 

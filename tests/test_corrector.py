@@ -207,3 +207,43 @@ def test_both_correctors_find_the_bratu_fold(tmp_path):
         found.append(lp.params["lam"])
     assert abs(found[0] - found[1]) <= 1e-9
     assert abs(found[0] - lam_of(z_c)) <= 1e-9
+
+
+def test_the_solve_bvp_corrector_steps_by_solve_bvp(tmp_path, monkeypatch):
+    """With corrector = "solve_bvp" every accepted step is a solve_bvp solve (it inherited the
+    collocation Newton's step, and the cross-check of the two correctors was none: 19
+    collocation steps and 1 solve_bvp call on Bratu's branch)."""
+    from elastica_auto import bvp
+    real, calls = bvp.solve_arclength, [0]
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(bvp, "solve_arclength", counted)
+    plan = runfile.load(EXAMPLES / "bratu.toml")
+    p = dataclasses.replace(plan, options=dataclasses.replace(plan.options,
+                                                             corrector="solve_bvp"))
+    (br,) = run_plan(p, tmp_path / "out").result.branches
+    steps = sum(1 for q in br.points if not q.type)
+    assert br.end == "EP" and steps >= 10
+    assert calls[0] >= steps
+
+
+def test_a_switch_under_solve_bvp_is_the_collocation_correctors(elastica):
+    """The other branch at the straight rod's first branch point (eps = 0.5), by both
+    correctors: both ways end at the bound (EP), at the same points (a switch under solve_bvp
+    ended both branches MX: its step took no curvature)."""
+    import elastica_auto as ea
+    straight = ea.continuation(elastica, {"P": 0.5, "eps": 0.5}, "P", bounds=(0.1, 5))
+    bp = straight.label("BP1")
+    found = []
+    for corrector in ("collocation", "solve_bvp"):
+        out = ea.continuation(elastica, ea.Switch(bp), "P", bounds=(0.1, 3), uz=[2.5],
+                              corrector=corrector)
+        assert [b.end for b in out] == ["EP", "EP"], [b.message for b in out]
+        found.append(sorted((round(p.ordinates["m1"], 4), p.ordinates["m0"])
+                            for b in out for p in b.points if p.type == "UZ"))
+    assert len(found[0]) == 2 and [m for m, _ in found[0]] == [m for m, _ in found[1]]
+    for (_, a), (_, b) in zip(*found):
+        assert abs(a - b) <= 1e-6
