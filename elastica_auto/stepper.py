@@ -16,10 +16,11 @@ travel):
 3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
    parameter's slope dips inside the step (:func:`~elastica_auto.events.pair_suspected`;
-   the step is probed at the dip, and retried shorter if a fold is there);
-4. **locate** each, exactly (:mod:`elastica_auto.events`); a fold that cannot be located,
-   or a stability index at b that the fold rule does not predict, rejects the step (a fold
-   pair or a jump to another branch), down to ds / 64 and then with a warning;
+   the step is probed for the slope's minimum, and retried shorter if a fold is there);
+4. **locate** each, exactly (:mod:`elastica_auto.events`); a fold or branch point that
+   cannot be located, or a stability index at b that the fold rule does not predict,
+   rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
+   with a warning;
 5. **accept**: the folds and branch points split the step into monotone pieces, on which user
    points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
    step.
@@ -53,6 +54,14 @@ TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
 #: ds grows after a step whose Newton iteration contracted at least this fast (and whose
 #: tangent turned by less than half of max_angle).
 EASY_CONTRACTION = 0.3
+#: A unit tangent whose parameter component is at most this leaves the parameter stationary
+#: to first order: its orientation is then decided by :func:`_orientation`.
+STATIONARY = 1e-6
+#: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
+RISE_NOISE = 1e-10
+#: At most this many solves look for the minimum of the parameter's slope inside a step
+#: where the cubic model suspects a fold pair (`_Walk._probe`).
+PROBES = 4
 
 
 @dataclass(frozen=True)
@@ -142,11 +151,6 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
 
 
-#: A unit tangent whose parameter component is at most this leaves the parameter stationary
-#: to first order: its orientation is then decided by :func:`_orientation`.
-STATIONARY = 1e-6
-
-
 def _orientation(corr, disc, start: State, t: Tangent) -> float:
     """+1 if t, else -1 (-t), is the way a stationary start goes up in the parameter.
 
@@ -172,15 +176,6 @@ def _orientation(corr, disc, start: State, t: Tangent) -> float:
     size = np.abs(t.y.ravel())
     first = int(np.argmax(size >= (1.0 - 1e-8) * size.max()))
     return 1.0 if t.y.ravel()[first] > 0 else -1.0
-
-
-#: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
-RISE_NOISE = 1e-10
-
-
-#: At most this many solves look for the minimum of the parameter's slope inside a step
-#: where the cubic model suspects a fold pair (`_Walk._probe`).
-PROBES = 4
 
 
 def _vertex(points) -> float | None:
