@@ -19,6 +19,7 @@ FORMAT_VERSION = 1
 #: Public name -> the module that defines it.
 _PUBLIC = {
     "load_problem": "problem", "Problem": "problem",
+    "SecondVariation": "second_variation", "Constraint": "second_variation",
     "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
     "Switch": "plan", "ContinuationOptions": "options", "snaps_along": "path",
     "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",

@@ -37,10 +37,13 @@ and optionally
 ``FREE``
     the parameters solved for when there are more conditions (r + q) than states: as many
     names as extra conditions. A run may name others (``free = [...]``).
-``second_variation(s, y, p)`` -> ``(a, b, c)``
-    the second variation in scalar form ``int_0^1 (a h'^2 + b h^2) ds + c h(1)^2`` with
-    ``h(0) = 0`` (a > 0; a, b arrays on s or scalars, c a scalar); enables the stability index
-    (see `elastica_auto.stability`).
+``second_variation(s, y, p)`` -> `SecondVariation`
+    the second variation of the energy at the solution ``y`` on the points ``s`` (sorted, from
+    0 to 1): ``int_0^1 (h'.A h' + 2 h'.C h + h.B h) ds`` plus end terms, for perturbations
+    h(s) in R^k, with the end conditions and constraints that the admissible h satisfy
+    (`elastica_auto.second_variation`); or the scalar tuple ``(a, b, c)`` for ``int_0^1
+    (a h'^2 + b h^2) ds + c h(1)^2`` with ``h(0) = 0``. Enables the stability index (see
+    `elastica_auto.stability`).
 ``shooting(p)`` -> ``(k_lo, k_hi, initial, residual)``
     a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
     [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
@@ -73,6 +76,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import ProblemError
+from .second_variation import Constraint, SecondVariation  # noqa: F401  (for modules)
 
 ENTERS = ("fixed", "free", "ode")
 
@@ -373,7 +377,8 @@ class Problem:
         return self._second_variation is not None
 
     def second_variation(self, s, y, p):
-        """(a(s), b(s), c) of delta^2 E[h] = int a h'^2 + b h^2 ds + c h(1)^2, h(0) = 0."""
+        """The module's second variation at ``y`` on ``s``: a `SecondVariation`, or the
+        scalar tuple ``(a, b, c[, constraints])``."""
         return self._second_variation(s, y, p)
 
     @property

@@ -30,146 +30,458 @@ a parameter xi entering the free end (or the ODE), ``d/dtau delta^2 J = -xi'' dB
 
 from __future__ import annotations
 
-import numpy as np
-from scipy.linalg import solve_banded
+import math
+from dataclasses import dataclass
 
+import numpy as np
+
+from .errors import ProblemError
+from .second_variation import as_second_variation
 from .solution import at_fractions
 
-#: Simpson's rule on [0, 1]: the element's nodes, where the solution is known, and midpoint.
-#: It is exact for the stiffness of constant coefficients and O(h^4) otherwise, the order of
-#: the P2 eigenvalues themselves.
-_GAUSS_X = np.array([0.0, 0.5, 1.0])
-_GAUSS_W = np.array([1.0, 4.0, 1.0]) / 6.0
-#: P2 Lagrange basis (left node, midpoint, right node) and its derivative at those points.
-_PHI = np.array([(1 - _GAUSS_X) * (1 - 2 * _GAUSS_X), 4 * _GAUSS_X * (1 - _GAUSS_X),
-                 _GAUSS_X * (2 * _GAUSS_X - 1)])
-_DPHI = np.array([4 * _GAUSS_X - 3, 4 - 8 * _GAUSS_X, 4 * _GAUSS_X - 1])
-#: Products of basis derivatives and of basis functions at each quadrature point, (3, 9).
-_STIFF = np.einsum("iq,jq->qij", _DPHI, _DPHI).reshape(3, 9)
-_MASS = np.einsum("iq,jq->qij", _PHI, _PHI).reshape(3, 9)
-
-
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
-#: wavenumber w = sqrt(|b| / a), when h w <= MAX_PHASE. P2 elements are then accurate enough
-#: that on the straight rod (eps = 0.25, the first three critical loads, 20 and 50 intervals)
-#: the count is right down to 1e-4 (relative) from each critical load; at h w = 0.4 it is not.
+#: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
+#: elements are then accurate enough that on the straight rod (eps = 0.25, the first three
+#: critical loads, 20 and 50 intervals) the count is right down to 1e-4 (relative) from each
+#: critical load; at h w = 0.4 it is not.
 MAX_PHASE = 0.2
 
-
-def _coefficients(problem, state, s):
-    """a, b at the nodes and midpoints of each interval of the mesh ``s`` ((m-1, 3) each: left
-    node, midpoint, right node), c, and the constraints as a list of (g, d) with g laid out
-    like a and b (empty without them), from the state's interpolant (on its own mesh, or a
-    refinement of it)."""
-    mid = 0.5 * (s[:-1] + s[1:])
-    if s is state.s:
-        y = np.concatenate((at_fractions(s, state.y, state.yp, (0.5,))[:, 0], state.y), axis=1)
-    else:
-        y = state(np.concatenate((mid, s)))
-    # the hook reads the end term from the last column: the nodes come last, s = 1 at the end
-    a, b, c, *rest = problem.second_variation(np.concatenate((mid, s)), y, state.params)
-    k = len(mid)
-
-    def layout(v):
-        v = np.broadcast_to(np.asarray(v, dtype=float), (2 * k + 1,))
-        return np.stack((v[k:-1], v[:k], v[k + 1:]), axis=1)
-
-    constraints = [(layout(g), float(d)) for g, d in (rest[0] if rest else ())]
-    return layout(a), layout(b), float(c), constraints
+#: A pivot eigenvalue within this many rounding errors of the largest diagonal block is zero
+#: to working precision: its sign, and so the count, would be a guess.
+SINGULAR_ULPS = 64.0
 
 
-def _constraint_count(k, kmm, diag, off, h, constraints) -> int | None:
-    """n_-(S), S = C K^{-1} C^T, of the discretised constraints ``int g h ds + d h(1)``
-    (Simpson's rule, like the stiffness: a node or midpoint value times its weight), with K
-    condensed like the stiffness: S = C_m K_mm^{-1} C_m^T + C' T^{-1} C'^T, C' = C_n -
-    K_nm K_mm^{-1} C_m, T the tridiagonal node matrix (``diag``, ``off``, node 0 clamped).
-    None if T is singular."""
-    n = len(diag)
-    cm, cn = [], []
-    for g, d in constraints:
-        m = h * _GAUSS_W[1] * g[:, 1]
-        nodes = np.zeros(n + 1)
-        nodes[:-1] += h * _GAUSS_W[0] * g[:, 0] - k[:, 0, 1] / kmm * m
-        nodes[1:] += h * _GAUSS_W[2] * g[:, 2] - k[:, 2, 1] / kmm * m
-        nodes[-1] += d
-        cm.append(m)
-        cn.append(nodes[1:])
-    cm, cn = np.array(cm), np.array(cn)
-    ab = np.zeros((3, n))
-    ab[0, 1:] = off
-    ab[1] = diag
-    ab[2, :-1] = off
-    try:
-        x = solve_banded((1, 1), ab, cn.T)
-    except (np.linalg.LinAlgError, ValueError):
-        return None
-    s = (cm / kmm) @ cm.T + cn @ x
-    if not np.all(np.isfinite(s)):
-        return None
-    return int(np.count_nonzero(np.linalg.eigvalsh(0.5 * (s + s.T)) < 0))
+@dataclass(frozen=True)
+class Count:
+    """The direct count at one state: ``index`` (-1 if not counted) and, when it was not,
+    ``reason`` (no hook, values not finite, a zero eigenvalue)."""
+
+    index: int
+    reason: str = ""
+
+
+class _Singular(Exception):
+    """A pivot of the elimination is singular to working precision."""
+
+
+def _points(mesh):
+    """The nodes and element midpoints of ``mesh``, in order: 2 len(mesh) - 1 points."""
+    pts = np.empty(2 * len(mesh) - 1)
+    pts[0::2] = mesh
+    pts[1::2] = 0.5 * (mesh[:-1] + mesh[1:])
+    return pts
+
+
+def _on_state(problem, state):
+    """``evaluate(pts)`` for :func:`count_form`: the module's form at the state, from its
+    interpolant (on the state's own mesh the midpoints come from the Hermite cubic of each
+    interval, the nodes from the solution itself)."""
+    def evaluate(pts):
+        if len(pts) == 2 * len(state.s) - 1 and np.array_equal(pts[0::2], state.s):
+            y = np.empty((state.y.shape[0], len(pts)))
+            y[:, 0::2] = state.y
+            y[:, 1::2] = at_fractions(state.s, state.y, state.yp, (0.5,))[:, 0]
+        else:
+            y = state(pts)
+        return as_second_variation(problem.second_variation(pts, y, state.params),
+                                   _source(problem))
+    return evaluate
+
+
+def _source(problem) -> str:
+    """The module's name for messages."""
+    return getattr(problem, "source", "second_variation")
+
+
+def count(problem, state) -> Count:
+    """The stability index at ``state`` by direct count (:func:`count_form` on the state's
+    own mesh), or -1 with the reason: no ``second_variation`` hook, a state or coefficient that
+    is not finite (NaN compares false with everything, so a count would call it stable), or a
+    zero eigenvalue."""
+    if not problem.has_second_variation:
+        return Count(-1, "no second_variation hook")
+    if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
+            and all(np.isfinite(v) for v in state.params.values())):
+        return Count(-1, "the state is not finite")
+    return count_form(_on_state(problem, state), state.s, source=_source(problem))
 
 
 def index(problem, state) -> int:
-    """The number of negative eigenvalues of the second variation at ``state``, or -1 (unknown)
-    if the module has no ``second_variation`` hook or the state or the coefficients are not
-    all finite.
+    """The number of negative eigenvalues of the second variation at ``state``, or -1 where it
+    is not counted (:func:`count`)."""
+    return count(problem, state).index
 
-    Quadratic (P2) finite elements on the state's own mesh, each interval subdivided where the
-    coefficients oscillate faster than the mesh resolves (``MAX_PHASE``); the coefficients at
-    each element's nodes and midpoint (Simpson's rule). The element matrices
-    ``K_e = int (a phi_i' phi_j' + b phi_i phi_j)``, the end term ``c h(1)^2``, ``h(0) = 0``.
-    The index is the inertia of K (Sylvester; the mass matrix is positive definite, so K and
-    the generalised eigenproblem have the same number of negative eigenvalues). Each midpoint
-    unknown belongs to one element, so it is eliminated element by element: by Haynsworth's
-    inertia additivity, In(K) = In(K_mm) + In(K / K_mm), K_mm the (diagonal) midpoint block
-    and K / K_mm a tridiagonal matrix on the nodes, whose negative LDL^T pivots are counted.
-    The count is exact unless an eigenvalue lies within the discretisation error of zero (at
-    a fold or a branch point, where it is zero). With constraints (a fourth element of the
-    hook's result) the count of the restricted form, n_-(K) - n_-(C K^{-1} C^T) (module
-    docstring), the constraint vectors condensed like K (:func:`_constraint_count`)."""
-    if not problem.has_second_variation:
-        return -1
-    # NaN compares false with everything, so the count below would call such a point stable
-    if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
-            and all(np.isfinite(v) for v in state.params.values())):
-        return -1
-    s = state.s
-    a, b, c, cons = _coefficients(problem, state, s)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.isfinite(c)
-            and all(np.all(np.isfinite(g)) and np.isfinite(d) for g, d in cons)):
-        return -1
+
+def _min_eig(a):
+    """The smallest eigenvalue of each symmetric (..., k, k) block."""
+    if a.shape[-1] == 1:
+        return a[..., 0, 0]
+    return np.linalg.eigvalsh(a)[..., 0]
+
+
+def _norm(a):
+    """The Frobenius norm of each (..., k, k) block."""
+    if a.shape[-1] == 1:
+        return np.abs(a[..., 0, 0])
+    return np.sqrt(np.einsum("...ij,...ij->...", a, a))
+
+
+def _wavenumber(a_min, b, c):
+    """Wavenumber of the form's eigenfunctions near eigenvalue zero, at each point: with
+    h' + A^-1 C h = v the form is v.A v + h.(B - C^T A^-1 C) h, so the solutions turn at the
+    rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A); bounded by norms (for k = 1
+    and C = 0, sqrt(|b| / a))."""
+    if not np.any(c):
+        return np.sqrt(_norm(b) / a_min)
+    c_norm = _norm(c)
+    return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
+
+
+def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_variation"
+               ) -> Count:
+    """The number of negative eigenvalues of the form ``evaluate(pts)`` (a
+    `SecondVariation` with its coefficients on the points ``pts``) less ``shift`` times the
+    L2 inner product, on its admissible space; ``mesh`` the nodes of the elements.
+
+    Quadratic (P2) finite elements with k components per node on ``mesh``, each interval
+    subdivided where the coefficients oscillate faster than it resolves (``MAX_PHASE``); the
+    coefficients at each element's nodes and midpoint (Simpson's rule, which makes the mass
+    matrix diagonal). The count is the inertia of the stiffness matrix K (Sylvester: the mass
+    matrix is positive definite, so K and the generalised eigenproblem have the same number of
+    negative eigenvalues), by a block LDL^T whose pivots are k x k blocks (:func:`_inertia`).
+    Essential end conditions restrict the end nodes to the free directions; constraints count
+    by the bordered inertia n_-(K) - n_-(C K^-1 C^T) (docs/stability.md, "The direct count").
+    A pivot with an eigenvalue zero to working precision (a fold, a branch point, an
+    unconstrained symmetry) gives index -1 and says so: its sign would be a guess.
+    ProblemError where A is not positive definite (the Legendre condition).
+    """
+    s = np.asarray(mesh, dtype=float)
+    form, coeffs = _evaluate(evaluate, s, shift, source)
+    if coeffs is None:
+        return Count(-1, "the second variation is not finite")
+    a, b, c, a_min, _ = coeffs
     h = np.diff(s)
-    parts = np.ceil(h * np.sqrt(np.max(np.abs(b) / a, axis=1)) / MAX_PHASE).astype(int)
+    w = _wavenumber(a_min, b, c)
+    w = np.maximum(np.maximum(w[0:-1:2], w[1::2]), w[2::2])
+    parts = np.ceil(h * w / MAX_PHASE).astype(int)
     if np.any(parts > 1):
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
-        a, b, c, cons = _coefficients(problem, state, s)
-        h = np.diff(s)
-    k = (((a * _GAUSS_W) @ _STIFF) / h[:, None]
-         + ((b * _GAUSS_W) @ _MASS) * h[:, None]).reshape(-1, 3, 3)
-    kmm = k[:, 1, 1]
-    kmm = np.where(kmm == 0.0, 1e-300, kmm)
-    left = k[:, 0, 0] - k[:, 0, 1] * k[:, 1, 0] / kmm
-    right = k[:, 2, 2] - k[:, 2, 1] * k[:, 1, 2] / kmm
-    off = k[:, 0, 2] - k[:, 0, 1] * k[:, 1, 2] / kmm
-    diag = np.zeros(len(s))
-    diag[:-1] += left
-    diag[1:] += right
-    diag[-1] += c
+        form, coeffs = _evaluate(evaluate, s, shift, source)
+        if coeffs is None:
+            return Count(-1, "the second variation is not finite")
+    try:
+        return Count(_inertia(form, s, *coeffs))
+    except _Singular as exc:
+        return Count(-1, str(exc))
+
+
+def _evaluate(evaluate, s, shift, source):
+    """The form on the nodes and midpoints of ``s`` and its fields (A, B, C, min eig A, g);
+    fields None if any value is not finite. ProblemError where A is not positive definite."""
+    pts = _points(s)
+    form = evaluate(pts)
+    a, b, c, g = form.fields(len(pts))
+    ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
+    # one sum: NaN and inf propagate through it (a finite sum overflows only past 1e300)
+    if not math.isfinite(float(np.sum(a) + np.sum(b) + np.sum(c) + np.sum(g)
+                               + sum(np.sum(v) for v in ends))):
+        return form, None
+    if shift:
+        b = b - shift * np.eye(form.k)
+    a_min = _min_eig(a)
+    if not np.all(a_min > 0):
+        j = int(np.argmin(a_min))
+        raise ProblemError(f"{source}: second_variation: A is not positive definite at s = "
+                           f"{pts[j]:.6g} (smallest eigenvalue {a_min[j]:.3g}): the Legendre "
+                           "condition fails there and the stability index is not defined")
+    return form, (a, b, c, a_min, g)
+
+
+def _element_blocks(s, a, b, c):
+    """The P2 element matrices on the nodes ``s``, from the fields on the nodes and midpoints
+    (P, k, k), as blocks (n_el, k, k): (k00, k02, k22) between the element's two nodes and
+    (k0m, k2m, kmm) with its midpoint.
+
+    With x in [0, 1] on an element of length h and the Lagrange basis phi_0, phi_m, phi_2 at
+    x = 0, 1/2, 1, Simpson's rule (weights 1/6, 4/6, 1/6 at those points, where phi_i =
+    delta_iq and phi' = (-3, -1, 1), (4, 0, -4), (-1, 1, 3)) gives ::
+
+        K_ij = sum_q w_q phi_i'(q) phi_j'(q) A_q / h + T_ij + T_ji^T + delta_ij w_i h B_i,
+        T_ij = w_j phi_i'(x_j) C_j      (the term h'.C h of phi_i' e_a against phi_j e_b)
+    """
+    h = np.diff(s).reshape(-1, *(1,) * (a.ndim - 1))
+    a0, am, a2 = a[0:-1:2], a[1::2], a[2::2]
+    b0, bm, b2 = b[0:-1:2], b[1::2], b[2::2]
+    k00 = (9 * a0 + 4 * am + a2) / (6 * h) + (h / 6) * b0
+    k22 = (a0 + 4 * am + 9 * a2) / (6 * h) + (h / 6) * b2
+    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * bm
+    k02 = (3 * a0 - 4 * am + 3 * a2) / (6 * h)
+    k0m = -(12 * a0 + 4 * a2) / (6 * h)
+    k2m = -(4 * a0 + 12 * a2) / (6 * h)
+    if np.any(c):
+        c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
+        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
+        k00 -= 0.5 * (c0 + c0t)
+        k22 += 0.5 * (c2 + c2t)
+        k02 += (c2 - c0t) / 6
+        k0m += (4 / 6) * (c0t - cm)
+        k2m += (4 / 6) * (cm - c2t)
+    return (k00, k02, k22), (k0m, k2m, kmm)
+
+
+def _inertia(form, s, a, b, c, a_min, g) -> int:
+    """The index of ``form`` by P2 elements on the nodes ``s`` (:func:`count_form`), its
+    fields on the nodes and midpoints. Each midpoint belongs to one element and is eliminated
+    there (Haynsworth: In(K) = In(K_mm) + In(K / K_mm)), leaving a block tridiagonal matrix on
+    the nodes, whose inertia :func:`_reduce` (or, for k = 1 without constraints,
+    :func:`_sturm`) counts."""
+    k, r = form.k, len(form.constraints)
+    if k == 1 and not r:
+        return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
+    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
+    h = np.diff(s)
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
+    x0, x2 = kmm_inv @ k0m.transpose(0, 2, 1), kmm_inv @ k2m.transpose(0, 2, 1)
+    d = np.zeros((len(s), k, k))
+    d[:-1] += k00 - k0m @ x0
+    d[1:] += k22 - k2m @ x2
+    u = k02 - k0m @ x2
+    d[0] += form.E0
+    d[-1] += form.E1
+    f = _constraint_columns(form, h, g, x0, x2)
+    _restrict(d, u, f, 0, form.free0, form.fixed0)
+    _restrict(d, u, f, -1, form.free1, form.fixed1)
+    s_mat = [np.zeros((r, r)), np.zeros((r, r))]
+    if r:
+        _accumulate(g[:, 1::2, :].transpose(1, 2, 0) * ((4 / 6) * h)[:, None, None], kmm_inv,
+                    s_mat)
+    neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
+    negative += neg_k
+    if not r:
+        return negative + _pivots(d_last[None], scale, "the last pivot (a fold or a branch "
+                                  "point)")[1]
+    # The last node and the multipliers: what is left of the bordered matrix [[K, C^T],
+    # [C, 0]] once every other node is eliminated is [[D, F], [F^T, -C K'^-1 C^T]] (K' the
+    # eliminated part). Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but
+    # it is counted as a whole: a constraint that removes a zero mode of K (a symmetry) makes
+    # D singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
+    total, size = s_mat
+    last = np.block([[d_last, f_last], [f_last.T, -total]])
+    w = np.linalg.eigvalsh(0.5 * (last + last.T))
+    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * np.max(size)):
+        raise _Singular("zero eigenvalue: the constrained form is singular to working "
+                        "precision (a fold or a branch point), or the constraints are "
+                        "dependent")
+    return negative + int(np.count_nonzero(w < 0)) - r
+
+
+def _inertia_scalar(form, s, a, b, c) -> int:
+    """:func:`_inertia` for k = 1 without constraints, on (n,) arrays: the node matrix is
+    tridiagonal and its pivots are counted in plain floats (:func:`_sturm`); a third of the
+    cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
+    call dominates."""
+    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    if np.any(np.abs(kmm) <= scale):
+        raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
+                        "precision")
     negative = int(np.count_nonzero(kmm < 0))
-    if cons:
-        removed = _constraint_count(k, kmm, diag[1:], off[1:], h, cons)
-        if removed is None:
-            return -1
-        negative -= removed
-    diag, off2 = diag[1:].tolist(), (off[1:] ** 2).tolist()    # node 0 is clamped
-    d = diag[0]
+    diag = np.zeros(len(s))
+    diag[:-1] += k00 - k0m * k0m / kmm
+    diag[1:] += k22 - k2m * k2m / kmm
+    off = k02 - k0m * k2m / kmm
+    diag[0] += form.E0[0, 0]
+    diag[-1] += form.E1[0, 0]
+    # a fixed end's node is no unknown: its row and column are left out
+    lo, hi = (0 if form.free0.shape[1] else 1), (len(diag) - (0 if form.free1.shape[1] else 1))
+    return negative + _sturm(diag[lo:hi].tolist(), (off[lo:hi - 1] ** 2).tolist(), scale)
+
+
+def _accumulate(f, inv, into):
+    """Add to ``into`` = [C K^-1 C^T, its size] the terms f^T D^-1 f of the constraint rows
+    ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k, k), and the same sum of
+    absolute values (the scale of its rounding errors)."""
+    into[0] += np.einsum("pai,pab,pbj->ij", f, inv, f)
+    into[1] += np.einsum("pai,pab,pbj->ij", np.abs(f), np.abs(inv), np.abs(f))
+
+
+def _constraint_columns(form, h, g, x0, x2):
+    """The constraints as columns on the nodes, (n_nodes, k, r): Simpson's rule for int g.h
+    (a node or midpoint value times its weight) plus d0, d1 at the ends, the midpoint parts
+    condensed like the stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
+    r = len(form.constraints)
+    f = np.zeros((len(h) + 1, form.k, r))
+    if not r:
+        return f
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    f[:-1] += (h / 6)[:, None, None] * gt[0:-1:2]
+    f[1:] += (h / 6)[:, None, None] * gt[2::2]
+    f[0] += np.array([con.d0 for con in form.constraints]).T
+    f[-1] += np.array([con.d1 for con in form.constraints]).T
+    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    f[:-1] -= x0.transpose(0, 2, 1) @ cm
+    f[1:] -= x2.transpose(0, 2, 1) @ cm
+    return f
+
+
+def _restrict(d, u, f, end, free, fixed):
+    """Impose the essential conditions at node ``end`` (0 or -1): in the basis [free, fixed]
+    of its directions, the fixed coordinates are decoupled (rows and columns of the block, the
+    coupling and the constraints zeroed) and given a positive pivot, which adds a positive
+    eigenvalue per fixed direction and leaves the negative count that of the restriction."""
+    if not fixed.shape[1]:
+        return
+    if not free.shape[1]:   # all fixed: the node's own block, decoupled
+        fill = max(float(np.max(np.abs(d[end]))), 1.0)
+        d[end] = fill * np.eye(len(fixed))
+        u[0 if end == 0 else -1] = 0.0
+        f[end] = 0.0
+        return
+    q = np.hstack((free, fixed))
+    nf = free.shape[1]
+    block = q.T @ d[end] @ q
+    fill = max(float(np.max(np.abs(block))), 1.0)
+    block[nf:, :] = 0.0
+    block[:, nf:] = 0.0
+    block[nf:, nf:] = fill * np.eye(fixed.shape[1])
+    d[end] = block
+    if end == 0:
+        u[0] = q.T @ u[0]
+        u[0][nf:, :] = 0.0
+    else:
+        u[-1] = u[-1] @ q
+        u[-1][:, nf:] = 0.0
+    f[end] = q.T @ f[end]
+    f[end][nf:, :] = 0.0
+
+
+def _pivots(blocks, scale, what):
+    """(inverses, number of negative eigenvalues) of the symmetric pivot blocks (p, k, k);
+    _Singular if an eigenvalue is within ``scale`` of zero. Blocks of k = 2 and 3 by closed
+    forms (:func:`_small_pivots`), larger ones by their eigendecomposition."""
+    k = blocks.shape[-1]
+    if k == 1:
+        w = blocks[:, 0, 0]
+        if np.any(np.abs(w) <= scale):
+            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+        return 1.0 / blocks, int(np.count_nonzero(w < 0))
+    if k <= 3:
+        inv, negative, singular = _small_pivots(blocks, scale)
+        if singular:
+            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+        return inv, negative
+    w, v = np.linalg.eigh(blocks)
+    if np.any(np.abs(w) <= scale):
+        raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+    return (v / w[:, None, :]) @ v.transpose(0, 2, 1), int(np.count_nonzero(w < 0))
+
+
+def _small_pivots(m, scale):
+    """Inverses, negative eigenvalues and singularity of symmetric 2 x 2 or 3 x 3 blocks
+    (p, k, k) by closed forms: numpy's batched eigensolver costs ten times as much on them.
+
+    The inverse is the adjugate over the determinant. The negative eigenvalues of M are the
+    positive roots of det(x I + M) = x^k + c_1 x^(k-1) + ... + c_k (c_j the sums of the
+    principal j x j minors), and for a polynomial with only real roots Descartes' rule of
+    signs is exact: their number is the number of sign changes of (1, c_1, ..., c_k). A
+    middle coefficient at rounding level does not matter: where one is zero its neighbours
+    have opposite signs (Newton's inequalities), so either sign gives the same count; the
+    last, det M, is checked against zero: |det M| <= ``scale`` |c_(k-1)| where an eigenvalue
+    is within ``scale`` of zero (c_(k-1) is then about the product of the others)."""
+    adj = np.empty_like(m)
+    if m.shape[-1] == 2:
+        a, b, d = m[:, 0, 0], m[:, 1, 1], m[:, 0, 1]
+        det = a * b - d * d
+        adj[:, 0, 0], adj[:, 1, 1], adj[:, 0, 1], adj[:, 1, 0] = b, a, -d, -d
+        coeffs = (a + b, det)
+    else:
+        a, b, c = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
+        d, e, f = m[:, 0, 1], m[:, 0, 2], m[:, 1, 2]
+        adj[:, 0, 0], adj[:, 1, 1], adj[:, 2, 2] = b * c - f * f, a * c - e * e, a * b - d * d
+        adj[:, 0, 1] = adj[:, 1, 0] = e * f - d * c
+        adj[:, 0, 2] = adj[:, 2, 0] = d * f - b * e
+        adj[:, 1, 2] = adj[:, 2, 1] = d * e - a * f
+        det = a * adj[:, 0, 0] + d * adj[:, 0, 1] + e * adj[:, 0, 2]
+        coeffs = (a + b + c, adj[:, 0, 0] + adj[:, 1, 1] + adj[:, 2, 2], det)
+    inv = adj / det[:, None, None]
+    singular = bool(np.any(np.abs(det) <= scale * np.abs(coeffs[-2])))
+    signs = np.sign(np.array((np.ones_like(det), *coeffs)))
+    signs[signs == 0] = 1.0    # a zero middle coefficient: either sign counts alike
+    negative = int(np.count_nonzero(signs[1:] * signs[:-1] < 0)) if not singular else 0
+    return inv, negative, singular
+
+
+def _sturm(diag, off2, scale) -> int:
+    """Negative pivots of the LDL^T of a symmetric tridiagonal matrix (diagonal ``diag``,
+    squared off-diagonal ``off2``): the k = 1 case of :func:`_reduce` without constraints, in
+    plain floats (a tenth of the cost of the array form on a few hundred nodes)."""
+    negative, d = 0, diag[0]
     for dj, e2 in zip(diag[1:], off2):
+        if -scale <= d <= scale:
+            raise _Singular("zero eigenvalue: a pivot of the node matrix is singular to "
+                            "working precision")
         if d < 0:
             negative += 1
-        d = dj - e2 / (d or 1e-300)
+        d = dj - e2 / d
+    if -scale <= d <= scale:
+        raise _Singular("zero eigenvalue: the last pivot is zero to working precision "
+                        "(a fold or a branch point)")
     return negative + (d < 0)
+
+
+def _reduce(d, u, f, scale, s_mat):
+    """Eliminate all nodes but the last: (the negative eigenvalues of their pivots, the last
+    node's pivot block, its constraint columns), adding C K^-1 C^T of the eliminated part to
+    ``s_mat`` (:func:`_accumulate`), for the block
+    tridiagonal K (diagonal blocks ``d`` (N, k, k), upper blocks ``u`` (N-1, k, k): u[i] =
+    K[i, i+1]) and the constraint columns ``f`` (N, k, r), by odd-even (cyclic) reduction: a
+    block LDL^T of K with the nodes ordered odd ones first, level by level. The odd nodes of a
+    level are coupled only to even ones, so their pivots are the diagonal blocks themselves,
+    inverted all at once; their Schur complement is again block tridiagonal on the even
+    nodes. By Haynsworth's additivity the negative eigenvalues of all the pivots, the last
+    included, are n_-(K) (Sylvester), and the constraint columns, eliminated alongside,
+    accumulate C K^-1 C^T.
+    The first levels' pivots couple neighbours a few elements apart, where the stiffness
+    dominates (MAX_PHASE): they are positive definite and well conditioned."""
+    negative = 0
+    while len(d) > 1:
+        inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
+        negative += neg
+        left, right = u[0::2], u[1::2]             # K[o-1, o] and K[o, o+1], o odd
+        pl = inv @ left.transpose(0, 2, 1)         # D_o^-1 K[o, o-1]
+        pr = inv[: len(right)] @ right             # D_o^-1 K[o, o+1]
+        de = d[0::2].copy()
+        de[: len(left)] -= left @ pl
+        de[1: len(right) + 1] -= right.transpose(0, 2, 1) @ pr
+        fo = f[1::2]
+        fe = f[0::2].copy()
+        fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
+        fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
+        if fo.shape[2]:
+            _accumulate(fo, inv, s_mat)
+        u = -pl[: len(right)].transpose(0, 2, 1) @ right
+        d, f = de, fe
+    return negative, d[0], f[0]
+
+
+def kernel_dimension(problem, state, delta: float | None = None) -> int:
+    """The number of eigenvalues of the second variation at ``state`` within ``delta`` of
+    zero: n_-(form - delta) - n_-(form + delta) (shifts by the L2 inner product), -1 if
+    either count fails. ``delta`` defaults to 1e-3 times the mean of the smallest eigenvalue
+    of A, far above the P2 error of an eigenvalue near zero and far below the spacing of the
+    eigenvalues of the examples (of order pi^2 A)."""
+    if not problem.has_second_variation:
+        return -1
+    evaluate = _on_state(problem, state)
+    if delta is None:
+        a = evaluate(_points(state.s)).fields(2 * len(state.s) - 1)[0]
+        delta = 1e-3 * float(np.mean(_min_eig(a)))
+    above = count_form(evaluate, state.s, shift=delta, source=_source(problem)).index
+    below = count_form(evaluate, state.s, shift=-delta, source=_source(problem)).index
+    return above - below if min(above, below) >= 0 else -1
 
 
 def index_change(enters: str, curvature: float, slope: float) -> int:
