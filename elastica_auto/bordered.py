@@ -177,8 +177,10 @@ class Factorization:
 
     @property
     def logdet(self) -> float:
-        """log |det| (equal for the banded and the bordered matrix)."""
-        return float(np.sum(np.log(np.abs(self.lu[self.st.kl + self.st.ku]))))
+        """log |det| (equal for the banded and the bordered matrix); -inf where a pivot is
+        exactly zero (the matrix is singular: a branch point met exactly)."""
+        with np.errstate(divide="ignore"):
+            return float(np.sum(np.log(np.abs(self.lu[self.st.kl + self.st.ku]))))
 
     # -- natural-order vectors <-> banded-order vectors ---------------------------------------
     def _rhs(self, col, bc, border):

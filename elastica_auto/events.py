@@ -256,7 +256,9 @@ def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
 
     def tau(sol):
         sign, logdet = _det_on(corr, sol, sec, s)
-        return sign * math.exp(min(logdet - ref, 700.0))
+        # sign 0: a pivot exactly zero, the branch point itself (exp(-inf - ref) would be 0
+        # too, but not where ref is -inf as well)
+        return sign * math.exp(min(logdet - ref, 700.0)) if sign else 0.0
 
     return along(corr, step, tau, lo, hi, s,
                  ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))))

@@ -276,8 +276,17 @@ def kernel(lin: Linearization) -> tuple[np.ndarray, float]:
     right-hand side: its component along the kernel is amplified by 1 / sigma_min. At a
     branch point located to ~1e-12 this is the direction of the other branch that is
     orthogonal to the border row (the first branch's tangent). Returns (v (n, m), v_lam)."""
-    disc = lin.disc
+    disc, fact = lin.disc, lin.fact
     rng = np.random.default_rng(20261201)
-    v, v_lam = lin.fact.solve(rng.standard_normal((disc.n, disc.m - 1)),
+    diag = fact.lu[fact.st.kl + fact.st.ku]
+    zero = diag == 0.0
+    # a pivot exactly zero (a branch point met exactly, as on a trivial branch whose entries
+    # are few distinct numbers) would make the solve inf: a pivot at rounding level amplifies
+    # the kernel component as intended
+    diag[zero] = np.finfo(float).eps * np.max(np.abs(diag))
+    try:
+        v, v_lam = fact.solve(rng.standard_normal((disc.n, disc.m - 1)),
                               rng.standard_normal(disc.n), [rng.standard_normal()])
+    finally:
+        diag[zero] = 0.0
     return v, float(v_lam[0])
