@@ -1,31 +1,29 @@
-"""Stability index: by direct count and by the fold rule (docs/design.md, "Stability index").
+"""Stability index: by direct count and by the fold rule (docs/stability.md, "The direct
+count" and "The fold rule").
 
-The index of an equilibrium is the number of negative eigenvalues of the second variation.
-An equation module provides it in scalar Sturm-Liouville form through the optional hook
-``second_variation(s, y, p) -> (a, b, c)``::
+The index of an equilibrium is the number of negative eigenvalues of the second variation of
+its energy. An equation module provides it through the optional hook ``second_variation(s, y,
+p)``, a `elastica_auto.second_variation.SecondVariation`::
 
-    delta^2 E[h] = int_0^1 ( a(s) h'^2 + b(s) h^2 ) ds + c h(1)^2,   h(0) = 0,   a > 0,
+    d2E[h] = int_0^1 ( h'.A h' + 2 h'.C h + h.B h ) ds + h(0).E0 h(0) + h(1).E1 h(1)
 
-whose eigenproblem is ``-(a h')' + b h = mu h`` with the natural end condition
-``a h'(1) + c h(1) = 0``. :func:`index` counts its negative eigenvalues directly at every
-point (the tests check it against a Jacobi-field count, a dense Galerkin count and the straight
-rod's critical loads).
+for h(s) in R^k with essential conditions at the ends and linear constraints (or the scalar
+tuple ``(a, b, c[, constraints])``, the case k = 1, h(0) = 0). :func:`count` counts its
+negative eigenvalues directly at a point (:func:`count_form`: P2 finite elements, a block
+LDL^T by cyclic reduction; the tests check it against conjugate points, a dense Galerkin count
+and analytic spectra). With the constraints C (full row rank r) the index is that of the form
+on ker C: the bordered matrix M = [[K, C^T], [C, 0]] has n_-(M) = n_-(K on ker C) + r, and
+where K is nonsingular In(M) = In(K) + In(-C K^-1 C^T) (Haynsworth), so ::
 
-A constrained problem (an end held by a pin: isoperimetric constraints with Lagrange
-multipliers) returns a fourth element, the linearised constraints as a list of pairs
-``(g_i(s), d_i)``; the index is then that of the second variation restricted to the variations
-with ``int_0^1 g_i h ds + d_i h(1) = 0`` for every i. With K the stiffness matrix and C the
-discretised constraints (full row rank r), the bordered matrix M = [[K, C^T], [C, 0]] has
-In(M) = In(K) + In(-S), S = C K^{-1} C^T (Haynsworth), and n_-(M) = n_-(K restricted to
-ker C) + r; so, S being nonsingular, ::
-
-    index_constrained = n_-(K) - n_-(S).
+    index_constrained = n_-(K) - n_-(C K^-1 C^T).
 
 The fold rule (:func:`fold_rule`) propagates a known index along a branch: at a simple fold of
-a parameter xi entering the free end (or the ODE), ``d/dtau delta^2 J = -xi'' dB_xi/dtau``
-(the paper's eqn:Distinguished_biff_diagram_free_end) so the index changes by
-``+sign(xi'' dB/dtau)`` in the direction of travel; for a fixed-end parameter, whose ordinate
-``m0 = -dE/dxi`` has the opposite sign, by ``-sign(xi'' dB/dtau)``.
+a parameter xi the critical eigenvalue moves with ``dmu/dtau = -xi'' d(dE/dxi)/dtau``, so the
+index changes by ``+sign(xi'' dB/dtau)`` in the direction of travel for a parameter entering
+the equation or a natural end term (its distinguished ordinate B = dE/dxi; the paper's
+eqn:Distinguished_biff_diagram_free_end), and by ``-sign(xi'' dB/dtau)`` for an essential end
+value, whose ordinate is the reaction ``-dE/dxi``. At a branch point crossed by a branch, the
+index changes by the dimension of the kernel (:func:`kernel_dimension`).
 """
 
 from __future__ import annotations
@@ -113,10 +111,31 @@ def index(problem, state) -> int:
 
 
 def _min_eig(a):
-    """The smallest eigenvalue of each symmetric (..., k, k) block."""
-    if a.shape[-1] == 1:
-        return a[..., 0, 0]
-    return np.linalg.eigvalsh(a)[..., 0]
+    """A lower bound of the smallest eigenvalue of each symmetric block (p, k, k), positive
+    exactly where the block is positive definite: the eigenvalue itself for k = 1; for k = 2
+    and 3, det / c_(k-1) (c_(k-1) the sum of the principal (k-1) x (k-1) minors, which is at
+    least the product of the other eigenvalues: the bound is at least lambda_min / (k - 1)),
+    where Sylvester's criterion (leading minors positive) holds, else the smallest eigenvalue;
+    numpy's eigensolver for larger k."""
+    k = a.shape[-1]
+    if k == 1:
+        return a[:, 0, 0]
+    if k > 3:
+        return np.linalg.eigvalsh(a)[:, 0]
+    a00, a11, a01 = a[:, 0, 0], a[:, 1, 1], a[:, 0, 1]
+    m2 = a00 * a11 - a01 * a01
+    if k == 2:
+        det, minors = m2, a00 + a11
+    else:
+        a22, a02, a12 = a[:, 2, 2], a[:, 0, 2], a[:, 1, 2]
+        c00, c11 = a11 * a22 - a12 * a12, a00 * a22 - a02 * a02
+        det = a00 * c00 - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
+        minors = c00 + c11 + m2
+    definite = (a00 > 0) & (m2 > 0) & (det > 0)
+    if np.all(definite):
+        return det / minors
+    return np.where(definite, det / np.where(definite, minors, 1.0),
+                    np.linalg.eigvalsh(a)[:, 0])
 
 
 def _norm(a):

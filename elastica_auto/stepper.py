@@ -44,7 +44,7 @@ from .events import (Located, Step, UserValues, crossings, locate_branch_point, 
 from .newton import Row
 from .options import ContinuationOptions
 from .solution import State, Tangent, difference, inner, norm, secant
-from .stability import index, index_change
+from .stability import index, index_change, kernel_dimension
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
@@ -462,9 +462,7 @@ class _Walk:
                 found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
                                     note=f"fold not located: {exc}"))
         elif located is not None:
-            note = ""
-            if index_a >= 0 and index_b >= 0 and abs(index_b - index_a) != 1:
-                note = f"index {index_a} -> {index_b} across the branch point"
+            note = self._kernel_check(located.solution.state, index_a, index_b)
             found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
                                 abs(located.value), note=note))
         if index_a >= 0 and index_b >= 0 and not skip:
@@ -480,6 +478,20 @@ class _Walk:
         if found:
             self.event_retries = 0
         return found, index_b
+
+    def _kernel_check(self, state, index_a: int, index_b: int) -> str:
+        """At a branch point crossed by the branch, the index changes by the dimension of the
+        second variation's kernel there (an eigenvalue crosses zero for each kernel
+        direction): '' where it does, else a note, also kept as a warning."""
+        if index_a < 0 or index_b < 0 or not self.problem.has_second_variation:
+            return ""
+        kernel = kernel_dimension(self.problem, state)
+        if kernel == abs(index_b - index_a):
+            return ""
+        note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
+                f"dimension {kernel if kernel >= 0 else 'unknown'}")
+        self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
+        return note
 
     def _accept(self, step: Step, found: list[_Event], index_b: int, retries: int,
                 cos_turn: float) -> tuple[float, bool]:
