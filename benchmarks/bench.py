@@ -25,6 +25,10 @@
    model's at c = 0.5 and 2 from the first three (``make runs`` times ``snap_damping`` without
    its damping sweep, which this measures per landing).
 
+7. The direct count of the stability index: one point of the planar elastica (k = 1, on its
+   own mesh) and a three-component form with coupling (k = 3) on 100 intervals, with and
+   without a constraint; median milliseconds (``--index`` prints only these).
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -303,8 +307,59 @@ def landing(damped=3, damping=(0.5, 2.0)):
               + f" s (the first {damped} folds; sum {sum(times):.2f} s)")
 
 
+def index_cost(repeats=400):
+    """Median ms of the direct count: the elastica at a buckled point (k = 1), and a k = 3
+    form shaped like a spatial rod's (A = diag(1, 2, 1/1.3), B and C smooth and of the size
+    of the paper's loads) on 100 intervals, unconstrained and with one constraint."""
+    import numpy as np
+
+    from elastica_auto.problem import load_problem
+    from elastica_auto.second_variation import Constraint, SecondVariation
+    from elastica_auto.solution import State
+    from elastica_auto.stability import count, count_form
+
+    def median_ms(f):
+        f()
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            f()
+            times.append(time.perf_counter() - t0)
+        return 1e3 * statistics.median(times)
+
+    problem = load_problem("elastica_lever_arm")
+    s = np.linspace(0.0, 1.0, 101)
+    params = {**problem.defaults(), "eps": 0.25, "P": 9 * math.pi ** 2 / 4}
+    theta = 1.2 * np.sin(math.pi * s / 2)          # a buckled-like profile (the count does not
+    y = np.vstack((theta, 0.6 * math.pi * np.cos(math.pi * s / 2), -np.sin(theta),
+                   np.cos(theta)))                 # need an equilibrium)
+    state = State.from_values(problem, s, y, params)
+    a = np.diag([1.0, 2.0, 1 / 1.3])
+    skew = np.array([[0.0, -1.0, 0.5], [1.0, 0.0, -0.3], [-0.5, 0.3, 0.0]])
+
+    def rod(pts, constrained=False):
+        c = np.cos(np.pi * pts)
+        b = -22.0 * np.einsum("ij,m->ijm", np.array([[1.0, 0.2, 0.0], [0.2, 0.6, 0.1],
+                                                     [0.0, 0.1, 0.3]]), c)
+        return SecondVariation(a, b, np.einsum("ij,m->ijm", 2.0 * skew, 1 + 0.5 * c),
+                               fixed0=[0, 1, 2],
+                               constraints=[Constraint(np.vstack((c, c, c)))] * constrained)
+
+    print("the direct count of the index, median ms per point:")
+    ms = median_ms(lambda: count(problem, state))
+    print(f"  elastica (k = 1, {len(s) - 1} intervals): {ms:.3f}"
+          f" (index {count(problem, state).index})")
+    for constrained in (False, True):
+        ms = median_ms(lambda: count_form(lambda p: rod(p, constrained), s))
+        what = "one constraint" if constrained else "no constraint"
+        print(f"  k = 3, {len(s) - 1} intervals, {what}: {ms:.3f} (index "
+              f"{count_form(lambda p: rod(p, constrained), s).index})")
+
+
 def main():
     step_cost()
+    print()
+    index_cost()
     print("\nrotating_arm in one process (8 branches to |psi| = 6 pi):")
     print(f"{'corrector':>12} {'points':>7} {'ms/step':>9} {'folds':>6} "
           f"{'max fold res.':>14} {'seconds':>9}")
@@ -330,5 +385,7 @@ if __name__ == "__main__":
         sweep()
     elif sys.argv[1:] == ["--landing"]:
         landing()
+    elif sys.argv[1:] == ["--index"]:
+        index_cost()
     else:
         main()

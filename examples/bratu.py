@@ -12,11 +12,20 @@ bound. The solutions are known in closed form,
     u(x) = -2 ln( cosh(z (x - 1/2)) / cosh(z / 2) ),   lam = 2 z^2 / cosh(z / 2)^2,
 
 so u'(0) = 2 z tanh(z / 2), u(1/2) = 2 ln cosh(z / 2), and the fold is where z tanh(z / 2) = 2.
+
+The equation is the Euler-Lagrange equation of the energy
+
+    E[u] = int_0^1 ( u'^2 / 2 - lam exp(u) ) ds,   u(0) = u(1) = 0,
+
+whose second variation ``int_0^1 (h'^2 - lam exp(u) h^2) ds`` on h(0) = h(1) = 0 gives the
+stability index (``second_variation``): 0 on the lower family, 1 on the upper, changing at the
+fold. The distinguished ordinate of lam, which the fold rule reads, is dE/dlam = -int exp(u) ds
+(``dE_dlam``; lam enters the equation: docs/stability.md, "The fold rule").
 """
 
 import numpy as np
-from elastica_auto.problem import Ordinate, Parameter
-from elastica_auto.solution import hermite
+from elastica_auto.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.solution import hermite, simpson
 
 STATES = ("u", "v")
 
@@ -68,10 +77,21 @@ def _u_half(s, y, p):
     return float(hermite(s, y[:1], y[1:2], np.array([0.5]))[0, 0])
 
 
+def _de_dlam(s, y, p):
+    return -simpson(s, y[:1], y[1:2], lambda u: np.exp(u[0]))
+
+
 ORDINATES = [
-    Ordinate("du0", r"$u'(0)$", _du0, "lam", "slope at x = 0; ordinate for lam"),
+    Ordinate("du0", r"$u'(0)$", _du0, None, "slope at x = 0"),
     Ordinate("u_half", r"$u(1/2)$", _u_half, None, "u at the midpoint, its maximum"),
+    Ordinate("dE_dlam", r"$\partial E/\partial\lambda$", _de_dlam, "lam",
+             "dE/dlam = -int exp(u) ds; ordinate for lam"),
 ]
+
+
+def second_variation(s, y, p):
+    """d2E[h] = int_0^1 (h'^2 - lam exp(u) h^2) ds with h(0) = h(1) = 0."""
+    return SecondVariation(1.0, -p["lam"] * np.exp(y[0]), fixed0=[0], fixed1=[0])
 
 
 def exact_start(s, p):

@@ -1,10 +1,11 @@
-"""Branch points without a stability hook: u'' + p u (1 + u^2) = 0, u(0) = u(1) = 0
+"""Branch points from the determinant alone: u'' + p u (1 + u^2) = 0, u(0) = u(1) = 0
 (examples/nonlinear_eigenvalue.py), fixed at both ends.
 
 On u = 0 the linearisation u'' + p u = 0 has a solution sin(k pi x) exactly at p = (k pi)^2: the
-branch points. The engine sees them only through the sign of the determinant of the bordered
-collocation Jacobian. The branches switched onto there are checked by an independent shooting
-integration (scipy's DOP853) and by the symmetry u -> -u.
+branch points. The engine sees them through the sign of the determinant of the bordered
+collocation Jacobian, which does not use the module's stability hook. The branches switched
+onto there are checked by an independent shooting integration (scipy's DOP853) and by the
+symmetry u -> -u.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from helpers import EXAMPLES, run_plan
 @pytest.fixture(scope="module")
 def eigen_run(tmp_path_factory):
     plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
-    assert plan.switch_count == 2 and not plan.problem.has_second_variation
+    assert plan.switch_count == 2
     return run_plan(plan, tmp_path_factory.mktemp("eigen"), jobs=2)
 
 
@@ -41,7 +42,8 @@ def test_branch_points_are_at_k_pi_squared(eigen_run):
     expected = [(k * math.pi) ** 2 for k in (1, 2, 3, 4, 5) if (k * math.pi) ** 2 < 50]
     got = [p.params["p"] for p in bps]
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=0)
-    assert all(p.index == -1 for p in trivial.points)        # no hook, no index
+    # the index changes by one at each (tests/test_index_examples.py checks its values)
+    assert [trivial.transition(p) for p in bps] == ["0 -> 1", "1 -> 2"]
     assert trivial.warnings == []
 
 

@@ -170,7 +170,7 @@ def test_bratu_through_the_cli(tmp_path, cli_exe, lam_c):
     assert exp.returncode == 0, exp.stderr
     with open(csv_path, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["branch", "pt", "type", "label", "lam", "du0", "u_half",
+    assert rows[0] == ["branch", "pt", "type", "label", "lam", "du0", "u_half", "dE_dlam",
                        "index", "index_rule", "index_direct"]
     lp = [r for r in rows[1:] if r[2] == "LP"]
     assert len(lp) == 1 and lp[0][3] == "LP1"
