@@ -111,31 +111,12 @@ def index(problem, state) -> int:
 
 
 def _min_eig(a):
-    """A lower bound of the smallest eigenvalue of each symmetric block (p, k, k), positive
-    exactly where the block is positive definite: the eigenvalue itself for k = 1; for k = 2
-    and 3, det / c_(k-1) (c_(k-1) the sum of the principal (k-1) x (k-1) minors, which is at
-    least the product of the other eigenvalues: the bound is at least lambda_min / (k - 1)),
-    where Sylvester's criterion (leading minors positive) holds, else the smallest eigenvalue;
-    numpy's eigensolver for larger k."""
-    k = a.shape[-1]
-    if k == 1:
+    """The smallest eigenvalue of each symmetric block (p, k, k). (A lower bound would do for
+    the Legendre check, but the refinement's wavenumber divides by it: a bound a factor k - 1
+    low refines meshes that need it not.)"""
+    if a.shape[-1] == 1:
         return a[:, 0, 0]
-    if k > 3:
-        return np.linalg.eigvalsh(a)[:, 0]
-    a00, a11, a01 = a[:, 0, 0], a[:, 1, 1], a[:, 0, 1]
-    m2 = a00 * a11 - a01 * a01
-    if k == 2:
-        det, minors = m2, a00 + a11
-    else:
-        a22, a02, a12 = a[:, 2, 2], a[:, 0, 2], a[:, 1, 2]
-        c00, c11 = a11 * a22 - a12 * a12, a00 * a22 - a02 * a02
-        det = a00 * c00 - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
-        minors = c00 + c11 + m2
-    definite = (a00 > 0) & (m2 > 0) & (det > 0)
-    if np.all(definite):
-        return det / minors
-    return np.where(definite, det / np.where(definite, minors, 1.0),
-                    np.linalg.eigvalsh(a)[:, 0])
+    return np.linalg.eigvalsh(a)[:, 0]
 
 
 def _norm(a):
@@ -409,28 +390,39 @@ def _small_pivots(m, scale):
     middle coefficient at rounding level does not matter: where one is zero its neighbours
     have opposite signs (Newton's inequalities), so either sign gives the same count; the
     last, det M, is checked against zero: |det M| <= ``scale`` |c_(k-1)| where an eigenvalue
-    is within ``scale`` of zero (c_(k-1) is then about the product of the others)."""
-    adj = np.empty_like(m)
-    if m.shape[-1] == 2:
-        a, b, d = m[:, 0, 0], m[:, 1, 1], m[:, 0, 1]
+    is within ``scale`` of zero (c_(k-1) is then about the product of the others). With
+    n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
+    (n_2 xor n_3); a zero coefficient counts as positive."""
+    p, k = len(m), m.shape[-1]
+    flat = m.reshape(p, k * k)
+    if k == 2:
+        a, b, d = flat[:, 0], flat[:, 3], flat[:, 1]
         det = a * b - d * d
-        adj[:, 0, 0], adj[:, 1, 1], adj[:, 0, 1], adj[:, 1, 0] = b, a, -d, -d
-        coeffs = (a + b, det)
+        inv = flat[:, _ADJ2] * _ADJ2_SIGN / det[:, None]
+        neg1, c_last = a + b < 0, a + b
+        changes = np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ (det < 0))
     else:
-        a, b, c = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
-        d, e, f = m[:, 0, 1], m[:, 0, 2], m[:, 1, 2]
-        adj[:, 0, 0], adj[:, 1, 1], adj[:, 2, 2] = b * c - f * f, a * c - e * e, a * b - d * d
-        adj[:, 0, 1] = adj[:, 1, 0] = e * f - d * c
-        adj[:, 0, 2] = adj[:, 2, 0] = d * f - b * e
-        adj[:, 1, 2] = adj[:, 2, 1] = d * e - a * f
-        det = a * adj[:, 0, 0] + d * adj[:, 0, 1] + e * adj[:, 0, 2]
-        coeffs = (a + b + c, adj[:, 0, 0] + adj[:, 1, 1] + adj[:, 2, 2], det)
-    inv = adj / det[:, None, None]
-    singular = bool(np.any(np.abs(det) <= scale * np.abs(coeffs[-2])))
-    signs = np.sign(np.array((np.ones_like(det), *coeffs)))
-    signs[signs == 0] = 1.0    # a zero middle coefficient: either sign counts alike
-    negative = int(np.count_nonzero(signs[1:] * signs[:-1] < 0)) if not singular else 0
-    return inv, negative, singular
+        e = flat[:, _SYM3]                                  # a, b, c, d, e, f (_SYM3)
+        cof = e[:, _COF[0]] * e[:, _COF[1]] - e[:, _COF[2]] * e[:, _COF[3]]
+        det = np.einsum("pi,pi->p", e[:, (0, 3, 4)], cof[:, (0, 3, 4)])   # a c00 + d c01 + e c02
+        inv = cof[:, _COF_TO_3X3] / det[:, None]
+        c_last = cof[:, 0] + cof[:, 1] + cof[:, 2]
+        neg1, neg2 = e[:, 0] + e[:, 1] + e[:, 2] < 0, c_last < 0
+        changes = (np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ neg2)
+                   + np.count_nonzero(neg2 ^ (det < 0)))
+    singular = bool(np.any(np.abs(det) <= scale * np.abs(c_last)))
+    return inv.reshape(p, k, k), (0 if singular else int(changes)), singular
+
+
+#: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
+_ADJ2, _ADJ2_SIGN = np.array([3, 1, 2, 0]), np.array([1.0, -1.0, -1.0, 1.0])
+#: A symmetric 3 x 3 block flattened, its entries a, b, c (diagonal), d, e, f (01, 02, 12).
+_SYM3 = np.array([0, 4, 8, 1, 2, 5])
+#: Its cofactors c00, c11, c22, c01, c02, c12 as e[i] e[j] - e[k] e[l]: b c - f f, a c - e e,
+#: a b - d d, e f - d c, d f - b e, d e - a f.
+_COF = np.array([[1, 0, 0, 4, 3, 3], [2, 2, 1, 5, 5, 4], [5, 4, 3, 3, 1, 0], [5, 4, 3, 2, 4, 5]])
+#: The adjugate (the cofactors' symmetric matrix) flattened from them.
+_COF_TO_3X3 = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])
 
 
 def _sturm(diag, off2, scale) -> int:
@@ -475,14 +467,17 @@ def _reduce(d, u, f, scale, s_mat):
         de = d[0::2].copy()
         de[: len(left)] -= left @ pl
         de[1: len(right) + 1] -= right.transpose(0, 2, 1) @ pr
-        fo = f[1::2]
-        fe = f[0::2].copy()
-        fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
-        fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
-        if fo.shape[2]:
+        if f.shape[2]:
+            fo = f[1::2]
+            fe = f[0::2].copy()
+            fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
+            fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
             _accumulate(fo, inv, s_mat)
+            f = fe
+        else:
+            f = f[0::2]
         u = -pl[: len(right)].transpose(0, 2, 1) @ right
-        d, f = de, fe
+        d = de
     return negative, d[0], f[0]
 
 
