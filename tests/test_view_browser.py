@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -27,7 +28,7 @@ from elastica_auto.store import BranchFile
 from helpers import REPO
 
 CHROMIUM = Path(os.environ.get("ELASTICA_AUTO_CHROMIUM", "/usr/bin/chromium"))
-VIEWPORT = {"width": 1200, "height": 700}
+VIEWPORT = {"width": 1200, "height": 760}
 
 #: Page coordinates of the data point (x, y) of the diagram.
 PIXEL = """([x, y]) => {
@@ -223,6 +224,9 @@ def test_a_click_pins_the_point(page):
     page.page.locator("#pinned").filter(has_text="pinned").wait_for()
     page.hover("LP2")                   # Plotly's hover label follows; the side panel stays
     assert "label\tLP1" in page.info()
+    page.page.click("#copy")            # no error (the fixture checks), the string selected
+    assert page.page.evaluate("getSelection().toString() || document.activeElement.value")\
+        == page.page.input_value("#restart")
     page.page.click("#unpin")
     page.page.mouse.move(0, 0)
     page.hover("LP2")
@@ -274,15 +278,54 @@ def test_snap_arrows_on_request(page, viewer_file):
         assert (a["x"], a["y"]) == (page.data[br]["psi"][row], s["target_m1"])
 
 
-def test_screenshot(page):
-    """The picture of docs/img/viewer.png: a fold pinned, snap arrows shown."""
+def test_screenshot(browser, viewer_file, tmp_path, monkeypatch):
+    """The picture of docs/img/viewer.png: a fold pinned, snap arrows shown; the page written
+    as `elastica-auto view out/arm.h5` would write it."""
+    (tmp_path / "out").mkdir()
+    shutil.copy(viewer_file, tmp_path / "out" / "arm.h5")
+    monkeypatch.chdir(tmp_path)
+    html = ea.view("out/arm.h5", "out/arm.html").path.resolve()
+    page = Viewer(browser, html, stored(viewer_file))
     page.page.check("#snaps")
     page.page.mouse.click(*page.at("LP1"))
     page.page.locator("#pinned").filter(has_text="pinned").wait_for()
+    assert page.page.input_value("#restart") == "--from out/arm.h5:LP1"
     png = page.page.screenshot()
+    page.close()
+    assert not page.errors and not page.requests
     assert len(png) > 20_000
     if os.environ.get("ELASTICA_AUTO_SCREENSHOT"):
         (REPO / "docs" / "img" / "viewer.png").write_bytes(png)
+
+
+def test_rotating_arm_panels_and_fold(browser, rotating_arm, tmp_path):
+    """The shipped run: a panel per (eps, P), each with the file's branches of those values
+    and their folds; folding psi puts every point at the file's psi modulo 2 pi."""
+    path = rotating_arm.file.path
+    data = stored(path)
+    v = Viewer(browser, ea.view(path, tmp_path / "arm.html").path, data)
+    try:
+        titles = v.page.eval_on_selector_all("#panel option", "o => o.map((e) => e.text)")
+        assert len(titles) == len({(c["eps"][0], c["P"][0]) for c in data.values()}) == 4
+        for k, title in enumerate(titles):
+            v.page.select_option("#panel", str(k))
+            v.page.wait_for_function("(t) => document.getElementById('plot').layout.title"
+                                     ".text === t", arg=title)
+            shown = {t["branch"] for t in v.traces(kind="line")}
+            values = {q: float(re.search(rf"\b{q}=([-\d.e+]+)", title)[1]) for q in ("eps", "P")}
+            assert shown == {br for br, c in data.items()
+                             if all(abs(c[q][0] - x) <= 1e-5 * abs(x) for q, x in values.items())}
+            marked = sorted(r for t in v.traces(kind="LP") for r in t["rows"])
+            assert len(marked) == sum(np.count_nonzero(data[br]["type"] == b"LP")
+                                      for br in shown)
+        v.page.check("#fold")
+        v.page.wait_for_function("document.getElementById('plot').layout.xaxis.range[1] > 6")
+        for t in v.traces(kind="line"):
+            psi = data[t["branch"]]["psi"][t["rows"]]
+            np.testing.assert_allclose(t["x"], np.mod(psi, 2 * np.pi), rtol=0, atol=1e-12)
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
 
 
 # -- 10^4 points -----------------------------------------------------------------------------

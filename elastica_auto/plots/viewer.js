@@ -140,8 +140,8 @@
   gd.on("plotly_click", (ev) => pin(pointOf(ev)));
   $("unpin").onclick = () => pin(null);
   $("copy").onclick = () => {
-    $("restart").select();
-    if (navigator.clipboard) navigator.clipboard.writeText($("restart").value);
+    $("restart").select();      // selected: where both ways of copying are refused, Ctrl-C
+    navigator.clipboard?.writeText($("restart").value).catch(() => document.execCommand("copy"));
   };
   for (const id of ["panel", "x", "y", "fold", "snaps"]) {
     $(id).onchange = (ev) => {

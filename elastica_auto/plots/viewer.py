@@ -137,8 +137,13 @@ def _nearest_labelled(arclength: np.ndarray, labelled: np.ndarray) -> list[int]:
     rows = np.flatnonzero(labelled)
     if not len(rows):
         return [-1] * len(arclength)
-    d = np.abs(arclength[:, None] - arclength[rows][None, :])
-    return rows[np.argmin(d, axis=1)].tolist()
+    order = np.argsort(arclength[rows], kind="stable")
+    rows, s = rows[order], arclength[rows][order]
+    right = np.searchsorted(s, arclength).clip(0, len(s) - 1)
+    left = (right - 1).clip(0)
+    # the one before on a tie, as the nearer of the two neighbours among the labelled
+    before = np.abs(arclength - s[left]) <= np.abs(arclength - s[right])
+    return np.where(before, rows[left], rows[right]).tolist()
 
 
 def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None,
@@ -173,7 +178,6 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
         branches.append({
             "number": b.number,
             "name": f"branch {b.number} ({'+' if b.attrs['direction'] > 0 else '-'})",
-            "parameter": b.parameter,
             "columns": {q: _numbers(c[q]) for q in columns},
             "index": index,
             "labels": labels,
@@ -196,7 +200,7 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
         "file": str(file_name or bf.path),
         "parameters": bf.parameters, "ordinates": bf.ordinates, "columns": columns,
         "x": xname, "y": yname, "fold": fold, "periods": bf.periods,
-        "panels": panels, "varying": varying, "branches": branches,
+        "panels": panels, "branches": branches,
         "labels": {name: list(where) for name, where in bf.labels.items()},
         "styles": {str(k): _style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
         "markers": {kind: _marker(kind) for kind in MARKERS},
