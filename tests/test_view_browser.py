@@ -91,7 +91,7 @@ class Viewer:
     """A page of the viewer open in a new browser context, every request refused but the
     page's own file; JS errors and refused requests are collected."""
 
-    def __init__(self, browser, html: Path, data: dict):
+    def __init__(self, browser, html: Path, data: dict, ready: str | None = "#info tr"):
         self.data, self.requests, self.errors = data, [], []
         self.context = browser.new_context(viewport=VIEWPORT)
         url = html.as_uri()
@@ -108,7 +108,8 @@ class Viewer:
         self.page.on("pageerror", lambda exc: self.errors.append(str(exc)))
         self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
         self.page.goto(url)
-        self.page.wait_for_selector("#info tr")         # drawn, and a first point shown
+        if ready:
+            self.page.wait_for_selector(ready)          # drawn, and a first point shown
 
     def traces(self, branch=None, kind=None) -> list[dict]:
         return [t for t in self.page.evaluate(TRACES)
@@ -296,6 +297,22 @@ def test_screenshot(browser, viewer_file, tmp_path, monkeypatch):
     assert len(png) > 20_000
     if os.environ.get("ELASTICA_AUTO_SCREENSHOT"):
         (REPO / "docs" / "img" / "viewer.png").write_bytes(png)
+
+
+def test_inline_in_a_notebook(browser, arm, tmp_path):
+    """What a notebook shows for ea.view(...) (`View._repr_html_`, an iframe of the page) in a
+    page of its own: the diagram is drawn inside, with no error and no request."""
+    outer = tmp_path / "notebook.html"
+    outer.write_text("<!DOCTYPE html><body>" + ea.view(arm[3])._repr_html_())
+    v = Viewer(browser, outer, arm[1], ready=None)
+    try:
+        frame = v.page.frame_locator("iframe")
+        frame.locator("#info tr").first.wait_for()
+        drawn = v.page.frames[1].evaluate("document.getElementById('plot')._fullData.length")
+        assert frame.locator(".scatterlayer .trace").count() == drawn > 0
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
 
 
 def test_rotating_arm_panels_and_fold(browser, rotating_arm, tmp_path):
