@@ -355,10 +355,10 @@ def view(file, output, xname, yname, fold):
     """Write an interactive bifurcation diagram of FILE.h5: one self-contained HTML page (no
     network access) showing the configuration of the point under the mouse beside the
     diagram (reads the file, computes nothing)."""
-    from .plots.viewer import page, write_page
+    from .plots.viewer import check_output, page, write_page
     bf = _open(file)
-    output = Path(output) if output else Path(file).with_suffix(".html")
     try:
+        output = check_output(output or Path(file).with_suffix(".html"), bf.path)
         text = page(bf, xname, yname, fold)
         path = write_page(text, output, bf.path)
     except (ValueError, StoreError) as exc:

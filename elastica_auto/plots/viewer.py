@@ -227,14 +227,21 @@ def page(bf: BranchFile, xname: str | None = None, yname: str | None = None,
                   (here / "viewer.html").read_text())
 
 
-def write_page(text: str, output: Path, source: Path | None = None) -> Path:
-    """Write ``text`` to ``output`` through a temporary file renamed over it, so that a failed
-    write leaves ``output`` as it was. StoreError if ``output`` is the branch file ``source``
-    or cannot be written."""
+def check_output(output, source: Path | None) -> Path:
+    """``output`` as a Path; StoreError if it is the branch file ``source`` (checked before
+    the page is made, and again as it is written)."""
     output = Path(output)
     if source is not None and same_file(source, output):
         raise StoreError(f"{output} is the branch file being viewed; choose another name for "
                          "the page")
+    return output
+
+
+def write_page(text: str, output: Path, source: Path | None = None) -> Path:
+    """Write ``text`` to ``output`` through a temporary file renamed over it, so that a failed
+    write leaves ``output`` as it was. StoreError if ``output`` is the branch file ``source``
+    or cannot be written."""
+    output = check_output(output, source)
     try:
         output.parent.mkdir(parents=True, exist_ok=True)
         tmp = _temporary(output)
