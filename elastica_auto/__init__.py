@@ -25,6 +25,7 @@ _PUBLIC = {
     "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",
     "PlanError": "errors", "ProblemError": "errors", "StoreError": "errors",
     "RunFileError": "errors", "StartError": "errors",
+    "view": "plots.viewer",
 }
 
 __all__ = ["__version__", *_PUBLIC]

@@ -1,4 +1,4 @@
-"""The ``elastica-auto`` command line: run, list, show, snaps, export, plot.
+"""The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view.
 
 User errors (a bad run file, a missing or foreign branch file) print one line and exit with
 status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
@@ -338,6 +338,32 @@ def plot(file, xname, yname, output, fold):
     except ValueError as exc:
         _fail(str(exc))
     click.echo(f"wrote {path}")
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False),
+              help="HTML file to write (default: FILE with the suffix .html, beside it).")
+@click.option("-x", "xname", default=None,
+              help="Abscissa shown first (default: the continued parameter).")
+@click.option("-y", "yname", default=None,
+              help="Ordinate shown first (default: the continued parameter's distinguished "
+                   "ordinate).")
+@click.option("--fold/--no-fold", "fold", default=False,
+              help="Fold a periodic abscissa into [0, period) at first (the page toggles it).")
+def view(file, output, xname, yname, fold):
+    """Write an interactive bifurcation diagram of FILE.h5: one self-contained HTML page (no
+    network access) showing the configuration of the point under the mouse beside the
+    diagram (reads the file, computes nothing)."""
+    from .plots.viewer import check_output, page, write_page
+    bf = _open(file)
+    try:
+        output = check_output(output or Path(file).with_suffix(".html"), bf.path)
+        text = page(bf, xname, yname, fold)
+        path = write_page(text, output, bf.path)
+    except (ValueError, StoreError) as exc:
+        _fail(str(exc))
+    click.echo(f"wrote {path} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
 def _values(option: str, items) -> dict[str, float]:

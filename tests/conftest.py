@@ -70,3 +70,17 @@ def good_file(tmp_path_factory, cli_exe):
     (d / "small.toml").write_text(SMALL)
     assert run_cli(cli_exe, "run", d / "small.toml", "--out", d).returncode == 0
     return d / "small.h5"
+
+
+@pytest.fixture(scope="session")
+def viewer_file(tmp_path_factory, elastica):
+    """A small branch file for the viewer: the rotating arm at eps = 0.25, P = pi^2/4, psi in
+    [-2 pi, 2 pi] both ways from the straight rod (71 points, folds LP1 and LP2, snap-back
+    targets), computed once (about 1 s)."""
+    import math
+
+    import elastica_auto as ea
+    branches = ea.continuation(elastica, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                               directions="both", bounds=(-2 * math.pi, 2 * math.pi),
+                               uz=[math.pi / 2])
+    return ea.save(branches, tmp_path_factory.mktemp("viewer") / "arm.h5")

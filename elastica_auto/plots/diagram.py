@@ -155,14 +155,11 @@ def _name_points(ax, names):
         ann.set_in_layout(False)
 
 
-def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
-                   period: float | None = None) -> Figure:
-    """The figure of ``yname`` against ``xname`` for every branch of ``bf``, one panel per
-    combination of fixed parameter values (see `panel_groups`).
-
-    Defaults: x is the first branch's continued parameter, y its distinguished ordinate.
-    ``period`` folds x into [0, period).
-    """
+def default_columns(bf: BranchFile, xname: str | None = None,
+                    yname: str | None = None) -> tuple[str, str]:
+    """The columns of a diagram of ``bf``: ``xname`` and ``yname`` if given, checked (a
+    ValueError names the columns there are); by default the first branch's continued
+    parameter against its distinguished ordinate."""
     if not bf.branches:
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
@@ -175,6 +172,18 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
                              f"{', '.join(bf.parameters + bf.ordinates)}")
+    return xname, yname
+
+
+def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
+                   period: float | None = None) -> Figure:
+    """The figure of ``yname`` against ``xname`` for every branch of ``bf``, one panel per
+    combination of fixed parameter values (see `panel_groups`).
+
+    Defaults: see `default_columns`. ``period`` folds x into [0, period).
+    """
+    xname, yname = default_columns(bf, xname, yname)
+    b0 = bf.branches[0]
     varying, groups = panel_groups(bf, xname)
     if not groups:
         raise ValueError(f"{bf.path}: the branches have no points")

@@ -1,0 +1,147 @@
+"""`elastica-auto view` and `ea.view` without a browser: the command's defaults and errors,
+the page's data against the file's own values (read with h5py), one configuration per label
+drawn from that label's stored profile, and the size and time for rotating_arm. The page in a
+browser: tests/test_view_browser.py."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto.plots import viewer
+from elastica_auto.store import BranchFile
+from helpers import run_cli
+
+
+def stored(path) -> dict:
+    """{label: (branch number, row, {column: value})} of every label, read with h5py."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        params = json.loads(f.attrs["parameters"])
+        for name, (br, pt) in json.loads(f.attrs["labels"]).items():
+            g = f[f"branches/{br:03d}"]
+            out[name] = (br, pt - 1, {q: float(g[f"columns/{q}"][pt - 1]) for q in params},
+                         g["profiles"][pt - 1])
+    return out
+
+
+def page_json(text: str) -> dict:
+    m = re.search(r'<script type="application/json" id="data">(.*?)</script>', text, re.S)
+    return json.loads(m[1])
+
+
+def test_the_command_writes_one_self_contained_page_beside_the_file(viewer_file, cli_exe,
+                                                                     tmp_path):
+    """Default output FILE.html; the page loads nothing (no src=, no href to another file);
+    a second run replaces it, leaving no temporary file."""
+    h5 = tmp_path / "arm.h5"
+    h5.write_bytes(viewer_file.read_bytes())
+    for _ in range(2):
+        proc = run_cli(cli_exe, "view", h5)
+        assert proc.returncode == 0, proc.stderr
+        assert proc.stdout.startswith(f"wrote {tmp_path / 'arm.html'} (")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.h5", "arm.html"]
+    text = (tmp_path / "arm.html").read_text()
+    assert not re.search(r"<(script|link|img|iframe)[^>]*\s(src|href)=", text)
+    assert "plotly.js v" in text
+    data = page_json(text)
+    assert data["x"] == "psi" and data["y"] == "m1" and data["file"] == str(h5)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-o", "{h5}"], "is the branch file being viewed"),
+    (["-y", "nope"], "'nope' is not a column of"),
+    (["-x", "P", "--fold"], "--fold: 'P' is not a periodic parameter"),
+])
+def test_errors_are_one_line_with_status_2(viewer_file, cli_exe, tmp_path, args, message):
+    args = [a.format(h5=viewer_file) for a in args]
+    before = viewer_file.read_bytes()
+    proc = run_cli(cli_exe, "view", viewer_file, *args,
+                   *([] if "-o" in args else ["-o", tmp_path / "out.html"]))
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and message in proc.stderr
+    assert viewer_file.read_bytes() == before and not (tmp_path / "out.html").exists()
+    assert run_cli(cli_exe, "view", tmp_path / "none.h5").returncode == 2
+
+
+def test_the_page_holds_the_files_values(viewer_file):
+    """Every column of every point, the index, labels and transitions as stored; each point's
+    configuration is the label nearest in arclength on its branch."""
+    data = viewer.page_data(BranchFile(viewer_file))
+    with h5py.File(viewer_file, "r") as f:
+        assert [b["number"] for b in data["branches"]] == [int(k) for k in f["branches"]]
+        for b in data["branches"]:
+            c = f[f"branches/{b['number']:03d}/columns"]
+            for q in data["columns"]:
+                np.testing.assert_array_equal(np.array(b["columns"][q], float), c[q][()])
+            np.testing.assert_array_equal(b["index"], c["index"][()])
+            assert b["labels"] == [f"{t.decode()}{k}" if t else "" for t, k in
+                                   zip(c["type"][()], c["label"][()])]
+            assert b["transitions"] == [t.decode() for t in c["transition"][()]]
+            s = c["arclength"][()]
+            labelled = np.flatnonzero(c["type"][()] != b"")
+            for i, near in enumerate(b["near"]):
+                assert near in labelled
+                assert abs(s[near] - s[i]) == np.min(np.abs(s[labelled] - s[i]))
+            lps = [i for i, t in enumerate(c["type"][()]) if t == b"LP"]
+            assert b["marks"].get("LP", []) == lps
+
+
+def test_each_label_is_drawn_from_its_own_stored_profile(viewer_file, elastica):
+    """One image per label; the draw hook got that label's stored profile and parameters."""
+    calls = []
+
+    class Recording:
+        has_draw = True
+
+        def draw(self, ax, profile, params):
+            calls.append((profile.copy(), params))
+            elastica.draw(ax, profile, params)
+
+    images = viewer.configuration_images(BranchFile(viewer_file), Recording())
+    labels = stored(viewer_file)
+    assert list(images) == list(labels) and len(calls) == len(labels)
+    for (name, (_, _, params, profile)), (drawn, given) in zip(labels.items(), calls):
+        np.testing.assert_array_equal(drawn, profile)
+        assert given == params, name
+        assert images[name].startswith("data:image/png;base64,")
+    assert images["LP1"] != images["LP2"]      # mirror images (EP1 and EP3 are one rod)
+
+
+def test_view_from_python_and_inline(viewer_file, elastica, tmp_path):
+    """ea.view of a file and of branches in memory (restarts then name FILE.h5); a notebook
+    shows the page in an iframe."""
+    page = ea.view(viewer_file, tmp_path / "a.html")
+    assert page.path == tmp_path / "a.html" and page.html == page.path.read_text()
+    assert page._repr_html_().startswith("<iframe srcdoc=\"&lt;!DOCTYPE html&gt;")
+    branches = ea.continuation(elastica, {"eps": 0.25, "P": 1.0}, "psi", bounds=(-1, 1))
+    memory = ea.view(branches)
+    assert memory.path is None and page_json(memory.html)["file"] == "FILE.h5"
+
+
+def test_version_does_not_import_plotly():
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
+            "assert CliRunner().invoke(main, ['--version']).exit_code == 0\n"
+            "import elastica_auto as ea\nea.view\nprint('plotly' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+def test_rotating_arm_page_is_under_8_mb_in_under_10_s(rotating_arm, tmp_path):
+    """The issue's budget for the shipped run (1682 points, 342 labels)."""
+    t0 = time.perf_counter()
+    page = ea.view(rotating_arm.file.path, tmp_path / "rotating_arm.html")
+    seconds = time.perf_counter() - t0
+    size = page.path.stat().st_size
+    print(f"rotating_arm.html: {size / 1e6:.2f} MB in {seconds:.2f} s")
+    assert size < 8e6 and seconds < 10
+    assert len(page_json(page.html)["images"]) == len(rotating_arm.file.labels)

@@ -1,0 +1,439 @@
+"""The viewer's page in a real browser: Debian's chromium, driven by Playwright through its
+``executable_path`` (Playwright's own browser download is not used), every request but the
+page itself refused and counted. What the page shows is checked against the branch file's
+own values, read with h5py.
+
+Without playwright or chromium these tests skip, with one line saying which is missing;
+under CI=true they fail instead. ``ELASTICA_AUTO_SCREENSHOT=1`` also writes the screenshot
+of docs/img/viewer.png.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto.plots import viewer
+from elastica_auto.store import BranchFile
+from helpers import REPO
+
+CHROMIUM = Path(os.environ.get("ELASTICA_AUTO_CHROMIUM", "/usr/bin/chromium"))
+VIEWPORT = {"width": 1200, "height": 760}
+
+#: Page coordinates of the data point (x, y) of the diagram.
+PIXEL = """([x, y]) => {
+  const gd = document.getElementById("plot"), L = gd._fullLayout;
+  const r = gd.getBoundingClientRect();
+  return [r.left + L.xaxis._offset + L.xaxis.l2p(x), r.top + L.yaxis._offset + L.yaxis.l2p(y)];
+}"""
+#: The traces Plotly holds: branch, kind (legend, line, LP, ...), points, rows, visibility.
+TRACES = """() => document.getElementById("plot")._fullData.map((t) => ({
+  branch: t.meta.branch, kind: t.meta.kind, uid: t.uid, visible: t.visible,
+  x: t._input.x, y: t._input.y, rows: t._input.customdata}))"""
+#: Points drawn per trace: the vertices of its line, or its marker symbols.
+DRAWN = """(uid) => {
+  const g = document.querySelector(`.scatterlayer .trace${uid}`);
+  if (!g) return 0;
+  const line = g.querySelector(".js-line");
+  return line ? (line.getAttribute("d").match(/[ML]/g) || []).length
+              : g.querySelectorAll(".point").length;
+}"""
+
+
+def _missing() -> str:
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "playwright is not installed (pip install -e '.[test]')"
+    if not CHROMIUM.is_file():
+        return f"no Chromium at {CHROMIUM} (apt-get install chromium)"
+    return ""
+
+
+@pytest.fixture(scope="module")
+def browser():
+    reason = _missing()
+    if reason and os.environ.get("CI") == "true":
+        pytest.fail(f"CI=true, but the browser tests cannot run: {reason}")
+    if reason:
+        pytest.skip(reason)
+    from playwright.sync_api import sync_playwright
+    with sync_playwright() as p:
+        chromium = p.chromium.launch(executable_path=str(CHROMIUM))
+        yield chromium
+        chromium.close()
+
+
+def stored(path) -> dict:
+    """The file's values by h5py: {branch number: {column: array}} with ``label`` names."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        for key, g in f["branches"].items():
+            c = {name: d[()] for name, d in g["columns"].items()}
+            c["label"] = np.array([f"{t.decode()}{k}" if t else "" for t, k in
+                                   zip(c["type"], c["label"])])
+            c["transition"] = np.array([t.decode() for t in c["transition"]])
+            out[int(key)] = c
+    return out
+
+
+class Viewer:
+    """A page of the viewer open in a new browser context, every request refused but the
+    page's own file; JS errors and refused requests are collected."""
+
+    def __init__(self, browser, html: Path, data: dict, ready: str | None = "#info tr"):
+        self.data, self.requests, self.errors = data, [], []
+        self.context = browser.new_context(viewport=VIEWPORT)
+        url = html.as_uri()
+
+        def route(r):
+            if r.request.url == url:
+                r.continue_()
+            else:
+                self.requests.append(r.request.url)
+                r.abort()
+
+        self.context.route("**/*", route)
+        self.page = self.context.new_page()
+        self.page.on("pageerror", lambda exc: self.errors.append(str(exc)))
+        self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
+        self.page.goto(url)
+        if ready:
+            self.page.wait_for_selector(ready)          # drawn, and a first point shown
+
+    def traces(self, branch=None, kind=None) -> list[dict]:
+        return [t for t in self.page.evaluate(TRACES)
+                if branch in (None, t["branch"]) and kind in (None, t["kind"])]
+
+    def at(self, label) -> tuple[float, float]:
+        """The pixel of label ``label`` for the page's current x and y (the file's values)."""
+        br, row = self.where(label)
+        c = self.data[br]
+        x, y = (self.page.eval_on_selector(s, "e => e.value") for s in ("#x", "#y"))
+        return self.page.evaluate(PIXEL, [float(c[x][row]), float(c[y][row])])
+
+    def where(self, label) -> tuple[int, int]:
+        return next((br, int(np.flatnonzero(c["label"] == label)[0]))
+                    for br, c in self.data.items() if label in c["label"])
+
+    def hover(self, label):
+        self.page.mouse.move(*self.at(label))
+        # Plotly's label of the point under the mouse: the hover has been handled
+        self.page.locator(".hoverlayer .hovertext").filter(has_text=label).wait_for()
+
+    def info(self) -> str:
+        return self.page.inner_text("#info")
+
+    def close(self):
+        self.context.close()
+
+
+@pytest.fixture(scope="module")
+def arm(viewer_file, tmp_path_factory):
+    """The viewer's page of the small rotating-arm file, its values and its images."""
+    html = ea.view(viewer_file, tmp_path_factory.mktemp("view") / "arm.html").path
+    return (html, stored(viewer_file), viewer.configuration_images(BranchFile(viewer_file)),
+            viewer_file)
+
+
+@pytest.fixture
+def page(browser, arm):
+    html, data = arm[:2]
+    v = Viewer(browser, html, data)
+    yield v
+    v.close()
+    assert not v.errors, v.errors
+    assert not v.requests, v.requests
+
+
+def test_no_errors_and_no_requests(page):
+    """The page loads with no JS error and no request beyond itself (checked after every
+    test, as the fixture ends); Plotly is there."""
+    assert page.page.evaluate("typeof Plotly") == "object"
+    assert page.errors == [] and page.requests == []
+
+
+def test_every_point_is_drawn_where_the_file_has_it(page):
+    """Per branch, the line traces hold each row once (twice where the index changes), of one
+    index each, at the file's (psi, m1), and each of their points is a vertex of a drawn
+    path."""
+    for br, c in page.data.items():
+        lines = page.traces(br, "line")
+        rows = sorted({r for t in lines for r in t["rows"]})
+        assert rows == list(range(len(c["psi"])))
+        for t in lines:
+            np.testing.assert_array_equal(t["x"], c["psi"][t["rows"]])
+            np.testing.assert_array_equal(t["y"], c["m1"][t["rows"]])
+            assert page.page.evaluate(DRAWN, t["uid"]) == len(t["rows"])
+            assert len(set(c["index"][t["rows"][:-1]])) == 1    # one index (the last: shared)
+        shared = sum(len(t["rows"]) for t in lines) - len(rows)
+        assert shared == np.count_nonzero(np.diff(c["index"]))
+
+
+def test_the_fold_markers_are_the_files_folds(page):
+    marked = {(t["branch"], r) for t in page.traces() if t["kind"] in ("LP", "LP?")
+              for r in t["rows"]}
+    folds = {(br, i) for br, c in page.data.items() for i in np.flatnonzero(c["type"] == b"LP")}
+    assert marked == folds and len(folds) == 2
+    for t in page.traces(kind="LP"):
+        c = page.data[t["branch"]]
+        np.testing.assert_array_equal(t["y"], c["m1"][t["rows"]])
+        assert page.page.evaluate(DRAWN, t["uid"]) == len(t["rows"])
+
+
+def test_hovering_a_label_shows_it_and_its_own_configuration(page, arm):
+    images = arm[2]
+    for label in ("LP1", "LP2", "UZ1"):
+        page.hover(label)
+        br, row = page.where(label)
+        info = page.info()
+        assert f"label\t{label}" in info and f"point\t{row + 1}" in info
+        transition = page.data[br]["transition"][row]
+        assert f"transition\t{transition or '-'}" in info
+        assert label != "LP1" or transition == "1 -> 0"
+        assert page.page.get_attribute("#config", "src") == images[label]
+        assert page.page.input_value("#restart") == f"--from {arm[3]}:{label}"
+
+
+def test_an_unlabelled_point_shows_the_nearest_stored_configuration(page, arm):
+    c = page.data[1]
+    row = int(np.flatnonzero(c["label"] == "LP1")[0]) - 2      # two points before LP1
+    assert c["label"][row] == "" and c["label"][row + 1] == ""
+    s = c["arclength"]
+    labelled = np.flatnonzero(c["label"] != "")
+    nearest = c["label"][labelled[np.argmin(np.abs(s[labelled] - s[row]))]]
+    page.page.mouse.move(*page.page.evaluate(PIXEL, [float(c["psi"][row]),
+                                                     float(c["m1"][row])]))
+    page.page.locator("#caption").filter(has_text="nearest stored").wait_for()
+    assert f"nearest stored configuration: {nearest}" in page.page.inner_text("#caption")
+    assert page.page.get_attribute("#config", "src") == arm[2][nearest]
+    assert f"point\t{row + 1}" in page.info() and "label\t-" in page.info()
+
+
+def test_a_click_pins_the_point(page):
+    page.page.mouse.click(*page.at("LP1"))
+    page.page.locator("#pinned").filter(has_text="pinned").wait_for()
+    page.hover("LP2")                   # Plotly's hover label follows; the side panel stays
+    assert "label\tLP1" in page.info()
+    page.page.click("#copy")            # no error (the fixture checks), the string selected
+    assert page.page.evaluate("getSelection().toString() || document.activeElement.value")\
+        == page.page.input_value("#restart")
+    page.page.click("#unpin")
+    page.page.mouse.move(0, 0)
+    page.hover("LP2")
+    assert "label\tLP2" in page.info()
+
+
+def test_switching_y_moves_the_markers_to_the_files_values(page):
+    page.page.select_option("#y", "beta")
+    page.page.wait_for_function("document.getElementById('plot').layout.yaxis.title.text "
+                                "=== 'beta'")
+    for t in page.traces(kind="LP") + page.traces(kind="line"):
+        c = page.data[t["branch"]]
+        np.testing.assert_array_equal(t["y"], c["beta"][t["rows"]])
+        np.testing.assert_array_equal(t["x"], c["psi"][t["rows"]])
+    page.hover("LP2")                   # hovering finds the points where they now are
+
+
+def click_legend(page, name):
+    """Click the legend's entry ``name`` where a user would: on its text (Plotly's toggle is
+    a transparent rectangle over it)."""
+    box = page.page.locator(".legendtext", has_text=name).bounding_box()
+    page.page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+
+
+def test_hiding_a_branch_in_the_legend(page):
+    click_legend(page, "branch 2 (-)")
+    page.page.wait_for_function("document.getElementById('plot')._fullData.filter("
+                                "(t) => t.meta.branch === 2).every((t) => t.visible === "
+                                "'legendonly')")
+    for t in page.traces():
+        drawn = page.page.evaluate(DRAWN, t["uid"])
+        assert (drawn == 0) == (t["branch"] == 2 or t["kind"] == "legend"), t
+    click_legend(page, "branch 2 (-)")
+    page.page.wait_for_function("document.getElementById('plot')._fullData.every("
+                                "(t) => t.visible === true)")
+
+
+def test_snap_arrows_on_request(page, viewer_file):
+    """Each snap-back row of the file is an arrow from its fold to the target's ordinate."""
+    snaps = BranchFile(viewer_file).snaps
+    assert snaps
+    page.page.check("#snaps")
+    page.page.wait_for_function("document.querySelectorAll('.annotation').length > 0")
+    arrows = page.page.evaluate("document.getElementById('plot').layout.annotations")
+    assert len(arrows) == len(snaps)
+    for a, s in zip(arrows, snaps):
+        br, row = page.where(s["lp"])
+        assert (a["ax"], a["ay"]) == (page.data[br]["psi"][row], page.data[br]["m1"][row])
+        assert (a["x"], a["y"]) == (page.data[br]["psi"][row], s["target_m1"])
+
+
+def test_screenshot(browser, viewer_file, tmp_path, monkeypatch):
+    """The picture of docs/img/viewer.png: a fold pinned, snap arrows shown; the page written
+    as `elastica-auto view out/arm.h5` would write it."""
+    (tmp_path / "out").mkdir()
+    shutil.copy(viewer_file, tmp_path / "out" / "arm.h5")
+    monkeypatch.chdir(tmp_path)
+    html = ea.view("out/arm.h5", "out/arm.html").path.resolve()
+    page = Viewer(browser, html, stored(viewer_file))
+    page.page.check("#snaps")
+    page.page.mouse.click(*page.at("LP1"))
+    page.page.locator("#pinned").filter(has_text="pinned").wait_for()
+    assert page.page.input_value("#restart") == "--from out/arm.h5:LP1"
+    png = page.page.screenshot()
+    page.close()
+    assert not page.errors and not page.requests
+    assert len(png) > 20_000
+    if os.environ.get("ELASTICA_AUTO_SCREENSHOT"):
+        (REPO / "docs" / "img" / "viewer.png").write_bytes(png)
+
+
+def test_inline_in_a_notebook(browser, arm, tmp_path):
+    """What a notebook shows for ea.view(...) (`View._repr_html_`, an iframe of the page) in a
+    page of its own: the diagram is drawn inside, with no error and no request."""
+    outer = tmp_path / "notebook.html"
+    outer.write_text("<!DOCTYPE html><body>" + ea.view(arm[3])._repr_html_())
+    v = Viewer(browser, outer, arm[1], ready=None)
+    try:
+        frame = v.page.frame_locator("iframe")
+        frame.locator("#info tr").first.wait_for()
+        drawn = v.page.frames[1].evaluate("document.getElementById('plot')._fullData.length")
+        assert frame.locator(".scatterlayer .trace").count() == drawn > 0
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+def test_rotating_arm_panels_and_fold(browser, rotating_arm, tmp_path):
+    """The shipped run: a panel per (eps, P), each with the file's branches of those values
+    and their folds; folding psi puts every point at the file's psi modulo 2 pi."""
+    path = rotating_arm.file.path
+    data = stored(path)
+    v = Viewer(browser, ea.view(path, tmp_path / "arm.html").path, data)
+    try:
+        titles = v.page.eval_on_selector_all("#panel option", "o => o.map((e) => e.text)")
+        assert len(titles) == len({(c["eps"][0], c["P"][0]) for c in data.values()}) == 4
+        for k, title in enumerate(titles):
+            v.page.select_option("#panel", str(k))
+            v.page.wait_for_function("(t) => document.getElementById('plot').layout.title"
+                                     ".text === t", arg=title)
+            shown = {t["branch"] for t in v.traces(kind="line")}
+            values = {q: float(re.search(rf"\b{q}=([-\d.e+]+)", title)[1]) for q in ("eps", "P")}
+            assert shown == {br for br, c in data.items()
+                             if all(abs(c[q][0] - x) <= 1e-5 * abs(x) for q, x in values.items())}
+            marked = sorted(r for t in v.traces(kind="LP") for r in t["rows"])
+            assert len(marked) == sum(np.count_nonzero(data[br]["type"] == b"LP")
+                                      for br in shown)
+        v.page.check("#fold")
+        v.page.wait_for_function("document.getElementById('plot').layout.xaxis.range[1] > 6")
+        for t in v.traces(kind="line"):
+            psi = data[t["branch"]]["psi"][t["rows"]]
+            np.testing.assert_allclose(t["x"], np.mod(psi, 2 * np.pi), rtol=0, atol=1e-12)
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+# -- 10^4 points -----------------------------------------------------------------------------
+
+def resampled(source: Path, target: Path, factor: int) -> Path:
+    """A copy of the branch file ``source`` with ``factor`` - 1 points put between each two
+    of every branch (columns and profiles interpolated linearly, integer columns from the
+    point before); the labelled points stay labelled, at their own values."""
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        labels = json.loads(f.attrs["labels"])
+        for key, g in f["branches"].items():
+            n = g["profiles"].shape[0]
+            u = np.linspace(0, n - 1, (n - 1) * factor + 1)
+            before = np.floor(u).astype(int)
+            exact = u == np.round(u)
+            for name, d in list(g["columns"].items()):
+                old = d[()]
+                if name in ("type", "label", "note", "transition"):
+                    new = np.where(exact, old[np.round(u).astype(int)], b"" if old.dtype == object
+                                   else 0)
+                elif old.dtype.kind == "f":
+                    new = np.interp(u, np.arange(n), old)
+                else:
+                    new = old[before]
+                del g["columns"][name]
+                g["columns"].create_dataset(name, data=new, dtype=d.dtype)
+            prof = g["profiles"][()]
+            new = np.stack([np.interp(u, np.arange(n), prof[:, k, j]) for k in
+                            range(prof.shape[1]) for j in range(prof.shape[2])], axis=1)
+            del g["profiles"]
+            g["profiles"] = new.reshape(len(u), *prof.shape[1:])
+            for name, (br, pt) in labels.items():
+                if br == int(key):
+                    labels[name] = [br, (pt - 1) * factor + 1]
+        f.attrs["labels"] = json.dumps(labels)
+    return target
+
+
+def test_ten_thousand_points_stay_responsive(browser, viewer_file, tmp_path):
+    """Hover, from the mouse's move to the frame after the side panel changed, under 100 ms
+    (Plotly finds the point, the page shows it) on a file of 10^4 points.
+
+    Each move comes once Plotly's hover throttle has let the last hover go by (it handles
+    one hover per 50 ms: a rate, not a delay of the page); moves back to back, which wait
+    for it, are measured and printed too."""
+    big = resampled(viewer_file, tmp_path / "big.h5", 146)
+    data = stored(big)
+    assert sum(len(c["psi"]) for c in data.values()) >= 10_000
+    v = Viewer(browser, ea.view(big, tmp_path / "big.html").path, data)
+    try:
+        for br, c in data.items():
+            rows = sorted({r for t in v.traces(br, "line") for r in t["rows"]})
+            assert rows == list(range(len(c["psi"])))
+        v.page.evaluate("""() => {
+          window.hoverMs = [];
+          window.shown = 0;
+          let t0 = 0;
+          document.addEventListener("mousemove", () => { t0 = performance.now(); }, true);
+          new MutationObserver(() => requestAnimationFrame(() => {
+            window.shown = performance.now();
+            window.hoverMs.push(window.shown - t0);
+          })).observe(document.getElementById("info"), {childList: true});
+        }""")
+        c = data[1]
+        rows = np.linspace(100, len(c["psi"]) - 100, 12).astype(int)
+        for spaced in (True, False):
+            for row in rows if spaced else rows + 37:     # other points than the last
+                if spaced:
+                    v.page.wait_for_function("performance.now() - window.shown > 60")
+                k = v.page.evaluate("window.hoverMs.length")
+                v.page.mouse.move(*v.page.evaluate(PIXEL, [float(c["psi"][row]),
+                                                           float(c["m1"][row])]))
+                v.page.wait_for_function(f"window.hoverMs.length > {k}")
+        ms = v.page.evaluate("window.hoverMs")
+        one, back = ms[:len(rows)], ms[len(rows):]
+        print(f"hover at {sum(len(c['psi']) for c in data.values())} points: median "
+              f"{np.median(one):.1f} ms, max {max(one):.1f} ms; back to back median "
+              f"{np.median(back):.1f} ms, max {max(back):.1f} ms")
+        assert max(one) < 100
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+@pytest.mark.parametrize("ci, outcome", [("true", "1 error"), ("", "1 skipped")])
+def test_without_chromium_ci_fails_and_a_local_run_skips(ci, outcome):
+    """One line says why; the skip happens before any branch file is computed."""
+    env = {**os.environ, "CI": ci, "ELASTICA_AUTO_CHROMIUM": "/nonexistent/chromium"}
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
+                           f"{__file__}::test_no_errors_and_no_requests"],
+                          capture_output=True, text=True, env=env, cwd=REPO)
+    assert outcome in proc.stdout, proc.stdout
+    assert "no Chromium at /nonexistent/chromium (apt-get install chromium)" in proc.stdout
