@@ -181,3 +181,79 @@ def test_quaternion_norm_stays_one(rotating):
     for br in rod:
         assert br.end == "EP", br.message
         assert max(p.ordinates["qnorm"] for p in br.points) < QNORM_TOL
+
+
+def test_isotropic_rod_arm_tilt_is_a_rotation_about_the_load_line(modules, rotating):
+    """b2 = 1, u_hat = 0, load along the clamp axis: R -> Q R Rb3(-chi), Q the rotation by chi
+    about e_y = d3(0), keeps the clamp (Q R_c = R_c Rb3(chi)), the bending energy (isotropic)
+    and the load potential, and R Rb3(-chi) a_b(chi) = R a_b(0): so the chi family is the planar
+    state turned rigidly by Q (r, m), with the same index and dE/dchi = 0."""
+    _, rod, mod = modules
+    start = ea.continuation(rod, {**BASE, "b2": 1.0}, "psi", bounds=(-1.0, 0.7), uz=[0.6],
+                            max_points=60)
+    (br,) = ea.continuation(rod, start.label("UZ1"), "chi", bounds=(-0.1, 2.0), uz=[1.5],
+                            max_points=60)
+    y0 = start.label("UZ1").state
+    grid = np.linspace(0, 1, 41)
+    (p,) = [p for p in br.points if p.type == "UZ"]
+    st = br.label(p.name).state
+    rot = mod.rotation(mod.qaxis((0, 1, 0), p.params["chi"]))
+    y1 = st(grid)
+    assert np.max(np.abs(y1[0:3] - rot @ y0(grid)[0:3])) < 1e-7
+    assert np.max(np.abs(y1[7:10] - rot @ y0(grid)[7:10])) < 1e-7
+    assert stability.index(rod, st) == stability.index(rod, y0) == 2
+    assert max(abs(q.ordinates["mchi"]) for q in br.points) < 1e-8   # dE/dchi = 0
+
+
+# ---- the index against the finite-difference Hessian of a discretised rod -------------------
+
+#: Intervals of the discrete rod; its eigenvalues' error is estimated from n/2 (about 0.01-0.02
+#: for the lowest eight at n = 120 on these states).
+N_FD = 120
+#: A state is compared only if its smallest |eigenvalue| exceeds this many error estimates.
+SAFETY = 5.0
+
+
+def fd_compare(mod, problem, state):
+    """(engine's index, discrete count) or None where the discrete count is not decisive."""
+    from rod_hessian import discrete_count
+    n, mu, err = discrete_count(mod, state, N_FD)
+    if mu < SAFETY * err:
+        return None
+    return stability.index(problem, state), n
+
+
+def straight(mod, problem, **params):
+    from elastica_auto.solution import State
+    p = {par.name: par.default for par in mod.PARAMETERS}
+    p.update(params)
+    s = np.linspace(0, 1, 41)
+    return State.from_values(problem, s, mod.exact_start(s, p), p)
+
+
+@pytest.mark.parametrize("b2, P, want", [(1.0, 1.0, 0), (1.0, 5.0, 2), (1.0, 20.0, 4),
+                                         (2.0, 2.5, 1), (2.0, 20.0, 3)])
+def test_straight_rod_index_against_the_discrete_hessian(modules, b2, P, want):
+    """The straight rod (eps = 0.25): critical loads B_i k^2 with eps k tan k = 1 (1.599192,
+    15.485497, ...) for B_1 = 1 (in-plane) and B_2 = b2 (out of plane)."""
+    _, rod, mod = modules
+    got = fd_compare(mod, rod, straight(mod, rod, P=P, b2=b2))
+    assert got == (want, want)
+
+
+def test_buckled_index_against_the_discrete_hessian(modules, rotating):
+    """Buckled states of the rotating arm (b2 = 2) on both sides of both folds, and a
+    non-planar one (the arm tilted by chi = 1.5)."""
+    _, rod, mod = modules
+    _, branches = rotating
+    states = [br.label(p.name).state for br, p in labelled(branches, "UZ")][::2]
+    tilted = ea.continuation(rod, branches.label("UZ2"), "chi", bounds=(-0.1, 2.0), uz=[1.5],
+                             max_points=60)
+    states.append(tilted.label("UZ1").state)
+    assert abs(states[-1].y[2, -1]) > 0.1                 # out of the plane
+    results = [fd_compare(mod, rod, st) for st in states]
+    compared = [r for r in results if r is not None]
+    print("engine vs discrete Hessian:", results)
+    assert len(compared) >= 4 and {r[0] for r in compared} == {0, 1}
+    for engine, discrete in compared:
+        assert engine == discrete
