@@ -274,3 +274,42 @@ def test_buckled_index_against_the_discrete_hessian(modules, rotating):
         assert engine == discrete
     for _, (engine, discrete) in results:
         assert len(engine) >= 3 and engine == discrete
+
+
+@pytest.fixture(scope="module")
+def generic(modules):
+    """A state with every parameter away from its planar value: intrinsic curvature in all
+    three directions, the load out of the plane, a turned clamp, b2 and c not 1, the arm not
+    along the tangent: from the twisted straight rod, u1, beta, psi, u2 continued in turn."""
+    _, rod, _ = modules
+    label = {"P": 1.0, "eps": 0.3, "b2": 1.5, "c": 0.9, "u3": 0.5, "theta0": 0.2,
+             "alpha": 0.2}
+    for name, value in (("u1", 1.0), ("beta", 0.4), ("psi", 0.8), ("u2", 0.7)):
+        br = ea.continuation(rod, label, name, bounds=(-0.1, value + 0.1), uz=[value],
+                             max_points=60)
+        label = br.label("UZ1")
+    return label.state
+
+
+def test_conserved_quantities(modules, generic):
+    """n = F (by construction), m + r x F, m.F, the Hamiltonian (1/2) m_b.K^-1 m_b +
+    m_b.u_hat + F.d3 and |q| are constant along the rod (docs/kirchhoff.md, "Model")."""
+    _, _, mod = modules
+    y, p = generic.y, generic.params
+    assert abs(y[2, -1]) > 0.05 and abs(y[7, 0]) > 0.05        # not planar
+    f = mod.load(p)
+    rot = mod.rotation(y[3:7])
+    mb = np.einsum("ji...,j...->i...", rot, y[7:10])
+    u_hat = np.array((p["u1"], p["u2"], p["u3"]))
+    ham = 0.5 * np.sum(mb * mb / mod.stiffness(p)[:, None], 0) + u_hat @ mb + f @ rot[:, 2]
+    assert np.ptp(ham) < 1e-7
+    assert np.max(np.ptp(y[7:10] + np.cross(y[0:3], f, axis=0), axis=1)) < 1e-12
+    assert np.ptp(f @ y[7:10]) < 1e-12
+    assert np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1)) < QNORM_TOL
+
+
+def test_generic_state_against_the_discrete_hessian(modules, generic):
+    _, rod, mod = modules
+    index, (engine, discrete) = fd_compare(mod, rod, generic)
+    assert index == (0, 0)
+    assert len(engine) >= 3 and engine == discrete
