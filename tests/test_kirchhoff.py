@@ -313,3 +313,41 @@ def test_generic_state_against_the_discrete_hessian(modules, generic):
     index, (engine, discrete) = fd_compare(mod, rod, generic)
     assert index == (0, 0)
     assert len(engine) >= 3 and engine == discrete
+
+
+def test_straight_rod_branch_points_are_both_stiffnesses_critical_loads(modules):
+    """The straight rod continued in P (eps = 0.25, b2 = 2): a branch point at each B_i k^2
+    with eps k tan k = 1, B_1 = 1 (in-plane) and B_2 = b2 (out of plane), and the index
+    counts the critical loads passed: 0 -> 1 -> 2 -> 3."""
+    from scipy.optimize import brentq
+    _, rod, _ = modules
+    k1 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, 0.1, math.pi / 2 - 1e-9, xtol=1e-15)
+    k2 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, math.pi, 1.5 * math.pi - 1e-9,
+                xtol=1e-15)
+    want = sorted(b * k * k for b in (1.0, 2.0) for k in (k1, k2) if b * k * k < 17)
+    (br,) = ea.continuation(rod, {"P": 0.0, "eps": 0.25, "b2": 2.0}, "P", bounds=(-1, 17),
+                            max_points=100)
+    bps = [p for p in br.points if p.type == "BP"]
+    got = [p.params["P"] for p in bps]
+    assert len(got) == len(want) == 3
+    assert np.max(np.abs(np.subtract(got, want)) / np.array(want)) < 1e-9
+    inner = [p.index for p in br.points if p.type == ""]
+    assert sorted(set(inner)) == [0, 1, 2, 3] and inner == sorted(inner)
+    for p in br.points:
+        assert abs(p.ordinates["z1"]) < 1e-12 and abs(p.ordinates["m1"]) < 1e-12
+
+
+def test_draw_projects_on_the_plane(modules, generic):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elastica_auto.branch import PROFILE_GRID
+    _, _, mod = modules
+    fig, ax = plt.subplots()
+    mod.draw(ax, generic(PROFILE_GRID), generic.params)
+    gids = {a.get_gid() for a in ax.get_children()}
+    assert {"rod", "lever arm", "load"} <= gids
+    (rod,) = [line for line in ax.lines if line.get_gid() == "rod"]
+    assert np.allclose(rod.get_xdata(), generic(PROFILE_GRID)[0])
+    plt.close(fig)
