@@ -279,14 +279,16 @@ ORDINATES = [
 def exact_start(s, p):
     """The straight rod along the load line, exact when F x d3(0) = 0 (theta0 = alpha and
     beta = 0, or theta0 = alpha + pi and beta = pi, ...), the arm along the tip tangent
-    (sin psi = 0) and no intrinsic bending (u1 = u2 = 0): r = s d3(0), m = 0, and q(s) =
+    (sin psi = 0) and no intrinsic bending (u1 = u2 = 0), or unloaded (P = 0, any alpha, beta,
+    psi) without intrinsic bending: r = s d3(0), m = 0, and q(s) =
     q_c (x) (cos(u3 s / 2), 0, 0, sin(u3 s / 2)) (the intrinsic twist turns the frame about the
     straight axis). None otherwise; the tests to 1e-12 as in the planar module."""
     qc = clamp_quaternion(p)
     d3 = rotation(qc)[:, 2]
     f = load(p)
-    if (np.linalg.norm(np.cross(f, d3)) > 1e-12 * max(1.0, abs(p["P"]))
-            or abs(math.sin(p["psi"])) > 1e-12 or p["u1"] != 0 or p["u2"] != 0):
+    loaded = p["P"] != 0       # unloaded, the arm exerts no moment whatever its direction
+    if (loaded and (np.linalg.norm(np.cross(f, d3)) > 1e-12 * abs(p["P"])
+                    or abs(math.sin(p["psi"])) > 1e-12)) or p["u1"] != 0 or p["u2"] != 0:
         return None
     s = np.asarray(s, dtype=float)
     half = 0.5 * p["u3"] * s

@@ -351,3 +351,43 @@ def test_draw_projects_on_the_plane(modules, generic):
     (rod,) = [line for line in ax.lines if line.get_gid() == "rod"]
     assert np.allclose(rod.get_xdata(), generic(PROFILE_GRID)[0])
     plt.close(fig)
+
+
+def prandtl_load(eps):
+    """The smallest lambda = P / sqrt(B2 C) of the reduced lateral-torsional problem of a
+    cantilever with a perpendicular tip load and an in-plane-rigid section (Prandtl-Michell),
+    the load applied eps sqrt(B2/C) from the centroid against its direction: the twist phi
+    with C phi'' + (P^2 (1 - s)^2 / B2) phi = 0, phi(0) = 0, C phi'(1) = P eps phi(1);
+    scaled, phi'' + lambda^2 (1 - s)^2 phi = 0, phi'(1) = lambda eps phi(1). By shooting."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    def residual(lam):
+        sol = solve_ivp(lambda s, y: (y[1], -lam ** 2 * (1 - s) ** 2 * y[0]), (0, 1),
+                        (0.0, 1.0), rtol=1e-12, atol=1e-13)
+        return sol.y[1, -1] - lam * eps * sol.y[0, -1]
+    return brentq(residual, 1.0, 6.0, xtol=1e-12)
+
+
+@pytest.mark.parametrize("eps", [0.0, 0.1, -0.1])
+def test_lateral_torsional_buckling_of_a_stiff_section(modules, eps):
+    """The load perpendicular to the rod (alpha = pi/2, along +x), the arm perpendicular to
+    the tip and pointing against the load (psi = -pi/2), b2 = c = 1e-4 (in-plane stiffness
+    1e4 times larger): the out-of-plane branch point is the Prandtl-Michell load, 4.0125993
+    sqrt(B2 C) at eps = 0 and the shooting values 3.5415326 (eps = 0.1: load above the
+    centroid, destabilising) and 4.3613946 (eps = -0.1); the in-plane flexibility raises it
+    by O(B2/B1) (1.1e-3 at B2/B1 = 1e-3, 1.1e-4 at 1e-4, linear: seen). The index goes 0 -> 1
+    there."""
+    _, rod, _ = modules
+    ratio = 1e-4
+    (br,) = ea.continuation(rod, {"P": 0.0, "eps": eps, "b2": ratio, "c": ratio,
+                                  "alpha": math.pi / 2, "psi": -math.pi / 2}, "P",
+                            bounds=(-1, 6 * ratio), ds=0.2 * ratio, ds_max=0.5 * ratio,
+                            max_points=100)
+    (bp,) = [p for p in br.points if p.type == "BP"]
+    want = prandtl_load(eps)
+    assert abs(bp.params["P"] / ratio / want - 1) < 3e-4
+    assert {p.index for p in br.points if p.type == "" and p.params["P"] < bp.params["P"]} \
+        == {0}
+    assert {p.index for p in br.points if p.type == "" and p.params["P"] > bp.params["P"]} \
+        == {1}
