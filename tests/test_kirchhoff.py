@@ -391,3 +391,32 @@ def test_lateral_torsional_buckling_of_a_stiff_section(modules, eps):
         == {0}
     assert {p.index for p in br.points if p.type == "" and p.params["P"] > bp.params["P"]} \
         == {1}
+
+
+def assert_rule_agrees(branch):
+    """Across every fold the fold rule (the distinguished ordinate's slope) gives the direct
+    count's index: no disagreement away from LP and BP rows, and at least one fold changes
+    the index."""
+    assert not branch.warnings, branch.warnings
+    for p in branch.points:
+        assert "disagreement" not in p.note, p.note
+        if p.type not in ("LP", "BP"):
+            assert p.index == p.index_rule == p.index_direct >= 0
+    changes = {(a.index, b.index) for a, b in zip(branch.points, branch.points[2:])
+               if a.type == "" and b.type == "" and a.index != b.index}
+    return changes
+
+
+def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
+    """The fold rule reads m1 = dE/dpsi (the rotating arm, b2 = 2) and beps = dE/deps (eps
+    continued at P = 9 pi^2/4 from a buckled state of index 3 through its fold to index 2)."""
+    _, rod, _ = modules
+    _, branches = rotating
+    for br in branches:
+        assert assert_rule_agrees(br) == {(1, 0)}
+    base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
+                           uz=[0.3], max_points=100)
+    (br,) = ea.continuation(rod, base.label("UZ1"), "eps", bounds=(-2, 2), directions="-",
+                            max_points=60)
+    assert [p.type for p in br.points].count("LP") == 1
+    assert assert_rule_agrees(br) == {(3, 2)}
