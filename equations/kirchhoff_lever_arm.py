@@ -61,7 +61,10 @@ energy density. Distinguished ordinates, dE/dxi (-dE/dxi for the clamp's angles,
 (dE/dalpha: dF/dalpha = e_z x F, so dE/dalpha = -(e_z x F).(r(1) + a) = e_z.((r(1) + a) x F) =
 e_z.(m(1) + r(1) x F); dF/dbeta = F x e_alpha likewise; a clamp rotation omega(0) changes E by
 -m(0).omega(0).) Others: ``z1`` = r(1).e_z (out-of-plane tip displacement), ``twist`` = the
-total twist int u3 ds, ``m3`` = m(1).d3(1), ``mz1`` = m(1).e_z, ``qnorm`` = max |(|q| - 1)|.
+total twist int u3 ds, ``m3`` = m(1).d3(1), ``mz1`` = m(1).e_z, ``qnorm`` = max |(|q| - 1)|,
+and at planar states (where the second variation decouples) ``index_in`` and ``index_out``,
+the counts of its e_z block and of its out-of-plane block (their sum is the index; -1 at
+non-planar states and where a block has a zero eigenvalue).
 
 ``draw`` projects the configuration on the x-y plane, like the planar module's.
 """
@@ -249,6 +252,48 @@ def _qnorm(s, y, p):
     return float(np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1.0)))
 
 
+#: A form is planar (its e_z component decoupled) where no coefficient couples e_z to the
+#: plane above this, relative to the largest coefficient: the continuation keeps the
+#: out-of-plane rows of planar states at rounding level (seen below 1e-12).
+DECOUPLED = 1e-9
+
+
+def _blocks(s, y, p):
+    """The in-plane (e_z) and out-of-plane ((e_x, e_y)) blocks of the second variation at a
+    state given on the nodes ``s``, each as ``evaluate(pts)`` for `stability.count_form`
+    (the state interpolated by cubic Hermite with the slopes of the ODE, as the engine
+    does), or None where the form does not decouple (a non-planar state)."""
+    from elastica_auto.solution import State
+    state = State(s, y, rhs(s, y, p), p)
+    form = second_variation(s, y, p)
+    scale = max(np.max(np.abs(form.A)), np.max(np.abs(form.B)), np.max(np.abs(form.C)),
+                np.max(np.abs(form.E1)))
+    coupling = max(np.max(np.abs(m[:, 2, :2])) + np.max(np.abs(m[:, :2, 2]))
+                   for m in (form.A, form.B, form.C, form.E1[None]))
+    if not coupling <= DECOUPLED * scale:
+        return None
+
+    def block(rows):
+        def evaluate(pts):
+            f = second_variation(pts, state(pts), p)
+            def sub(m):
+                return m[:, rows][:, :, rows].transpose(1, 2, 0)
+            return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
+                                   fixed0=list(range(len(rows))))
+        return evaluate
+    return block([2]), block([0, 1])
+
+
+def _split_index(which):
+    def fn(s, y, p):
+        from elastica_auto.stability import count_form
+        blocks = _blocks(s, y, p)
+        if blocks is None:
+            return -1.0
+        return float(count_form(blocks[which], s).index)
+    return fn
+
+
 ORDINATES = [
     Ordinate("m1", r"$m(1)\cdot R(1)e_\chi$", _m1, "psi",
              "dE/dpsi; m(1).e_z (the planar m1) for chi = 0 in a planar state"),
@@ -273,6 +318,12 @@ ORDINATES = [
     Ordinate("m3", r"$m(1)\cdot d_3(1)$", _m3, None, "twisting moment at the tip"),
     Ordinate("mz1", r"$m(1)\cdot e_z$", _mz1, None, "tip moment about e_z"),
     Ordinate("qnorm", r"$\max||q| - 1|$", _qnorm, None, "diagnostic: drift of |q| from 1"),
+    Ordinate("index_in", r"index in plane", _split_index(0), None,
+             "index of the in-plane (e_z) block at a planar state; -1 elsewhere or at a zero "
+             "eigenvalue"),
+    Ordinate("index_out", r"index out of plane", _split_index(1), None,
+             "index of the out-of-plane block at a planar state; -1 elsewhere or at a zero "
+             "eigenvalue"),
 ]
 
 

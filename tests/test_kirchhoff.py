@@ -80,11 +80,17 @@ def test_planar_branches_are_the_planar_module_s(modules, rotating):
         for name in ("gamma", "mA", "m0"):
             assert p3.ordinates[name] == pytest.approx(p2.ordinates[name], abs=1e-7)
         assert p3.ordinates["beps"] == pytest.approx(p2.ordinates["beta"], abs=1e-7)
+        assert p3.ordinates["index_in"] == p2.index >= 0
     print(f"planar embedding: largest difference {worst:.2e}")
     assert worst < 1e-7, worst
     folds2 = sorted(p.params["psi"] for _, p in labelled(planar, "LP"))
     folds3 = sorted(p.params["psi"] for _, p in labelled(rod, "LP"))
     assert len(folds2) == len(folds3) >= 1
+    # the split columns: in-plane plus out-of-plane is the index at every planar point
+    for br in rod:
+        for p in br.points:
+            if p.type not in ("LP", "BP"):
+                assert p.ordinates["index_in"] + p.ordinates["index_out"] == p.index >= 0
     print(f"folds {folds3}: largest difference {np.max(np.abs(np.subtract(folds2, folds3))):.2e}")
     assert np.max(np.abs(np.subtract(folds2, folds3))) < 1e-6
 
@@ -257,11 +263,12 @@ def test_straight_rod_index_against_the_discrete_hessian(modules, b2, P, want):
 
 
 def test_buckled_index_against_the_discrete_hessian(modules, rotating):
-    """Buckled states of the rotating arm (b2 = 2) on both sides of both folds, and a
+    """Buckled states of the rotating arm (b2 = 2) on both sides of the folds, and a
     non-planar one (the arm tilted by chi = 1.5)."""
     _, rod, mod = modules
     _, branches = rotating
-    states = [br.label(p.name).state for br, p in labelled(branches, "UZ")][::2]
+    uz = [br.label(p.name).state for br, p in labelled(branches, "UZ")]
+    states = [uz[0], uz[2], uz[5], uz[-1]]       # psi = 0.3, 0.6 past the fold, -0.5, 0.6
     tilted = ea.continuation(rod, branches.label("UZ2"), "chi", bounds=(-0.1, 2.0), uz=[1.5],
                              max_points=60)
     states.append(tilted.label("UZ1").state)
@@ -294,7 +301,7 @@ def generic(modules):
 def test_conserved_quantities(modules, generic):
     """n = F (by construction), m + r x F, m.F, the Hamiltonian (1/2) m_b.K^-1 m_b +
     m_b.u_hat + F.d3 and |q| are constant along the rod (docs/kirchhoff.md, "Model")."""
-    _, _, mod = modules
+    _, rod, mod = modules
     y, p = generic.y, generic.params
     assert abs(y[2, -1]) > 0.05 and abs(y[7, 0]) > 0.05        # not planar
     f = mod.load(p)
@@ -306,6 +313,8 @@ def test_conserved_quantities(modules, generic):
     assert np.max(np.ptp(y[7:10] + np.cross(y[0:3], f, axis=0), axis=1)) < 1e-12
     assert np.ptp(f @ y[7:10]) < 1e-12
     assert np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1)) < QNORM_TOL
+    ordinates = rod.ordinate_values(generic.s, y, p)
+    assert ordinates["index_in"] == ordinates["index_out"] == -1      # not planar
 
 
 def test_generic_state_against_the_discrete_hessian(modules, generic):
