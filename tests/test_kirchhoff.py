@@ -243,6 +243,19 @@ def fd_compare(mod, problem, state):
     return index, (engine, [int(np.sum(fine < mu)) for mu in gaps])
 
 
+def conjugate_index(mod, state):
+    """The index of the module's form at ``state`` by the Morse index theorem: focal points of
+    the 3 x 3 Jacobi system (tests/form_reference.py), the coefficients from the state's
+    interpolant."""
+    from form_reference import Form, conjugate_count
+
+    def field(name):
+        return lambda s: getattr(mod.second_variation(s, state(s), state.params), name)
+    end = mod.second_variation(state.s, state.y, state.params).E1
+    return conjugate_count(Form(k=3, A=field("A"), B=field("B"), C=field("C"), E1=end,
+                                G0=np.eye(3))).index
+
+
 def straight(mod, problem, **params):
     from elastica_auto.solution import State
     p = {par.name: par.default for par in mod.PARAMETERS}
@@ -281,6 +294,8 @@ def test_buckled_index_against_the_discrete_hessian(modules, rotating):
         assert engine == discrete
     for _, (engine, discrete) in results:
         assert len(engine) >= 3 and engine == discrete
+    for st in states:
+        assert conjugate_index(mod, st) == stability.index(rod, st)
 
 
 @pytest.fixture(scope="module")
@@ -322,6 +337,7 @@ def test_generic_state_against_the_discrete_hessian(modules, generic):
     index, (engine, discrete) = fd_compare(mod, rod, generic)
     assert index == (0, 0)
     assert len(engine) >= 3 and engine == discrete
+    assert conjugate_index(mod, generic) == 0
 
 
 def test_straight_rod_branch_points_are_both_stiffnesses_critical_loads(modules):
