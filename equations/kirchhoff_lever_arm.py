@@ -1,0 +1,396 @@
+"""Spatial Kirchhoff rod with a rigid lever arm (nondimensional: in-plane bending stiffness 1,
+length 1): the 3D extension of ``elastica_lever_arm`` (derivation and checks: docs/kirchhoff.md).
+
+An inextensible, unshearable rod, clamped at s = 0, carries at s = 1 a rigid lever arm with a
+dead load F at its end. State ``y = (r, q, m)``, 10 rows: the centreline r (3), a quaternion q
+(4) of the frame (d1, d2, d3) = R(q) (body to space, d3 the tangent) and the contact moment m
+(3, spatial). With the contact force n = F everywhere (no distributed load)::
+
+    r' = d3,   q' = (1/2) q (x) (0, u),   m' = F x d3,
+    u = K^-1 R(q)^T m + u_hat,   K = diag(1, b2, c),   u_hat = (u1, u2, u3).
+
+u is the body (Darboux) curvature, R' = R [u]_x. R(q) is the rotation of q / |q| (the
+quadratic form over |q|^2), so the frame is orthonormal even if |q| drifts; q' above keeps |q|
+constant exactly, the clamp's 4 conditions fix it to 1 and |q| - 1 is stored as a diagnostic.
+
+Frames and signs (chosen so that the plane z = 0 is the planar module's plane):
+
+* the reference clamp frame is d1 = e_z, d2 = e_x, d3 = e_y (the rod along +y, as theta = 0 in
+  the planar module); the clamp is R_c = Rz(theta0) R_ref Rb3(phi0): theta0 turns it about e_z
+  as in the planar module, phi0 twists it about its own axis d3. In a planar state R(s) =
+  Rz(theta(s)) R_ref: d1 = e_z, d2 = (cos theta, sin theta, 0), d3 = (-sin theta, cos theta,
+  0), u = (theta', 0, 0) and m = theta' e_z, so kappa = m.e_z, and in-plane bending is
+  bending about d1 (stiffness 1), out-of-plane about d2 (stiffness b2).
+* the load F = P (cos beta sin alpha, -cos beta cos alpha, sin beta): the planar module's
+  P (sin alpha, -cos alpha) for beta = 0; beta tilts it towards +z.
+* the arm, in the tip's body frame, a_b = Rb3(chi) Rb1(-psi) e3 = (-sin psi sin chi,
+  sin psi cos chi, cos psi): for chi = 0 the planar module's arm, turned clockwise by psi from
+  the tip tangent (its spatial vector eps (sin(psi - theta1), cos(psi - theta1), 0)); chi
+  turns the arm's plane about the tip tangent d3(1).
+* moment balance of the arm at the tip: m(1) = (eps R(q(1)) a_b) x F (planar: kappa(1) + eps P
+  sin(psi + alpha - theta(1)) = 0).
+
+Energy (its Euler-Lagrange equations are the system above; planar: docs/design.md)::
+
+    E[R] = int_0^1 (1/2) (u - u_hat).K (u - u_hat) ds - F.(r(1) + eps R(1) a_b),   R(0) = R_c.
+
+The second variation (``second_variation``) is in spatial rotation perturbations omega(s),
+R -> exp([omega]_x) R, with omega(0) = 0 (docs/kirchhoff.md)::
+
+    d2E = int ( omega'.R K R^T omega' - m.(omega x omega') + omega.B omega ) ds
+          + omega(1).E1 omega(1),
+    B = (F.d3) I - sym(F d3^T),   E1 = (F.a) I - sym(F a^T),   a = eps R(1) a_b,
+
+so A = R K R^T (positive definite: the Legendre condition), C = -[m]_x / 2. At planar states
+the e_z component decouples and is the planar module's form (in-plane perturbations); the
+other two components are the out-of-plane (lateral-torsional) perturbations.
+
+How the parameters enter (for the fold rule): P, eps, psi, alpha, chi, beta act at the free end
+(the load potential), theta0 and phi0 are essential (the clamp), b2, c, u1, u2, u3 are in the
+energy density. Distinguished ordinates, dE/dxi (-dE/dxi for the clamp's angles, the reaction):
+
+* psi: ``m1`` = m(1).R(1) e_chi, e_chi = (cos chi, sin chi, 0) the arm's hinge axis in the
+  body frame (= m(1).e_z, the planar m1, when chi = 0 in a planar state);
+* eps: ``beps`` = -F.R(1) a_b (the planar module's ``beta``, renamed: ``beta`` is the load's
+  azimuth here);
+* P: ``gamma`` = -(F/P).(r(1) + eps R(1) a_b);  alpha: ``mA`` = (m(1) + r(1) x F).e_z;
+* beta: ``mB`` = -(m(1) + r(1) x F).e_alpha, e_alpha = (cos alpha, sin alpha, 0);
+* chi: ``mchi`` = -m(1).d3(1);  theta0: ``m0`` = m(0).e_z;  phi0: ``mphi`` = m(0).d3(0);
+* b2: ``Eb2`` = int (1/2)(u2 - u_hat2)^2 ds;  c: ``Ec`` = int (1/2)(u3 - u_hat3)^2 ds.
+
+(dE/dalpha: dF/dalpha = e_z x F, so dE/dalpha = -(e_z x F).(r(1) + a) = e_z.((r(1) + a) x F) =
+e_z.(m(1) + r(1) x F); dF/dbeta = F x e_alpha likewise; a clamp rotation omega(0) changes E by
+-m(0).omega(0).) Others: ``z1`` = r(1).e_z (out-of-plane tip displacement), ``twist`` = the
+total twist int u3 ds, ``m3`` = m(1).d3(1), ``mz1`` = m(1).e_z, ``qnorm`` = max |(|q| - 1)|,
+and at planar states (where the second variation decouples) ``index_in`` and ``index_out``,
+the counts of its e_z block and of its out-of-plane block (their sum is the index; -1 at
+non-planar states and where a block has a zero eigenvalue).
+
+``draw`` projects the configuration on the x-y plane, like the planar module's.
+"""
+
+import math
+
+import numpy as np
+
+from elastica_auto.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.solution import trapezoid_weights
+
+STATES = ("x", "y", "z", "q0", "q1", "q2", "q3", "mx", "my", "mz")
+
+TWO_PI = 2 * math.pi
+
+PARAMETERS = [
+    Parameter("P", math.pi ** 2 / 4, r"P", "free", doc="load |F| l^2 / K1; negative reverses F"),
+    Parameter("eps", 0.25, r"\epsilon", "free", doc="lever-arm length / l; negative flips it"),
+    Parameter("psi", 0.0, r"\psi", "free", period=TWO_PI,
+              doc="arm angle to the tip tangent, clockwise in the arm's plane"),
+    Parameter("alpha", 0.0, r"\alpha", "free", period=TWO_PI,
+              doc="load direction from the vertical, in the x-y plane"),
+    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=TWO_PI,
+              doc="rotation of the clamp about e_z"),
+    Parameter("chi", 0.0, r"\chi", "free", period=TWO_PI,
+              doc="tilt of the arm's plane about the tip tangent"),
+    Parameter("beta", 0.0, r"\beta", "free", period=TWO_PI,
+              doc="azimuth of the load out of the x-y plane (towards +z)"),
+    Parameter("phi0", 0.0, r"\phi_0", "fixed", period=TWO_PI,
+              doc="twist of the clamp about its own axis"),
+    Parameter("b2", 1.0, r"b_2", "ode", doc="out-of-plane bending stiffness / in-plane"),
+    Parameter("c", 1 / 1.3, r"c", "ode",
+              doc="torsional stiffness / in-plane bending stiffness (1/(1 + nu), nu = 0.3)"),
+    Parameter("u1", 0.0, r"\hat u_1", "ode", doc="intrinsic in-plane curvature"),
+    Parameter("u2", 0.0, r"\hat u_2", "ode", doc="intrinsic out-of-plane curvature"),
+    Parameter("u3", 0.0, r"\hat u_3", "ode", doc="intrinsic twist"),
+]
+
+
+# ---- quaternions and rotations (vectorised: q (4, m), v (3, m)) ------------------------------
+
+def qmul(a, b):
+    """Hamilton product a (x) b of quaternions (4, ...) stored scalar first."""
+    a0, av = a[0], a[1:]
+    b0, bv = b[0], b[1:]
+    return np.concatenate(([a0 * b0 - np.einsum("i...,i...->...", av, bv)],
+                           a0 * bv + b0 * av + np.cross(av, bv, axis=0)))
+
+
+def qaxis(axis, angle):
+    """The unit quaternion of the rotation by ``angle`` about the unit vector ``axis``."""
+    return np.concatenate(([math.cos(angle / 2)], math.sin(angle / 2) * np.asarray(axis, float)))
+
+
+def rotation(q):
+    """R(q) (3, 3, ...), the rotation of q / |q|: the quadratic form divided by |q|^2, so it is
+    orthonormal for any q != 0."""
+    w, x, y, z = q
+    n2 = w * w + x * x + y * y + z * z
+    return np.array(((w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
+                     (2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
+                     (2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z))
+                    ) / n2
+
+
+#: The reference clamp frame: d1 = e_z, d2 = e_x, d3 = e_y (R_REF e1 = e_z, e2 -> e_x,
+#: e3 -> e_y): the rotation by -2 pi/3 about (1, 1, 1) / sqrt 3.
+Q_REF = np.array((0.5, -0.5, -0.5, -0.5))
+
+
+def clamp_quaternion(p):
+    """q(0) = Rz(theta0) R_REF Rb3(phi0) as a quaternion."""
+    return qmul(qmul(qaxis((0, 0, 1), p["theta0"]), Q_REF), qaxis((0, 0, 1), p["phi0"]))
+
+
+def load(p):
+    """F = P (cos beta sin alpha, -cos beta cos alpha, sin beta)."""
+    a, b = p["alpha"], p["beta"]
+    return p["P"] * np.array((math.cos(b) * math.sin(a), -math.cos(b) * math.cos(a),
+                              math.sin(b)))
+
+
+def arm_body(p):
+    """a_b = Rb3(chi) Rb1(-psi) e3, the arm's unit vector in the tip's body frame."""
+    ps, ch = p["psi"], p["chi"]
+    return np.array((-math.sin(ps) * math.sin(ch), math.sin(ps) * math.cos(ch), math.cos(ps)))
+
+
+def stiffness(p):
+    return np.array((1.0, p["b2"], p["c"]))
+
+
+def curvature(y, p):
+    """The body curvature u = K^-1 R^T m + u_hat on the points, (3, m)."""
+    rot = rotation(y[3:7])
+    mb = np.einsum("ji...,j...->i...", rot, y[7:10])
+    return mb / stiffness(p)[:, None] + np.array((p["u1"], p["u2"], p["u3"]))[:, None]
+
+
+def rhs(s, y, p):
+    rot = rotation(y[3:7])
+    u = curvature(y, p)
+    d3 = rot[:, 2]
+    dq = 0.5 * qmul(y[3:7], np.vstack((np.zeros_like(u[0]), u)))
+    dm = np.cross(load(p), d3, axis=0)
+    return np.vstack((d3, dq, dm))
+
+
+def tip_arm(yb, p):
+    """The arm's spatial vector eps R(q(1)) a_b."""
+    return p["eps"] * rotation(yb[3:7]) @ arm_body(p)
+
+
+def bc(ya, yb, p):
+    return np.concatenate((ya[0:3], ya[3:7] - clamp_quaternion(p),
+                           yb[7:10] - np.cross(tip_arm(yb, p), load(p))))
+
+
+# ---- ordinates ---------------------------------------------------------------------------
+
+def _m1(s, y, p):
+    ch = p["chi"]
+    return float(y[7:10, -1] @ rotation(y[3:7, -1]) @ np.array((math.cos(ch), math.sin(ch), 0)))
+
+
+def _beps(s, y, p):
+    return float(-load(p) @ rotation(y[3:7, -1]) @ arm_body(p))
+
+
+def _gamma(s, y, p):
+    f = load(p)
+    f_hat = f / p["P"] if p["P"] != 0 else load({**p, "P": 1.0})
+    return float(-f_hat @ (y[0:3, -1] + tip_arm(y[:, -1], p)))
+
+
+def _moment_about_origin(y, p):
+    return y[7:10, -1] + np.cross(y[0:3, -1], load(p))
+
+
+def _m_alpha(s, y, p):
+    return float(_moment_about_origin(y, p)[2])
+
+
+def _m_beta(s, y, p):
+    a = p["alpha"]
+    return float(-_moment_about_origin(y, p) @ np.array((math.cos(a), math.sin(a), 0.0)))
+
+
+def _m_chi(s, y, p):
+    return float(-y[7:10, -1] @ rotation(y[3:7, -1])[:, 2])
+
+
+def _m0(s, y, p):
+    return float(y[9, 0])
+
+
+def _m_phi(s, y, p):
+    return float(y[7:10, 0] @ rotation(y[3:7, 0])[:, 2])
+
+
+def _energy_part(i):
+    def fn(s, y, p):
+        d = curvature(y, p)[i] - (p["u1"], p["u2"], p["u3"])[i]
+        return float(trapezoid_weights(s) @ (0.5 * d * d))
+    return fn
+
+
+def _z1(s, y, p):
+    return float(y[2, -1])
+
+
+def _twist(s, y, p):
+    return float(trapezoid_weights(s) @ curvature(y, p)[2])
+
+
+def _m3(s, y, p):
+    return -_m_chi(s, y, p)
+
+
+def _mz1(s, y, p):
+    return float(y[9, -1])
+
+
+def _qnorm(s, y, p):
+    return float(np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1.0)))
+
+
+#: A form is planar (its e_z component decoupled) where no coefficient couples e_z to the
+#: plane above this, relative to the largest coefficient: the continuation keeps the
+#: out-of-plane rows of planar states at rounding level (seen below 1e-12).
+DECOUPLED = 1e-9
+
+
+def _blocks(s, y, p):
+    """The in-plane (e_z) and out-of-plane ((e_x, e_y)) blocks of the second variation at a
+    state given on the nodes ``s``, each as ``evaluate(pts)`` for `stability.count_form`
+    (the state interpolated by cubic Hermite with the slopes of the ODE, as the engine
+    does), or None where the form does not decouple (a non-planar state)."""
+    from elastica_auto.solution import State
+    state = State(s, y, rhs(s, y, p), p)
+    form = second_variation(s, y, p)
+    scale = max(np.max(np.abs(form.A)), np.max(np.abs(form.B)), np.max(np.abs(form.C)),
+                np.max(np.abs(form.E1)))
+    coupling = max(np.max(np.abs(m[:, 2, :2])) + np.max(np.abs(m[:, :2, 2]))
+                   for m in (form.A, form.B, form.C, form.E1[None]))
+    if not coupling <= DECOUPLED * scale:
+        return None
+
+    def block(rows):
+        def evaluate(pts):
+            f = second_variation(pts, state(pts), p)
+            def sub(m):
+                return m[:, rows][:, :, rows].transpose(1, 2, 0)
+            return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
+                                   fixed0=list(range(len(rows))))
+        return evaluate
+    return block([2]), block([0, 1])
+
+
+def _split_index(which):
+    def fn(s, y, p):
+        from elastica_auto.stability import count_form
+        blocks = _blocks(s, y, p)
+        if blocks is None:
+            return -1.0
+        return float(count_form(blocks[which], s).index)
+    return fn
+
+
+ORDINATES = [
+    Ordinate("m1", r"$m(1)\cdot R(1)e_\chi$", _m1, "psi",
+             "dE/dpsi; m(1).e_z (the planar m1) for chi = 0 in a planar state"),
+    Ordinate("beps", r"$\beta$", _beps, "eps",
+             "-F.R(1)a_b = dE/deps: the planar module's beta"),
+    Ordinate("mA", r"$(m + r\times F)\cdot e_z$", _m_alpha, "alpha",
+             "dE/dalpha = (m(1) + r(1) x F).e_z = m(0).e_z"),
+    Ordinate("gamma", r"$\gamma$", _gamma, "P",
+             "dE/dP = -(F/P).(r(1) + eps R(1) a_b)"),
+    Ordinate("m0", r"$m(0)\cdot e_z$", _m0, "theta0", "clamp moment m(0).e_z = -dE/dtheta0"),
+    Ordinate("mchi", r"$-m(1)\cdot d_3(1)$", _m_chi, "chi", "dE/dchi = -m(1).d3(1)"),
+    Ordinate("mB", r"$-(m + r\times F)\cdot e_\alpha$", _m_beta, "beta",
+             "dE/dbeta = -(m(1) + r(1) x F).(cos alpha, sin alpha, 0)"),
+    Ordinate("mphi", r"$m(0)\cdot d_3(0)$", _m_phi, "phi0",
+             "clamp twisting moment m(0).d3(0) = -dE/dphi0"),
+    Ordinate("Eb2", r"$\int (u_2 - \hat u_2)^2/2$", _energy_part(1), "b2",
+             "dE/db2 (trapezoidal rule)"),
+    Ordinate("Ec", r"$\int (u_3 - \hat u_3)^2/2$", _energy_part(2), "c",
+             "dE/dc (trapezoidal rule)"),
+    Ordinate("z1", r"$z(1)$", _z1, None, "out-of-plane tip displacement r(1).e_z"),
+    Ordinate("twist", r"$\int u_3\,ds$", _twist, None, "total twist (trapezoidal rule)"),
+    Ordinate("m3", r"$m(1)\cdot d_3(1)$", _m3, None, "twisting moment at the tip"),
+    Ordinate("mz1", r"$m(1)\cdot e_z$", _mz1, None, "tip moment about e_z"),
+    Ordinate("qnorm", r"$\max||q| - 1|$", _qnorm, None, "diagnostic: drift of |q| from 1"),
+    Ordinate("index_in", r"index in plane", _split_index(0), None,
+             "index of the in-plane (e_z) block at a planar state; -1 elsewhere or at a zero "
+             "eigenvalue"),
+    Ordinate("index_out", r"index out of plane", _split_index(1), None,
+             "index of the out-of-plane block at a planar state; -1 elsewhere or at a zero "
+             "eigenvalue"),
+]
+
+
+def exact_start(s, p):
+    """The straight rod along the load line, exact when F x d3(0) = 0 (theta0 = alpha and
+    beta = 0, or theta0 = alpha + pi and beta = pi, ...), the arm along the tip tangent
+    (sin psi = 0) and no intrinsic bending (u1 = u2 = 0), or unloaded (P = 0, any alpha, beta,
+    psi) without intrinsic bending: r = s d3(0), m = 0, and q(s) =
+    q_c (x) (cos(u3 s / 2), 0, 0, sin(u3 s / 2)) (the intrinsic twist turns the frame about the
+    straight axis). None otherwise; the tests to 1e-12 as in the planar module."""
+    qc = clamp_quaternion(p)
+    d3 = rotation(qc)[:, 2]
+    f = load(p)
+    loaded = p["P"] != 0       # unloaded, the arm exerts no moment whatever its direction
+    if (loaded and (np.linalg.norm(np.cross(f, d3)) > 1e-12 * abs(p["P"])
+                    or abs(math.sin(p["psi"])) > 1e-12)) or p["u1"] != 0 or p["u2"] != 0:
+        return None
+    s = np.asarray(s, dtype=float)
+    half = 0.5 * p["u3"] * s
+    twist = np.vstack((np.cos(half), np.zeros_like(s), np.zeros_like(s), np.sin(half)))
+    return np.vstack((np.outer(d3, s), qmul(qc[:, None], twist), np.zeros((3, len(s)))))
+
+
+def second_variation(s, y, p):
+    """The second variation in spatial rotation perturbations omega (docs/kirchhoff.md):
+    A = R K R^T, C = -[m]_x / 2, B = (F.d3) I - sym(F d3^T), E1 = (F.a) I - sym(F a^T) with
+    a = eps R(1) a_b, omega(0) = 0 (the clamp), natural at s = 1."""
+    rot = rotation(y[3:7])                                    # (3, 3, m)
+    a = np.einsum("ik...,k,jk...->ij...", rot, stiffness(p), rot)
+    m = y[7:10]
+    zero = np.zeros_like(m[0])
+    cross_m = np.array(((zero, -m[2], m[1]), (m[2], zero, -m[0]), (-m[1], m[0], zero)))
+    f = load(p)
+    d3 = rot[:, 2]
+    eye = np.eye(3)[:, :, None]
+    fd = np.einsum("i,j...->ij...", f, d3)
+    b = (f @ d3) * eye - 0.5 * (fd + fd.transpose(1, 0, 2))
+    arm = tip_arm(y[:, -1], p)
+    fa = np.outer(f, arm)
+    e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
+    return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2])
+
+
+# ---- drawing -------------------------------------------------------------------------------
+
+def draw(ax, profile, p):
+    """The configuration projected on the x-y plane (the planar module's view): clamp,
+    centreline, lever arm and the load's in-plane part."""
+    import elastica_auto.equations.elastica_lever_arm as planar
+    x, y = profile[0], profile[1]
+    t0 = p["theta0"]
+    tangent = np.array((-math.sin(t0), math.cos(t0)))
+    normal = np.array((math.cos(t0), math.sin(t0)))
+    half = planar.CLAMP_HALF_WIDTH
+    wall = np.outer(normal, (-half, half))
+    ax.plot(wall[0], wall[1], color=planar.CLAMP_COLOR, lw=planar.LINE_WIDTH * 0.9, zorder=3)
+    for v in np.linspace(-half, half, 5):
+        a = v * normal
+        b = a - 0.09 * tangent - 0.07 * normal
+        ax.plot((a[0], b[0]), (a[1], b[1]), color="0.35", lw=0.6, zorder=3)
+    ax.plot(x, y, color=planar.ROD_COLOR, lw=planar.LINE_WIDTH, zorder=4, gid="rod")
+    tip = profile[0:3, -1]
+    end = tip + tip_arm(profile[:, -1], p)
+    ax.plot((tip[0], end[0]), (tip[1], end[1]), color=planar.ARM_COLOR,
+            lw=planar.LINE_WIDTH * 0.7, zorder=4, gid="lever arm")
+    ax.plot(*end[:2], "o", ms=planar.LINE_WIDTH * 1.8, color=planar.ARM_COLOR, zorder=5)
+    f = load(p)[:2]
+    if np.hypot(*f) > 1e-12:
+        planar.draw_force(ax, end[:2], f, "load")
+

@@ -1,0 +1,447 @@
+"""The spatial Kirchhoff rod with a lever arm (equations/kirchhoff_lever_arm.py) against
+oracles that do not use its own derivation (docs/kirchhoff.md, "Checks"):
+
+* the planar module: with chi = beta = phi0 = 0 the 3D branches are the planar ones (angle,
+  tip moment, centreline, folds), the out-of-plane components vanish, and the e_z block of the
+  3D second variation is the planar module's form, with the same index;
+* exact symmetries: a rigid rotation about the load line (the clamp turned by phi0 with the
+  load along its axis), 2 pi periods of psi and theta0 (q -> -q);
+* |q| = 1 along every branch;
+* the index against an independent count: the Hessian, by finite differences, of the energy of
+  a discretised rod (rigid frames at the nodes, curvature from the relative rotations), at the
+  continuation's equilibria (tests/rod_hessian.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto import stability
+from elastica_auto.problem import SecondVariation, load_problem
+
+K3 = "kirchhoff_lever_arm"
+PSI_UZ = (-0.5, 0.3, 0.6)
+#: eps = 0.25, P = pi^2/4: the rotating arm; b2 = 2 so that no buckled state has the
+#: rotational zero mode of the isotropic rod (issue 20, item 4).
+#: |q| is conserved by the ODE exactly but not by the 4th-order Lobatto IIIA collocation: its
+#: drift is a discretisation error, of the order of the continuation's error tolerance (1e-5)
+#: times the small size of q's fourth derivative; seen: 1.5e-10.
+QNORM_TOL = 1e-8
+BASE = {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 2.0}
+
+
+@pytest.fixture(scope="module")
+def modules():
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    return load_problem("elastica_lever_arm"), load_problem(K3), mod
+
+
+@pytest.fixture(scope="module")
+def rotating(modules):
+    planar, rod, _ = modules
+    kw = dict(bounds=(-1.0, 1.0), directions="both", uz=PSI_UZ, max_points=200)
+    return (ea.continuation(planar, {"P": BASE["P"], "eps": BASE["eps"]}, "psi", **kw),
+            ea.continuation(rod, BASE, "psi", **kw))
+
+
+def labelled(branches, kind):
+    return [(br, p) for br in branches for p in br.points if p.type == kind]
+
+
+def theta_of(mod, y):
+    """The tangent angle from the vertical, from d3 = (-sin theta, cos theta, 0)."""
+    d3 = mod.rotation(y[3:7])[:, 2]
+    return np.unwrap(np.arctan2(-d3[0], d3[1]))
+
+
+def test_planar_branches_are_the_planar_module_s(modules, rotating):
+    _, _, mod = modules
+    planar, rod = rotating
+    uz2, uz3 = labelled(planar, "UZ"), labelled(rod, "UZ")
+    assert len(uz2) == len(uz3) >= 4
+    grid = np.linspace(0, 1, 41)
+    worst = 0.0
+    for (b2, p2), (b3, p3) in zip(uz2, uz3):
+        assert p2.params["psi"] == pytest.approx(p3.params["psi"], abs=1e-12)
+        y2, y3 = b2.label(p2.name).state(grid), b3.label(p3.name).state(grid)
+        gaps = (theta_of(mod, y3) - y2[0], y3[9] - y2[1], y3[0] - y2[2], y3[1] - y2[3])
+        worst = max(worst, *(np.max(np.abs(g)) for g in gaps))
+        assert np.max(np.abs(y3[[2, 7, 8]])) < 1e-10        # z, m_x, m_y: out of the plane
+        half = 0.5 * y2[0]                                   # q = q_z(theta) (x) Q_REF
+        q_planar = mod.qmul(np.vstack((np.cos(half), 0 * half, 0 * half, np.sin(half))),
+                            mod.Q_REF[:, None])
+        worst = max(worst, np.max(np.abs(y3[3:7] - q_planar)))
+        assert p3.ordinates["m1"] == pytest.approx(p2.ordinates["m1"], abs=1e-7)
+        assert p3.ordinates["mz1"] == pytest.approx(p2.ordinates["m1"], abs=1e-7)
+        for name in ("gamma", "mA", "m0"):
+            assert p3.ordinates[name] == pytest.approx(p2.ordinates[name], abs=1e-7)
+        assert p3.ordinates["beps"] == pytest.approx(p2.ordinates["beta"], abs=1e-7)
+        assert p3.ordinates["index_in"] == p2.index >= 0
+    print(f"planar embedding: largest difference {worst:.2e}")
+    assert worst < 1e-7, worst
+    folds2 = sorted(p.params["psi"] for _, p in labelled(planar, "LP"))
+    folds3 = sorted(p.params["psi"] for _, p in labelled(rod, "LP"))
+    assert len(folds2) == len(folds3) >= 1
+    # the split columns: in-plane plus out-of-plane is the index at every planar point
+    for br in rod:
+        for p in br.points:
+            if p.type not in ("LP", "BP"):
+                assert p.ordinates["index_in"] + p.ordinates["index_out"] == p.index >= 0
+    print(f"folds {folds3}: largest difference {np.max(np.abs(np.subtract(folds2, folds3))):.2e}")
+    assert np.max(np.abs(np.subtract(folds2, folds3))) < 1e-6
+
+
+def in_plane(form: SecondVariation) -> SecondVariation:
+    """The e_z block of a 3D form (components (x, y, z) of omega)."""
+    return SecondVariation(form.A[:, 2:, 2:].transpose(1, 2, 0),
+                           form.B[:, 2:, 2:].transpose(1, 2, 0),
+                           form.C[:, 2:, 2:].transpose(1, 2, 0),
+                           E1=form.E1[2:, 2:], fixed0=[0])
+
+
+def test_in_plane_block_is_the_planar_second_variation(modules, rotating):
+    planar_problem, rod_problem, mod = modules
+    planar, rod = rotating
+    compared = 0
+    for (b2, p2), (b3, p3) in zip(labelled(planar, "UZ"), labelled(rod, "UZ")):
+        st2, st3 = b2.label(p2.name).state, b3.label(p3.name).state
+        pts = np.linspace(0, 1, 33)
+        form = mod.second_variation(pts, st3(pts), st3.params)
+        a, b, c = planar_problem.second_variation(pts, st2(pts), st2.params)
+        # decoupled: no coefficient couples e_z to the plane's directions
+        for m in (form.A, form.B, form.C):
+            assert np.max(np.abs(m[:, 2, :2])) < 1e-10 and np.max(np.abs(m[:, :2, 2])) < 1e-10
+        assert np.max(np.abs(form.A[:, 2, 2] - a)) < 1e-10
+        assert np.max(np.abs(form.C[:, 2, 2])) < 1e-12
+        assert np.max(np.abs(form.B[:, 2, 2] - b)) < 1e-6
+        assert form.E1[2, 2] == pytest.approx(c, abs=1e-6)
+
+        def evaluate(x, st=st3):
+            return in_plane(mod.second_variation(x, st(x), st.params))
+        n_in = stability.count_form(evaluate, st3.s).index
+        assert n_in == stability.index(planar_problem, st2) >= 0
+        # the whole 3D index is the in-plane one plus the out-of-plane block's
+        assert stability.index(rod_problem, st3) >= n_in
+        compared += 1
+    assert compared >= 4
+
+
+def rotate_state(mod, y, qrot):
+    """The state turned rigidly by the unit quaternion ``qrot``."""
+    rot = mod.rotation(qrot)
+    return np.vstack((rot @ y[0:3], mod.qmul(qrot[:, None], y[3:7]), rot @ y[7:10]))
+
+
+def test_clamp_twist_about_the_load_line_rotates_the_solution(modules):
+    """The load along the clamp axis (alpha = theta0 = beta = 0): turning the clamp by phi0
+    about its axis d3(0) = e_y turns the whole solution rigidly about the load line (the
+    energy is invariant under rotations about F's line through the clamp)."""
+    _, rod, mod = modules
+    start = ea.continuation(rod, {**BASE, "b2": 1.0}, "psi", bounds=(-1.0, 0.7), uz=[0.6],
+                            max_points=60)
+    (br,) = ea.continuation(rod, start.label("UZ1"), "phi0", bounds=(-0.1, 2.5),
+                            uz=[1.0, 2.0], max_points=80)
+    y0 = start.label("UZ1").state
+    grid = np.linspace(0, 1, 41)
+    got = [p for p in br.points if p.type == "UZ"]
+    assert len(got) == 2
+    for p in got:
+        phi = p.params["phi0"]
+        want = rotate_state(mod, y0(grid), mod.qaxis((0, 1, 0), phi))
+        assert np.max(np.abs(br.label(p.name).state(grid) - want)) < 1e-7
+        assert p.ordinates["z1"] == pytest.approx(-math.sin(phi) * y0.y[0, -1], abs=1e-8)
+    for p in br.points:
+        assert p.ordinates["qnorm"] < QNORM_TOL
+
+
+def test_periods_of_psi_and_theta0(modules, rotating):
+    """psi enters only through sin and cos; theta0 + 2 pi turns the clamp's quaternion into
+    -q(0), and -q is a solution with the same frame (the ODE is linear in q, R(-q) = R(q))."""
+    _, rod_problem, mod = modules
+    _, rod = rotating
+    for br, p in labelled(rod, "UZ"):
+        st = br.label(p.name).state
+        ya, yb = st.y[:, 0], st.y[:, -1]
+        for k in (1, -2):
+            shifted = {**st.params, "psi": st.params["psi"] + 2 * math.pi * k}
+            assert np.max(np.abs(mod.bc(ya, yb, shifted) - mod.bc(ya, yb, st.params))) < 1e-12
+            assert stability.index(rod_problem, st.__class__(st.s, st.y, st.yp, shifted)) \
+                == stability.index(rod_problem, st)
+        flipped = st.y.copy()
+        flipped[3:7] *= -1
+        turned = {**st.params, "theta0": st.params["theta0"] + 2 * math.pi}
+        assert np.max(np.abs(mod.bc(flipped[:, 0], flipped[:, -1], turned))) < 1e-9
+        rhs = mod.rhs(st.s, flipped, turned)
+        assert np.max(np.abs(rhs[3:7] + mod.rhs(st.s, st.y, st.params)[3:7])) < 1e-12
+        assert np.allclose(np.delete(rhs, np.s_[3:7], 0),
+                           np.delete(mod.rhs(st.s, st.y, st.params), np.s_[3:7], 0),
+                           atol=1e-12)
+
+
+def test_quaternion_norm_stays_one(rotating):
+    _, rod = rotating
+    for br in rod:
+        assert br.end == "EP", br.message
+        assert max(p.ordinates["qnorm"] for p in br.points) < QNORM_TOL
+
+
+def test_isotropic_rod_arm_tilt_is_a_rotation_about_the_load_line(modules, rotating):
+    """b2 = 1, u_hat = 0, load along the clamp axis: R -> Q R Rb3(-chi), Q the rotation by chi
+    about e_y = d3(0), keeps the clamp (Q R_c = R_c Rb3(chi)), the bending energy (isotropic)
+    and the load potential, and R Rb3(-chi) a_b(chi) = R a_b(0): so the chi family is the planar
+    state turned rigidly by Q (r, m), with the same index and dE/dchi = 0."""
+    _, rod, mod = modules
+    start = ea.continuation(rod, {**BASE, "b2": 1.0}, "psi", bounds=(-1.0, 0.7), uz=[0.6],
+                            max_points=60)
+    (br,) = ea.continuation(rod, start.label("UZ1"), "chi", bounds=(-0.1, 2.0), uz=[1.5],
+                            max_points=60)
+    y0 = start.label("UZ1").state
+    grid = np.linspace(0, 1, 41)
+    (p,) = [p for p in br.points if p.type == "UZ"]
+    st = br.label(p.name).state
+    rot = mod.rotation(mod.qaxis((0, 1, 0), p.params["chi"]))
+    y1 = st(grid)
+    assert np.max(np.abs(y1[0:3] - rot @ y0(grid)[0:3])) < 1e-7
+    assert np.max(np.abs(y1[7:10] - rot @ y0(grid)[7:10])) < 1e-7
+    assert stability.index(rod, st) == stability.index(rod, y0) == 2
+    assert max(abs(q.ordinates["mchi"]) for q in br.points) < 1e-8   # dE/dchi = 0
+
+
+# ---- the index against the finite-difference Hessian of a discretised rod -------------------
+
+#: Intervals of the discrete rod; its eigenvalues' error is estimated from n/2 (about 0.01-0.02
+#: for the lowest eight at n = 120 on these states).
+N_FD = 120
+#: A state is compared only if its smallest |eigenvalue| exceeds this many error estimates.
+SAFETY = 5.0
+
+
+def fd_compare(mod, problem, state):
+    """The engine against the discrete rod (tests/rod_hessian.py) at ``state``: (engine's
+    index, discrete count), or None where the discrete count is not decisive (the smallest
+    |eigenvalue| within SAFETY error estimates of zero, the estimate a third of the change of
+    the lowest eight eigenvalues from N_FD / 2 to N_FD intervals: second order); and the
+    numbers of eigenvalues below shifts mid-gap between the discrete rod's lowest eigenvalues
+    (below 25, gaps of at least 2 SAFETY errors), (engine, discrete). The engine counts the
+    form less shift times the L2 product; the discrete rod's eigenvalues are taken with the
+    same (lumped) mass. The spectral counts see what the index alone may not: the sign of C,
+    for instance, moves eigenvalues without changing the index of these states."""
+    from rod_hessian import eigenvalues
+    fine, coarse = eigenvalues(mod, state, N_FD), eigenvalues(mod, state, N_FD // 2)
+    err = np.max(np.abs(fine[:8] - coarse[:8])) / 3
+    index = None
+    if np.min(np.abs(fine[:8])) > SAFETY * err:
+        index = (stability.index(problem, state), int(np.sum(fine < 0)))
+    low = fine[fine < 25]
+    gaps = [(x + y) / 2 for x, y in zip(low[:-1], low[1:]) if y - x > 2 * SAFETY * err]
+    evaluate = stability._on_state(problem, state)
+    engine = [stability.count_form(evaluate, state.s, shift=mu).index for mu in gaps]
+    return index, (engine, [int(np.sum(fine < mu)) for mu in gaps])
+
+
+def conjugate_index(mod, state):
+    """The index of the module's form at ``state`` by the Morse index theorem: focal points of
+    the 3 x 3 Jacobi system (tests/form_reference.py), the coefficients from the state's
+    interpolant."""
+    from form_reference import Form, conjugate_count
+
+    def field(name):
+        return lambda s: getattr(mod.second_variation(s, state(s), state.params), name)
+    end = mod.second_variation(state.s, state.y, state.params).E1
+    return conjugate_count(Form(k=3, A=field("A"), B=field("B"), C=field("C"), E1=end,
+                                G0=np.eye(3))).index
+
+
+def straight(mod, problem, **params):
+    from elastica_auto.solution import State
+    p = {par.name: par.default for par in mod.PARAMETERS}
+    p.update(params)
+    s = np.linspace(0, 1, 41)
+    return State.from_values(problem, s, mod.exact_start(s, p), p)
+
+
+@pytest.mark.parametrize("b2, P, want", [(1.0, 1.0, 0), (1.0, 5.0, 2), (1.0, 20.0, 4),
+                                         (2.0, 2.5, 1), (2.0, 20.0, 3)])
+def test_straight_rod_index_against_the_discrete_hessian(modules, b2, P, want):
+    """The straight rod (eps = 0.25): critical loads B_i k^2 with eps k tan k = 1 (1.599192,
+    15.485497, ...) for B_1 = 1 (in-plane) and B_2 = b2 (out of plane)."""
+    _, rod, mod = modules
+    index, (engine, discrete) = fd_compare(mod, rod, straight(mod, rod, P=P, b2=b2))
+    assert index == (want, want)
+    assert len(engine) >= 3 and engine == discrete
+
+
+def test_buckled_index_against_the_discrete_hessian(modules, rotating):
+    """Buckled states of the rotating arm (b2 = 2) on both sides of the folds, and a
+    non-planar one (the arm tilted by chi = 1.5)."""
+    _, rod, mod = modules
+    _, branches = rotating
+    uz = [br.label(p.name).state for br, p in labelled(branches, "UZ")]
+    states = [uz[0], uz[2], uz[5], uz[-1]]       # psi = 0.3, 0.6 past the fold, -0.5, 0.6
+    tilted = ea.continuation(rod, branches.label("UZ2"), "chi", bounds=(-0.1, 2.0), uz=[1.5],
+                             max_points=60)
+    states.append(tilted.label("UZ1").state)
+    assert abs(states[-1].y[2, -1]) > 0.1                 # out of the plane
+    results = [fd_compare(mod, rod, st) for st in states]
+    compared = [index for index, _ in results if index is not None]
+    print("engine vs discrete Hessian:", results)
+    assert len(compared) >= 4 and {r[0] for r in compared} == {0, 1}
+    for engine, discrete in compared:
+        assert engine == discrete
+    for _, (engine, discrete) in results:
+        assert len(engine) >= 3 and engine == discrete
+    for st in states:
+        assert conjugate_index(mod, st) == stability.index(rod, st)
+
+
+@pytest.fixture(scope="module")
+def generic(modules):
+    """A state with every parameter away from its planar value: intrinsic curvature in all
+    three directions, the load out of the plane, a turned clamp, b2 and c not 1, the arm not
+    along the tangent: from the twisted straight rod, u1, beta, psi, u2 continued in turn."""
+    _, rod, _ = modules
+    label = {"P": 1.0, "eps": 0.3, "b2": 1.5, "c": 0.9, "u3": 0.5, "theta0": 0.2,
+             "alpha": 0.2}
+    for name, value in (("u1", 1.0), ("beta", 0.4), ("psi", 0.8), ("u2", 0.7)):
+        br = ea.continuation(rod, label, name, bounds=(-0.1, value + 0.1), uz=[value],
+                             max_points=60)
+        label = br.label("UZ1")
+    return label.state
+
+
+def test_conserved_quantities(modules, generic):
+    """n = F (by construction), m + r x F, m.F, the Hamiltonian (1/2) m_b.K^-1 m_b +
+    m_b.u_hat + F.d3 and |q| are constant along the rod (docs/kirchhoff.md, "Model")."""
+    _, rod, mod = modules
+    y, p = generic.y, generic.params
+    assert abs(y[2, -1]) > 0.05 and abs(y[7, 0]) > 0.05        # not planar
+    f = mod.load(p)
+    rot = mod.rotation(y[3:7])
+    mb = np.einsum("ji...,j...->i...", rot, y[7:10])
+    u_hat = np.array((p["u1"], p["u2"], p["u3"]))
+    ham = 0.5 * np.sum(mb * mb / mod.stiffness(p)[:, None], 0) + u_hat @ mb + f @ rot[:, 2]
+    assert np.ptp(ham) < 1e-7
+    assert np.max(np.ptp(y[7:10] + np.cross(y[0:3], f, axis=0), axis=1)) < 1e-12
+    assert np.ptp(f @ y[7:10]) < 1e-12
+    assert np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1)) < QNORM_TOL
+    ordinates = rod.ordinate_values(generic.s, y, p)
+    assert ordinates["index_in"] == ordinates["index_out"] == -1      # not planar
+
+
+def test_generic_state_against_the_discrete_hessian(modules, generic):
+    _, rod, mod = modules
+    index, (engine, discrete) = fd_compare(mod, rod, generic)
+    assert index == (0, 0)
+    assert len(engine) >= 3 and engine == discrete
+    assert conjugate_index(mod, generic) == 0
+
+
+def test_straight_rod_branch_points_are_both_stiffnesses_critical_loads(modules):
+    """The straight rod continued in P (eps = 0.25, b2 = 2): a branch point at each B_i k^2
+    with eps k tan k = 1, B_1 = 1 (in-plane) and B_2 = b2 (out of plane), and the index
+    counts the critical loads passed: 0 -> 1 -> 2 -> 3."""
+    from scipy.optimize import brentq
+    _, rod, _ = modules
+    k1 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, 0.1, math.pi / 2 - 1e-9, xtol=1e-15)
+    k2 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, math.pi, 1.5 * math.pi - 1e-9,
+                xtol=1e-15)
+    want = sorted(b * k * k for b in (1.0, 2.0) for k in (k1, k2) if b * k * k < 17)
+    (br,) = ea.continuation(rod, {"P": 0.0, "eps": 0.25, "b2": 2.0}, "P", bounds=(-1, 17),
+                            max_points=100)
+    bps = [p for p in br.points if p.type == "BP"]
+    got = [p.params["P"] for p in bps]
+    assert len(got) == len(want) == 3
+    assert np.max(np.abs(np.subtract(got, want)) / np.array(want)) < 1e-9
+    inner = [p.index for p in br.points if p.type == ""]
+    assert sorted(set(inner)) == [0, 1, 2, 3] and inner == sorted(inner)
+    for p in br.points:
+        assert abs(p.ordinates["z1"]) < 1e-12 and abs(p.ordinates["m1"]) < 1e-12
+
+
+def test_draw_projects_on_the_plane(modules, generic):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elastica_auto.branch import PROFILE_GRID
+    _, _, mod = modules
+    fig, ax = plt.subplots()
+    mod.draw(ax, generic(PROFILE_GRID), generic.params)
+    gids = {a.get_gid() for a in ax.get_children()}
+    assert {"rod", "lever arm", "load"} <= gids
+    (rod,) = [line for line in ax.lines if line.get_gid() == "rod"]
+    assert np.allclose(rod.get_xdata(), generic(PROFILE_GRID)[0])
+    plt.close(fig)
+
+
+def prandtl_load(eps):
+    """The smallest lambda = P / sqrt(B2 C) of the reduced lateral-torsional problem of a
+    cantilever with a perpendicular tip load and an in-plane-rigid section (Prandtl-Michell),
+    the load applied eps sqrt(B2/C) from the centroid against its direction: the twist phi
+    with C phi'' + (P^2 (1 - s)^2 / B2) phi = 0, phi(0) = 0, C phi'(1) = P eps phi(1);
+    scaled, phi'' + lambda^2 (1 - s)^2 phi = 0, phi'(1) = lambda eps phi(1). By shooting."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    def residual(lam):
+        sol = solve_ivp(lambda s, y: (y[1], -lam ** 2 * (1 - s) ** 2 * y[0]), (0, 1),
+                        (0.0, 1.0), rtol=1e-12, atol=1e-13)
+        return sol.y[1, -1] - lam * eps * sol.y[0, -1]
+    return brentq(residual, 1.0, 6.0, xtol=1e-12)
+
+
+@pytest.mark.parametrize("eps", [0.0, 0.1, -0.1])
+def test_lateral_torsional_buckling_of_a_stiff_section(modules, eps):
+    """The load perpendicular to the rod (alpha = pi/2, along +x), the arm perpendicular to
+    the tip and pointing against the load (psi = -pi/2), b2 = c = 1e-4 (in-plane stiffness
+    1e4 times larger): the out-of-plane branch point is the Prandtl-Michell load, 4.0125993
+    sqrt(B2 C) at eps = 0 and the shooting values 3.5415326 (eps = 0.1: load above the
+    centroid, destabilising) and 4.3613946 (eps = -0.1); the in-plane flexibility raises it
+    by O(B2/B1) (1.1e-3 at B2/B1 = 1e-3, 1.1e-4 at 1e-4, linear: seen). The index goes 0 -> 1
+    there."""
+    _, rod, _ = modules
+    ratio = 1e-4
+    (br,) = ea.continuation(rod, {"P": 0.0, "eps": eps, "b2": ratio, "c": ratio,
+                                  "alpha": math.pi / 2, "psi": -math.pi / 2}, "P",
+                            bounds=(-1, 6 * ratio), ds=0.2 * ratio, ds_max=0.5 * ratio,
+                            max_points=100)
+    (bp,) = [p for p in br.points if p.type == "BP"]
+    want = prandtl_load(eps)
+    assert abs(bp.params["P"] / ratio / want - 1) < 3e-4
+    assert {p.index for p in br.points if p.type == "" and p.params["P"] < bp.params["P"]} \
+        == {0}
+    assert {p.index for p in br.points if p.type == "" and p.params["P"] > bp.params["P"]} \
+        == {1}
+
+
+def assert_rule_agrees(branch):
+    """Across every fold the fold rule (the distinguished ordinate's slope) gives the direct
+    count's index: no disagreement away from LP and BP rows, and at least one fold changes
+    the index."""
+    assert not branch.warnings, branch.warnings
+    for p in branch.points:
+        assert "disagreement" not in p.note, p.note
+        if p.type not in ("LP", "BP"):
+            assert p.index == p.index_rule == p.index_direct >= 0
+    changes = {(a.index, b.index) for a, b in zip(branch.points, branch.points[2:])
+               if a.type == "" and b.type == "" and a.index != b.index}
+    return changes
+
+
+def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
+    """The fold rule reads m1 = dE/dpsi (the rotating arm, b2 = 2) and beps = dE/deps (eps
+    continued at P = 9 pi^2/4 from a buckled state of index 3 through its fold to index 2)."""
+    _, rod, _ = modules
+    _, branches = rotating
+    for br in branches:
+        assert assert_rule_agrees(br) == {(1, 0)}
+    base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
+                           uz=[0.3], max_points=100)
+    (br,) = ea.continuation(rod, base.label("UZ1"), "eps", bounds=(-2, 2), directions="-",
+                            max_points=60)
+    assert [p.type for p in br.points].count("LP") == 1
+    assert assert_rule_agrees(br) == {(3, 2)}
