@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .solution import State, Tangent
-from .stability import index
+from .stability import count
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)
@@ -102,7 +102,10 @@ def new_point(problem, state: State, *, type: str = "", arclength: float, ds: fl
     if not all(math.isfinite(v) for v in ordinates.values()):
         direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
     elif direct is None:
-        direct = index(problem, state)
+        counted = count(problem, state)
+        direct = counted.index
+        if counted.refused:   # no index here: say why (a zero eigenvalue needs no note)
+            note = "; ".join(filter(None, (note, counted.reason)))
     return Point(params=problem.point_params(state.params, state.y), ordinates=ordinates,
                  arclength=float(arclength), ds=float(ds), niter=int(niter),
                  nodes=len(state.s), type=type, profile=state(PROFILE_GRID),

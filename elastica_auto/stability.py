@@ -52,10 +52,16 @@ SINGULAR_ULPS = 64.0
 @dataclass(frozen=True)
 class Count:
     """The direct count at one state: ``index`` (-1 if not counted) and, when it was not,
-    ``reason`` (no hook, values not finite, a zero eigenvalue)."""
+    ``reason`` (no hook, values not finite, a zero eigenvalue, the Legendre condition);
+    ``refused`` where the form has no index there (the Legendre condition fails)."""
 
     index: int
     reason: str = ""
+    refused: bool = False
+
+
+class LegendreError(ProblemError):
+    """A is not positive definite at some point: the form has no index (one line)."""
 
 
 class _Singular(Exception):
@@ -101,7 +107,10 @@ def count(problem, state) -> Count:
     if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
             and all(np.isfinite(v) for v in state.params.values())):
         return Count(-1, "the state is not finite")
-    return count_form(_on_state(problem, state), state.s, source=_source(problem))
+    try:
+        return count_form(_on_state(problem, state), state.s, source=_source(problem))
+    except LegendreError as exc:   # at this state only: the branch goes on, the point says so
+        return Count(-1, str(exc), refused=True)
 
 
 def index(problem, state) -> int:
@@ -153,7 +162,8 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
     by the bordered inertia n_-(K) - n_-(C K^-1 C^T) (docs/stability.md, "The direct count").
     A pivot with an eigenvalue zero to working precision (a fold, a branch point, an
     unconstrained symmetry) gives index -1 and says so: its sign would be a guess.
-    ProblemError where A is not positive definite (the Legendre condition).
+    LegendreError (a ProblemError) where A is not positive definite (the Legendre
+    condition); :func:`count` turns it into index -1 with that one-line reason.
     """
     s = np.asarray(mesh, dtype=float)
     form, coeffs = _evaluate(evaluate, s, shift, source)
@@ -193,7 +203,7 @@ def _evaluate(evaluate, s, shift, source):
     a_min = _min_eig(a)
     if not np.all(a_min > 0):
         j = int(np.argmin(a_min))
-        raise ProblemError(f"{source}: second_variation: A is not positive definite at s = "
+        raise LegendreError(f"{source}: second_variation: A is not positive definite at s = "
                            f"{pts[j]:.6g} (smallest eigenvalue {a_min[j]:.3g}): the Legendre "
                            "condition fails there and the stability index is not defined")
     return form, (a, b, c, a_min, g)
@@ -561,6 +571,8 @@ def label_stability(branch, problem) -> None:
             p.index = r
         elif r == p.index_direct:
             p.index = r
+        elif p.index_direct < 0:   # not counted there (the note says why, where it can)
+            p.index = -1
         else:
             p.index = -1
             msg = f"index disagreement: rule {r}, direct {p.index_direct}"

@@ -44,7 +44,7 @@ from .events import (Located, Step, UserValues, crossings, locate_branch_point, 
 from .newton import Row
 from .options import ContinuationOptions
 from .solution import State, Tangent, difference, inner, norm, secant
-from .stability import index, index_change, kernel_dimension
+from .stability import Count, count, index_change, kernel_dimension
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
@@ -398,8 +398,8 @@ class _Walk:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
         raises _Reject to retry with a smaller ds."""
         step, cos_turn = self._correct(ds)
-        found, index_b = self._detect(step, retries)
-        return self._accept(step, found, index_b, retries, cos_turn)
+        found, counted = self._detect(step, retries)
+        return self._accept(step, found, counted, retries, cos_turn)
 
     def _correct(self, ds: float) -> tuple[Step, float]:
         """Predict and correct (on the mesh chosen for the step), then check the new point:
@@ -440,7 +440,8 @@ class _Walk:
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
         fold = a.tangent.lam * b.tangent.lam < 0 and not skip
         bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
-        index_a, index_b = self.base_point.index_direct, index(self.problem, b.state)
+        counted = count(self.problem, b.state)
+        index_a, index_b = self.base_point.index_direct, counted.index
         # retries for a fold that cannot be located or a fold rule that fails count until a
         # step with a fold is accepted: shorter steps that stop before the fold do not reset
         # them (they would approach the fold for ever)
@@ -477,7 +478,7 @@ class _Walk:
                     f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
         if found:
             self.event_retries = 0
-        return found, index_b
+        return found, counted
 
     def _kernel_check(self, state, index_a: int, index_b: int) -> str:
         """At a branch point crossed by the branch, the index changes by the dimension of the
@@ -493,7 +494,7 @@ class _Walk:
         self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
         return note
 
-    def _accept(self, step: Step, found: list[_Event], index_b: int, retries: int,
+    def _accept(self, step: Step, found: list[_Event], counted: Count, retries: int,
                 cos_turn: float) -> tuple[float, bool]:
         """Add the step's events and its end point b; the next ds (grown after an easy step)
         and whether the branch ended."""
@@ -505,8 +506,9 @@ class _Walk:
         tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
         curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
                             (tb.lam - ta.lam) / step.dist)
-        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter, direct=index_b,
-                          fold_residual=residual)
+        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter,
+                          direct=counted.index, fold_residual=residual,
+                          note=counted.reason if counted.refused else "")
         # the walk moves on to b in one statement that calls nothing (no signal lands inside)
         self.base_point, self.a, self.arclength, self.curvature, self.first = \
             point, b, arclength, curvature, False
@@ -636,7 +638,7 @@ class _Walk:
             if inner(t, step.secant, mid.mesh) < 0:
                 t = t.scaled(-1.0)
             if sign * t.lam <= 0 or (
-                    index_a >= 0 and index(self.problem, mid.state) != index_a):
+                    index_a >= 0 and count(self.problem, mid.state).index != index_a):
                 raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
                               max(u * ds / 2, ds / 8))
             known.append((u, sign * t.lam))

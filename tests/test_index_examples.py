@@ -276,3 +276,27 @@ def test_a_branch_point_whose_index_change_is_not_its_kernel_is_flagged(monkeypa
     (bp,) = [p for p in br.points if p.type == "BP"]
     assert "index 0 -> 1 across the branch point, whose kernel has dimension 2" in bp.note
     assert any("kernel has dimension 2" in w for w in br.warnings)
+
+
+def test_where_the_legendre_condition_fails_the_point_says_so_and_the_branch_goes_on(tmp_path):
+    """A form whose A = 1 - lam/2 stops being positive definite at lam = 2 (and B = 1, so
+    the index is 0 while A > 0) has no index past it: those points get -1 and the one-line
+    reason, the others their count, and the branch goes on to its bound (a step that only
+    tries such a point did end it MX)."""
+    old = 'return SecondVariation(1.0, -p["lam"] * np.exp(y[0]),'
+    source = (EXAMPLES / "bratu.py").read_text()
+    assert old in source
+    source = source.replace(old, 'return SecondVariation(1 - p["lam"] / 2, 1.0,')
+    (tmp_path / "soft.py").write_text(source)
+    problem = ea.load_problem(tmp_path / "soft.py")
+    (br,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 3), ds=0.1, ds_max=0.2)
+    assert br.end == "EP" and br.points[-1].params["lam"] == pytest.approx(3)
+    for p in br.points:
+        if p.params["lam"] < 1.99:
+            assert p.index == p.index_direct == 0
+        elif p.params["lam"] > 2.01:
+            assert p.index == p.index_direct == -1
+            assert "A is not positive definite at s = 0 (smallest eigenvalue" in p.note
+            assert "the Legendre condition fails there" in p.note
+    with pytest.raises(ea.ProblemError, match="Legendre"):
+        stability.count_form(lambda pts: ea.SecondVariation(-1.0, 0.0), np.linspace(0, 1, 5))
