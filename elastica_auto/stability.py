@@ -125,6 +125,8 @@ def _min_eig(a):
     low refines meshes that need it not.)"""
     if a.shape[-1] == 1:
         return a[:, 0, 0]
+    if a.strides[0] == 0:   # a constant field (a stiffness), broadcast: one block to solve
+        return np.broadcast_to(np.linalg.eigvalsh(a[:1])[:, 0], len(a))
     return np.linalg.eigvalsh(a)[:, 0]
 
 
@@ -404,24 +406,25 @@ def _small_pivots(m, scale):
     n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
     (n_2 xor n_3); a zero coefficient counts as positive."""
     p, k = len(m), m.shape[-1]
-    flat = m.reshape(p, k * k)
+    rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
     if k == 2:
-        a, b, d = flat[:, 0], flat[:, 3], flat[:, 1]
+        a, b, d = rows[0], rows[3], rows[1]
         det = a * b - d * d
-        inv = flat[:, _ADJ2] * _ADJ2_SIGN / det[:, None]
-        neg1, c_last = a + b < 0, a + b
+        inv = rows[_ADJ2] * _ADJ2_SIGN[:, None] / det
+        c_last = a + b
+        neg1 = c_last < 0
         changes = np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ (det < 0))
     else:
-        e = flat[:, _SYM3]                                  # a, b, c, d, e, f (_SYM3)
-        cof = e[:, _COF[0]] * e[:, _COF[1]] - e[:, _COF[2]] * e[:, _COF[3]]
-        det = np.einsum("pi,pi->p", e[:, (0, 3, 4)], cof[:, (0, 3, 4)])   # a c00 + d c01 + e c02
-        inv = cof[:, _COF_TO_3X3] / det[:, None]
-        c_last = cof[:, 0] + cof[:, 1] + cof[:, 2]
-        neg1, neg2 = e[:, 0] + e[:, 1] + e[:, 2] < 0, c_last < 0
+        e = rows[_SYM3]                                     # a, b, c, d, e, f (_SYM3)
+        cof = e[_COF[0]] * e[_COF[1]] - e[_COF[2]] * e[_COF[3]]
+        det = e[0] * cof[0] + e[3] * cof[3] + e[4] * cof[4]     # a c00 + d c01 + e c02
+        inv = cof[_COF_TO_3X3] / det
+        c_last = cof[0] + cof[1] + cof[2]
+        neg1, neg2 = e[0] + e[1] + e[2] < 0, c_last < 0
         changes = (np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ neg2)
                    + np.count_nonzero(neg2 ^ (det < 0)))
     singular = bool(np.any(np.abs(det) <= scale * np.abs(c_last)))
-    return inv.reshape(p, k, k), (0 if singular else int(changes)), singular
+    return inv.T.reshape(p, k, k), (0 if singular else int(changes)), singular
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
