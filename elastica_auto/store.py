@@ -752,6 +752,25 @@ def same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def write_atomically(out: Path, write) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``out`` and rename it over ``out``, so
+    that a failed write leaves ``out`` as it was. StoreError (one line) if it cannot be
+    written."""
+    out = Path(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _temporary(out)
+        try:
+            write(tmp)
+            os.replace(tmp, out)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise StoreError(f"{out}: cannot write ({exc.strerror or exc})") from exc
+    return out
+
+
 def export_csv(bf: BranchFile, out: Path):
     """Every point of every branch, one row each (header: branch,pt,type,label,<parameters>,
     <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits.
@@ -764,20 +783,12 @@ def export_csv(bf: BranchFile, out: Path):
     if same_file(bf.path, out):
         raise StoreError(f"{out} is the branch file being exported ({bf.path}); "
                          "choose another name for the CSV")
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = _temporary(out)
-        try:
-            with open(tmp, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(header)
-                for row in rows(bf):
-                    w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
-                                for h in header])
-            os.replace(tmp, out)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise StoreError(f"{out}: cannot write ({exc.strerror or exc})") from exc
-    return out
+    def write(tmp):
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for row in rows(bf):
+                w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
+                            for h in header])
+
+    return write_atomically(out, write)

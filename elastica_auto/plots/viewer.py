@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import USER_ERRORS, StoreError
-from ..store import BranchFile, _temporary, same_file
+from ..store import BranchFile, same_file, write_atomically
 from .diagram import MARKED, MARKER_TEXT, default_columns, fixed_parameters, panel_groups
 from .style import MARKERS, SNAP_COLOR, index_label, index_style
 
@@ -242,18 +242,7 @@ def write_page(text: str, output: Path, source: Path | None = None) -> Path:
     write leaves ``output`` as it was. StoreError if ``output`` is the branch file ``source``
     or cannot be written."""
     output = check_output(output, source)
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        tmp = _temporary(output)
-        try:
-            Path(tmp).write_text(text, encoding="utf-8")
-            os.replace(tmp, output)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise StoreError(f"{output}: cannot write ({exc.strerror or exc})") from exc
-    return output
+    return write_atomically(output, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 def view(branches_or_file, path: str | os.PathLike | None = None, *, x: str | None = None,
