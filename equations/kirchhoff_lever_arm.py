@@ -107,11 +107,20 @@ PARAMETERS = [
 # ---- quaternions and rotations (vectorised: q (4, m), v (3, m)) ------------------------------
 
 def qmul(a, b):
-    """Hamilton product a (x) b of quaternions (4, ...) stored scalar first."""
-    a0, av = a[0], a[1:]
-    b0, bv = b[0], b[1:]
-    return np.concatenate(([a0 * b0 - np.einsum("i...,i...->...", av, bv)],
-                           a0 * bv + b0 * av + np.cross(av, bv, axis=0)))
+    """Hamilton product a (x) b of quaternions (4, ...) stored scalar first (written out by
+    components: numpy's cross and einsum cost more than the arithmetic at these sizes)."""
+    a0, a1, a2, a3 = a
+    b0, b1, b2, b3 = b
+    return np.array((a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+                     a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+                     a0 * b2 + a2 * b0 + a3 * b1 - a1 * b3,
+                     a0 * b3 + a3 * b0 + a1 * b2 - a2 * b1))
+
+
+def cross(a, b):
+    """a x b for vectors (3, ...), by components."""
+    return np.array((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]))
 
 
 def qaxis(axis, angle):
@@ -157,20 +166,25 @@ def stiffness(p):
     return np.array((1.0, p["b2"], p["c"]))
 
 
-def curvature(y, p):
-    """The body curvature u = K^-1 R^T m + u_hat on the points, (3, m)."""
-    rot = rotation(y[3:7])
+def curvature(y, p, rot=None):
+    """The body curvature u = K^-1 R^T m + u_hat on the points, (3, m); ``rot``: R(q) if
+    already computed."""
+    rot = rotation(y[3:7]) if rot is None else rot
     mb = np.einsum("ji...,j...->i...", rot, y[7:10])
     return mb / stiffness(p)[:, None] + np.array((p["u1"], p["u2"], p["u3"]))[:, None]
 
 
 def rhs(s, y, p):
     rot = rotation(y[3:7])
-    u = curvature(y, p)
+    u = curvature(y, p, rot)
     d3 = rot[:, 2]
-    dq = 0.5 * qmul(y[3:7], np.vstack((np.zeros_like(u[0]), u)))
-    dm = np.cross(load(p), d3, axis=0)
-    return np.vstack((d3, dq, dm))
+    q0, q1, q2, q3 = y[3:7]
+    u1, u2, u3 = u
+    # (1/2) q (x) (0, u)
+    dq = 0.5 * np.array((-q1 * u1 - q2 * u2 - q3 * u3, q0 * u1 + q2 * u3 - q3 * u2,
+                         q0 * u2 + q3 * u1 - q1 * u3, q0 * u3 + q1 * u2 - q2 * u1))
+    dm = cross(load(p)[:, None], d3)
+    return np.concatenate((d3, dq, dm))
 
 
 def tip_arm(yb, p):
@@ -180,7 +194,73 @@ def tip_arm(yb, p):
 
 def bc(ya, yb, p):
     return np.concatenate((ya[0:3], ya[3:7] - clamp_quaternion(p),
-                           yb[7:10] - np.cross(tip_arm(yb, p), load(p))))
+                           yb[7:10] - cross(tip_arm(yb, p), load(p))))
+
+
+
+# ---- Jacobians (the derivatives of rhs and bc; derivation in docs/kirchhoff.md) -----------
+
+def rotation_derivative(q):
+    """dR/dq_j, (3, 3, 4, ...): R = Q(q) / |q|^2 with Q the quadratic form of ``rotation``,
+    so dR/dq_j = (dQ/dq_j - 2 q_j R) / |q|^2; dQ/dq_j is linear in q."""
+    w, x, y, z = q
+    dq = np.array((((w, -z, y), (z, w, -x), (-y, x, w)),        # d/dw
+                   ((x, y, z), (y, -x, -w), (z, w, -x)),        # d/dx
+                   ((-y, x, w), (x, y, z), (-w, z, -y)),        # d/dy
+                   ((-z, -w, x), (w, -z, y), (x, y, z))))       # d/dz, each (3, 3, ...)
+    n2 = w * w + x * x + y * y + z * z
+    out = 2 * (dq - q[:, None, None] * rotation(q)[None]) / n2
+    return np.moveaxis(out, 0, 2)
+
+
+def _cross_matrix(v):
+    """[v]_x, (3, 3, ...): [v]_x w = v x w."""
+    zero = np.zeros_like(v[0])
+    return np.array(((zero, -v[2], v[1]), (v[2], zero, -v[0]), (-v[1], v[0], zero)))
+
+
+def rhs_jac(s, y, p):
+    """df/dy, (10, 10, m), of ``rhs``: with dR_j = dR/dq_j,
+    dd3/dq_j = dR_j e3; du/dq_j = K^-1 dR_j^T m, du/dm = K^-1 R^T;
+    q' = (1/2) q (x) (0, u) = (1/2) M((0, u)) q = (1/2) L(q) (0, u), so
+    dq'/dq = (1/2) M((0, u)) + (1/2) L(q)[:, 1:] du/dq and dq'/dm = (1/2) L(q)[:, 1:] du/dm;
+    m' = F x d3: dm'/dq_j = F x dd3/dq_j. L and M are the left and right multiplication
+    matrices of the Hamilton product."""
+    q, m = y[3:7], y[7:10]
+    npts = y.shape[1]
+    rot = rotation(q)
+    drot = rotation_derivative(q)                              # (3, 3, 4, m)
+    kinv = (1 / stiffness(p))[:, None]
+    u = kinv * np.einsum("ji...,j...->i...", rot, m) + np.array(
+        (p["u1"], p["u2"], p["u3"]))[:, None]
+    du_dq = kinv[:, None] * np.einsum("jik...,j...->ik...", drot, m)       # (3, 4, m)
+    du_dm = kinv[:, None] * rot.transpose(1, 0, 2)                        # (3, 3, m)
+    q0, q1, q2, q3 = q
+    left = np.array(((-q1, -q2, -q3), (q0, -q3, q2), (q3, q0, -q1), (-q2, q1, q0)))
+    zero = np.zeros(npts)
+    u1, u2, u3 = u
+    right = np.array(((zero, -u1, -u2, -u3), (u1, zero, u3, -u2), (u2, -u3, zero, u1),
+                      (u3, u2, -u1, zero)))
+    jac = np.zeros((10, 10, npts))
+    dd3 = drot[:, 2]                                                      # (3, 4, m)
+    jac[0:3, 3:7] = dd3
+    jac[3:7, 3:7] = 0.5 * (right + np.einsum("ik...,kj...->ij...", left, du_dq))
+    jac[3:7, 7:10] = 0.5 * np.einsum("ik...,kj...->ij...", left, du_dm)
+    jac[7:10, 3:7] = np.einsum("ik,kj...->ij...", _cross_matrix(load(p)), dd3)
+    return jac
+
+
+def bc_jac(ya, yb, p):
+    """(dbc/dya, dbc/dyb) of ``bc``: the clamp's 7 rows are the identity on (r, q)(0); the
+    tip's m(1) - (eps R(q(1)) a_b) x F = m(1) + [F]_x eps R(q(1)) a_b has d/dm = I and
+    d/dq_j = [F]_x eps dR/dq_j a_b."""
+    da = np.zeros((10, 10))
+    db = np.zeros((10, 10))
+    da[0:7, 0:7] = np.eye(7)
+    db[7:10, 7:10] = np.eye(3)
+    darm = p["eps"] * np.einsum("ikj,k->ij", rotation_derivative(yb[3:7]), arm_body(p))
+    db[7:10, 3:7] = _cross_matrix(load(p)) @ darm
+    return da, db
 
 
 # ---- ordinates ---------------------------------------------------------------------------

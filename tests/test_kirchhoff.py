@@ -445,3 +445,32 @@ def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
                             max_points=60)
     assert [p.type for p in br.points].count("LP") == 1
     assert assert_rule_agrees(br) == {(3, 2)}
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_jacobians_are_the_complex_step_derivatives(modules, seed):
+    """rhs_jac and bc_jac against complex-step derivatives of rhs and bc (exact to rounding:
+    no subtraction), at random states (|q| != 1 too) and random parameters."""
+    _, _, mod = modules
+    rng = np.random.default_rng(seed)
+    p = dict(zip(("P", "eps", "psi", "alpha", "theta0", "chi", "beta", "phi0", "u1", "u2", "u3"),
+                 rng.uniform(-3, 3, 11)))
+    p.update(b2=rng.uniform(0.5, 3), c=rng.uniform(0.3, 2))
+    s = np.linspace(0, 1, 6)
+    y = rng.standard_normal((10, 6))
+    h = 1e-30
+    want = np.empty((10, 10, 6))
+    for j in range(10):
+        yc = y.astype(complex)
+        yc[j] += 1j * h
+        want[:, j] = mod.rhs(s, yc, p).imag / h
+    assert np.abs(mod.rhs_jac(s, y, p) - want).max() <= 1e-13 * np.abs(want).max()
+    ya, yb = rng.standard_normal(10), rng.standard_normal(10)
+    for end, got in enumerate(mod.bc_jac(ya, yb, p)):
+        want = np.empty((10, 10))
+        for j in range(10):
+            e = np.zeros(10, complex)
+            e[j] = 1j * h
+            want[:, j] = np.asarray(mod.bc(ya + (e if end == 0 else 0),
+                                           yb + (e if end == 1 else 0), p)).imag / h
+        assert np.abs(got - want).max() <= 1e-13 * max(1.0, np.abs(want).max())
