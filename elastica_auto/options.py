@@ -8,6 +8,8 @@ from dataclasses import asdict, dataclass, fields
 
 #: The correctors (:mod:`elastica_auto.correctors`).
 CORRECTORS = ("collocation", "solve_bvp")
+#: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
+NCOL_RANGE = (2, 7)
 
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
 #: norm of `elastica_auto.solution` (the L2 norm of y plus |lam|), in the module's units. The
@@ -56,6 +58,10 @@ class ContinuationOptions:
         ``"collocation"`` (the default: Newton on the collocation equations with one banded
         LU per step and the mesh adapted between steps) or ``"solve_bvp"`` (the same
         discretisation solved by `scipy.integrate.solve_bvp`, an independent check).
+    ncol : int
+        The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
+        points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
+        solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
     """
 
     ds: float = 0.05
@@ -69,6 +75,7 @@ class ContinuationOptions:
     fold_tol: float = 1e-7
     max_angle: float = 0.35
     corrector: str = "collocation"
+    ncol: int = 0
 
     def __post_init__(self):
         if self.corrector not in CORRECTORS:
@@ -87,6 +94,10 @@ class ContinuationOptions:
             raise OptionsError(f"ds_max must be <= {MAX_STEP:g}, got {self.ds_max}")
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
+        if self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1] \
+                or int(self.ncol) != self.ncol:
+            raise OptionsError(f"ncol must be 0 (the cubic scheme) or an integer from "
+                               f"{NCOL_RANGE[0]} to {NCOL_RANGE[1]}, got {self.ncol!r}")
         for name in ("max_points", "ntst", "max_nodes"):
             v = getattr(self, name)
             if int(v) != v or v < 2:
