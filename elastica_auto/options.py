@@ -48,6 +48,9 @@ class ContinuationOptions:
         residual on a mesh interval (solve_bvp's measure). The residual of the cubic
         collocation scales like h^3 while the error scales like h^4, so 1e-5 gives points good
         to about 1e-7 (relative) on meshes of 50-250 nodes.
+        With Gauss collocation (``ncol``) it bounds an
+        estimate of the largest relative error between the nodes instead (the nodes are far
+        more accurate; docs/numerics.md).
     fold_tol : float
         The same tolerance for located folds and branch points, applied to the solution and
         its null vector (user and end points use ``tol``); 1e-7 puts folds within ~1e-10 of
