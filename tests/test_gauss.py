@@ -184,3 +184,40 @@ def test_the_rotating_disk(tmp_path, ncol):
         assert abs(q.ordinates["dF0"] - dF0) <= 1e-7
         assert abs(q.ordinates["dG0"] - dG0) <= 1e-7
         assert abs(q.params["inflow"] - inflow) <= 1e-7
+
+
+@pytest.mark.parametrize("k", (2, 3, 4))
+def test_the_error_estimate_is_the_error_between_the_nodes(k):
+    """On Bratu's closed-form solution the estimate of each interval is within a factor 2 of
+    the actual largest relative error of the collocation polynomial there (evaluated from
+    its stage slopes on a fine grid of the interval)."""
+    bratu = load_problem(str(EXAMPLES / "bratu.py"))
+    z = 1.5
+    lam = 2 * z * z / math.cosh(z / 2) ** 2
+    p = {"lam": lam}
+
+    def exact(x):
+        return np.vstack((-2 * np.log(np.cosh(z * (x - 0.5)) / math.cosh(z / 2)),
+                          -2 * z * np.tanh(z * (x - 0.5))))
+
+    s = np.linspace(0.0, 1.0, 17)
+    disc = GaussDiscretisation(bratu, s, k)
+    ga, gb = bratu.bc_jac(np.zeros(2), np.zeros(2), p)
+    res = newton(disc, "lam", p, exact(s), lam, Row.value(disc, lam), None,
+                 bordered.split_rows(ga, gb), tol=1e-14)
+    ev = disc.evaluate(res.Y, p, res.interior)
+    estimate = disc.rms_residuals(res.Y, None, p, ev)
+    # u(s_i + t h) = y_i + h sum_l F_l int_0^t l_l, the Lagrange basis l_l on the tau's
+    t = np.linspace(0.0, 1.0, 201)
+    basis = np.array([np.polynomial.Polynomial.fit(disc.tau, np.eye(k)[j], k - 1).integ()
+                      for j in range(k)])
+    alpha = np.array([b(t) - b(0.0) for b in basis])                  # (k, len(t))
+    h = np.diff(s)
+    actual = []
+    for i in range(len(h)):
+        u = res.Y[:, i, None] + h[i] * ev.F[:, :, i] @ alpha
+        ref = exact(s[i] + t * h[i])
+        scale = 1 + np.maximum(np.abs(res.Y[:, i]), np.abs(res.Y[:, i + 1]))
+        actual.append(np.max(np.sqrt(np.sum(((u - ref) / scale[:, None]) ** 2, axis=0))))
+    ratio = estimate / np.array(actual)
+    assert np.all((ratio > 0.5) & (ratio < 2)), ratio
