@@ -105,7 +105,7 @@ class GaussBlocks(Blocks):
     def condense(self, ev: GaussEvaluation):
         """The condensed node residual ``r_C - W r_G`` (n, m-1)."""
         rg = _stacked(ev.stage)
-        return ev.col - np.einsum("iab,ib->ai", self.w, rg)
+        return ev.col - _matvec(self.w, rg).T
 
     def interior(self, ev: GaussEvaluation, dY, dp, name):
         """The stage correction ``G_K^{-1} (r_G + E dy_i - G_p dp)`` (n, k, m-1) that goes
@@ -115,8 +115,13 @@ class GaussBlocks(Blocks):
         rhs = rg + np.tile(dY[:, :-1].T, (1, k))
         if dp:
             rhs = rhs - dp * self.gp[name]
-        dK = np.einsum("iab,ib->ia", self.ginv, rhs)
+        dK = _matvec(self.ginv, rhs)
         return _unstacked(dK, dY.shape[0], k)
+
+
+def _matvec(a, x):
+    """Batched matrix-vector products: a (..., p, q), x (..., q) -> (..., p)."""
+    return np.matmul(a, x[..., None])[..., 0]
 
 
 def _stacked(a):
@@ -147,8 +152,9 @@ class GaussDiscretisation:
         self.order = k + 1     # the error estimate scales like h^order
         n = self.n
         # G_K = I - h (A x I) diag(J): the (j, l) block is -h a_jl J_l
-        self._hA = self.h[:, None, None] * self.A[None]                  # (m-1, k, k)
-        self._hb = self.h[:, None] * self.b[None]                          # (m-1, k)
+        # -h a_jl and -h b_l, broadcast for the blocks (m-1, k, 1, k, 1) and (m-1, 1, k, 1)
+        self._hA = -(self.h[:, None, None, None, None] * self.A[None, :, None, :, None])
+        self._hb = -(self.h[:, None, None, None] * self.b[None, None, :, None])
         self._eye = np.eye(k * n)
 
     # -- the equations ------------------------------------------------------------------------
@@ -160,9 +166,17 @@ class GaussDiscretisation:
         n, k = self.n, self.ncol
         return self.problem.rhs(self.s_stage, K.reshape(n, -1), p).reshape(n, k, -1)
 
+    def _times_A(self, F):
+        """``h sum_l a_jl F_l`` for stage values (n, k, m-1)."""
+        return np.matmul(self.A, F) * self.h
+
+    def _times_b(self, F):
+        """``h sum_l b_l F_l``: (n, m-1)."""
+        return (self.b @ F) * self.h
+
     def _residuals(self, y, K, F):
-        stage = K - y[:, None, :-1] - np.einsum("ijl,ali->aji", self._hA, F)
-        col = y[:, 1:] - y[:, :-1] - np.einsum("il,ali->ai", self._hb, F)
+        stage = K - y[:, None, :-1] - self._times_A(F)
+        col = y[:, 1:] - y[:, :-1] - self._times_b(F)
         return col, stage
 
     def evaluate(self, y, p, interior=None) -> GaussEvaluation:
@@ -182,7 +196,7 @@ class GaussDiscretisation:
         n, k = self.n, self.ncol
         J = self.problem.rhs_jac(self.s_stage, K.reshape(n, -1), p).reshape(n, n, k, -1)
         J = J.transpose(3, 2, 0, 1)                                       # (m-1, k, n, n)
-        G = -np.einsum("ijl,ilab->ijalb", self._hA, J).reshape(len(self.h), k * n, k * n)
+        G = (self._hA * J.transpose(0, 2, 1, 3)[:, None]).reshape(len(self.h), k * n, k * n)
         G += self._eye
         return J, G
 
@@ -214,7 +228,7 @@ class GaussDiscretisation:
         J, G = self._stage_matrix(ev.K, p)
         ginv = np.linalg.inv(G)
         # C_K = -h (b^T x I) diag(J): the l-th block -h b_l J_l
-        CK = -np.einsum("il,ilab->ialb", self._hb, J).reshape(mi, n, k * n)
+        CK = (self._hb * J.transpose(0, 2, 1, 3)).reshape(mi, n, k * n)
         w = CK @ ginv
         d0 = w.reshape(mi, n, k, n).sum(axis=2) - np.eye(n)
         d1 = np.broadcast_to(np.eye(n), (mi, n, n))
@@ -223,9 +237,9 @@ class GaussDiscretisation:
         dcol, dbc, fps, gps = {}, {}, {}, {}
         for name in names:
             P = problem.rhs_dp(self.s_stage, ev.K.reshape(n, -1), p, name).reshape(n, k, -1)
-            gp = _stacked(-np.einsum("ijl,ali->aji", self._hA, P))           # (m-1, kn)
-            cp = -np.einsum("il,ali->ai", self._hb, P)                        # (n, m-1)
-            dcol[name] = cp - np.einsum("iab,ib->ai", w, gp)
+            gp = _stacked(-self._times_A(P))                                 # (m-1, kn)
+            cp = -self._times_b(P)                                            # (n, m-1)
+            dcol[name] = cp - _matvec(w, gp).T
             dbc[name] = problem.bc_dp(ev.y[:, 0], ev.y[:, -1], p, name)
             fps[name] = problem.rhs_dp(self.s, ev.y, p, name)
             gps[name] = gp
@@ -240,7 +254,7 @@ class GaussDiscretisation:
         """``c_k h^(k+1) |u^(k+1)|`` per interval from the stage slopes (n, k, m-1) of a
         collocation polynomial, relative to ``1 + |y|`` (or ``scale + |y|``)."""
         k, h = self.ncol, self.h
-        D = np.einsum("l,ali->ai", self.dk, slopes) / h ** (k - 1)        # u^(k), (n, m-1)
+        D = (self.dk @ slopes) / h ** (k - 1)                             # u^(k), (n, m-1)
         if D.shape[1] < 2:
             return np.zeros(D.shape[1])
         node = np.abs(np.diff(D, axis=1)) / (0.5 * (h[1:] + h[:-1]))      # (n, m-2)
@@ -267,8 +281,8 @@ class GaussDiscretisation:
         rhs = np.tile(v[:, :-1].T, (1, k))
         if v_lam and name is not None:
             rhs = rhs - v_lam * blocks.gp[name]
-        V = _unstacked(np.einsum("iab,ib->ia", blocks.ginv, rhs), n, k)
-        slopes = np.einsum("ijab,bji->aji", blocks.stage_jac, V)
+        V = _unstacked(_matvec(blocks.ginv, rhs), n, k)
+        slopes = _matvec(blocks.stage_jac, V.transpose(2, 1, 0)).transpose(2, 1, 0)
         if v_lam and name is not None:
             P = self.problem.rhs_dp(self.s_stage, ev.K.reshape(n, -1), p, name)
             slopes = slopes + v_lam * P.reshape(n, k, -1)
