@@ -221,3 +221,16 @@ def test_the_error_estimate_is_the_error_between_the_nodes(k):
         actual.append(np.max(np.sqrt(np.sum(((u - ref) / scale[:, None]) ** 2, axis=0))))
     ratio = estimate / np.array(actual)
     assert np.all((ratio > 0.5) & (ratio < 2)), ratio
+
+
+def test_ncol_in_a_run_file(tmp_path):
+    text = (EXAMPLES / "bratu.toml").read_text()
+    (tmp_path / "bratu.py").write_text((EXAMPLES / "bratu.py").read_text())
+    good = tmp_path / "good.toml"
+    good.write_text(text.replace("[options]\n", "[options]\nncol = 3\n"))
+    assert runfile.load(good).options.ncol == 3
+    for bad in ("8", "3.0"):
+        path = tmp_path / "bad.toml"
+        path.write_text(text.replace("[options]\n", f"[options]\nncol = {bad}\n"))
+        with pytest.raises(Exception, match="ncol"):
+            runfile.load(path)
