@@ -234,3 +234,40 @@ def test_ncol_in_a_run_file(tmp_path):
         path.write_text(text.replace("[options]\n", f"[options]\nncol = {bad}\n"))
         with pytest.raises(Exception, match="ncol"):
             runfile.load(path)
+
+
+@pytest.mark.parametrize("k", (2, 3))
+def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
+    """Nodes, stages and the parameter: the correction from the condensed banded system (and
+    the stage correction recovered from it) against a dense solve of the whole uncondensed
+    Newton system, its Jacobian by central differences of the residuals."""
+    from elastica_auto.correctors import Collocation
+    from elastica_auto.newton import Linearization
+
+    rng = np.random.default_rng(10 + k)
+    s, y, p = _elastica_state(elastica, 4, rng)
+    disc = GaussDiscretisation(elastica, s, k)
+    K = disc.stages(y, p) + 0.01 * rng.standard_normal((4, k, 3))
+    lam = p["P"]          # P enters the equation (psi only the end)
+    row = Row(rng.standard_normal(y.shape), 0.7, 0.3)
+    split = Collocation(elastica, "P", ContinuationOptions(ncol=k)).split
+    lin = Linearization(disc, "P", p, y, lam, row, split, K)
+    dY, dlam, dK = lin.correct(row, disc.evaluate(y, p, K), row.residual(y, lam))
+
+    def residual(x):
+        Yx, Kx, lx = x[:y.size].reshape(y.shape), x[y.size:-1].reshape(K.shape), x[-1]
+        ev = disc.evaluate(Yx, {**p, "P": lx}, Kx)
+        return np.concatenate((ev.col.ravel(), ev.stage.ravel(), ev.bc,
+                               [row.residual(Yx, lx)]))
+
+    x0 = np.concatenate((y.ravel(), K.ravel(), [lam]))
+    h = 1e-6
+    jac = np.empty((len(x0), len(x0)))
+    for j in range(len(x0)):
+        e = np.zeros(len(x0))
+        e[j] = h
+        jac[:, j] = (residual(x0 + e) - residual(x0 - e)) / (2 * h)
+    dx = np.linalg.solve(jac, residual(x0))
+    np.testing.assert_allclose(dY, dx[:y.size].reshape(y.shape), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(dK, dx[y.size:-1].reshape(K.shape), rtol=0, atol=1e-7)
+    assert abs(dlam - dx[-1]) < 1e-7
