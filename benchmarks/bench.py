@@ -39,6 +39,10 @@
    time of the process (``time.process_time``), which a loaded machine disturbs less than
    the wall clock.
 
+``--disk``: the rotating disk (``examples/karman_disk.toml`` continued to a = 10, ntst = 10) at
+tol 1e-5 and 1e-7 for each ``ncol``: nodes and unknowns per point, the largest error of
+F'(0), G'(0) and the inflow at its UZ points against scipy's solve_bvp at tol 1e-10, seconds.
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -556,6 +560,66 @@ def size_cost(steps=30, schemes=(0, 4)):
                   + " ".join(f"{split[k]:>9.2f}" for k in head[3:-1]) + f" {rest:>9.2f}")
 
 
+def _disk_reference(a, z_inf):
+    """(F'(0), G'(0), inflow) of the rotating disk with suction a by scipy's solve_bvp in z."""
+    import numpy as np
+    from scipy.integrate import solve_bvp
+
+    def fun(z, y, q):
+        F, dF, G, dG, H = y
+        return np.vstack((dF, F * F - G * G + H * dF, dG, 2 * F * G + H * dG, -2 * F))
+
+    def bc(ya, yb, q):
+        return np.array((ya[0], ya[2] - 1, ya[4] + a, yb[0], yb[2], yb[4] + q[0]))
+
+    z = np.linspace(0, z_inf, 400)
+    e = np.exp(-(1 + a) * z)
+    y0 = np.vstack((0.3 * z * e, 0.3 * e, e, -(1 + a) * e, -a - 0.9 * (1 - e)))
+    sol = solve_bvp(fun, bc, z, y0, p=[a + 0.9], tol=1e-10, max_nodes=100000)
+    return sol.y[1, 0], sol.y[3, 0], sol.p[0]
+
+
+def disk_unknowns(tols=(1e-5, 1e-7), schemes=(0, 2, 3, 4, 5, 6, 7)):
+    """``--disk``: unknowns per point and accuracy of each scheme on the rotating disk."""
+    import dataclasses
+
+    import numpy as np
+
+    from elastica_auto.run import execute
+    from elastica_auto.runfile import load
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        text = (REPO / "examples" / "karman_disk.toml").read_text()
+        (tmp / "karman_disk.py").write_text((REPO / "examples" / "karman_disk.py").read_text())
+        (tmp / "disk.toml").write_text(text.replace("bounds = [-1, 4]", "bounds = [-1, 10]"))
+        plan = load(tmp / "disk.toml")
+        refs = {}
+        print("rotating disk to a = 10 (ntst = 10): per point, and the largest error at the "
+              "UZ points against solve_bvp (tol 1e-10)")
+        for tol in tols:
+            for ncol in schemes:
+                p = dataclasses.replace(plan, options=dataclasses.replace(
+                    plan.options, ncol=ncol, tol=tol, ntst=10))
+                t0 = time.perf_counter()
+                (br,) = execute(p, tmp / f"out{ncol}_{tol:g}", jobs=1).branches
+                seconds = time.perf_counter() - t0
+                nodes = np.array([q.nodes for q in br.points])
+                n = 6                                  # five states and the free inflow
+                unknowns = (nodes - 1) * ncol * n + n if ncol else nodes * n
+                err = 0.0
+                for q in br.points:
+                    if q.type == "UZ":
+                        a = q.params["a"]
+                        ref = refs.setdefault(a, _disk_reference(a, q.params["z_inf"]))
+                        err = max(err, abs(q.ordinates["dF0"] - ref[0]),
+                                  abs(q.ordinates["dG0"] - ref[1]),
+                                  abs(q.params["inflow"] - ref[2]))
+                print(f"  tol {tol:.0e}, ncol {ncol}: {len(br.points)} points, "
+                      f"{nodes.mean():6.1f} nodes, {unknowns.mean():6.0f} unknowns per point; "
+                      f"error {err:.1e}; {seconds:.2f} s")
+
+
 def main():
     step_cost()
     print()
@@ -591,5 +655,7 @@ if __name__ == "__main__":
         index_cost()
     elif sys.argv[1:] == ["--size"]:
         size_cost()
+    elif sys.argv[1:] == ["--disk"]:
+        disk_unknowns()
     else:
         main()
