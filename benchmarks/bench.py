@@ -29,6 +29,20 @@
    own mesh) and a three-component form with coupling (k = 3) on 100 intervals, with and
    without a constraint; median milliseconds (``--index`` prints only these).
 
+8. The cost of a step as the system grows (``--size`` prints only this): one continuation
+   step on a fixed mesh of 100 intervals for n = 4 (the elastica), 6 (the rotating disk of
+   ``examples/karman_disk.py`` with its free parameter), 10 (the spatial rod; the planar
+   elastica's fold-curve system) and 20 (five copies of the elastica stacked as one system),
+   for the cubic scheme (ncol 0) and Gauss collocation (ncol 4): median ms per step, and the
+   mean split into assembly (residuals and Jacobian blocks), factorisation, solves, the
+   error estimate and test functions, the index, and the rest (Newton's bookkeeping). CPU
+   time of the process (``time.process_time``), which a loaded machine disturbs less than
+   the wall clock.
+
+``--disk``: the rotating disk (``examples/karman_disk.toml`` continued to a = 10, ntst = 10) at
+tol 1e-5 and 1e-7 for each ``ncol``: nodes and unknowns per point, the largest error of
+F'(0), G'(0) and the inflow at its UZ points against scipy's solve_bvp at tol 1e-10, seconds.
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
@@ -356,6 +370,256 @@ def index_cost(repeats=400):
               f"{count_form(lambda p: rod(p, constrained), s).index})")
 
 
+class _Phases:
+    """Wall time per phase of a step: the outermost call of a wrapped function counts."""
+
+    GROUPS = {
+        "assembly": [("collocation", "Discretisation", "evaluate"),
+                     ("collocation", "Discretisation", "blocks"),
+                     ("gauss", "GaussDiscretisation", "evaluate"),
+                     ("gauss", "GaussDiscretisation", "blocks")],
+        "factor": [("bordered", None, "factor")],
+        "solves": [("bordered", "Factorization", "solve"),
+                   ("bordered", "Factorization", "solve_transpose"),
+                   ("bordered", "Factorization", "solve_with_border")],
+        "estimate+tests": [("collocation", "Discretisation", "rms_residuals"),
+                           ("gauss", "GaussDiscretisation", "rms_residuals"),
+                           ("bordered", "Factorization", "sign")],
+    }
+
+    def __init__(self):
+        self.total = dict.fromkeys(self.GROUPS, 0.0)
+        self.depth = 0
+        self.saved = []
+
+    def _wrap(self, group, fn):
+        def timed(*args, **kwargs):
+            self.depth += 1
+            t0 = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.depth -= 1
+                if self.depth == 0:
+                    self.total[group] += time.process_time() - t0
+        return timed
+
+    def __enter__(self):
+        for group, where in self.GROUPS.items():
+            for module, cls, name in where:
+                try:
+                    mod = importlib.import_module(f"elastica_auto.{module}")
+                except ImportError:          # an older commit without Gauss collocation
+                    continue
+                owner = mod if cls is None else getattr(mod, cls)
+                attr = owner.__dict__[name]
+                if isinstance(attr, property):
+                    new = property(self._wrap(group, attr.fget))
+                else:
+                    new = self._wrap(group, attr)
+                self.saved.append((owner, name, attr))
+                setattr(owner, name, new)
+        return self
+
+    def __exit__(self, *exc):
+        for owner, name, attr in reversed(self.saved):
+            setattr(owner, name, attr)
+
+
+def _stacked_elastica(copies):
+    """``copies`` copies of the planar elastica as one system of 4 copies states (a generic
+    module object: the engine sees one BVP with block-diagonal Jacobians)."""
+    import types
+
+    import numpy as np
+
+    from elastica_auto.problem import Problem, load_problem
+
+    base = load_problem("elastica_lever_arm")
+    n = base.n
+    mod = types.ModuleType("stacked")
+    mod.STATES = tuple(f"{x}{j}" for j in range(copies) for x in base.states)
+    mod.PARAMETERS = list(base.parameters.values())
+    mod.ORDINATES = []
+
+    def split(y):
+        return [y[j * n:(j + 1) * n] for j in range(copies)]
+
+    def diag(blocks, shape_tail=()):
+        out = np.zeros((n * copies, n * copies) + shape_tail)
+        for j, b in enumerate(blocks):
+            out[j * n:(j + 1) * n, j * n:(j + 1) * n] = b
+        return out
+
+    mod.rhs = lambda s, y, p: np.vstack([base.rhs(s, x, p) for x in split(y)])
+    mod.rhs_jac = lambda s, y, p: diag([base.rhs_jac(s, x, p) for x in split(y)],
+                                       (y.shape[1],))
+    mod.rhs_dp = lambda s, y, p, name: np.vstack([base.rhs_dp(s, x, p, name) for x in split(y)])
+    mod.bc = lambda ya, yb, p: np.concatenate([base.bc(a, b, p)
+                                               for a, b in zip(split(ya), split(yb))])
+
+    def bc_jac(ya, yb, p):
+        pairs = [base.bc_jac(a, b, p) for a, b in zip(split(ya), split(yb))]
+        return diag([a for a, _ in pairs]), diag([b for _, b in pairs])
+
+    mod.bc_jac = bc_jac
+    mod.bc_dp = lambda ya, yb, p, name: np.concatenate([base.bc_dp(a, b, p, name)
+                                                        for a, b in zip(split(ya), split(yb))])
+    mod.exact_start = lambda s, p: (None if (y := base.exact_start(s, p)) is None
+                                    else np.vstack([y] * copies))
+    return Problem(mod, f"{copies} x elastica_lever_arm")
+
+
+def _size_systems():
+    """(label, problem, parameter, start State on 100 intervals, ds, counts the index)."""
+    import numpy as np
+
+    import elastica_auto as ea
+    from elastica_auto.codim2 import fold_problem
+    from elastica_auto.correctors import Collocation
+    from elastica_auto.options import ContinuationOptions
+    from elastica_auto.problem import load_problem
+    from elastica_auto.solution import State
+
+    s = np.linspace(0.0, 1.0, 101)
+    out = []
+    elastica = load_problem("elastica_lever_arm")
+    params = {**elastica.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    out.append(("n = 4, elastica", elastica, "psi",
+                State.from_values(elastica, s, elastica.exact_start(s, params), params), 0.03,
+                True))
+    disk = load_problem(str(REPO / "examples" / "karman_disk.py")).with_free(("inflow",))
+    p = disk.defaults()
+    guess = State.from_values(disk, s, disk.guess(s, p), p)
+    point = Collocation(disk, "a", ContinuationOptions(tol=0.99)).point(guess)
+    out.append((f"n = {disk.n}, rotating disk", disk, "a", point.state, 0.05, False))
+    rod = load_problem("kirchhoff_lever_arm")
+    params = {**rod.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    out.append((f"n = {rod.n}, spatial rod", rod, "psi",
+                State.from_values(rod, s, rod.exact_start(s, params), params), 0.03, True))
+    arm = ea.continuation(elastica, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                          bounds=(-2 * math.pi, 2 * math.pi))
+    (curve,) = ea.continuation(elastica, arm.label("LP1"), ["psi", "eps"], bounds=(0, 1),
+                               max_points=4)
+    end = curve.points[-1].state
+    folds = fold_problem(elastica, "psi")
+    out.append((f"n = {folds.n}, elastica fold curve", folds, "eps",
+                State.from_values(folds, s, end(s), end.params), 0.02, False))
+    stacked = _stacked_elastica(5)
+    params = {**stacked.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    out.append((f"n = {stacked.n}, 5 x elastica", stacked, "psi",
+                State.from_values(stacked, s, stacked.exact_start(s, params), params), 0.03,
+                False))
+    return out
+
+
+def size_cost(steps=30, schemes=(0, 4)):
+    """Section 8: the step cost at 100 intervals by system size, split into phases."""
+    import dataclasses
+
+    import numpy as np
+
+    from elastica_auto.correctors import Collocation
+    from elastica_auto.options import ContinuationOptions
+    from elastica_auto.stability import index
+    from elastica_auto.stepper import start_solution
+
+    has_ncol = "ncol" in {f.name for f in dataclasses.fields(ContinuationOptions)}
+    if not has_ncol:
+        schemes = (0,)
+    print("one continuation step on a fixed mesh of 100 intervals, by system size: median CPU "
+          "ms, and the mean split (ms)")
+    head = ["system", "ncol", "ms/step", "assembly", "factor", "solves", "estimate+tests",
+            "index", "rest"]
+    print(f"{head[0]:>28} {head[1]:>4} " + " ".join(f"{h:>9}" for h in head[2:]))
+    for label, problem, name, start, ds, counted in _size_systems():
+        for ncol in schemes:
+            # tol just below 1: no regridding, the mesh stays as given
+            opt = ContinuationOptions(tol=0.99, ds_max=1.0, **({"ncol": ncol} if has_ncol
+                                                               else {}))
+            corr = Collocation(problem, name, opt)
+            a = start_solution(corr, start, 1, None, False)
+            for _ in range(3):                                  # warm-up
+                a = corr.step(a, ds)
+            times, idx = [], 0.0
+            with _Phases() as phases:
+                for _ in range(steps):
+                    t0 = time.process_time()
+                    b = corr.step(a, ds)
+                    _ = b.sign
+                    if counted:
+                        t1 = time.process_time()
+                        index(problem, b.state)
+                        idx += time.process_time() - t1
+                    times.append(time.process_time() - t0)
+                    a = b
+            split = {k: 1e3 * v / steps for k, v in phases.total.items()}
+            split["index"] = 1e3 * idx / steps
+            rest = 1e3 * float(np.mean(times)) - sum(split.values())
+            print(f"{label:>28} {ncol:>4} {1e3 * statistics.median(times):>9.2f} "
+                  + " ".join(f"{split[k]:>9.2f}" for k in head[3:-1]) + f" {rest:>9.2f}")
+
+
+def _disk_reference(a, z_inf):
+    """(F'(0), G'(0), inflow) of the rotating disk with suction a by scipy's solve_bvp in z."""
+    import numpy as np
+    from scipy.integrate import solve_bvp
+
+    def fun(z, y, q):
+        F, dF, G, dG, H = y
+        return np.vstack((dF, F * F - G * G + H * dF, dG, 2 * F * G + H * dG, -2 * F))
+
+    def bc(ya, yb, q):
+        return np.array((ya[0], ya[2] - 1, ya[4] + a, yb[0], yb[2], yb[4] + q[0]))
+
+    z = np.linspace(0, z_inf, 400)
+    e = np.exp(-(1 + a) * z)
+    y0 = np.vstack((0.3 * z * e, 0.3 * e, e, -(1 + a) * e, -a - 0.9 * (1 - e)))
+    sol = solve_bvp(fun, bc, z, y0, p=[a + 0.9], tol=1e-10, max_nodes=100000)
+    return sol.y[1, 0], sol.y[3, 0], sol.p[0]
+
+
+def disk_unknowns(tols=(1e-5, 1e-7), schemes=(0, 2, 3, 4, 5, 6, 7)):
+    """``--disk``: unknowns per point and accuracy of each scheme on the rotating disk."""
+    import dataclasses
+
+    import numpy as np
+
+    from elastica_auto.run import execute
+    from elastica_auto.runfile import load
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        text = (REPO / "examples" / "karman_disk.toml").read_text()
+        (tmp / "karman_disk.py").write_text((REPO / "examples" / "karman_disk.py").read_text())
+        (tmp / "disk.toml").write_text(text.replace("bounds = [-1, 4]", "bounds = [-1, 10]"))
+        plan = load(tmp / "disk.toml")
+        refs = {}
+        print("rotating disk to a = 10 (ntst = 10): per point, and the largest error at the "
+              "UZ points against solve_bvp (tol 1e-10)")
+        for tol in tols:
+            for ncol in schemes:
+                p = dataclasses.replace(plan, options=dataclasses.replace(
+                    plan.options, ncol=ncol, tol=tol, ntst=10))
+                t0 = time.perf_counter()
+                (br,) = execute(p, tmp / f"out{ncol}_{tol:g}", jobs=1).branches
+                seconds = time.perf_counter() - t0
+                nodes = np.array([q.nodes for q in br.points])
+                n = 6                                  # five states and the free inflow
+                unknowns = (nodes - 1) * ncol * n + n if ncol else nodes * n
+                err = 0.0
+                for q in br.points:
+                    if q.type == "UZ":
+                        a = q.params["a"]
+                        ref = refs.setdefault(a, _disk_reference(a, q.params["z_inf"]))
+                        err = max(err, abs(q.ordinates["dF0"] - ref[0]),
+                                  abs(q.ordinates["dG0"] - ref[1]),
+                                  abs(q.params["inflow"] - ref[2]))
+                print(f"  tol {tol:.0e}, ncol {ncol}: {len(br.points)} points, "
+                      f"{nodes.mean():6.1f} nodes, {unknowns.mean():6.0f} unknowns per point; "
+                      f"error {err:.1e}; {seconds:.2f} s")
+
+
 def main():
     step_cost()
     print()
@@ -376,6 +640,8 @@ def main():
     sweep()
     print()
     landing()
+    print()
+    size_cost()
 
 
 if __name__ == "__main__":
@@ -387,5 +653,9 @@ if __name__ == "__main__":
         landing()
     elif sys.argv[1:] == ["--index"]:
         index_cost()
+    elif sys.argv[1:] == ["--size"]:
+        size_cost()
+    elif sys.argv[1:] == ["--disk"]:
+        disk_unknowns()
     else:
         main()

@@ -49,6 +49,7 @@ class Evaluation:
     f_mid: np.ndarray      # (n, m-1)
     col: np.ndarray        # (n, m-1) collocation residuals C_i
     bc: np.ndarray         # (n,) boundary residuals
+    K = None               # no interior unknowns (Gauss collocation has them)
 
 
 @dataclass
@@ -67,6 +68,15 @@ class Blocks:
     dbc: dict
     jac: np.ndarray        # (m, n, n) f_y at the nodes
     fp: dict               # name -> (n, m) f_p at the nodes
+
+    def condense(self, ev: Evaluation):
+        """The node residual the banded system is solved for: ``col`` itself (no interior
+        unknowns to condense; :class:`~elastica_auto.gauss.GaussBlocks` has them)."""
+        return ev.col
+
+    def interior(self, ev, dY, dp, name):
+        """The correction of the interior unknowns: none."""
+        return None
 
     def slopes(self, v, v_lam=0.0, name=None):
         """Node slopes ``f_y v + f_p v_lam`` of a solution v of the linearised equation."""
@@ -110,8 +120,16 @@ class Discretisation:
         self.x_lobatto = (self.s[:-1] + np.multiply.outer(_LOBATTO, self.h)).ravel()
         self.weights = trapezoid_weights(self.s)
 
-    def evaluate(self, y, p) -> Evaluation:
-        """Residuals of the collocation equations and boundary conditions at (y, p)."""
+    #: the residual estimate scales like h^order (equidistributed_mesh)
+    order = 3
+
+    def stages(self, y, p):
+        """Initial interior unknowns for node values y: there are none."""
+        return None
+
+    def evaluate(self, y, p, interior=None) -> Evaluation:
+        """Residuals of the collocation equations and boundary conditions at (y, p)
+        (``interior``: for the interface of Gauss collocation; there is none)."""
         problem, h = self.problem, self.h
         f = problem.rhs(self.s, y, p)
         y_mid = 0.5 * (y[:, 1:] + y[:, :-1]) - 0.125 * h * (f[:, 1:] - f[:, :-1])
@@ -179,25 +197,30 @@ class Discretisation:
         return np.sqrt(0.5 * 49 / 90 * (((dv - g) / (scale + np.abs(g))) ** 2).sum(axis=(0, 1)))
 
 
-def equidistributed_mesh(s, rms, target: float, min_intervals: int, max_intervals: int):
-    """A new mesh on which the rms residuals ``rms`` (per interval of ``s``) are predicted to
-    be about ``target``.
+def equidistributed_mesh(s, rms, target: float, min_intervals: int, max_intervals: int,
+                         order: int = 3):
+    """A new mesh on which the error estimates ``rms`` (per interval of ``s``) are predicted
+    to be about ``target``.
 
-    The residual on an interval of length h scales like (rho h)^3 with a local density rho;
-    rho_i = rms_i^(1/3) / h_i is estimated per interval (smoothed over neighbours and bounded
-    below by a tenth of its mean, so that a locally exact cubic does not empty a region), and
-    the new nodes equidistribute it: ``N = sum(rho_i h_i) / target^(1/3)`` intervals, clipped
-    to [min_intervals, max_intervals] (AUTO-07p's adaptive mesh idea, with solve_bvp's error
-    measure)."""
+    The estimate on an interval of length h scales like (rho h)^order with a local density
+    rho (order 3 for the residual of the cubic scheme, k + 1 for Gauss collocation at k
+    points); rho_i = rms_i^(1/order) / h_i is estimated per interval (smoothed over
+    neighbours and bounded below by a tenth of its mean, so that a locally exact polynomial
+    does not empty a region), and the new nodes equidistribute it:
+    ``N = sum(rho_i h_i) / target^(1/order)`` intervals, clipped to [min_intervals,
+    max_intervals] (AUTO-07p's adaptive mesh idea)."""
     s = np.asarray(s, dtype=float)
     h = np.diff(s)
-    rho = np.cbrt(np.asarray(rms, dtype=float)) / h
+    def root(x):
+        return np.cbrt(x) if order == 3 else np.asarray(x, dtype=float) ** (1.0 / order)
+
+    rho = root(np.asarray(rms, dtype=float)) / h
     if len(rho) > 2:
         rho = np.maximum(rho, np.maximum(np.r_[rho[1:], 0.0], np.r_[0.0, rho[:-1]]))
     total = float(np.sum(rho * h))
     # a multiple of 8 intervals: a few more nodes, and far fewer distinct mesh sizes (the
     # banded solver's index maps are made once per size)
-    count = 8 * int(np.ceil(1.1 * total / np.cbrt(target) / 8))
+    count = 8 * int(np.ceil(1.1 * total / root(target) / 8))
     count = int(np.clip(count, min_intervals, max_intervals))
     rho = np.maximum(rho, 0.1 * total / (s[-1] - s[0]) if total > 0 else 1.0)
     phi = np.concatenate(([0.0], np.cumsum(rho * h)))

@@ -26,6 +26,7 @@ import numpy as np
 
 from . import bordered
 from .collocation import Discretisation, equidistributed_mesh
+from .gauss import GaussDiscretisation
 from .newton import NEWTON_TOL, Linearization, Row, fold_newton, newton
 from .options import ContinuationOptions
 from .solution import State, Tangent, inner
@@ -102,12 +103,17 @@ def _boundary_pattern(problem):
 
 
 class Collocation:
-    """The collocation corrector for continuing ``problem`` in ``parameter``."""
+    """The collocation corrector for continuing ``problem`` in ``parameter``: Gauss
+    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.gauss`), or
+    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.collocation`)."""
 
     name = "collocation"
+    #: whether ``options.ncol`` chooses the discretisation (else always the cubic scheme)
+    uses_ncol = True
 
     def __init__(self, problem, parameter: str, options: ContinuationOptions):
         self.problem, self.parameter, self.options = problem, parameter, options
+        self.ncol = options.ncol if self.uses_ncol else 0
         self._seen = _boundary_pattern(problem)
         self.split = bordered.split_rows(*self._seen)
         self._discs: dict[bytes, Discretisation] = {}
@@ -119,23 +125,27 @@ class Collocation:
         if d is None:
             if len(self._discs) > 8:
                 self._discs.clear()
-            d = self._discs[key] = Discretisation(self.problem, s)
+            d = self._discs[key] = (GaussDiscretisation(self.problem, s, self.ncol)
+                                    if self.ncol else Discretisation(self.problem, s))
         return d
 
-    def _linearize(self, disc, params, Y, lam, row) -> Linearization:
-        lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split)
+    def _linearize(self, disc, params, Y, lam, row, interior=None) -> Linearization:
+        lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split, interior)
         st, blocks = lin.fact.st, lin.blocks
         if np.any(blocks.gb[st.left]) or np.any(blocks.ga[st.right]):
             # a boundary row classified as one-sided involves the other end here (the module's
             # Jacobian had structural zeros at the probes): it couples both ends from now on
             self._seen = (self._seen[0] | (blocks.ga != 0), self._seen[1] | (blocks.gb != 0))
             self.split = bordered.split_rows(*self._seen)
-            lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split)
+            lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split,
+                                interior)
         return lin
 
-    def solution(self, disc, params, Y, lam, row, niter=0) -> Solution:
-        """Linearise at a converged (Y, lam) with border ``row``; tangent and error estimate."""
-        lin = self._linearize(disc, params, Y, lam, row)
+    def solution(self, disc, params, Y, lam, row, niter=0, interior=None) -> Solution:
+        """Linearise at a converged (Y, lam) with border ``row``; tangent and error estimate.
+        ``interior``: the discretisation's interior unknowns there (Gauss collocation's
+        stage values; solved for Y if not given)."""
+        lin = self._linearize(disc, params, Y, lam, row, interior)
         rms = disc.rms_residuals(Y, lin.ev.f, lin.params, lin.ev)
         return Solution(lin.state(), lin.tangent(), lin, rms, niter)
 
@@ -165,7 +175,7 @@ class Collocation:
             res = self._newton(disc, params, Y, lam, row, lin)
             niter += res.niter
             sol = self.solution(disc, params, res.Y, res.lam,
-                                row if row_of is None else row_of(disc), niter)
+                                row if row_of is None else row_of(disc), niter, res.interior)
             sol.extra["contraction"] = res.contraction
             worst = float(np.max(sol.rms))
             if not regrid or worst <= tol:
@@ -186,7 +196,7 @@ class Collocation:
     def regrid(self, s, rms, tol=None):
         opt = self.options
         return equidistributed_mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
-                                    opt.ntst, opt.max_nodes - 1)
+                                    opt.ntst, opt.max_nodes - 1, self.disc(s).order)
 
     def next_mesh(self, a: Solution):
         """The mesh for the step from ``a``: its own while its error estimate stays between
@@ -282,7 +292,7 @@ class Collocation:
             if rms.max() <= opt.fold_tol:
                 return FoldPoint(state, res.phi, float(rms.max()))
             disc = self.disc(equidistributed_mesh(disc.s, rms, FOLD_TARGET * opt.fold_tol,
-                                                  opt.ntst, opt.max_nodes - 1))
+                                                  opt.ntst, opt.max_nodes - 1, disc.order))
             Y, lam, t = state(disc.s), res.lam, res.phi
         raise CorrectorFailure(f"fold: error estimate {rms.max():.2e} > fold_tol after "
                                f"{MESH_ROUNDS} meshes")
@@ -304,6 +314,7 @@ class SolveBVP(Collocation):
     solve_bvp's mesh."""
 
     name = "solve_bvp"
+    uses_ncol = False
 
     def _bvp_solution(self, res, row_of) -> Solution:
         if not res.success:

@@ -74,11 +74,12 @@ class Linearization:
     evaluated and factorised, with the border row of ``row``."""
 
     def __init__(self, disc: Discretisation, name: str, params: dict, Y, lam: float, row: Row,
-                 split):
+                 split, interior=None):
         self.disc, self.name, self.row, self.split = disc, name, row, split
         self.Y, self.lam = Y, float(lam)
         self.params = {**params, name: self.lam}
-        self.ev = disc.evaluate(Y, self.params)
+        # Gauss collocation's stage values: given, or solved for Y (see elastica_auto.gauss)
+        self.ev = disc.evaluate(Y, self.params, interior)
         self.blocks = disc.blocks(self.ev, self.params, (name,))
         self.fact = bordered.factor(self.blocks, (name,), [(row.c, [row.d])], split)
 
@@ -106,6 +107,14 @@ class Linearization:
             dY, dp = self.fact.solve_with_border(row.c, [row.d], col, bc, [g])
         return dY, float(dp[0])
 
+    def correct(self, row: Row, ev, g):
+        """The Newton correction ``(dY, dlam, dK)`` for the residuals of the evaluation
+        ``ev`` and ``g``: the interior residuals condensed into the node rows with this
+        linearisation's local factors, and the interior correction recovered from dY (dK
+        None without interior unknowns)."""
+        dY, dlam = self.solve(row, self.blocks.condense(ev), ev.bc, g)
+        return dY, dlam, self.blocks.interior(ev, dY, dlam, self.name)
+
 
 def unit(disc: Discretisation, blocks: Blocks, v, v_lam: float, name: str) -> Tangent:
     """A solution (v, v_lam) of the linearised equations as a unit Tangent (its node slopes
@@ -129,6 +138,7 @@ class NewtonResult:
     message: str = ""
     contraction: float = 0.0   # the first iteration's |correction 2| / |correction 1|
     correction: float = float("nan")    # the size of the last correction
+    interior: np.ndarray | None = None  # Gauss collocation's stage values at Y
 
 
 def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Row,
@@ -137,44 +147,55 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
 
     ``lin``: a factorisation to start the chord iterations with (at a nearby point, with any
     border row), or None to factorise at the start. Non-finite residuals count as a failed
-    step (damped, then failure)."""
+    step (damped, then failure). Interior unknowns of the discretisation (Gauss
+    collocation's stage values) are iterated with the node values, started from the
+    interpolant of Y (``disc.stages``)."""
     Y = np.array(Y, dtype=float)
     lam = float(lam)
+    K = disc.stages(Y, {**params, name: lam})
 
-    def correction(lin, Y, lam):
+    def correction(lin, Y, K, lam):
         p = {**params, name: lam}
         with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
-            ev = disc.evaluate(Y, p)
+            ev = disc.evaluate(Y, p, K)
         g = row.residual(Y, lam)
-        if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)):
-            return None, None, np.inf
-        dY, dlam = lin.solve(row, ev.col, ev.bc, g)
-        return dY, dlam, scaled_norm(dY, dlam, Y, lam)
+        if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)
+                and (K is None or np.all(np.isfinite(ev.stage)))):
+            return None, None, None, np.inf
+        dY, dlam, dK = lin.correct(row, ev, g)
+        size = scaled_norm(dY, dlam, Y, lam)
+        if dK is not None:
+            size = max(size, float((np.abs(dK) / (1 + np.abs(K))).max()))
+        return dY, dlam, dK, size
+
+    def moved(K, dK, alpha):
+        return None if K is None else K - alpha * dK
 
     nfact = 0
     fresh = lin is None
     if fresh:
-        lin = Linearization(disc, name, params, Y, lam, row, split)
+        lin = Linearization(disc, name, params, Y, lam, row, split, K)
         nfact = 1
-    dY, dlam, size = correction(lin, Y, lam)
+    dY, dlam, dK, size = correction(lin, Y, K, lam)
     if not np.isfinite(size):
         return NewtonResult(False, Y, lam, 0, nfact, "non-finite residual at the initial guess",
                             correction=size)
     first = None
     for it in range(1, MAX_ITER + 1):
         if size <= tol:
-            return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0)
+            return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0,
+                                interior=moved(K, dK, 1.0))
         alpha = 1.0
         while True:
-            Y1, lam1 = Y - alpha * dY, lam - alpha * dlam
-            dY1, dlam1, size1 = correction(lin, Y1, lam1)
+            Y1, lam1, K1 = Y - alpha * dY, lam - alpha * dlam, moved(K, dK, alpha)
+            dY1, dlam1, dK1, size1 = correction(lin, Y1, K1, lam1)
             if size1 <= (1 - alpha / 4) * size:
                 break
             if not fresh:  # the Jacobian is stale: refactorise here first, then damp
-                lin = Linearization(disc, name, params, Y, lam, row, split)
+                lin = Linearization(disc, name, params, Y, lam, row, split, K)
                 nfact += 1
                 fresh = True
-                dY, dlam, size = correction(lin, Y, lam)
+                dY, dlam, dK, size = correction(lin, Y, K, lam)
                 alpha = 1.0
                 continue
             alpha /= 2
@@ -185,15 +206,15 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         theta = size1 / size
         if first is None:
             first = theta
-        Y, lam = Y1, lam1
+        Y, lam, K = Y1, lam1, K1
         ahead = np.log(tol / size1) / np.log(theta) if 0 < theta < 1 and size1 > tol else 0
         if ahead > CHORD_AHEAD:
-            lin = Linearization(disc, name, params, Y, lam, row, split)
+            lin = Linearization(disc, name, params, Y, lam, row, split, K)
             nfact += 1
             fresh = True
-            dY, dlam, size = correction(lin, Y, lam)
+            dY, dlam, dK, size = correction(lin, Y, K, lam)
         else:
-            dY, dlam, size, fresh = dY1, dlam1, size1, False
+            dY, dlam, dK, size, fresh = dY1, dlam1, dK1, size1, False
     return NewtonResult(False, Y, lam, MAX_ITER, nfact,
                         f"no convergence in {MAX_ITER} iterations (correction {size:.2e})",
                         correction=size)

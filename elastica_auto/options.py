@@ -8,6 +8,8 @@ from dataclasses import asdict, dataclass, fields
 
 #: The correctors (:mod:`elastica_auto.correctors`).
 CORRECTORS = ("collocation", "solve_bvp")
+#: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
+NCOL_RANGE = (2, 7)
 
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
 #: norm of `elastica_auto.solution` (the L2 norm of y plus |lam|), in the module's units. The
@@ -46,6 +48,9 @@ class ContinuationOptions:
         residual on a mesh interval (solve_bvp's measure). The residual of the cubic
         collocation scales like h^3 while the error scales like h^4, so 1e-5 gives points good
         to about 1e-7 (relative) on meshes of 50-250 nodes.
+        With Gauss collocation (``ncol``) it bounds an
+        estimate of the largest relative error between the nodes instead (the nodes are far
+        more accurate; docs/numerics.md).
     fold_tol : float
         The same tolerance for located folds and branch points, applied to the solution and
         its null vector (user and end points use ``tol``); 1e-7 puts folds within ~1e-10 of
@@ -56,6 +61,10 @@ class ContinuationOptions:
         ``"collocation"`` (the default: Newton on the collocation equations with one banded
         LU per step and the mesh adapted between steps) or ``"solve_bvp"`` (the same
         discretisation solved by `scipy.integrate.solve_bvp`, an independent check).
+    ncol : int
+        The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
+        points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
+        solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
     """
 
     ds: float = 0.05
@@ -69,6 +78,7 @@ class ContinuationOptions:
     fold_tol: float = 1e-7
     max_angle: float = 0.35
     corrector: str = "collocation"
+    ncol: int = 0
 
     def __post_init__(self):
         if self.corrector not in CORRECTORS:
@@ -87,6 +97,10 @@ class ContinuationOptions:
             raise OptionsError(f"ds_max must be <= {MAX_STEP:g}, got {self.ds_max}")
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
+        if self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1] \
+                or int(self.ncol) != self.ncol:
+            raise OptionsError(f"ncol must be 0 (the cubic scheme) or an integer from "
+                               f"{NCOL_RANGE[0]} to {NCOL_RANGE[1]}, got {self.ncol!r}")
         for name in ("max_points", "ntst", "max_nodes"):
             v = getattr(self, name)
             if int(v) != v or v < 2:

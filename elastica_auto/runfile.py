@@ -60,7 +60,7 @@ _TOP = {"description", "equation", "start", "switch", "parameters", "continuatio
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map",
          "landing", "damping", "damping_folds"}
-_INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes")
+_INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes", "ncol")
 
 
 def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
