@@ -445,3 +445,93 @@ def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
                             max_points=60)
     assert [p.type for p in br.points].count("LP") == 1
     assert assert_rule_agrees(br) == {(3, 2)}
+
+
+# ---- out-of-plane branch points of planar branches (issue 20, item 3) -----------------------
+
+def shooting_matrix(mod, p, m0):
+    """Shooting on m(0) for the spatial rod at ``p`` (independent of the collocation): the
+    state y(1) from y(0) = (0, q_c, m0) and the 3 x 3 derivative of the tip condition
+    m(1) - a x F in m0, by the variational equations (the right-hand side's Jacobian by
+    central differences) integrated with DOP853 to 1e-11. Returns (tip residual, matrix)."""
+    from scipy.integrate import solve_ivp
+
+    def jac(s, y):
+        out = np.empty((10, 10))
+        for j in range(10):
+            e = np.zeros(10)
+            e[j] = 1e-6
+            out[:, j] = (mod.rhs(s, (y + e)[:, None], p)[:, 0]
+                         - mod.rhs(s, (y - e)[:, None], p)[:, 0]) / 2e-6
+        return out
+
+    def f(s, z):
+        y, v = z[:10], z[10:].reshape(10, 3)
+        return np.concatenate((mod.rhs(np.array([s]), y[:, None], p)[:, 0],
+                               (jac(np.array([s]), y) @ v).ravel()))
+
+    ya = np.concatenate((np.zeros(3), mod.clamp_quaternion(p), m0))
+    v0 = np.zeros((10, 3))
+    v0[7:10] = np.eye(3)
+    z = solve_ivp(f, (0, 1), np.concatenate((ya, v0.ravel())), method="DOP853", rtol=1e-11,
+                  atol=1e-12).y[:, -1]
+    yb, v = z[:10], z[10:].reshape(10, 3)
+    gb = np.empty((3, 10))
+    for j in range(10):
+        e = np.zeros(10)
+        e[j] = 1e-6
+        gb[:, j] = (mod.bc(ya, yb + e, p)[7:] - mod.bc(ya, yb - e, p)[7:]) / 2e-6
+    return mod.bc(ya, yb, p)[7:], gb @ v
+
+
+def shooting_solution(mod, p, m0):
+    """m(0) of the equilibrium near ``m0`` at ``p`` by Newton on the shooting residual."""
+    for _ in range(8):
+        res, mat = shooting_matrix(mod, p, m0)
+        m0 = m0 - np.linalg.solve(mat, res)
+        if np.max(np.abs(res)) < 1e-12:
+            break
+    return m0
+
+
+def test_out_of_plane_branch_point_in_b2(modules):
+    """A planar buckled state (P = 9 pi^2/4, eps = 0.25, psi = 0.3, index 3: 2 in the plane,
+    1 out of it) continued down in b2: the planar state does not depend on b2 (u2 = 0), and
+    at b2 = 1.4572075 its out-of-plane block gets a zero eigenvalue. The branch point is
+    located where the shooting
+    matrix of the linearised problem (variational equations, solve_ivp) is singular, to 1e-7;
+    the out-of-plane index 1 -> 2 there by the conjugate-point count of the out-of-plane block;
+    no fold rule disagreement after it. (Not located while Newton's method refused iterates
+    whose residual was rounding, their correction being that rounding amplified by the
+    near-singular Jacobian: "no decrease of the Newton correction".)"""
+    from form_reference import Form, conjugate_count
+    from scipy.optimize import brentq
+    _, rod, mod = modules
+    base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
+                           uz=[0.3], max_points=100)
+    (br,) = ea.continuation(rod, base.label("UZ1"), "b2", bounds=(1.0, 3), directions="-",
+                            max_points=60)
+    assert br.end == "EP" and not br.warnings, br.warnings
+    (bp,) = [p for p in br.points if p.type == "BP"]
+    assert all("disagreement" not in p.note for p in br.points)
+    st = base.label("UZ1").state
+    m0 = shooting_solution(mod, st.params, st.y[7:10, 0].copy())
+    want = brentq(lambda b2: np.linalg.det(shooting_matrix(mod, {**st.params, "b2": b2},
+                                                           m0)[1]), 1.4, 1.5, xtol=1e-12)
+    print(f"branch point b2 = {bp.params['b2']:.10f}, shooting {want:.10f}")
+    assert abs(bp.params["b2"] - want) < 1e-7
+
+    def out_of_plane(b2):
+        p = {**st.params, "b2": b2}
+
+        def field(name):
+            return lambda s: getattr(mod.second_variation(s, st(s), p), name)[:, :2, :2]
+        end = mod.second_variation(st.s, st.y, p).E1[:2, :2]
+        return conjugate_count(Form(k=2, A=field("A"), B=field("B"), C=field("C"), E1=end,
+                                    G0=np.eye(2))).index
+    assert (out_of_plane(want * (1 + 1e-4)), out_of_plane(want * (1 - 1e-4))) == (1, 2)
+    before = [p for p in br.points if p.type == "" and p.params["b2"] > want]
+    after = [p for p in br.points if p.type == "" and p.params["b2"] < want]
+    assert before and after
+    assert {(p.index, p.ordinates["index_out"]) for p in before} == {(3, 1.0)}
+    assert {(p.index, p.ordinates["index_out"]) for p in after} == {(4, 2.0)}
