@@ -535,3 +535,103 @@ def test_out_of_plane_branch_point_in_b2(modules):
     assert before and after
     assert {(p.index, p.ordinates["index_out"]) for p in before} == {(3, 1.0)}
     assert {(p.index, p.ordinates["index_out"]) for p in after} == {(4, 2.0)}
+
+
+# ---- the isotropic rod's rotation about the load line (issue 20, item 4) ----------------------
+
+def turn_about_load_line(mod, y, p, theta):
+    """The group action of the symmetry: r -> Q r, m -> Q m, q -> q_Q (x) q (x) q_3(-theta),
+    Q the rotation by theta about the clamp axis (docs/kirchhoff.md, "Symmetry")."""
+    e = mod.clamp_axis(p)
+    qq = mod.qaxis(e, theta)
+    rot = mod.rotation(qq)
+    q = mod.qmul(mod.qmul(qq[:, None], y[3:7]), mod.qaxis((0, 0, 1), -theta)[:, None])
+    return np.vstack((rot @ y[0:3], q, rot @ y[7:10]))
+
+
+@pytest.fixture(scope="module")
+def isotropic(modules):
+    """The isotropic straight rod (b2 = 1, eps = 0.25, psi = 0) loaded along its axis,
+    continued in P, and the buckled branches switched onto at its first branch point."""
+    _, rod, _ = modules
+    return ea.continuation(rod, {"P": 0.0, "eps": 0.25, "b2": 1.0}, "P", bounds=(-1, 5),
+                           max_points=60, switch=1, uz=[3.0])
+
+
+def test_isotropic_straight_rod_double_branch_point(isotropic):
+    """b2 = 1: both bending directions buckle at the same load, P = k^2 with eps k tan k = 1
+    (1.5991918), a zero eigenvalue of multiplicity 2: the determinant keeps its sign and the
+    branch point is found by the index (0 -> 2) and located where it changes, to 1e-9."""
+    from scipy.optimize import brentq
+    k1 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, 0.1, math.pi / 2 - 1e-9, xtol=1e-15)
+    trivial = isotropic[0]
+    assert trivial.end == "EP" and not trivial.warnings, trivial.warnings
+    (bp,) = [p for p in trivial.points if p.type == "BP"]
+    assert abs(bp.params["P"] / (k1 * k1) - 1) < 1e-9
+    assert "even multiplicity" in bp.note
+    inner = [p.index for p in trivial.points if p.type == ""]
+    assert sorted(set(inner)) == [0, 2] and inner == sorted(inner)
+
+
+def unfolding_of(point):
+    import re
+    (mu,) = re.findall(r"unfolding (\S+)", point.note)
+    return float(mu)
+
+
+def test_isotropic_buckled_branch_with_a_phase_condition(modules, isotropic):
+    """The buckled branches born at the double branch point form circles (a rotation about
+    the load line turns a solution into a solution), so their Jacobian is singular: each is
+    continued with the phase condition and the unfolding parameter, which stays at rounding
+    (< 1e-10: it is zero at every solution); the circle is real (a buckled state turned by
+    0.7 about the load line solves the collocation equations and boundary conditions as well
+    as it does, to 1e-10); the index is counted without the zero mode (zero_mode = 1), and it
+    and the numbers of eigenvalues below shifts equal a dense Legendre-Galerkin count of the
+    form on the complement of the rotation field e - d3; without the constraint the dense
+    spectrum has that zero eigenvalue."""
+    from form_reference import Form, dense_count
+
+    from elastica_auto.collocation import Discretisation
+    _, rod, mod = modules
+    switched = isotropic[1:]
+    assert len(switched) == 2
+    for br in switched:
+        assert br.end == "EP" and not br.warnings, br.warnings
+        assert len(br.points) > 8
+        for p in br.points:
+            assert abs(unfolding_of(p)) < 1e-10
+            if p.type != "EP":       # the branch point itself is on the straight rod
+                assert p.ordinates["zero_mode"] == 1.0 and abs(p.ordinates["z1"]) > 1e-3
+                assert p.index == p.index_direct == 0
+    (uz,) = [p for p in switched[0].points if p.type == "UZ"]
+    st = switched[0].label(uz.name).state
+    disc = Discretisation(rod, st.s)
+    own = disc.evaluate(st.y, st.params)
+    turned = disc.evaluate(turn_about_load_line(mod, st.y, st.params, 0.7), st.params)
+    worst = max(np.max(np.abs(turned.col)), np.max(np.abs(turned.bc)))
+    print(f"turned solution: residual {worst:.1e} (the solution's own "
+          f"{max(np.max(np.abs(own.col)), np.max(np.abs(own.bc))):.1e})")
+    assert worst < 1e-10
+    assert np.max(np.abs(turned.y - st.y)) > 0.1
+
+    def field(name):
+        return lambda s: getattr(mod.second_variation(s, st(s), st.params), name)
+    end = mod.second_variation(st.s, st.y, st.params).E1
+
+    def dense(constrained, shift=0.0):
+        cons = [(lambda s: mod.zero_mode(s, st(s), st.params).T, np.zeros(3), np.zeros(3))] \
+            if constrained else []
+        return dense_count(Form(k=3, A=field("A"), C=field("C"), E1=end, G0=np.eye(3),
+                                B=lambda s: field("B")(s) - shift * np.eye(3),
+                                constraints=cons))
+    free = dense(False)[2]
+    assert np.min(np.abs(free)) < 1e-6 * np.max(np.abs(free[:8]))      # the zero mode
+    index, smallest, spectrum = dense(True)
+    assert smallest > 1e-3 and index == uz.index == 0
+    low = spectrum[spectrum < 60]
+    shifts = [(x + y) / 2 for x, y in zip(low[:-1], low[1:]) if y - x > 0.5]
+    evaluate = stability._on_state(rod, st)
+    engine = [stability.count_form(evaluate, st.s, shift=mu).index for mu in shifts]
+    print("shifts", np.round(shifts, 3), "engine", engine)
+    assert len(shifts) >= 3
+    assert engine == [int(np.sum(spectrum < mu)) for mu in shifts]
