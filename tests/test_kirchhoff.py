@@ -432,6 +432,17 @@ def assert_rule_agrees(branch):
     return changes
 
 
+def assert_out_of_plane_changes_at_branch_points(branch):
+    """The out-of-plane index of the planar points changes only across a located BP."""
+    last = None
+    for p in branch.points:
+        if p.type == "BP":
+            last = None
+        elif p.type == "" and p.ordinates["index_out"] >= 0:
+            assert last is None or p.ordinates["index_out"] == last, (p.params, p.note)
+            last = p.ordinates["index_out"]
+
+
 def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
     """The fold rule reads m1 = dE/dpsi (the rotating arm, b2 = 2) and beps = dE/deps (eps
     continued at P = 9 pi^2/4 from a buckled state of index 3 through its fold to index 2)."""
@@ -439,6 +450,7 @@ def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
     _, branches = rotating
     for br in branches:
         assert assert_rule_agrees(br) == {(1, 0)}
+        assert_out_of_plane_changes_at_branch_points(br)      # b2 = 2: none, index_out 0
     base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
                            uz=[0.3], max_points=100)
     (br,) = ea.continuation(rod, base.label("UZ1"), "eps", bounds=(-2, 2), directions="-",
@@ -535,6 +547,7 @@ def test_out_of_plane_branch_point_in_b2(modules):
     assert before and after
     assert {(p.index, p.ordinates["index_out"]) for p in before} == {(3, 1.0)}
     assert {(p.index, p.ordinates["index_out"]) for p in after} == {(4, 2.0)}
+    assert_out_of_plane_changes_at_branch_points(br)
 
 
 # ---- the isotropic rod's rotation about the load line (issue 20, item 4) ----------------------
@@ -635,3 +648,39 @@ def test_isotropic_buckled_branch_with_a_phase_condition(modules, isotropic):
     print("shifts", np.round(shifts, 3), "engine", engine)
     assert len(shifts) >= 3
     assert engine == [int(np.sum(spectrum < mu)) for mu in shifts]
+
+
+def test_switch_onto_the_lateral_torsional_branch(modules):
+    """The lateral-torsional branch point of a section with B2 = C = 1e-2 (load perpendicular,
+    eps = 0: 4.0596 sqrt(B2 C), docs/kirchhoff.md) switched onto: both halves of the branch
+    born there are non-planar (z(1) = -+0.36 at P = 0.0495), mirror images of each other; a
+    state of it solves the problem by an independent shooting on m(0) (Newton on the tip
+    condition, DOP853), which lands on the collocation's m(0) and tip to 1e-6; its index by
+    direct count equals the conjugate-point count of the 3 x 3 Jacobi system (0: the buckled
+    section is stable), while the planar branch past the branch point has index 1."""
+    _, rod, mod = modules
+    ratio = 1e-2
+    runs = ea.continuation(rod, {"P": 0.0, "eps": 0.0, "b2": ratio, "c": ratio,
+                                 "alpha": math.pi / 2, "psi": -math.pi / 2}, "P",
+                           bounds=(-1, 0.05), ds=0.2 * ratio, ds_max=5 * ratio,
+                           max_points=60, switch=1, uz=[0.0495])
+    planar, *switched = runs
+    (bp,) = [p for p in planar.points if p.type == "BP"]
+    assert bp.params["P"] == pytest.approx(4.0596 * ratio, rel=1e-4)
+    assert {p.index for p in planar.points if p.type in ("", "UZ", "EP")
+            and p.params["P"] > bp.params["P"]} == {1}
+    assert len(switched) == 2
+    tips = []
+    for br in switched:
+        assert br.end == "EP" and not br.warnings, br.warnings
+        assert all("disagreement" not in p.note for p in br.points)
+        assert {p.index for p in br.points if p.type != "EP"} == {0}
+        (uz,) = [p for p in br.points if p.type == "UZ"]
+        st = br.label(uz.name).state
+        assert abs(uz.ordinates["z1"]) > 0.3 and uz.ordinates["index_out"] == -1
+        m0 = shooting_solution(mod, st.params, st.y[7:10, 0].copy())
+        assert np.max(np.abs(m0 - st.y[7:10, 0])) < 1e-6
+        assert conjugate_index(mod, st) == stability.index(rod, st) == 0
+        tips.append(st.y[0:3, -1])
+    assert tips[0][2] == pytest.approx(-tips[1][2], abs=1e-7)          # mirror images
+    assert tips[0][:2] == pytest.approx(tips[1][:2], abs=1e-7)
