@@ -15,7 +15,7 @@ at one point it serves chord iterations at nearby points and, through a rank-one
 border rows. Steps are accepted by the natural monotonicity test (Deuflhard): the next chord
 correction must be smaller than the last; if not, the Jacobian is refactorised at the current
 iterate, then the step is damped. The iteration has converged when the correction is below
-the tolerance, or when the residual itself is zero to working precision (:func:`at_rounding`:
+the tolerance, or when the residual itself is zero to working precision (:func:`rounding_floor`:
 near a branch point the correction of such an iterate is rounding noise amplified by the
 near-singular Jacobian, and would never decrease).
 """
@@ -45,7 +45,7 @@ FOLD_MAX_CORRECTION = 0.5
 #: cost of two or three chord iterations) for quadratic convergence.
 CHORD_AHEAD = 4
 #: A residual within this many rounding errors of the size of its terms is zero to working
-#: precision (:func:`at_rounding`): the iterate solves the equations as well as floating
+#: precision (:func:`rounding_floor`): the iterate solves the equations as well as floating
 #: point can, whatever the next correction says.
 ROUNDING_ULPS = 64.0
 
@@ -126,22 +126,21 @@ def scaled_norm(dY, dlam, Y, lam) -> float:
     return max(float((np.abs(dY) / (1 + np.abs(Y))).max()), abs(dlam) / (1 + abs(lam)))
 
 
-def at_rounding(ev, row: Row, Y, lam) -> bool:
-    """Whether the residuals at (Y, lam) are zero to working precision: each within
-    ROUNDING_ULPS rounding errors of the size of the terms it is computed from (1 + max |Y| +
-    max |f| for the collocation and boundary rows; the row's terms for the border).
+def rounding_floor(ev, row: Row, Y, lam) -> tuple[float, float]:
+    """The sizes below which the residuals at (Y, lam) are zero to working precision:
+    ROUNDING_ULPS rounding errors of the size of the terms they are computed from, 1 + max |Y|
+    + max |f| for the collocation and boundary rows, the row's terms for the border row.
 
-    Near a singular point (a branch point, a symmetry's family) the Newton correction of such
-    an iterate is its rounding noise amplified by the inverse of the Jacobian's smallest
-    singular value, and need not decrease: the iterate is a solution to working precision
-    (its backward error is rounding), and the ill-conditioning of the problem, not the
-    iteration, limits its forward error. At a regular point it changes nothing: the
-    correction of such an iterate is far below the tolerance."""
+    Near a singular point (a branch point, a symmetry's family) the Newton correction of an
+    iterate whose residuals are below them is their rounding noise amplified by the inverse of
+    the Jacobian's smallest singular value, and need not decrease: the iterate is a solution
+    to working precision (its backward error is rounding), and the ill-conditioning of the
+    problem, not the iteration, limits its forward error. At a regular point this changes
+    nothing: the correction of such an iterate is far below the tolerance."""
     ulp = ROUNDING_ULPS * np.finfo(float).eps
-    scale = 1.0 + float(np.max(np.abs(Y))) + float(np.max(np.abs(ev.f)))
     border = abs(row.beta) + float(np.sum(np.abs(row.c * Y))) + abs(row.d * lam)
-    return bool(np.max(np.abs(ev.col)) <= ulp * scale and np.max(np.abs(ev.bc)) <= ulp * scale
-                and abs(row.residual(Y, lam)) <= ulp * (1.0 + border))
+    return (ulp * (1.0 + float(np.max(np.abs(Y))) + float(np.max(np.abs(ev.f)))),
+            ulp * (1.0 + border))
 
 
 @dataclass
@@ -166,7 +165,15 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     Y = np.array(Y, dtype=float)
     lam = float(lam)
 
-    solved = [False]    # the last residual evaluated was zero to working precision
+    last = [None]       # the last (evaluation, border residual)
+    floor = []          # rounding_floor, once a correction is above the tolerance
+
+    def at_rounding(Y, lam):
+        ev, g = last[0]
+        if not floor:   # once per solve: the size of the terms changes little between iterates
+            floor.extend(rounding_floor(ev, row, Y, lam))
+        return (np.max(np.abs(ev.col)) <= floor[0] and np.max(np.abs(ev.bc)) <= floor[0]
+                and abs(g) <= floor[1])
 
     def correction(lin, Y, lam):
         p = {**params, name: lam}
@@ -175,7 +182,7 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         g = row.residual(Y, lam)
         if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)):
             return None, None, np.inf
-        solved[0] = at_rounding(ev, row, Y, lam)
+        last[0] = ev, g
         dY, dlam = lin.solve(row, ev.col, ev.bc, g)
         return dY, dlam, scaled_norm(dY, dlam, Y, lam)
 
@@ -192,7 +199,7 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     for it in range(1, MAX_ITER + 1):
         if size <= tol:
             return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0)
-        if solved[0]:   # the residual is rounding: the correction is its amplified noise
+        if at_rounding(Y, lam):     # the correction is amplified rounding
             return NewtonResult(True, Y, lam, it, nfact, contraction=first or 0.0)
         alpha = 1.0
         while True:
