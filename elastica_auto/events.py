@@ -264,6 +264,32 @@ def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
                  ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))))
 
 
+def locate_index_change(corr, step: Step, index_of, index_a: int,
+                        xtol: float = 1e-10) -> Located:
+    """Where the stability index ``index_of(state)`` leaves ``index_a`` along the step, by
+    bisection on the hyperplanes ``<x - a, secant> = sigma`` (the index is a step function:
+    -1 where it is not counted, at the zero eigenvalue itself, is left out), to ``xtol`` of the
+    step; ``value`` is the index just past it. For a branch point of even multiplicity,
+    where the determinant keeps its sign and only the index says that eigenvalues crossed
+    zero. CorrectorFailure where the index at b is ``index_a``."""
+    s = step.b.mesh
+    lo, hi, past = 0.0, step.dist, index_of(step.b.state)
+    if past == index_a:
+        raise CorrectorFailure("the index does not change along the step")
+    best = step.b
+    while hi - lo > xtol * step.dist:
+        mid = 0.5 * (lo + hi)
+        sol = corr.on_plane(step.a, step.secant, mid, s, regrid=False)
+        k = index_of(sol.state)
+        if k == index_a:
+            lo = mid
+        elif k >= 0:
+            hi, past, best = mid, k, sol
+        else:       # on the zero eigenvalue itself
+            return Located(sol, mid, float(past))
+    return Located(best, hi, float(past))
+
+
 def pair_suspected(step: Step, dip: float = 0.5) -> float | None:
     """Where inside the step a fold pair may hide, as a fraction of the step, or None.
 

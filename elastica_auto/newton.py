@@ -14,7 +14,10 @@ The Jacobian is factorised as a banded matrix (:mod:`elastica_auto.bordered`); o
 at one point it serves chord iterations at nearby points and, through a rank-one update, other
 border rows. Steps are accepted by the natural monotonicity test (Deuflhard): the next chord
 correction must be smaller than the last; if not, the Jacobian is refactorised at the current
-iterate, then the step is damped.
+iterate, then the step is damped. The iteration has converged when the correction is below
+the tolerance, or when the residual itself is zero to working precision (:func:`rounding_floor`:
+near a branch point the correction of such an iterate is rounding noise amplified by the
+near-singular Jacobian, and would never decrease).
 """
 
 from __future__ import annotations
@@ -41,6 +44,10 @@ FOLD_MAX_CORRECTION = 0.5
 #: contraction) to reach the tolerance; otherwise the Jacobian is refactorised (about the
 #: cost of two or three chord iterations) for quadratic convergence.
 CHORD_AHEAD = 4
+#: A residual within this many rounding errors of the size of its terms is zero to working
+#: precision (:func:`rounding_floor`): the iterate solves the equations as well as floating
+#: point can, whatever the next correction says.
+ROUNDING_ULPS = 64.0
 
 
 @dataclass
@@ -128,6 +135,23 @@ def scaled_norm(dY, dlam, Y, lam) -> float:
     return max(float((np.abs(dY) / (1 + np.abs(Y))).max()), abs(dlam) / (1 + abs(lam)))
 
 
+def rounding_floor(ev, row: Row, Y, lam) -> tuple[float, float]:
+    """The sizes below which the residuals at (Y, lam) are zero to working precision:
+    ROUNDING_ULPS rounding errors of the size of the terms they are computed from, 1 + max |Y|
+    + max |f| for the collocation and boundary rows, the row's terms for the border row.
+
+    Near a singular point (a branch point, a symmetry's family) the Newton correction of an
+    iterate whose residuals are below them is their rounding noise amplified by the inverse of
+    the Jacobian's smallest singular value, and need not decrease: the iterate is a solution
+    to working precision (its backward error is rounding), and the ill-conditioning of the
+    problem, not the iteration, limits its forward error. At a regular point this changes
+    nothing: the correction of such an iterate is far below the tolerance."""
+    ulp = ROUNDING_ULPS * np.finfo(float).eps
+    border = abs(row.beta) + float(np.sum(np.abs(row.c * Y))) + abs(row.d * lam)
+    return (ulp * (1.0 + float(np.max(np.abs(Y))) + float(np.max(np.abs(ev.f)))),
+            ulp * (1.0 + border))
+
+
 @dataclass
 class NewtonResult:
     converged: bool
@@ -154,6 +178,16 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     lam = float(lam)
     K = disc.stages(Y, {**params, name: lam})
 
+    last = [None]       # the last (evaluation, border residual)
+    floor = []          # rounding_floor, once a correction is above the tolerance
+
+    def at_rounding(Y, lam):
+        ev, g = last[0]
+        if not floor:   # once per solve: the size of the terms changes little between iterates
+            floor.extend(rounding_floor(ev, row, Y, lam))
+        return (np.max(np.abs(ev.col)) <= floor[0] and np.max(np.abs(ev.bc)) <= floor[0]
+                and (K is None or np.max(np.abs(ev.stage)) <= floor[0]) and abs(g) <= floor[1])
+
     def correction(lin, Y, K, lam):
         p = {**params, name: lam}
         with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
@@ -162,6 +196,7 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)
                 and (K is None or np.all(np.isfinite(ev.stage)))):
             return None, None, None, np.inf
+        last[0] = ev, g
         dY, dlam, dK = lin.correct(row, ev, g)
         size = scaled_norm(dY, dlam, Y, lam)
         if dK is not None:
@@ -185,6 +220,8 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         if size <= tol:
             return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0,
                                 interior=moved(K, dK, 1.0))
+        if at_rounding(Y, lam):     # the correction is amplified rounding
+            return NewtonResult(True, Y, lam, it, nfact, contraction=first or 0.0, interior=K)
         alpha = 1.0
         while True:
             Y1, lam1, K1 = Y - alpha * dY, lam - alpha * dlam, moved(K, dK, alpha)

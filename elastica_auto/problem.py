@@ -52,6 +52,13 @@ and optionally
     the energy of the equilibria at ``p`` discretised on ``nodes`` (a uniform grid of
     [0, 1]) and its overdamped dynamics; enables where a snap lands (see
     `elastica_auto.landing`).
+``symmetry(s, y, p)`` -> `elastica_auto.symmetry.Symmetry` or None
+    a continuous symmetry of the problem at ``p`` (None where ``p`` breaks it): the
+    generator g(y) of a one-parameter group that maps solutions to solutions and an unfolding
+    field b(y) outside the range of the linearisation (the gradient of the conserved quantity
+    that goes with the group), each (n, m). A branch that starts at a state the group moves
+    is continued with a phase condition and an unfolding parameter (see
+    `elastica_auto.symmetry`).
 ``draw(ax, profile, params)``
     draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
     solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
@@ -207,6 +214,7 @@ class Problem:
         self._shooting = getattr(module, "shooting", None)
         self._gradient_flow = getattr(module, "gradient_flow", None)
         self._draw = getattr(module, "draw", None)
+        self._symmetry = getattr(module, "symmetry", None)
         if self._draw is not None and not callable(self._draw):
             raise ProblemError(f"{source}: draw must be a function draw(ax, profile, params), "
                                f"got {type(self._draw).__name__}")
@@ -396,6 +404,28 @@ class Problem:
     def gradient_flow(self, p, nodes):
         """The module's `elastica_auto.landing.Flow` at ``p`` on ``nodes``."""
         return self._gradient_flow(dict(p), np.asarray(nodes, dtype=float))
+
+    @property
+    def has_symmetry(self) -> bool:
+        return self._symmetry is not None
+
+    def symmetry(self, s, y, p):
+        """The module's `Symmetry` at ``y`` on ``s`` (generator and unfolding, each of y's
+        shape), or None where ``p`` breaks the symmetry."""
+        from .symmetry import Symmetry
+        out = self._symmetry(s, y, p)
+        if out is None:
+            return None
+        if not isinstance(out, Symmetry):
+            raise ProblemError(f"{self.source}: symmetry(s, y, p) returned "
+                               f"{type(out).__name__}; expected a Symmetry(generator, "
+                               "unfolding) or None")
+        g, b = (np.asarray(v, dtype=float) for v in out)
+        for what, v in (("generator", g), ("unfolding", b)):
+            if v.shape != y.shape:
+                raise ProblemError(f"{self.source}: symmetry(s, y, p).{what} has shape "
+                                   f"{v.shape}; expected {y.shape} (the shape of y)")
+        return Symmetry(g, b)
 
     @property
     def has_draw(self) -> bool:

@@ -40,7 +40,8 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from .correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Step, UserValues, crossings, locate_branch_point, locate_fold,
-                     locate_limit, locate_value, pair_suspected, tangent_between)
+                     locate_index_change, locate_limit, locate_value, pair_suspected,
+                     tangent_between)
 from .newton import Row
 from .options import ContinuationOptions
 from .solution import State, Tangent, difference, inner, norm, secant
@@ -237,7 +238,25 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
     equation module raising, or returning what the engine cannot use), ends the branch at its
     last accepted point, labelled MX, with ``branch.interrupted`` set or the exception's type,
     message and place in ``branch.message`` and ``branch.diagnostics``.
+
+    Where the module declares a symmetry that moves the start (a circle of solutions), the
+    branch is continued with a phase condition and an unfolding parameter
+    (`elastica_auto.symmetry`); its points hold the module's states, their notes the
+    unfolding parameter.
     """
+    from .symmetry import phased
+    phase = phased(problem, origin.state, origin.tangent if origin.kind == "switch" else None)
+    if phase is not None:   # a family of solutions the symmetry turns: continued with a phase
+        problem = phase     # condition (elastica_auto.symmetry)
+        origin = Origin(phase.lift(origin.state), phase.lift_tangent(origin.tangent),
+                        origin.kind)
+    _continue(branch, problem, course, origin, progress)
+    if phase is not None:
+        phase.drop(branch)
+    return branch
+
+
+def _continue(branch: Branch, problem, course: Course, origin: Origin, progress):
     walk = None
     try:
         corr = make_corrector(problem, course.parameter, course.options)
@@ -459,15 +478,28 @@ class _Walk:
                 if can_retry:
                     self.event_retries += 1
                     raise _Reject(f"fold not located ({exc})", ds / 2) from None
-                self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not located: {exc}")
-                found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
-                                    note=f"fold not located: {exc}"))
+                if 0 <= index_a == index_b:
+                    # the parameter turns, the fold system is singular and no eigenvalue
+                    # crossed zero: not a simple fold (where the index changes by one) but a
+                    # pitchfork passed along its other branch
+                    found.append(_Event(step.dist / 2, "BP", b.state, b.tangent,
+                                        note="turning point without index change (the fold "
+                                             f"system fails: {exc})"))
+                else:
+                    self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
+                                                f"located: {exc}")
+                    found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
+                                        note=f"fold not located: {exc}"))
         elif located is not None:
             note = self._kernel_check(located.solution.state, index_a, index_b)
             found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
                                 abs(located.value), note=note))
         if index_a >= 0 and index_b >= 0 and not skip:
             expected = self._rule(step, found, index_a)
+            if (expected is not None and expected != index_b and not found and not can_retry
+                    and (index_b - index_a) % 2 == 0):
+                found.append(self._even_branch_point(step, index_a, index_b))
+                expected = None
             if expected is not None and expected != index_b:
                 if can_retry:
                     self.event_retries += 1
@@ -479,6 +511,21 @@ class _Walk:
         if found:
             self.event_retries = 0
         return found, counted
+
+    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> _Event:
+        """A branch point where the index changed by an even number with neither a fold nor
+        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
+        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
+        does not see. Located where the index changes (bisection)."""
+        def index_of(state):
+            return count(self.problem, state).index
+        at = locate_index_change(self.corr, step, index_of, index_a)
+        state = at.solution.state
+        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
+                "(a branch point of even multiplicity)")
+        kernel = self._kernel_check(state, index_a, index_b)
+        return _Event(at.sigma, "BP", state, step.secant, note="; ".join(filter(None, (note,
+                                                                                    kernel))))
 
     def _kernel_check(self, state, index_a: int, index_b: int) -> str:
         """At a branch point crossed by the branch, the index changes by the dimension of the

@@ -73,7 +73,7 @@ import math
 
 import numpy as np
 
-from elastica_auto.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.problem import Constraint, Ordinate, Parameter, SecondVariation
 from elastica_auto.solution import trapezoid_weights
 
 STATES = ("x", "y", "z", "q0", "q1", "q2", "q3", "mx", "my", "mz")
@@ -328,6 +328,10 @@ def _mz1(s, y, p):
     return float(y[9, -1])
 
 
+def _zero_mode(s, y, p):
+    return 0.0 if zero_mode(s, y, p) is None else 1.0
+
+
 def _qnorm(s, y, p):
     return float(np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1.0)))
 
@@ -358,8 +362,12 @@ def _blocks(s, y, p):
             f = second_variation(pts, state(pts), p)
             def sub(m):
                 return m[:, rows][:, :, rows].transpose(1, 2, 0)
+            # the symmetry's zero mode, e - d3, lies in the out-of-plane block (L2-normalised:
+            # its in-plane component is rounding)
+            modes = [Constraint(c.g[rows]) for c in f.constraints
+                     if np.max(np.abs(c.g[rows])) > DECOUPLED * np.max(np.abs(c.g))]
             return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
-                                   fixed0=list(range(len(rows))))
+                                   fixed0=list(range(len(rows))), constraints=modes)
         return evaluate
     return block([2]), block([0, 1])
 
@@ -398,6 +406,9 @@ ORDINATES = [
     Ordinate("m3", r"$m(1)\cdot d_3(1)$", _m3, None, "twisting moment at the tip"),
     Ordinate("mz1", r"$m(1)\cdot e_z$", _mz1, None, "tip moment about e_z"),
     Ordinate("qnorm", r"$\max||q| - 1|$", _qnorm, None, "diagnostic: drift of |q| from 1"),
+    Ordinate("zero_mode", r"zero modes", _zero_mode, None,
+             "1 where the symmetry's zero mode (rotation about the load line, omega = e - "
+             "d3) is left out of the index, else 0"),
     Ordinate("index_in", r"index in plane", _split_index(0), None,
              "index of the in-plane (e_z) block at a planar state; -1 elsewhere or at a zero "
              "eigenvalue"),
@@ -427,6 +438,72 @@ def exact_start(s, p):
     return np.vstack((np.outer(d3, s), qmul(qc[:, None], twist), np.zeros((3, len(s)))))
 
 
+# ---- the isotropic rod's rotation about the load line (docs/kirchhoff.md, "Symmetry") ------
+
+#: b2 - 1, u1, u2, |F x d3(0)| / |F| and the arm's |sin psi| (when eps != 0) within this of
+#: zero: the rotation about the clamp axis maps solutions to solutions.
+SYMMETRIC = 1e-12
+
+
+def clamp_axis(p):
+    """e = d3(0), the clamp's axis (spatial)."""
+    return rotation(clamp_quaternion(p))[:, 2]
+
+
+def is_symmetric(p) -> bool:
+    """Whether the rotation about the clamp axis (the frames counter-rotated about d3) maps
+    solutions to solutions: b2 = 1, u1 = u2 = 0, the load along the axis (or none) and the
+    arm along the tip tangent (or of length 0)."""
+    f = load(p)
+    return bool(abs(p["b2"] - 1.0) <= SYMMETRIC and abs(p["u1"]) <= SYMMETRIC
+                and abs(p["u2"]) <= SYMMETRIC
+                and np.linalg.norm(np.cross(f, clamp_axis(p))) <= SYMMETRIC * abs(p["P"])
+                and (p["eps"] == 0 or abs(math.sin(p["psi"])) <= SYMMETRIC))
+
+
+def symmetry(s, y, p):
+    """The rotation T_theta about the clamp axis e = d3(0) through the clamp, with the frames
+    counter-rotated about their own d3: r -> Q r, m -> Q m, q -> q_Q (x) q (x) q_3(-theta)
+    (Q = Rot(e, theta); R -> Q R Rb3(-theta) keeps the clamp, the isotropic bending energy,
+    the load along e and the arm along d3). Generator g = (e x r, (e^ (x) q - q (x) e3^) / 2,
+    e x m) (e^ the pure quaternion); unfolding b = grad J of J = m.(d3 - e), conserved
+    (m.d3 for b2 = 1, u1 = u2 = 0; m.e for F along e) and zero at both ends (d3(0) = e;
+    m(1) = eps d3(1) x F): the unfolded solutions have mu = 0 (docs/kirchhoff.md). None where
+    the parameters break the symmetry."""
+    from elastica_auto.symmetry import Symmetry
+    if not is_symmetric(p):
+        return None
+    e = clamp_axis(p)
+    r, q, m = y[0:3], y[3:7], y[7:10]
+    zero = np.zeros_like(q[:1])
+    e_hat = np.vstack((zero, np.outer(e, np.ones(q.shape[1]))))
+    e3_hat = np.vstack((zero, zero, zero, zero + 1.0))
+    g = np.vstack((np.cross(e, r, axis=0), 0.5 * (qmul(e_hat, q) - qmul(q, e3_hat)),
+                   np.cross(e, m, axis=0)))
+    w, x, yq, z = q
+    n2 = w * w + x * x + yq * yq + z * z
+    d3 = rotation(q)[:, 2]
+    grad_q = (2 * (m[0] * np.array((yq, z, w, x)) + m[1] * np.array((-x, -w, z, yq))
+                   + m[2] * np.array((w, -x, -yq, z))) - 2 * np.sum(m * d3, axis=0) * q) / n2
+    b = np.vstack((np.zeros_like(r), grad_q, d3 - e[:, None]))
+    return Symmetry(g, b)
+
+
+def zero_mode(s, y, p):
+    """The symmetry's zero mode of the second variation, the rotation field omega = e - d3(s)
+    (spatial; omega(0) = 0), L2-normalised on the points ``s``, or None where the parameters
+    break the symmetry or the state is fixed by it (omega = 0: the straight rod)."""
+    if not is_symmetric(p):
+        return None
+    omega = clamp_axis(p)[:, None] - rotation(y[3:7])[:, 2]
+    size = math.sqrt(float(trapezoid_weights(s) @ np.sum(omega * omega, axis=0)))
+    return omega / size if size > ZERO_MODE else None
+
+
+#: The zero mode is removed from the count where its L2 size exceeds this.
+ZERO_MODE = 1e-6
+
+
 def second_variation(s, y, p):
     """The second variation in spatial rotation perturbations omega (docs/kirchhoff.md):
     A = R K R^T, C = -[m]_x / 2, B = (F.d3) I - sym(F d3^T), E1 = (F.a) I - sym(F a^T) with
@@ -444,7 +521,9 @@ def second_variation(s, y, p):
     arm = tip_arm(y[:, -1], p)
     fa = np.outer(f, arm)
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
-    return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2])
+    mode = zero_mode(s, y, p)
+    return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2],
+                           constraints=() if mode is None else [Constraint(mode)])
 
 
 # ---- drawing -------------------------------------------------------------------------------

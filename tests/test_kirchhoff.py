@@ -432,6 +432,17 @@ def assert_rule_agrees(branch):
     return changes
 
 
+def assert_out_of_plane_changes_at_branch_points(branch):
+    """The out-of-plane index of the planar points changes only across a located BP."""
+    last = None
+    for p in branch.points:
+        if p.type == "BP":
+            last = None
+        elif p.type == "" and p.ordinates["index_out"] >= 0:
+            assert last is None or p.ordinates["index_out"] == last, (p.params, p.note)
+            last = p.ordinates["index_out"]
+
+
 def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
     """The fold rule reads m1 = dE/dpsi (the rotating arm, b2 = 2) and beps = dE/deps (eps
     continued at P = 9 pi^2/4 from a buckled state of index 3 through its fold to index 2)."""
@@ -439,6 +450,7 @@ def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
     _, branches = rotating
     for br in branches:
         assert assert_rule_agrees(br) == {(1, 0)}
+        assert_out_of_plane_changes_at_branch_points(br)      # b2 = 2: none, index_out 0
     base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
                            uz=[0.3], max_points=100)
     (br,) = ea.continuation(rod, base.label("UZ1"), "eps", bounds=(-2, 2), directions="-",
@@ -474,3 +486,230 @@ def test_jacobians_are_the_complex_step_derivatives(modules, seed):
             want[:, j] = np.asarray(mod.bc(ya + (e if end == 0 else 0),
                                            yb + (e if end == 1 else 0), p)).imag / h
         assert np.abs(got - want).max() <= 1e-13 * max(1.0, np.abs(want).max())
+
+
+# ---- out-of-plane branch points of planar branches (issue 20, item 3) -----------------------
+
+def shooting_matrix(mod, p, m0):
+    """Shooting on m(0) for the spatial rod at ``p`` (independent of the collocation): the
+    state y(1) from y(0) = (0, q_c, m0) and the 3 x 3 derivative of the tip condition
+    m(1) - a x F in m0, by the variational equations (the right-hand side's Jacobian by
+    central differences) integrated with DOP853 to 1e-11. Returns (tip residual, matrix)."""
+    from scipy.integrate import solve_ivp
+
+    def jac(s, y):
+        out = np.empty((10, 10))
+        for j in range(10):
+            e = np.zeros(10)
+            e[j] = 1e-6
+            out[:, j] = (mod.rhs(s, (y + e)[:, None], p)[:, 0]
+                         - mod.rhs(s, (y - e)[:, None], p)[:, 0]) / 2e-6
+        return out
+
+    def f(s, z):
+        y, v = z[:10], z[10:].reshape(10, 3)
+        return np.concatenate((mod.rhs(np.array([s]), y[:, None], p)[:, 0],
+                               (jac(np.array([s]), y) @ v).ravel()))
+
+    ya = np.concatenate((np.zeros(3), mod.clamp_quaternion(p), m0))
+    v0 = np.zeros((10, 3))
+    v0[7:10] = np.eye(3)
+    z = solve_ivp(f, (0, 1), np.concatenate((ya, v0.ravel())), method="DOP853", rtol=1e-11,
+                  atol=1e-12).y[:, -1]
+    yb, v = z[:10], z[10:].reshape(10, 3)
+    gb = np.empty((3, 10))
+    for j in range(10):
+        e = np.zeros(10)
+        e[j] = 1e-6
+        gb[:, j] = (mod.bc(ya, yb + e, p)[7:] - mod.bc(ya, yb - e, p)[7:]) / 2e-6
+    return mod.bc(ya, yb, p)[7:], gb @ v
+
+
+def shooting_solution(mod, p, m0):
+    """m(0) of the equilibrium near ``m0`` at ``p`` by Newton on the shooting residual."""
+    for _ in range(8):
+        res, mat = shooting_matrix(mod, p, m0)
+        m0 = m0 - np.linalg.solve(mat, res)
+        if np.max(np.abs(res)) < 1e-12:
+            break
+    return m0
+
+
+def test_out_of_plane_branch_point_in_b2(modules):
+    """A planar buckled state (P = 9 pi^2/4, eps = 0.25, psi = 0.3, index 3: 2 in the plane,
+    1 out of it) continued down in b2: the planar state does not depend on b2 (u2 = 0), and
+    at b2 = 1.4572075 its out-of-plane block gets a zero eigenvalue. The branch point is
+    located where the shooting
+    matrix of the linearised problem (variational equations, solve_ivp) is singular, to 1e-7;
+    the out-of-plane index 1 -> 2 there by the conjugate-point count of the out-of-plane block;
+    no fold rule disagreement after it. (Not located while Newton's method refused iterates
+    whose residual was rounding, their correction being that rounding amplified by the
+    near-singular Jacobian: "no decrease of the Newton correction".)"""
+    from form_reference import Form, conjugate_count
+    from scipy.optimize import brentq
+    _, rod, mod = modules
+    base = ea.continuation(rod, {**BASE, "P": 9 * math.pi ** 2 / 4}, "psi", bounds=(-1, 0.4),
+                           uz=[0.3], max_points=100)
+    (br,) = ea.continuation(rod, base.label("UZ1"), "b2", bounds=(1.0, 3), directions="-",
+                            max_points=60)
+    assert br.end == "EP" and not br.warnings, br.warnings
+    (bp,) = [p for p in br.points if p.type == "BP"]
+    assert all("disagreement" not in p.note for p in br.points)
+    st = base.label("UZ1").state
+    m0 = shooting_solution(mod, st.params, st.y[7:10, 0].copy())
+    want = brentq(lambda b2: np.linalg.det(shooting_matrix(mod, {**st.params, "b2": b2},
+                                                           m0)[1]), 1.4, 1.5, xtol=1e-12)
+    print(f"branch point b2 = {bp.params['b2']:.10f}, shooting {want:.10f}")
+    assert abs(bp.params["b2"] - want) < 1e-7
+
+    def out_of_plane(b2):
+        p = {**st.params, "b2": b2}
+
+        def field(name):
+            return lambda s: getattr(mod.second_variation(s, st(s), p), name)[:, :2, :2]
+        end = mod.second_variation(st.s, st.y, p).E1[:2, :2]
+        return conjugate_count(Form(k=2, A=field("A"), B=field("B"), C=field("C"), E1=end,
+                                    G0=np.eye(2))).index
+    assert (out_of_plane(want * (1 + 1e-4)), out_of_plane(want * (1 - 1e-4))) == (1, 2)
+    before = [p for p in br.points if p.type == "" and p.params["b2"] > want]
+    after = [p for p in br.points if p.type == "" and p.params["b2"] < want]
+    assert before and after
+    assert {(p.index, p.ordinates["index_out"]) for p in before} == {(3, 1.0)}
+    assert {(p.index, p.ordinates["index_out"]) for p in after} == {(4, 2.0)}
+    assert_out_of_plane_changes_at_branch_points(br)
+
+
+# ---- the isotropic rod's rotation about the load line (issue 20, item 4) ----------------------
+
+def turn_about_load_line(mod, y, p, theta):
+    """The group action of the symmetry: r -> Q r, m -> Q m, q -> q_Q (x) q (x) q_3(-theta),
+    Q the rotation by theta about the clamp axis (docs/kirchhoff.md, "Symmetry")."""
+    e = mod.clamp_axis(p)
+    qq = mod.qaxis(e, theta)
+    rot = mod.rotation(qq)
+    q = mod.qmul(mod.qmul(qq[:, None], y[3:7]), mod.qaxis((0, 0, 1), -theta)[:, None])
+    return np.vstack((rot @ y[0:3], q, rot @ y[7:10]))
+
+
+@pytest.fixture(scope="module")
+def isotropic(modules):
+    """The isotropic straight rod (b2 = 1, eps = 0.25, psi = 0) loaded along its axis,
+    continued in P, and the buckled branches switched onto at its first branch point."""
+    _, rod, _ = modules
+    return ea.continuation(rod, {"P": 0.0, "eps": 0.25, "b2": 1.0}, "P", bounds=(-1, 5),
+                           max_points=60, switch=1, uz=[3.0])
+
+
+def test_isotropic_straight_rod_double_branch_point(isotropic):
+    """b2 = 1: both bending directions buckle at the same load, P = k^2 with eps k tan k = 1
+    (1.5991918), a zero eigenvalue of multiplicity 2: the determinant keeps its sign and the
+    branch point is found by the index (0 -> 2) and located where it changes, to 1e-9."""
+    from scipy.optimize import brentq
+    k1 = brentq(lambda k: 0.25 * k * math.tan(k) - 1, 0.1, math.pi / 2 - 1e-9, xtol=1e-15)
+    trivial = isotropic[0]
+    assert trivial.end == "EP" and not trivial.warnings, trivial.warnings
+    (bp,) = [p for p in trivial.points if p.type == "BP"]
+    assert abs(bp.params["P"] / (k1 * k1) - 1) < 1e-9
+    assert "even multiplicity" in bp.note
+    inner = [p.index for p in trivial.points if p.type == ""]
+    assert sorted(set(inner)) == [0, 2] and inner == sorted(inner)
+
+
+def unfolding_of(point):
+    import re
+    (mu,) = re.findall(r"unfolding (\S+)", point.note)
+    return float(mu)
+
+
+def test_isotropic_buckled_branch_with_a_phase_condition(modules, isotropic):
+    """The buckled branches born at the double branch point form circles (a rotation about
+    the load line turns a solution into a solution), so their Jacobian is singular: each is
+    continued with the phase condition and the unfolding parameter, which stays at rounding
+    (< 1e-10: it is zero at every solution); the circle is real (a buckled state turned by
+    0.7 about the load line solves the collocation equations and boundary conditions as well
+    as it does, to 1e-10); the index is counted without the zero mode (zero_mode = 1), and it
+    and the numbers of eigenvalues below shifts equal a dense Legendre-Galerkin count of the
+    form on the complement of the rotation field e - d3; without the constraint the dense
+    spectrum has that zero eigenvalue."""
+    from form_reference import Form, dense_count
+
+    from elastica_auto.collocation import Discretisation
+    _, rod, mod = modules
+    switched = isotropic[1:]
+    assert len(switched) == 2
+    for br in switched:
+        assert br.end == "EP" and not br.warnings, br.warnings
+        assert len(br.points) > 8
+        for p in br.points:
+            assert abs(unfolding_of(p)) < 1e-10
+            if p.type != "EP":       # the branch point itself is on the straight rod
+                assert p.ordinates["zero_mode"] == 1.0 and abs(p.ordinates["z1"]) > 1e-3
+                assert p.index == p.index_direct == 0
+    (uz,) = [p for p in switched[0].points if p.type == "UZ"]
+    st = switched[0].label(uz.name).state
+    disc = Discretisation(rod, st.s)
+    own = disc.evaluate(st.y, st.params)
+    turned = disc.evaluate(turn_about_load_line(mod, st.y, st.params, 0.7), st.params)
+    worst = max(np.max(np.abs(turned.col)), np.max(np.abs(turned.bc)))
+    print(f"turned solution: residual {worst:.1e} (the solution's own "
+          f"{max(np.max(np.abs(own.col)), np.max(np.abs(own.bc))):.1e})")
+    assert worst < 1e-10
+    assert np.max(np.abs(turned.y - st.y)) > 0.1
+
+    def field(name):
+        return lambda s: getattr(mod.second_variation(s, st(s), st.params), name)
+    end = mod.second_variation(st.s, st.y, st.params).E1
+
+    def dense(constrained, shift=0.0):
+        cons = [(lambda s: mod.zero_mode(s, st(s), st.params).T, np.zeros(3), np.zeros(3))] \
+            if constrained else []
+        return dense_count(Form(k=3, A=field("A"), C=field("C"), E1=end, G0=np.eye(3),
+                                B=lambda s: field("B")(s) - shift * np.eye(3),
+                                constraints=cons))
+    free = dense(False)[2]
+    assert np.min(np.abs(free)) < 1e-6 * np.max(np.abs(free[:8]))      # the zero mode
+    index, smallest, spectrum = dense(True)
+    assert smallest > 1e-3 and index == uz.index == 0
+    low = spectrum[spectrum < 60]
+    shifts = [(x + y) / 2 for x, y in zip(low[:-1], low[1:]) if y - x > 0.5]
+    evaluate = stability._on_state(rod, st)
+    engine = [stability.count_form(evaluate, st.s, shift=mu).index for mu in shifts]
+    print("shifts", np.round(shifts, 3), "engine", engine)
+    assert len(shifts) >= 3
+    assert engine == [int(np.sum(spectrum < mu)) for mu in shifts]
+
+
+def test_switch_onto_the_lateral_torsional_branch(modules):
+    """The lateral-torsional branch point of a section with B2 = C = 1e-2 (load perpendicular,
+    eps = 0: 4.0596 sqrt(B2 C), docs/kirchhoff.md) switched onto: both halves of the branch
+    born there are non-planar (z(1) = -+0.36 at P = 0.0495), mirror images of each other; a
+    state of it solves the problem by an independent shooting on m(0) (Newton on the tip
+    condition, DOP853), which lands on the collocation's m(0) and tip to 1e-6; its index by
+    direct count equals the conjugate-point count of the 3 x 3 Jacobi system (0: the buckled
+    section is stable), while the planar branch past the branch point has index 1."""
+    _, rod, mod = modules
+    ratio = 1e-2
+    runs = ea.continuation(rod, {"P": 0.0, "eps": 0.0, "b2": ratio, "c": ratio,
+                                 "alpha": math.pi / 2, "psi": -math.pi / 2}, "P",
+                           bounds=(-1, 0.05), ds=0.2 * ratio, ds_max=5 * ratio,
+                           max_points=60, switch=1, uz=[0.0495])
+    planar, *switched = runs
+    (bp,) = [p for p in planar.points if p.type == "BP"]
+    assert bp.params["P"] == pytest.approx(4.0596 * ratio, rel=1e-4)
+    assert {p.index for p in planar.points if p.type in ("", "UZ", "EP")
+            and p.params["P"] > bp.params["P"]} == {1}
+    assert len(switched) == 2
+    tips = []
+    for br in switched:
+        assert br.end == "EP" and not br.warnings, br.warnings
+        assert all("disagreement" not in p.note for p in br.points)
+        assert {p.index for p in br.points if p.type != "EP"} == {0}
+        (uz,) = [p for p in br.points if p.type == "UZ"]
+        st = br.label(uz.name).state
+        assert abs(uz.ordinates["z1"]) > 0.3 and uz.ordinates["index_out"] == -1
+        m0 = shooting_solution(mod, st.params, st.y[7:10, 0].copy())
+        assert np.max(np.abs(m0 - st.y[7:10, 0])) < 1e-6
+        assert conjugate_index(mod, st) == stability.index(rod, st) == 0
+        tips.append(st.y[0:3, -1])
+    assert tips[0][2] == pytest.approx(-tips[1][2], abs=1e-7)          # mirror images
+    assert tips[0][:2] == pytest.approx(tips[1][:2], abs=1e-7)
