@@ -256,3 +256,83 @@ def test_workers_without_the_package_are_one_line(tmp_path, cli_exe):
             os.killpg(p.pid, signal.SIGTERM)
         for p in procs:
             p.wait(timeout=30)
+
+
+# -- the default run: this process at once, a local cluster joining in the background ----------
+
+_WAITING = '''
+
+import os as _os
+import time as _time
+
+
+def _wait_for_a_worker(p):
+    """In the test's own process, with the flag file there: the first call in a branch
+    waits until a worker of the background cluster has called rhs (so that it computes a
+    branch); in a worker: say so. The numbers are the shipped module's."""
+    if _os.getpid() != {main}:
+        open({started!r}, "a").close()
+    elif _os.path.exists({flag!r}) and not globals().get("_waited") and _in_a_branch():
+        globals()["_waited"] = True
+        deadline = _time.monotonic() + 120
+        while not _os.path.exists({started!r}) and _time.monotonic() < deadline:
+            _time.sleep(0.01)
+
+
+def _in_a_branch():
+    import sys
+    frame = sys._getframe()
+    while frame is not None and frame.f_code.co_name != "compute_branch":
+        frame = frame.f_back
+    return frame is not None
+'''
+
+
+def _waiting_elastica(path: Path, flag: Path, started: Path) -> Path:
+    from helpers import ELASTICA
+    head = "def rhs(s, y, p):\n"
+    path.write_text(ELASTICA.replace(head, head + "    _wait_for_a_worker(p)\n")
+                    + _WAITING.format(main=os.getpid(), flag=str(flag), started=str(started)))
+    return path
+
+
+def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, monkeypatch):
+    """jobs = 0 on two cores: this process starts on the first branch at once and a local
+    cluster of one worker, started meanwhile, computes the other (this process waits, in its
+    first step, for the worker to start: else it could finish both first). The file is the
+    one jobs = 1 writes, number for number, snap-back table (scanned on the worker) too."""
+    from elastica_auto import runfile
+    from elastica_auto.run import execute
+    from helpers import elastica_run_file
+    flag, started = tmp_path / "wait", tmp_path / "started"
+    _waiting_elastica(tmp_path / "mine.py", flag, started)
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    run.write_text(run.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
+    one = execute(runfile.load(run), tmp_path / "one", jobs=1)
+    assert not started.exists()
+    flag.touch()
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    both = execute(runfile.load(run), tmp_path / "both", jobs=0)
+    assert [len(b.points) for b in both.branches] == [len(b.points) for b in one.branches]
+    assert both.snaps and len(both.snaps) == len(one.snaps)
+    _same_numbers(one.path, both.path)
+    workers = [b.attrs["worker"] for b in BranchFile(both.path).branches]
+    assert workers[0] == "local" and workers[1].startswith("tcp://127.0.0.1:")
+
+
+def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
+    """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
+    from elastica_auto import cluster, runfile
+    from elastica_auto.run import execute
+    from helpers import EXAMPLES
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a cluster was started for one branch")
+
+    monkeypatch.setattr(cluster, "Background", refused)
+    monkeypatch.setattr(cluster, "local", refused)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    plan = runfile.load(EXAMPLES / "bratu.toml")
+    assert len(plan.branches) == 1
+    result = execute(plan, tmp_path, jobs=0)
+    assert [b.worker for b in result.branches] == ["local"] and result.branches[0].end == "EP"
