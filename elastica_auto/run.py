@@ -357,6 +357,7 @@ def _resumed(plan: Plan, writer) -> store.BranchFile | None:
         raise RunFileError(f"{plan.path}: switch: a run that switches at its branch points "
                            "cannot be resumed; run it again whole")
     bf = store.BranchFile(source)
+    bf.maps  # read now: entering the writer may write the file again (`store.Writer`)
     if bf.run != plan.name or Path(bf.equation).stem != plan.problem.name:
         raise RunFileError(f"{source}: --resume: written by run {bf.run!r} of {bf.equation!r}, "
                            f"not {plan.name!r} of {plan.problem.source!r}")
