@@ -803,7 +803,7 @@ class BranchFile:
             g, packed = solutions[br]
             if not (name in packed if packed is not None else _has_solution(g, name)):
                 raise self._damaged(f"label {name} has no stored solution "
-                                    f"(branches/{br:03d}/solutions/{name})")
+                                    f"(in branches/{br:03d}/solutions)")
 
     @property
     def run(self) -> str:

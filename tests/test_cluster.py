@@ -336,3 +336,19 @@ def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     assert len(plan.branches) == 1
     result = execute(plan, tmp_path, jobs=0)
     assert [b.worker for b in result.branches] == ["local"] and result.branches[0].end == "EP"
+
+
+def test_a_one_branch_run_imports_only_what_it_uses(tmp_path):
+    """`elastica-auto run examples/bratu.toml` with the default jobs: no cluster (nor its
+    module), no distributed, no scipy.integrate (Bratu has no snap-back scan), no plotting."""
+    from helpers import EXAMPLES
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
+            f"r = CliRunner().invoke(main, ['run', {str(EXAMPLES / 'bratu.toml')!r}, '--out', "
+            f"{str(tmp_path)!r}])\n"
+            "assert r.exit_code == 0, r.output\n"
+            "print(sorted(m for m in ('distributed', 'dask', 'elastica_auto.cluster', "
+            "'scipy.integrate', 'matplotlib', 'plotly') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+    assert (tmp_path / "bratu.h5").is_file()

@@ -306,7 +306,11 @@ def _label_beyond_the_branch(f):
 
 def _solution_missing(f):
     name, (br, _) = _first_uz(f)
-    del f[f"branches/{br:03d}/solutions/{name}"]
+    g = f[f"branches/{br:03d}/solutions"]
+    names = [x.decode() for x in g["label"][()]]
+    del g["label"]
+    g.create_dataset("label", data=[x for x in names if x != name] + ["XX1"],
+                     dtype=h5py.string_dtype())
 
 
 DAMAGES = {
