@@ -72,11 +72,12 @@ def connect(address: str):
     return client
 
 
-def local(workers: int):
+def local(workers: int, threads: bool = False):
     """A client of a new Dask cluster of ``workers`` single-threaded worker processes on this
     machine (`close` ends both). Its workers are this process's children and watch it: they
     end at once if it is killed outright (SIGKILL), even in the middle of a task
-    (tests/test_robustness_failures.py checks it)."""
+    (tests/test_robustness_failures.py checks it). ``threads``: the workers are threads of
+    this process instead, and there is no dashboard (`serve`: up in a third of the time)."""
     import logging
 
     import dask
@@ -88,9 +89,9 @@ def local(workers: int):
     # to CRITICAL, in the workers too: a failure reaches the user as the branch's MX line, and
     # a worker closing after its scheduler logs a heartbeat traceback at ERROR (seen in CI).
     with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION}):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.CRITICAL,
-                               memory_limit=0)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=not threads,
+                               dashboard_address=None if threads else ":0",
+                               silence_logs=logging.CRITICAL, memory_limit=0)
     return Client(cluster, set_as_default=False)
 
 
@@ -207,7 +208,9 @@ def serve(results_fd: int):
     It is the Dask client and the scheduler's host, so that the command's own process, busy
     with branches, imports nothing of ``distributed`` and runs no scheduler. At the end of
     its input (the command closed it, or ended, even killed outright) it ends its workers at
-    once and exits."""
+    once and exits. One worker is a thread of this process, which is then a worker too: a
+    task that ends the process ends the helper, and the command computes what it had handed
+    it."""
     import pickle
     import sys
 
@@ -229,7 +232,9 @@ def serve(results_fd: int):
 
     inp = sys.stdin.buffer
     workers = pickle.load(inp)
-    client = local(workers)
+    # one worker: a thread of this process (no worker process to start: the cluster is up
+    # in about a third of the time); more: worker processes, each with a core of its own
+    client = local(workers, threads=workers == 1)
     send(("ready", len(client.scheduler_info()["workers"])))
     try:
         while True:
@@ -241,7 +246,8 @@ def serve(results_fd: int):
                                    key=f"elastica-{tag[0]}-{uuid.uuid4().hex[:12]}")
             future.add_done_callback(lambda f, tag=tag: report(tag, f))
     finally:
-        close(client, interrupted=True)
+        if workers > 1:
+            close(client, interrupted=True)
         os._exit(0)
 
 

@@ -530,22 +530,26 @@ class _Alongside:
             self.results.put(None)               # wake the waiting main thread
 
     def _feed(self):
-        """Under the lock: one branch from the end of the list per idle worker, and the scans
-        not sent yet, if the cluster is up."""
+        """Under the lock, if the cluster is up: a task for each idle worker, a branch from
+        the end of the list or else a scan."""
         bg = self.background
-        while bg.ready.is_set() and len(self.claimed) < bg.workers and self.front <= self.back:
-            i = self.back
-            if not bg.submit(("branch", i), compute_branch,
-                             (self.plan, self.offset + i + 1, self.jobs[i])):
+        while bg.ready.is_set() and len(self.claimed) + len(self.asked) < bg.workers:
+            if self.front <= self.back:
+                i = self.back
+                if not bg.submit(("branch", i), compute_branch,
+                                 (self.plan, self.offset + i + 1, self.jobs[i])):
+                    return
+                self.back -= 1
+                self.claimed.add(i)
+            elif self.unsent:
+                key, params = self.unsent[0]
+                if not bg.submit(("scan", key), enumerate_equilibria,
+                                 (self.plan.problem, params)):
+                    return
+                self.unsent.pop(0)
+                self.asked.add(key)
+            else:
                 return
-            self.back -= 1
-            self.claimed.add(i)
-        while bg.ready.is_set() and self.unsent:
-            key, params = self.unsent[0]
-            if not bg.submit(("scan", key), enumerate_equilibria, (self.plan.problem, params)):
-                return
-            self.unsent.pop(0)
-            self.asked.add(key)
 
     def _take(self, message, done: dict):
         """A result from the cluster into ``done`` (a branch) or ``scans``."""
@@ -633,15 +637,17 @@ class _Alongside:
                     self._feed()
 
     def wait_for_scans(self, stop) -> bool:
-        """Wait for the scans on the cluster (those it was never sent are computed later,
-        here); False if interrupted meanwhile."""
+        """The scans not done yet: each by the first of this process and the cluster's
+        workers to be free; False if interrupted meanwhile."""
         import queue
-        with self.lock:
-            self.unsent.clear()
         while not stop.is_set():
             with self.lock:
-                if not self.asked:
+                if not self.asked and not self.unsent:
                     return True
+                key, params = self.unsent.pop(0) if self.unsent else (None, None)
+            if key is not None:
+                self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
+                continue
             try:
                 self._take(self.results.get(timeout=0.05), {})
             except queue.Empty:
