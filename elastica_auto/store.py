@@ -13,9 +13,10 @@ Layout of ``out/<run>.h5``::
                             niter, nodes, fold_residual, type, label, note, index,
                             index_rule, index_direct, transition ("1 -> 0" at LP and BP)
         profiles            (points, states, grid): every state on /profile_grid
-        solutions/<LAB>/    s, y, yp: the exact collocation solution of a labelled point;
-                            tangent_s, tangent_y, tangent_yp and attr tangent_lam; attrs
-                            params (JSON) and pt
+        solutions/          the exact collocation solutions of the labelled points, packed
+                            (`_write_solutions`): label, pt, params, nodes, s, y, yp,
+                            tangent_nodes, tangent_s, tangent_y, tangent_yp, tangent_lam;
+                            attr tangent_parameter (format 1: a group per label)
 
     /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
                             parameters): lp, branch, parameter, value, stable_side, k,
@@ -27,7 +28,8 @@ Layout of ``out/<run>.h5``::
                             target_<ordinate>..., energy_released, transit_time
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
-reader never sees a half-written file. A run holds an exclusive lock on its output for as long
+reader never sees a half-written file; while a run writes it, the file's branches are links to
+small files of their own, and the file is written whole at the run's end (see `Writer`). A run holds an exclusive lock on its output for as long
 as it runs, and replaces an existing ``<run>.h5`` only once it has finished (see `Writer`).
 New files get the mode ``open`` would give them (0666 less the umask).
 
