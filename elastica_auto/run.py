@@ -637,14 +637,18 @@ class _Alongside:
                     self._feed()
 
     def wait_for_scans(self, stop) -> bool:
-        """The scans not done yet: each by the first of this process and the cluster's
-        workers to be free; False if interrupted meanwhile."""
+        """The scans not done yet, on the cluster; this process takes those left if the
+        cluster has ended, or if it has imported the integrator already (its import, 0.4 s,
+        would cost more than the few scans the workers have left); False if interrupted
+        meanwhile."""
         import queue
+        import sys
         while not stop.is_set():
             with self.lock:
                 if not self.asked and not self.unsent:
                     return True
-                key, params = self.unsent.pop(0) if self.unsent else (None, None)
+                here = not self.background.ready.is_set() or "scipy.integrate" in sys.modules
+                key, params = self.unsent.pop(0) if self.unsent and here else (None, None)
             if key is not None:
                 self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
                 continue

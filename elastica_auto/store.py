@@ -29,8 +29,9 @@ Layout of ``out/<run>.h5``::
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
 reader never sees a half-written file; while a run writes it, the file's branches are links to
-small files of their own, and the file is written whole at the run's end (see `Writer`). A run holds an exclusive lock on its output for as long
-as it runs, and replaces an existing ``<run>.h5`` only once it has finished (see `Writer`).
+small files of their own, and the file is written whole at the run's end. A run holds an
+exclusive lock on its output for as long as it runs, and replaces an existing ``<run>.h5``
+only once it has finished (see `Writer`).
 New files get the mode ``open`` would give them (0666 less the umask).
 
 Reading validates the layout on opening, from the datasets' shapes and the label columns: a
