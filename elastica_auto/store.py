@@ -204,9 +204,11 @@ class Writer:
         return self
 
     def __exit__(self, *exc_info):
+        from .interrupts import Interruptions
         try:
             if self.written:
-                _whole(self.path)
+                with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
+                    _whole(self.path)
         except (OSError, StoreError):  # the file stays as saved, its branches linked: the
             pass                         # next run writing it makes it whole
         finally:
@@ -287,9 +289,12 @@ class Writer:
         write_atomically(self.path, write, "index")
 
     def finish(self):
-        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class)."""
+        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class).
+        A Ctrl-C meanwhile is too late to stop anything: it waits for the file."""
+        from .interrupts import Interruptions
         try:
-            _whole(self.path)
+            with Interruptions():
+                _whole(self.path)
         except OSError as exc:
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         if self.path != self.target:
