@@ -235,7 +235,10 @@ def serve(results_fd: int):
     # one worker: a thread of this process (no worker process to start: the cluster is up
     # in about a third of the time); more: worker processes, each with a core of its own
     client = local(workers, threads=workers == 1)
-    send(("ready", len(client.scheduler_info()["workers"])))
+    # the client's view of the workers may be older than the cluster's: wait until it has
+    # all of them (the command hands out one task per worker it is told of)
+    client.wait_for_workers(workers)
+    send(("ready", workers))
     try:
         while True:
             try:

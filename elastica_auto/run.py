@@ -647,7 +647,10 @@ class _Alongside:
             with self.lock:
                 if not self.asked and not self.unsent:
                     return True
-                here = not self.background.ready.is_set() or "scipy.integrate" in sys.modules
+                self._feed()
+                # not sent, and nothing on the cluster: no worker will ask for them
+                here = (not self.background.ready.is_set() or "scipy.integrate" in sys.modules
+                        or not self.asked)
                 key, params = self.unsent.pop(0) if self.unsent and here else (None, None)
             if key is not None:
                 self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))

@@ -352,3 +352,60 @@ def test_a_one_branch_run_imports_only_what_it_uses(tmp_path):
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
     assert (tmp_path / "bratu.h5").is_file()
+
+
+class _FakeBackground:
+    """A background cluster that is up at once with ``workers`` workers and computes
+    nothing: with ``ends``, it ends as soon as it is handed a task (the task lost)."""
+
+    def __init__(self, workers, on_result, ends=False):
+        import threading
+        self.workers, self.on_result, self.ends = workers, on_result, ends
+        self.ready = threading.Event()
+        self.ready.set()
+        self.tasks = []
+
+    def submit(self, tag, function, args):
+        import threading
+        self.tasks.append(tag)
+        if self.ends:       # as the real one: from its own thread
+            self.ready.clear()
+            threading.Thread(target=self.on_result,
+                             args=(None, False, "the local cluster ended")).start()
+        return True
+
+    def finish(self):
+        self.ready.clear()
+
+    def close(self, wait=0.0):
+        self.ready.clear()
+
+
+@pytest.mark.parametrize("workers, ends", [(0, False), (1, True)])
+def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monkeypatch,
+                                                                  workers, ends):
+    """A cluster that tells of no worker, or that ends with a branch and then never takes
+    anything: this process computes every branch and every snap-back scan (its integrator
+    not imported yet, as in a command's process), and the run ends with the branches that
+    jobs = 1 computes."""
+    from elastica_auto import runfile
+    from elastica_auto.interrupts import Interruptions
+    from elastica_auto.run import RunResult, _Alongside, _built, execute
+    from elastica_auto.snaps import scans
+    from helpers import elastica_run_file
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    one = execute(runfile.load(run), tmp_path / "one", jobs=1)
+    plan = runfile.load(run)
+    pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
+    first = [_built(plan, spec) for spec in plan.branches]
+    result = RunResult(None, [], 0.0)
+    monkeypatch.delitem(sys.modules, "scipy.integrate")
+    with Interruptions() as signals:
+        assert not pool.run(first, result.branches, lambda: None, None, None, signals.stop)
+        assert pool.wait_for_scans(signals.stop)
+    assert [b.worker for b in result.branches] == ["local", "local"]
+    assert [t[0] for t in pool.background.tasks] == (["branch"] if ends else [])
+    assert len(pool.scans) == len({k for b in result.branches
+                                   for k in scans(plan.problem, b)}) > 0
+    for a, b in zip(result.branches, one.branches):
+        np.testing.assert_array_equal(a.column("psi"), b.column("psi"))
