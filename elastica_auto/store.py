@@ -244,6 +244,7 @@ class Writer:
         ``snaps``: the snap-back target table, ``maps``: the stability maps, ``landings``:
         the damped model's landings (each replaces any stored one)."""
         folder = _branch_folder(self.path)
+        count, labels = self.written, dict(self.labels)
         try:
             folder.mkdir(exist_ok=True)
             for k in range(self.written + 1, self.kept + len(branches) + 1):
@@ -256,8 +257,8 @@ class Writer:
                 write_atomically(folder / f"{k:03d}.h5", write, "branch")
                 for pt, p in enumerate(br.points, start=1):
                     if p.type:
-                        self.labels[p.name] = [k, pt]
-                self.written = k
+                        labels[p.name] = [k, pt]
+                count = k
         except OSError as exc:
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         if snaps is not None:
@@ -266,18 +267,23 @@ class Writer:
             self._tables["landings"] = landings
         if maps:
             self._tables["maps"] = maps
-        self._write_index()
+        self._write_index(count, labels)
+        # saved once the file links them (an interruption before leaves them unsaved)
+        self.written, self.labels = count, labels
 
-    def _write_index(self):
-        """The file: header, labels, tables, and a link to each branch's file."""
+    def _write_index(self, count: int | None = None, labels: dict | None = None):
+        """The file: header, labels, tables, and a link to each of the first ``count``
+        branches' files (default: those saved)."""
         folder = _branch_folder(self.path)
+        count = self.written if count is None else count
+        labels = self.labels if labels is None else labels
 
         def write(tmp):
             with h5py.File(tmp, "w") as f:
                 self._write_header(f)
-                f.attrs["labels"] = json.dumps(self.labels)
+                f.attrs["labels"] = json.dumps(labels)
                 g = f.create_group("branches")
-                for k in range(1, self.written + 1):
+                for k in range(1, count + 1):
                     g[f"{k:03d}"] = h5py.ExternalLink(f"{folder.name}/{k:03d}.h5", "/branch")
                 if self._tables["snaps"] is not None:
                     _write_table(f, "snaps", self._tables["snaps"])
