@@ -43,7 +43,8 @@
 tol 1e-5 and 1e-7 for each ``ncol``: nodes and unknowns per point, the largest error of
 F'(0), G'(0) and the inflow at its UZ points against scipy's solve_bvp at tol 1e-10, seconds.
 
-``--memory``: the peak memory of one branch of 2500 and of 10^4 points.
+``--memory``: the peak memory of one branch of 2500 and of 10^4 points. ``--saves``: the share
+of the rotating_arm run spent writing its branch file (also in ``main``).
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
 
@@ -620,6 +621,41 @@ def disk_unknowns(tols=(1e-5, 1e-7), schemes=(0, 2, 3, 4, 5, 6, 7)):
                       f"error {err:.1e}; {seconds:.2f} s")
 
 
+def saves(rounds=3):
+    """The share of the rotating_arm run (``--jobs 1``, in this process) spent writing its
+    branch file: every save after a branch and the run's last write (`store.Writer`'s
+    ``save``, ``finish`` and the leaving of its context), best of ``rounds``."""
+    from elastica_auto import store
+    from elastica_auto.run import execute
+    from elastica_auto.runfile import load
+
+    spent = [0.0]
+
+    def timed(method):
+        def wrapper(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return method(*args, **kwargs)
+            finally:
+                spent[0] += time.perf_counter() - t0
+        return wrapper
+
+    for name in ("save", "finish", "__exit__"):
+        setattr(store.Writer, name, timed(getattr(store.Writer, name)))
+    best = None
+    for _ in range(rounds):
+        spent[0] = 0.0
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            result = execute(load(REPO / "runs" / "rotating_arm.toml"), Path(tmp), jobs=1)
+            total = time.perf_counter() - t0
+            size = result.path.stat().st_size
+        if best is None or spent[0] < best[0]:
+            best = (spent[0], total, size)
+    print(f"saving rotating_arm's branch file (--jobs 1, best of {rounds}): {best[0]:.3f} s of "
+          f"{best[1]:.2f} s ({100 * best[0] / best[1]:.1f}%), {best[2] / 1e6:.1f} MB")
+
+
 def main():
     step_cost()
     print()
@@ -642,6 +678,8 @@ def main():
     landing()
     print()
     size_cost()
+    print()
+    saves()
 
 
 if __name__ == "__main__":
@@ -657,5 +695,7 @@ if __name__ == "__main__":
         size_cost()
     elif sys.argv[1:] == ["--disk"]:
         disk_unknowns()
+    elif sys.argv[1:] == ["--saves"]:
+        saves()
     else:
         main()

@@ -8,7 +8,6 @@ interrupted run saves what it computed and exits with status 130.
 from __future__ import annotations
 
 import importlib.resources
-import os
 import signal
 import sys
 from pathlib import Path
@@ -166,7 +165,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
 
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        result = execute(plan, out_dir, progress, on_branch, jobs=jobs or os.cpu_count() or 1,
+        result = execute(plan, out_dir, progress, on_branch, jobs=jobs,
                          on_start=header, scheduler=scheduler, on_tasks=on_tasks,
                          resume=resume, on_landing=on_landing)
     except StartError as exc:

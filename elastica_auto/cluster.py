@@ -18,6 +18,7 @@ finished; the finished ones are written (the branches in progress are lost; with
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import threading
@@ -71,11 +72,12 @@ def connect(address: str):
     return client
 
 
-def local(workers: int):
+def local(workers: int, threads: bool = False):
     """A client of a new Dask cluster of ``workers`` single-threaded worker processes on this
     machine (`close` ends both). Its workers are this process's children and watch it: they
     end at once if it is killed outright (SIGKILL), even in the middle of a task
-    (tests/test_robustness_failures.py checks it)."""
+    (tests/test_robustness_failures.py checks it). ``threads``: the workers are threads of
+    this process instead, and there is no dashboard (`serve`: up in a third of the time)."""
     import logging
 
     import dask
@@ -87,9 +89,9 @@ def local(workers: int):
     # to CRITICAL, in the workers too: a failure reaches the user as the branch's MX line, and
     # a worker closing after its scheduler logs a heartbeat traceback at ERROR (seen in CI).
     with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION}):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.CRITICAL,
-                               memory_limit=0)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=not threads,
+                               dashboard_address=None if threads else ":0",
+                               silence_logs=logging.CRITICAL, memory_limit=0)
     return Client(cluster, set_as_default=False)
 
 
@@ -193,3 +195,139 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         return True
     report(force=True)
     return False
+
+
+# -- the default run: this process computes at once, a local cluster joins in the background --
+
+def serve(results_fd: int):
+    """The background helper of a default run (`Background`), in its own process: reads
+    ``workers`` then ``(tag, function, args)`` requests as pickles from stdin, computes each
+    as a task of a local cluster of ``workers`` (`local`) that it starts, and writes
+    ``("ready", workers)`` once the cluster is up, then ``("done", tag, value)`` or
+    ``("error", tag, message)`` per task, as pickles on the file descriptor ``results_fd``.
+    It is the Dask client and the scheduler's host, so that the command's own process, busy
+    with branches, imports nothing of ``distributed`` and runs no scheduler. At the end of
+    its input (the command closed it, or ended, even killed outright) it ends its workers at
+    once and exits. One worker is a thread of this process, which is then a worker too: a
+    task that ends the process ends the helper, and the command computes what it had handed
+    it."""
+    import pickle
+    import sys
+
+    out = os.fdopen(results_fd, "wb")
+    lock = threading.Lock()
+
+    def send(message):
+        with lock:
+            pickle.dump(message, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.flush()
+
+    def report(tag, future):
+        if future.status == "finished":
+            send(("done", tag, future.result()))
+            return
+        exc = future.exception() if future.status == "error" else None
+        send(("error", tag, f"{type(exc).__name__}: {_short(exc)}" if exc is not None
+              else f"RuntimeError: the task was {future.status} (its workers died)"))
+
+    inp = sys.stdin.buffer
+    workers = pickle.load(inp)
+    # one worker: a thread of this process (no worker process to start: the cluster is up
+    # in about a third of the time); more: worker processes, each with a core of its own
+    client = local(workers, threads=workers == 1)
+    # the client's view of the workers may be older than the cluster's: wait until it has
+    # all of them (the command hands out one task per worker it is told of)
+    client.wait_for_workers(workers)
+    send(("ready", workers))
+    try:
+        while True:
+            try:
+                tag, function, args = pickle.load(inp)
+            except EOFError:
+                break
+            future = client.submit(function, *args, pure=False,
+                                   key=f"elastica-{tag[0]}-{uuid.uuid4().hex[:12]}")
+            future.add_done_callback(lambda f, tag=tag: report(tag, f))
+    finally:
+        if workers > 1:
+            close(client, interrupted=True)
+        os._exit(0)
+
+
+def _call(function, *args):
+    """A task of the helper's cluster: ``function(*args)`` and the worker's address."""
+    from distributed import get_worker
+    return function(*args), get_worker().address
+
+
+class Background:
+    """The local cluster of a default run, started in a helper process (`serve`) while this
+    process computes: `submit` hands it a task once it is ``ready``; each result reaches
+    ``on_result(tag, ok, value)`` (``value``: the result and the worker's address, or the
+    error's one line), called from a reading thread. `close` ends it at once."""
+
+    def __init__(self, workers: int, on_result):
+        import pickle
+        import subprocess
+        import sys
+        self._pickle = pickle
+        read, write = os.pipe()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", f"from elastica_auto.cluster import serve; serve({write})"],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            pass_fds=(write,), start_new_session=True)
+        os.close(write)
+        self._results = os.fdopen(read, "rb")
+        self.workers = 0                     # set once ready
+        self.ready = threading.Event()
+        self.on_result = on_result
+        self._lock = threading.Lock()
+        self._send(workers)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _send(self, message) -> bool:
+        try:
+            with self._lock:
+                self._pickle.dump(message, self.proc.stdin,
+                                  protocol=self._pickle.HIGHEST_PROTOCOL)
+                self.proc.stdin.flush()
+            return True
+        except (OSError, ValueError):        # the helper has ended
+            return False
+
+    def _read(self):
+        while True:
+            try:
+                message = self._pickle.load(self._results)
+            except Exception:  # the helper ended (or failed to start): the run goes on here
+                self.ready.clear()
+                self.on_result(None, False, "the local cluster ended")
+                return
+            if message[0] == "ready":
+                self.workers = message[1]
+                self.ready.set()
+                self.on_result(None, True, None)
+            else:
+                self.on_result(message[1], message[0] == "done", message[2])
+
+    def submit(self, tag, function, args) -> bool:
+        """Hand ``function(*args)`` to the cluster; False if it has ended."""
+        return self._send((tag, _call, (function, *args)))
+
+    def finish(self):
+        """No more tasks: the helper ends its cluster and exits, while this process goes on."""
+        self.ready.clear()
+        with contextlib.suppress(OSError):
+            self.proc.stdin.close()
+
+    def close(self, wait: float = 0.0):
+        """End the helper and its cluster: after ``wait`` seconds for it to end by itself
+        (after `finish`), at once (its workers hold nothing of value)."""
+        self.finish()
+        with contextlib.suppress(Exception):
+            self.proc.wait(timeout=wait)
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()

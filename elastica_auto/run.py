@@ -9,6 +9,8 @@ progress is kept up to its last point and ends with an MX label; on a Dask clust
 from __future__ import annotations
 
 import json
+import os
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,9 +27,9 @@ from .interrupts import Interruptions
 from .plan import BranchSpec, Plan, Start
 from .solution import State, Tangent
 from .maps import stability_maps
-from .snaps import snap_targets
+from .snaps import enumerate_equilibria, scans, snap_targets
 from .stability import label_stability
-from .stepper import INTERRUPTED, Origin, continue_branch
+from .stepper import INTERRUPTED, Origin, continue_branch, start_point
 from .switching import switch_direction
 
 
@@ -355,6 +357,7 @@ def _resumed(plan: Plan, writer) -> store.BranchFile | None:
         raise RunFileError(f"{plan.path}: switch: a run that switches at its branch points "
                            "cannot be resumed; run it again whole")
     bf = store.BranchFile(source)
+    bf.maps  # read now: entering the writer may write the file again (`store.Writer`)
     if bf.run != plan.name or Path(bf.equation).stem != plan.problem.name:
         raise RunFileError(f"{source}: --resume: written by run {bf.run!r} of {bf.equation!r}, "
                            f"not {plan.name!r} of {plan.problem.source!r}")
@@ -386,15 +389,27 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     The branches are computed as tasks of a Dask cluster (`elastica_auto.cluster`;
     ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
     ``scheduler`` address, or else a local one of ``jobs`` worker processes. With ``jobs = 1``
-    (or one branch) they are computed in this process, with no cluster."""
+    (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
+    command's default): in this process from the start, and also, once it is up, on a local
+    cluster of one worker per other core started meanwhile in the background (`_Alongside`);
+    with one branch (and no switching), or one core, in this process only."""
     branches = result.branches
-    workers = jobs if plan.switch_count else min(jobs, len(first))
+    pool = None
+    if jobs == 0 and client is None and scheduler is None:
+        alongside = (os.cpu_count() or 1) - 1 if plan.switch_count or len(first) > 1 else 0
+        if alongside > 0:
+            pool = _alongside(plan, first, result, save, progress, on_branch, alongside)
+            first = None
+        jobs = 1
+    workers = jobs if plan.switch_count else min(jobs, len(first or ()))
     own = client is None and (scheduler is not None or workers > 1)
     if own:
         from . import cluster
         client = cluster.connect(scheduler) if scheduler is not None else cluster.local(workers)
 
-    if client is None:
+    if first is None:
+        interrupted = result.interrupted
+    elif client is None:
         interrupted = _in_process(plan, first, branches, save, progress, on_branch)
         if not interrupted and plan.switch_count:
             second = switch_jobs(plan, list(branches), result.warnings)
@@ -418,7 +433,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     if not interrupted:
         try:
             result.snaps = snap_targets(plan.problem, branches, result.warnings,
-                                        landing=plan.landing)
+                                        landing=plan.landing,
+                                        cache=pool.scans if pool is not None else None)
             for row in result.snaps:           # numbered after the kept branches
                 row["branch"] += result.kept
                 row["on_branch"] += result.kept if row["on_branch"] else 0
@@ -447,6 +463,204 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                                              (plan.stops.lower, plan.stops.upper))
             except Exception as exc:  # as for the snap-back scan
                 result.warnings.append(f"stability map failed: {_one_line(exc)}")
+    if pool is not None:
+        pool.background.close(wait=5.0)
+
+
+def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alongside:
+    """The default run: `_Alongside` with a background cluster of ``workers``, for the
+    branches from ``first``, then the switched ones; sets ``result.interrupted``. Returns
+    the pool: its ``scans`` are those its workers computed (`snap_targets`'s ``cache``)."""
+    from .cluster import Background
+    with Interruptions() as signals:
+        pool = _Alongside(plan, workers, Background)
+        try:
+            interrupted = pool.run(first, result.branches, save, progress, on_branch,
+                                   signals.stop)
+            if not interrupted and plan.switch_count:
+                second = switch_jobs(plan, list(result.branches), result.warnings)
+                interrupted = pool.run(second, result.branches, save, progress, on_branch,
+                                       signals.stop)
+            if not interrupted:
+                interrupted = not pool.wait_for_scans(signals.stop)
+        finally:
+            if interrupted:
+                pool.background.close()
+            else:   # its helper ends its cluster while this process goes on
+                pool.background.finish()
+    result.interrupted = interrupted
+    return pool
+
+
+class _Alongside:
+    """Branches computed in this process from the start of the list, and by a local Dask
+    cluster from its end (`elastica_auto.cluster.Background`) once it has started in the
+    background, one task per worker at a time: nothing waits for the cluster, and a run
+    done before it is up never uses it. The branches are saved in the plan's order as they
+    complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
+    As each branch is saved, the snap-back scans its folds need (`elastica_auto.snaps.scans`)
+    go to the cluster too, if it is up. If the cluster ends (or never starts), this process
+    computes what it had been given."""
+
+    def __init__(self, plan, workers: int, background):
+        import queue
+        self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
+        self.jobs, self.front, self.back, self.offset = [], 0, -1, 0
+        self.claimed, self.returned = set(), []
+        self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
+        self.pending_params: dict[tuple, dict] = {}
+        self.background = background(workers, self._on_result)
+
+    def _on_result(self, tag, ok, value):
+        """From the background's reading thread: a result, or the cluster up (tag None, ok)
+        or ended (tag None, not ok)."""
+        with self.lock:
+            if tag is None and not ok:
+                self.returned += sorted(self.claimed)
+                self.claimed.clear()
+                self.asked.clear()
+            elif tag is not None:
+                self.results.put((tag, ok, value))
+                if tag[0] == "branch":
+                    self.claimed.discard(tag[1])
+                else:
+                    self.asked.discard(tag[1])
+            self._feed()
+        if tag is None and not ok:
+            self.results.put(None)               # wake the waiting main thread
+
+    def _feed(self):
+        """Under the lock, if the cluster is up: a task for each idle worker, a branch from
+        the end of the list or else a scan."""
+        bg = self.background
+        while bg.ready.is_set() and len(self.claimed) + len(self.asked) < bg.workers:
+            if self.front <= self.back:
+                i = self.back
+                if not bg.submit(("branch", i), compute_branch,
+                                 (self.plan, self.offset + i + 1, self.jobs[i])):
+                    return
+                self.back -= 1
+                self.claimed.add(i)
+            elif self.unsent:
+                key, params = self.unsent[0]
+                if not bg.submit(("scan", key), enumerate_equilibria,
+                                 (self.plan.problem, params)):
+                    return
+                self.unsent.pop(0)
+                self.asked.add(key)
+            else:
+                return
+
+    def _take(self, message, done: dict):
+        """A result from the cluster into ``done`` (a branch) or ``scans``."""
+        if message is None:
+            return
+        (kind, what), ok, value = message
+        if kind == "scan":
+            if ok:
+                self.scans[what] = (self.pending_params[what], value[0])
+            return
+        job = self.jobs[what]
+        if ok:
+            br, worker = value
+            br.worker = worker
+        else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
+            br = _new_branch(self.plan, job)
+            br.end, br.message = "MX", f"not computed: {value}"
+            name, _, text = value.partition(": ")
+            br.diagnostics = {"exception": name, "error": text}
+            br.points.append(start_point(br, job.origin))
+        done[what] = br
+
+    def run(self, jobs_list, branches, save, progress, on_branch, stop) -> bool:
+        """Compute ``jobs_list``, appending the branches to ``branches`` in order and calling
+        ``save()`` after each; True if interrupted (``stop`` set, or the branch in progress
+        here interrupted: it is kept up to its last point)."""
+        import queue
+        with self.lock:
+            self.jobs, self.front, self.back = jobs_list, 0, len(jobs_list) - 1
+            self.offset = len(branches)
+            self._feed()
+        done: dict[int, Branch] = {}
+        n, offset = len(jobs_list), len(branches)
+
+        def flush():
+            while True:
+                try:
+                    self._take(self.results.get_nowait(), done)
+                except queue.Empty:
+                    break
+            while len(branches) - offset in done:
+                branches.append(done.pop(len(branches) - offset))
+                save()
+                if on_branch is not None and not branches[-1].interrupted:
+                    on_branch(len(branches), branches[-1])
+                self._scan(branches[-1])
+
+        while not stop.is_set() and len(branches) - offset < n:
+            with self.lock:
+                if self.returned:
+                    i = self.returned.pop(0)
+                elif self.front <= self.back:
+                    i, self.front = self.front, self.front + 1
+                else:
+                    i = None
+            if i is None:                        # the rest is on the cluster: wait for it
+                try:
+                    self._take(self.results.get(timeout=0.05), done)
+                except queue.Empty:
+                    pass
+                flush()
+                continue
+            br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
+            done[i] = br
+            flush()
+            if br.interrupted:
+                stop.set()
+        if stop.is_set():
+            self.background.close()
+            flush()
+            if done:  # finished beyond a gap in the plan's order
+                branches.extend(done[i] for i in sorted(done))
+                save()
+            return True
+        return False
+
+    def _scan(self, br: Branch):
+        """The scans ``br``'s folds need that no earlier branch needed, to the cluster."""
+        for key, params in scans(self.plan.problem, br).items():
+            if key not in self.seen:
+                self.seen.add(key)
+                self.pending_params[key] = params
+                with self.lock:
+                    self.unsent.append((key, params))
+                    self._feed()
+
+    def wait_for_scans(self, stop) -> bool:
+        """The scans not done yet, on the cluster; this process takes those left if the
+        cluster has ended, or if it has imported the integrator already (its import, 0.4 s,
+        would cost more than the few scans the workers have left); False if interrupted
+        meanwhile."""
+        import queue
+        import sys
+        while not stop.is_set():
+            with self.lock:
+                if not self.asked and not self.unsent:
+                    return True
+                self._feed()
+                # not sent, and nothing on the cluster: no worker will ask for them
+                here = (not self.background.ready.is_set() or "scipy.integrate" in sys.modules
+                        or not self.asked)
+                key, params = self.unsent.pop(0) if self.unsent and here else (None, None)
+            if key is not None:
+                self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
+                continue
+            try:
+                self._take(self.results.get(timeout=0.05), {})
+            except queue.Empty:
+                pass
+        return False
+
 
 
 def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:

@@ -164,8 +164,28 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
     return 0
 
 
+def scan_key(problem, parameter: str, params: dict) -> tuple:
+    """The key of the enumeration at ``params``: the parameters rounded to 10 digits, the
+    continued one modulo its period (periodic copies of a fold have the same equilibria)."""
+    period = problem.parameters[parameter].period
+    return tuple(sorted((q, round(v if q != parameter or not period
+                                  else float(np.remainder(v, period)), 10))
+                        for q, v in params.items()))
+
+
+def scans(problem, branch) -> dict[tuple, dict]:
+    """The enumerations `snap_targets` needs for ``branch``: key (`scan_key`) -> the
+    parameters to enumerate at (those of the first fold with that key), one per key."""
+    if not (problem.has_shooting and problem.has_second_variation):
+        return {}
+    out = {}
+    for p, _ in snap_lps(branch):
+        out.setdefault(scan_key(problem, branch.parameter, p.params), dict(p.params))
+    return out
+
+
 def snap_targets(problem, branches, warnings: list | None = None,
-                 landing: bool = False) -> list[dict]:
+                 landing: bool = False, cache: dict | None = None) -> list[dict]:
     """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
     values (excluding the fold's own solution), with the branch that passes through it.
 
@@ -174,23 +194,29 @@ def snap_targets(problem, branches, warnings: list | None = None,
     ``landed = 1`` and the energy released and transit time; the other rows ``landed = 0``
     and NaN. A fold whose dynamics
     fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
-    gets a line saying why."""
+    gets a line saying why.
+
+    ``cache``: enumerations computed already (elsewhere: on a cluster's workers, as the
+    branches came in), key (`scan_key`) -> (parameters, `enumerate_equilibria` there); one
+    is used where its parameters are those of the first fold with its key (of a periodic
+    parameter, another copy's differ by a period, and so may its equilibria's states), and
+    the others are computed here: the rows are the same whoever computed them."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
     landing = landing and problem.has_gradient_flow
-    cache, exact, landings = {}, {}, {}
+    given, cache, exact, landings = cache or {}, {}, {}, {}
     rows = []
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
         period = problem.parameters[name].period
         for p, side in snap_lps(br):
             params = dict(p.params)
-            key = tuple(sorted((q, round(v if q != name or not period
-                                         else float(np.remainder(v, period)), 10))
-                               for q, v in params.items()))
+            key = scan_key(problem, name, params)
             own = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
             if key not in cache:
-                cache[key] = exact[own] = enumerate_equilibria(problem, params)
+                there = given.get(key)
+                cache[key] = exact[own] = (there[1] if there is not None and there[0] == params
+                                           else enumerate_equilibria(problem, params))
             k_fold = p.state.y[:, 0]
             reached = None
             if landing:

@@ -13,9 +13,10 @@ Layout of ``out/<run>.h5``::
                             niter, nodes, fold_residual, type, label, note, index,
                             index_rule, index_direct, transition ("1 -> 0" at LP and BP)
         profiles            (points, states, grid): every state on /profile_grid
-        solutions/<LAB>/    s, y, yp: the exact collocation solution of a labelled point;
-                            tangent_s, tangent_y, tangent_yp and attr tangent_lam; attrs
-                            params (JSON) and pt
+        solutions/          the exact collocation solutions of the labelled points, packed
+                            (`_write_solutions`): label, pt, params, nodes, s, y, yp,
+                            tangent_nodes, tangent_s, tangent_y, tangent_yp, tangent_lam;
+                            attr tangent_parameter (format 1: a group per label)
 
     /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
                             parameters): lp, branch, parameter, value, stable_side, k,
@@ -27,8 +28,10 @@ Layout of ``out/<run>.h5``::
                             target_<ordinate>..., energy_released, transit_time
 
 Files are written to a temporary name in the same folder, then renamed over the target, so a
-reader never sees a half-written file. A run holds an exclusive lock on its output for as long
-as it runs, and replaces an existing ``<run>.h5`` only once it has finished (see `Writer`).
+reader never sees a half-written file; while a run writes it, the file's branches are links to
+small files of their own, and the file is written whole at the run's end. A run holds an
+exclusive lock on its output for as long as it runs, and replaces an existing ``<run>.h5``
+only once it has finished (see `Writer`).
 New files get the mode ``open`` would give them (0666 less the umask).
 
 Reading validates the layout on opening, from the datasets' shapes and the label columns: a
@@ -145,14 +148,20 @@ class Writer:
     the lock file is removed on exit); and removes the temporary files a killed run left for
     this output.
 
-    Each save copies the last complete file to a temporary name in the same folder, appends the
-    branches not written yet, and renames it over ``path``: a reader (or an interrupted run)
-    never sees a half-written file, and completed branches are not written twice. ``path`` is
-    the target ``<run>.h5`` if no such file exists when the run starts. Otherwise the saves go
-    to ``<run>.partial.h5`` beside it and `finish` renames that over the target once the run
-    has ended, failed branches (MX) or not: an earlier result is replaced by a complete one
-    only, and an interrupted or killed rerun leaves it as it was, the rerun's branches in the
-    partial file.
+    Each save writes the branches not written yet, each to a small file of its own in the
+    hidden folder ``.<name>.branches`` beside the file (``001.h5``, ...), then the file itself
+    anew: its attributes, tables and, for each branch, an HDF5 external link to its file. The
+    run's end (`finish`, or leaving the context after an interruption) writes the file once
+    more, whole, with the branches' groups copied in, and removes the folder. Every one of
+    these writes goes to a temporary name and is renamed over its target, so a reader (or a
+    run killed at any moment) never sees a half-written file: the file is there whole, as of
+    its last save (with its branches linked, as long as the folder is beside it; a run that
+    writes it again first makes it whole), or it is not there yet. No save copies what earlier
+    saves wrote. ``path`` is the target ``<run>.h5`` if no such file exists when the run
+    starts. Otherwise the saves go to ``<run>.partial.h5`` beside it and `finish` renames that
+    over the target once the run has ended, failed branches (MX) or not: an earlier result is
+    replaced by a complete one only, and an interrupted or killed rerun leaves it as it was,
+    the rerun's branches in the partial file.
     """
 
     def __init__(self, path: Path, run: str, problem, run_file_text: str = ""):
@@ -165,6 +174,8 @@ class Writer:
         self.labels: dict[str, list[int]] = {}
         self._lock = self.target.with_name(f".{self.target.name}.lock")
         self._fd = -1
+        self._created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        self._tables: dict = {"snaps": None, "landings": None, "maps": None}
 
     def __enter__(self) -> Writer:
         folder = self.target.parent
@@ -181,6 +192,8 @@ class Writer:
             for entry in os.scandir(folder):
                 if stale.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
                     os.unlink(entry.path)
+            for path in (self.target, self.partial):   # what a killed run left
+                _whole(path)
             if self.target.exists():
                 self.path = self.partial
             os.unlink(_temporary(self.path))  # the longest name a save needs
@@ -191,7 +204,15 @@ class Writer:
         return self
 
     def __exit__(self, *exc_info):
-        _unlock(self._fd, self._lock)
+        from .interrupts import Interruptions
+        try:
+            if self.written:
+                with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
+                    _whole(self.path)
+        except (OSError, StoreError):  # the file stays as saved, its branches linked: the
+            pass                         # next run writing it makes it whole
+        finally:
+            _unlock(self._fd, self._lock)
 
     def resume(self, kept: BranchFile, count: int):
         """Continue the branch file ``kept`` (opened) with its first ``count`` branches (the
@@ -199,55 +220,89 @@ class Writer:
         now on follow them, numbered from there."""
         self.labels = {name: list(where) for name, where in kept.labels.items()
                        if where[0] <= count}
-        tmp = _temporary(self.path)
+        self._tables = {"snaps": kept.snaps, "landings": kept.landings, "maps": kept.maps}
+        folder = _branch_folder(self.path)
         try:
-            shutil.copyfile(kept.path, tmp)
-            with h5py.File(tmp, "a") as f:
-                for b in kept.branches[count:]:
-                    del f[f"branches/{b.number:03d}"]
-                f.attrs["labels"] = json.dumps(self.labels)
-            os.replace(tmp, self.path)
+            folder.mkdir(exist_ok=True)
+            with h5py.File(kept.path, "r") as f:
+                for b in kept.branches[:count]:
+                    key = f"{b.number:03d}"
+
+                    def write(tmp, key=key):
+                        with h5py.File(tmp, "w") as g:
+                            f.copy(f[f"branches/{key}"], g, "branch")
+
+                    write_atomically(folder / f"{key}.h5", write, "branch")
         except OSError as exc:
-            Path(tmp).unlink(missing_ok=True)
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         self.written = self.kept = count
+        self._write_index()
 
     def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None,
              landings: list[dict] | None = None):
         """Write ``branches`` (labels already numbered); earlier ones are kept as written.
         ``snaps``: the snap-back target table, ``maps``: the stability maps, ``landings``:
         the damped model's landings (each replaces any stored one)."""
+        folder = _branch_folder(self.path)
+        count, labels = self.written, dict(self.labels)
         try:
-            tmp = _temporary(self.path)
-            try:
-                if self.written:
-                    shutil.copyfile(self.path, tmp)
-                with h5py.File(tmp, "a" if self.written else "w") as f:
-                    if not self.written:
-                        self._write_header(f)
-                    for k in range(self.written + 1, self.kept + len(branches) + 1):
-                        br = branches[k - self.kept - 1]
-                        _write_branch(f.create_group(f"branches/{k:03d}"), self.problem, br)
-                        for pt, p in enumerate(br.points, start=1):
-                            if p.type:
-                                self.labels[p.name] = [k, pt]
-                    f.attrs["labels"] = json.dumps(self.labels)
-                    if snaps is not None:
-                        _write_table(f, "snaps", snaps)
-                    if landings:
-                        _write_table(f, "landings", landings)
-                    if maps:
-                        _write_maps(f, maps)
-                os.replace(tmp, self.path)
-            except BaseException:
-                Path(tmp).unlink(missing_ok=True)
-                raise
+            folder.mkdir(exist_ok=True)
+            for k in range(self.written + 1, self.kept + len(branches) + 1):
+                br = branches[k - self.kept - 1]
+
+                def write(tmp, br=br):
+                    with h5py.File(tmp, "w") as f:
+                        _write_branch(f.create_group("branch"), self.problem, br)
+
+                write_atomically(folder / f"{k:03d}.h5", write, "branch")
+                for pt, p in enumerate(br.points, start=1):
+                    if p.type:
+                        labels[p.name] = [k, pt]
+                count = k
         except OSError as exc:
             raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
-        self.written = self.kept + len(branches)
+        if snaps is not None:
+            self._tables["snaps"] = snaps
+        if landings:
+            self._tables["landings"] = landings
+        if maps:
+            self._tables["maps"] = maps
+        self._write_index(count, labels)
+        # saved once the file links them (an interruption before leaves them unsaved)
+        self.written, self.labels = count, labels
+
+    def _write_index(self, count: int | None = None, labels: dict | None = None):
+        """The file: header, labels, tables, and a link to each of the first ``count``
+        branches' files (default: those saved)."""
+        folder = _branch_folder(self.path)
+        count = self.written if count is None else count
+        labels = self.labels if labels is None else labels
+
+        def write(tmp):
+            with h5py.File(tmp, "w") as f:
+                self._write_header(f)
+                f.attrs["labels"] = json.dumps(labels)
+                g = f.create_group("branches")
+                for k in range(1, count + 1):
+                    g[f"{k:03d}"] = h5py.ExternalLink(f"{folder.name}/{k:03d}.h5", "/branch")
+                if self._tables["snaps"] is not None:
+                    _write_table(f, "snaps", self._tables["snaps"])
+                if self._tables["landings"]:
+                    _write_table(f, "landings", self._tables["landings"])
+                if self._tables["maps"]:
+                    _write_maps(f, self._tables["maps"])
+
+        write_atomically(self.path, write, "index")
 
     def finish(self):
-        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class)."""
+        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class).
+        A Ctrl-C meanwhile is too late to stop anything: it waits for the file."""
+        from .interrupts import Interruptions
+        try:
+            with Interruptions():
+                _whole(self.path)
+        except OSError as exc:
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
         if self.path != self.target:
             try:
                 os.replace(self.path, self.target)
@@ -259,8 +314,7 @@ class Writer:
     def _write_header(self, f):
         problem = self.problem
         f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, run=self.run,
-                       equation=problem.source, version=__version__,
-                       created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                       equation=problem.source, version=__version__, created=self._created,
                        run_file=self.text, states=json.dumps(problem.states),
                        parameters=json.dumps(problem.parameter_names),
                        ordinates=json.dumps(problem.ordinate_names),
@@ -268,6 +322,43 @@ class Writer:
                        periods=json.dumps({k: q.period for k, q in problem.parameters.items()
                                            if q.period is not None}))
         f["profile_grid"] = PROFILE_GRID
+
+
+def _stage(name: str):
+    """Where a save is (``"branch written"``, ``"index renamed"``, ...): nothing; the tests
+    replace it to stop a run there (tests/test_robustness_files.py)."""
+
+
+def _branch_folder(path: Path) -> Path:
+    """The hidden folder of the branch files that ``path``'s links point to while a run
+    writes it (`Writer`)."""
+    return path.with_name(f".{path.name}.branches")
+
+
+def _whole(path: Path):
+    """Make the branch file ``path`` whole, if a run left it with its branches linked to the
+    files of its folder: write it again with their groups copied in (to a temporary name,
+    renamed over it), then remove the folder; a folder without its file goes too."""
+    folder = _branch_folder(path)
+    if not folder.is_dir():
+        return
+    if path.is_file():
+        with h5py.File(path, "r") as f:
+            g = f.get("branches", {})
+            linked = any(isinstance(g.get(key, getlink=True), h5py.ExternalLink) for key in g)
+        if linked:
+            def write(tmp):
+                with h5py.File(path, "r") as src, h5py.File(tmp, "w") as dst:
+                    dst.attrs.update(src.attrs)
+                    for name in src:
+                        if name != "branches":
+                            src.copy(src[name], dst, name)
+                    g = dst.create_group("branches")
+                    for key in src["branches"]:
+                        src.copy(src["branches"][key], g, key)
+
+            write_atomically(path, write, "whole")
+    shutil.rmtree(folder)
 
 
 def _write_table(f, name: str, rows: list[dict]):
@@ -349,17 +440,67 @@ def _write_branch(g, problem, br: Branch):
     for name in _STR_COLUMNS:
         cols.create_dataset(name, data=list(br.column(name)), dtype=str_dt)
     g["profiles"] = np.array([p.profile for p in br.points])
-    sols = g.create_group("solutions")
-    for pt, p in enumerate(br.points, start=1):
-        if not p.type:
-            continue
-        h = sols.create_group(p.name)
-        h.attrs.update(params=json.dumps(p.params), pt=pt)
-        h["s"], h["y"], h["yp"] = p.state.s, p.state.y, p.state.yp
-        if p.tangent is not None:
-            h["tangent_s"], h["tangent_y"], h["tangent_yp"] = p.tangent.s, p.tangent.y, p.tangent.yp
-            h.attrs["tangent_lam"] = p.tangent.lam
-            h.attrs["tangent_parameter"] = br.parameter
+    _write_solutions(g.create_group("solutions"), br)
+
+
+def _write_solutions(g, br: Branch):
+    """The labelled points' solutions of ``br`` in the group ``g``, packed (format 2): one
+    dataset per quantity, the labels' meshes one after the other.
+
+    ``label`` (names), ``pt``, ``params`` (JSON); ``nodes`` the offsets of each label's mesh
+    in ``s`` (nodes) and ``y``, ``yp`` (states, nodes); ``tangent_nodes``, ``tangent_s``,
+    ``tangent_y``, ``tangent_yp`` alike for the tangents (an empty range where a label has
+    none) and ``tangent_lam`` (NaN there); the attribute ``tangent_parameter``."""
+    labelled = [(pt, p) for pt, p in enumerate(br.points, start=1) if p.type]
+    n = len(br.state_names)
+    str_dt = h5py.string_dtype()
+    g.attrs["tangent_parameter"] = br.parameter
+    g.create_dataset("label", data=[p.name for _, p in labelled], dtype=str_dt)
+    g["pt"] = np.array([pt for pt, _ in labelled], dtype=np.int64)
+    g.create_dataset("params", data=[json.dumps(p.params) for _, p in labelled], dtype=str_dt)
+    tangents = [p.tangent for _, p in labelled]
+    for prefix, parts in (("", [p.state for _, p in labelled]), ("tangent_", tangents)):
+        sizes = [len(x.s) if x is not None else 0 for x in parts]
+        parts = [x for x in parts if x is not None]
+        g[f"{prefix}nodes"] = np.concatenate(([0], np.cumsum(sizes, dtype=np.int64)))
+        g[f"{prefix}s"] = np.concatenate([x.s for x in parts]) if parts else np.zeros(0)
+        for q in ("y", "yp"):
+            g[f"{prefix}{q}"] = (np.concatenate([getattr(x, q) for x in parts], axis=1)
+                                 if parts else np.zeros((n, 0)))
+    g["tangent_lam"] = np.array([x.lam if x is not None else np.nan for x in tangents],
+                                dtype=float)
+
+
+def _read_solution(g, name: str, names: list[str]):
+    """Label ``name``'s solution from the branch's ``solutions`` group ``g``: (params,
+    s, y, yp, tangent or None, tangent parameter); ``names``: its ``label`` dataset, read.
+    Packed (format 2, `_write_solutions`) or, in a file of format 1, a group per label."""
+    if "s" not in g or isinstance(g["s"], h5py.Group):          # format 1
+        h = g[name]
+        state = (json.loads(h.attrs["params"]), h["s"][()], h["y"][()], h["yp"][()])
+        if "tangent_y" not in h:
+            return (*state, None, None)
+        return (*state, Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
+                                float(h.attrs["tangent_lam"])), str(h.attrs["tangent_parameter"]))
+    j = names.index(name)
+    a, b = (int(x) for x in g["nodes"][j:j + 2])
+    params = g["params"][j]
+    state = (json.loads(params.decode() if isinstance(params, bytes) else params),
+             g["s"][a:b], g["y"][:, a:b], g["yp"][:, a:b])
+    ta, tb = (int(x) for x in g["tangent_nodes"][j:j + 2])
+    if ta == tb:
+        return (*state, None, None)
+    return (*state, Tangent(g["tangent_s"][ta:tb], g["tangent_y"][:, ta:tb],
+                            g["tangent_yp"][:, ta:tb], float(g["tangent_lam"][j])),
+            str(g.attrs["tangent_parameter"]))
+
+
+def _solution_names(g) -> list[str] | None:
+    """The labels whose solutions the ``solutions`` group ``g`` holds, if packed (format 2);
+    None for a group per label (format 1)."""
+    if not isinstance(g, h5py.Group) or not isinstance(g.get("label"), h5py.Dataset):
+        return None
+    return [x.decode() if isinstance(x, bytes) else x for x in g["label"][()]]
 
 
 def _one_line(exc: BaseException) -> str:
@@ -580,6 +721,7 @@ class BranchFile:
         self.path = Path(path)
         self._source = _Source(self.path)
         self._maps = None
+        self._solutions: dict[int, list[str] | None] = {}   # labels of packed solutions
         if not self.path.is_file():
             raise StoreError(f"{self.path}: no such file")
         try:
@@ -669,10 +811,13 @@ class BranchFile:
                 raise self._damaged(f"label {name} is at branch {br} point {pt}, but there is "
                                     f"no point {name} there")
             if br not in solutions:
-                solutions[br] = f.get(f"branches/{br:03d}/solutions")
-            if not _has_solution(solutions[br], name):
+                g = f.get(f"branches/{br:03d}/solutions")
+                solutions[br] = (g, _solution_names(g))
+                self._solutions[br] = solutions[br][1]
+            g, packed = solutions[br]
+            if not (name in packed if packed is not None else _has_solution(g, name)):
                 raise self._damaged(f"label {name} has no stored solution "
-                                    f"(branches/{br:03d}/solutions/{name})")
+                                    f"(in branches/{br:03d}/solutions)")
 
     @property
     def run(self) -> str:
@@ -706,13 +851,9 @@ class BranchFile:
         br, pt = self.labels[name]
 
         def read(f):
-            h = f[f"branches/{br:03d}/solutions/{name}"]
-            state = State(h["s"][()], h["y"][()], h["yp"][()], json.loads(h.attrs["params"]))
-            if "tangent_y" not in h:
-                return state, None, None
-            tangent = Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
-                              float(h.attrs["tangent_lam"]))
-            return state, tangent, str(h.attrs["tangent_parameter"])
+            params, s, y, yp, tangent, tpar = _read_solution(
+                f[f"branches/{br:03d}/solutions"], name, self._solutions.get(br) or [])
+            return State(s, y, yp, params), tangent, tpar
 
         # checked on opening; what is left: a solution's own datasets and attributes
         state, tangent, tpar = self._source.read(f"solution {name}", read)
@@ -752,17 +893,19 @@ def same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def write_atomically(out: Path, write) -> Path:
+def write_atomically(out: Path, write, stage: str = "") -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``out`` and rename it over ``out``, so
     that a failed write leaves ``out`` as it was. StoreError (one line) if it cannot be
-    written."""
+    written. ``stage`` names the write for `_stage`."""
     out = Path(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = _temporary(out)
         try:
             write(tmp)
+            _stage(f"{stage} written")
             os.replace(tmp, out)
+            _stage(f"{stage} renamed")
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise

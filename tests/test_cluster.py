@@ -256,3 +256,156 @@ def test_workers_without_the_package_are_one_line(tmp_path, cli_exe):
             os.killpg(p.pid, signal.SIGTERM)
         for p in procs:
             p.wait(timeout=30)
+
+
+# -- the default run: this process at once, a local cluster joining in the background ----------
+
+_WAITING = '''
+
+import os as _os
+import time as _time
+
+
+def _wait_for_a_worker(p):
+    """In the test's own process, with the flag file there: the first call in a branch
+    waits until a worker of the background cluster has called rhs (so that it computes a
+    branch); in a worker: say so. The numbers are the shipped module's."""
+    if _os.getpid() != {main}:
+        open({started!r}, "a").close()
+    elif _os.path.exists({flag!r}) and not globals().get("_waited") and _in_a_branch():
+        globals()["_waited"] = True
+        deadline = _time.monotonic() + 120
+        while not _os.path.exists({started!r}) and _time.monotonic() < deadline:
+            _time.sleep(0.01)
+
+
+def _in_a_branch():
+    import sys
+    frame = sys._getframe()
+    while frame is not None and frame.f_code.co_name != "compute_branch":
+        frame = frame.f_back
+    return frame is not None
+'''
+
+
+def _waiting_elastica(path: Path, flag: Path, started: Path) -> Path:
+    from helpers import ELASTICA
+    head = "def rhs(s, y, p):\n"
+    path.write_text(ELASTICA.replace(head, head + "    _wait_for_a_worker(p)\n")
+                    + _WAITING.format(main=os.getpid(), flag=str(flag), started=str(started)))
+    return path
+
+
+def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, monkeypatch):
+    """jobs = 0 on two cores: this process starts on the first branch at once and a local
+    cluster of one worker, started meanwhile, computes the other (this process waits, in its
+    first step, for the worker to start: else it could finish both first). The file is the
+    one jobs = 1 writes, number for number, snap-back table (scanned on the worker) too."""
+    from elastica_auto import runfile
+    from elastica_auto.run import execute
+    from helpers import elastica_run_file
+    flag, started = tmp_path / "wait", tmp_path / "started"
+    _waiting_elastica(tmp_path / "mine.py", flag, started)
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    run.write_text(run.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
+    one = execute(runfile.load(run), tmp_path / "one", jobs=1)
+    assert not started.exists()
+    flag.touch()
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    both = execute(runfile.load(run), tmp_path / "both", jobs=0)
+    assert [len(b.points) for b in both.branches] == [len(b.points) for b in one.branches]
+    assert both.snaps and len(both.snaps) == len(one.snaps)
+    _same_numbers(one.path, both.path)
+    workers = [b.attrs["worker"] for b in BranchFile(both.path).branches]
+    assert workers[0] == "local" and workers[1].startswith("inproc://")
+
+
+def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
+    """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
+    from elastica_auto import cluster, runfile
+    from elastica_auto.run import execute
+    from helpers import EXAMPLES
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a cluster was started for one branch")
+
+    monkeypatch.setattr(cluster, "Background", refused)
+    monkeypatch.setattr(cluster, "local", refused)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    plan = runfile.load(EXAMPLES / "bratu.toml")
+    assert len(plan.branches) == 1
+    result = execute(plan, tmp_path, jobs=0)
+    assert [b.worker for b in result.branches] == ["local"] and result.branches[0].end == "EP"
+
+
+def test_a_one_branch_run_imports_only_what_it_uses(tmp_path):
+    """`elastica-auto run examples/bratu.toml` with the default jobs: no cluster (nor its
+    module), no distributed, no scipy.integrate (Bratu has no snap-back scan), no plotting."""
+    from helpers import EXAMPLES
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
+            f"r = CliRunner().invoke(main, ['run', {str(EXAMPLES / 'bratu.toml')!r}, '--out', "
+            f"{str(tmp_path)!r}])\n"
+            "assert r.exit_code == 0, r.output\n"
+            "print(sorted(m for m in ('distributed', 'dask', 'elastica_auto.cluster', "
+            "'scipy.integrate', 'matplotlib', 'plotly') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+    assert (tmp_path / "bratu.h5").is_file()
+
+
+class _FakeBackground:
+    """A background cluster that is up at once with ``workers`` workers and computes
+    nothing: with ``ends``, it ends as soon as it is handed a task (the task lost)."""
+
+    def __init__(self, workers, on_result, ends=False):
+        import threading
+        self.workers, self.on_result, self.ends = workers, on_result, ends
+        self.ready = threading.Event()
+        self.ready.set()
+        self.tasks = []
+
+    def submit(self, tag, function, args):
+        import threading
+        self.tasks.append(tag)
+        if self.ends:       # as the real one: from its own thread
+            self.ready.clear()
+            threading.Thread(target=self.on_result,
+                             args=(None, False, "the local cluster ended")).start()
+        return True
+
+    def finish(self):
+        self.ready.clear()
+
+    def close(self, wait=0.0):
+        self.ready.clear()
+
+
+@pytest.mark.parametrize("workers, ends", [(0, False), (1, True)])
+def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monkeypatch,
+                                                                  workers, ends):
+    """A cluster that tells of no worker, or that ends with a branch and then never takes
+    anything: this process computes every branch and every snap-back scan (its integrator
+    not imported yet, as in a command's process), and the run ends with the branches that
+    jobs = 1 computes."""
+    from elastica_auto import runfile
+    from elastica_auto.interrupts import Interruptions
+    from elastica_auto.run import RunResult, _Alongside, _built, execute
+    from elastica_auto.snaps import scans
+    from helpers import elastica_run_file
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    one = execute(runfile.load(run), tmp_path / "one", jobs=1)
+    plan = runfile.load(run)
+    pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
+    first = [_built(plan, spec) for spec in plan.branches]
+    result = RunResult(None, [], 0.0)
+    monkeypatch.delitem(sys.modules, "scipy.integrate")
+    with Interruptions() as signals:
+        assert not pool.run(first, result.branches, lambda: None, None, None, signals.stop)
+        assert pool.wait_for_scans(signals.stop)
+    assert [b.worker for b in result.branches] == ["local", "local"]
+    assert [t[0] for t in pool.background.tasks] == (["branch"] if ends else [])
+    assert len(pool.scans) == len({k for b in result.branches
+                                   for k in scans(plan.problem, b)}) > 0
+    for a, b in zip(result.branches, one.branches):
+        np.testing.assert_array_equal(a.column("psi"), b.column("psi"))

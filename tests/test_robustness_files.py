@@ -17,9 +17,11 @@ import resource
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 
 import h5py
+import numpy as np
 import pytest
 
 from elastica_auto.store import BranchFile
@@ -304,7 +306,11 @@ def _label_beyond_the_branch(f):
 
 def _solution_missing(f):
     name, (br, _) = _first_uz(f)
-    del f[f"branches/{br:03d}/solutions/{name}"]
+    g = f[f"branches/{br:03d}/solutions"]
+    names = [x.decode() for x in g["label"][()]]
+    del g["label"]
+    g.create_dataset("label", data=[x for x in names if x != name] + ["XX1"],
+                     dtype=h5py.string_dtype())
 
 
 DAMAGES = {
@@ -344,3 +350,89 @@ def test_damaged_branch_file_gives_one_line_everywhere(good_file, tmp_path, cli_
             raise AssertionError(f"{cmd}: {exc}") from None
     assert not (tmp_path / "bad.csv").exists() and not (tmp_path / "bad.png").exists()
     assert not (tmp_path / "out" / "restart.h5").exists()
+
+
+# -- 8. a run killed at every stage of its saves -------------------------------------------------
+
+KILLED_AT = """\
+import sys
+import threading
+from pathlib import Path
+
+from elastica_auto import runfile, store
+from elastica_auto.run import execute
+
+stage, count, marker = sys.argv[3], int(sys.argv[4]), Path(sys.argv[5])
+seen = []
+
+
+def stop_here(name):
+    seen.append(name)
+    if name == stage and seen.count(name) == count:
+        marker.write_text(name)
+        threading.Event().wait()              # until the test kills this process
+
+
+store._stage = stop_here
+execute(runfile.load(Path(sys.argv[1])), Path(sys.argv[2]), jobs=1)
+"""
+
+# (stage, its occurrence in the run) -> branches in the file left behind (None: no file). The
+# run saves after each of its 2 branches (a branch file, then the file linking it) and at the
+# end (the snap-back table), then writes the file whole.
+STAGES = {("branch written", 1): None, ("branch renamed", 1): None, ("index written", 1): None,
+          ("index renamed", 1): 1, ("branch written", 2): 1, ("branch renamed", 2): 1,
+          ("index written", 2): 1, ("index renamed", 2): 2, ("index written", 3): 2,
+          ("index renamed", 3): 2, ("whole written", 1): 2, ("whole renamed", 1): 2}
+
+
+@pytest.fixture(scope="module")
+def whole_run(tmp_path_factory):
+    """The two-branch run, not killed: what each branch of a killed one must be."""
+    from helpers import elastica_run_file
+    root = tmp_path_factory.mktemp("whole")
+    toml = elastica_run_file(root / "small.toml", uz=[0, 1])
+    from elastica_auto import runfile
+    from elastica_auto.run import execute
+    return toml, BranchFile(execute(runfile.load(toml), root / "out", jobs=1).path)
+
+
+@pytest.mark.parametrize("stage, count", sorted(STAGES))
+def test_a_run_killed_at_any_stage_of_a_save_leaves_a_whole_file(tmp_path, whole_run, stage,
+                                                                 count):
+    """SIGKILL when the run reaches a stage of a save (it waits there): the file is absent
+    or reads whole, with the branches saved before (each as the run computes it, every
+    label's solution readable); the next run writing it makes it one file again and leaves
+    no hidden file."""
+    toml, whole = whole_run
+    out, marker = tmp_path / "out", tmp_path / "reached"
+    proc = subprocess.Popen([sys.executable, "-c", KILLED_AT, str(toml), str(out), stage,
+                             str(count), str(marker)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(f"the run at {stage} ({count})", marker.exists, proc)
+    finally:
+        proc.kill()
+        proc.communicate()
+    path = out / "small.h5"
+    expected = STAGES[(stage, count)]
+    if expected is None:
+        assert not path.exists()
+    else:
+        bf = BranchFile(path)
+        assert len(bf.branches) == expected
+        for a, b in zip(bf.branches, whole.branches[:expected]):
+            for name in ("psi", "index", "type", "label"):
+                np.testing.assert_array_equal(a.columns[name], b.columns[name], err_msg=name)
+            np.testing.assert_array_equal(a.profiles, b.profiles)
+        for name in bf.labels:
+            mine, theirs = bf.label(name), whole.label(name)
+            np.testing.assert_array_equal(mine.state.y, theirs.state.y)
+        assert bool(bf.snaps) == (stage == "whole renamed" or (stage, count) in
+                                  {("index renamed", 3), ("whole written", 1)})
+    assert run_cli(sys.executable, "-c",
+                   "import sys; from elastica_auto.cli import main; sys.argv[0] = "
+                   "'elastica-auto'; main()", "run", toml, "--out", out, "-q",
+                   "-j", "1").returncode == 0
+    assert sorted(p.name for p in out.iterdir()) == ["small.h5"]
+    assert len(BranchFile(path).branches) == 2

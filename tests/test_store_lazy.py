@@ -9,9 +9,11 @@ run file opens each restart file once, however many starts and selectors name it
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import textwrap
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -101,7 +103,9 @@ def test_opening_reads_no_profile_and_only_the_label_columns(bratu_file, reads, 
     columns = {name for name in reads if "/columns/" in name}
     assert columns == {f"/branches/{k}/columns/{c}" for k in ("001", "002")
                        for c in ("type", "label")}
-    assert all(("/columns/" in name or name == "/profile_grid") for name in reads), reads
+    # and the names of the labels whose solutions each branch stores (format 2)
+    assert all(("/columns/" in name or name == "/profile_grid"
+                or name.endswith("/solutions/label")) for name in reads), reads
     b = bf.branches[0]
     del reads[:]
     lam = b.columns["lam"]
@@ -114,7 +118,7 @@ def test_opening_reads_no_profile_and_only_the_label_columns(bratu_file, reads, 
     assert reads[1:] == ["/branches/001/profiles"]
     del reads[:]
     bf.label("UZ1")
-    assert reads and all(name.startswith("/branches/001/solutions/UZ1/") for name in reads)
+    assert reads and all(name.startswith("/branches/001/solutions/") for name in reads)
     # items() reads every column not read yet, in one opening of the file
     opens, File = [], h5py.File
     monkeypatch.setattr(h5py, "File", lambda *a, **kw: opens.append(a) or File(*a, **kw))
@@ -189,7 +193,7 @@ def _in_place(path, edit):
 def _delete(f):
     del f["branches/001/columns/u_half"]
     del f["branches/001/profiles"]
-    del f["branches/001/solutions/UZ1/y"]
+    del f["branches/001/solutions/y"]
 
 
 def _shorten(f):
@@ -251,3 +255,59 @@ def test_a_run_file_opens_each_restart_file_once(bratu_file, tmp_path, monkeypat
     assert len(opened) == 1
     starts = [spec.start.label for spec in plan.branches]
     assert {"UZ1", "UZ2", "UZ3", "EP1"} <= set(starts)
+
+
+# -- format versions ------------------------------------------------------------------------------
+
+#: Written by the format-1 writer (commit 040d308, a group of six datasets per label): two Bratu
+#: branches, lam from 0 both ways (12 and 6 points; EP1, UZ1, UZ2, EP2, EP3, EP4).
+FORMAT1 = Path(__file__).parent / "data" / "bratu_format1.h5"
+
+
+def test_a_file_of_format_1_still_reads(tmp_path):
+    """Every label's solution and tangent as the file's own groups hold them; a run restarts
+    from one of its labels."""
+    bf = BranchFile(FORMAT1)
+    assert bf.attrs["format_version"] == 1 and [len(b) for b in bf.branches] == [12, 6]
+    assert sorted(bf.labels) == ["EP1", "EP2", "EP3", "EP4", "UZ1", "UZ2"]
+    with h5py.File(FORMAT1, "r") as f:
+        for name, (br, pt) in bf.labels.items():
+            h = f[f"branches/{br:03d}/solutions/{name}"]
+            label = bf.label(name)
+            assert (label.branch, label.pt) == (br, pt)
+            for got, key in ((label.state.s, "s"), (label.state.y, "y"),
+                             (label.state.yp, "yp")):
+                np.testing.assert_array_equal(got, h[key][()])
+            assert label.state.params == json.loads(h.attrs["params"])
+            assert (label.tangent is None) == ("tangent_y" not in h)
+            if label.tangent is not None:
+                np.testing.assert_array_equal(label.tangent.y, h["tangent_y"][()])
+                assert label.tangent.lam == h.attrs["tangent_lam"]
+                assert label.tangent_parameter == h.attrs["tangent_parameter"] == "lam"
+    problem = ea.load_problem(str(BRATU))
+    (again,) = ea.continuation(problem, bf.label("UZ1"), "lam", bounds=(-1, 4), max_points=5)
+    assert again.points[0].params["lam"] == bf.label("UZ1").state.params["lam"]
+
+
+def test_a_file_of_format_2_packs_its_solutions(bratu_file):
+    """A few datasets per branch, whatever its number of labels; each label reads back as
+    the continuation computed it (`Branches.label`, in memory), bit for bit."""
+    problem = ea.load_problem(str(BRATU))
+    branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
+                               directions="both", ds=0.05, ds_max=0.5, max_points=60)
+    bf = BranchFile(bratu_file)
+    assert bf.attrs["format_version"] == 2 and len(bf.labels) > 4
+    with h5py.File(bratu_file, "r") as f:
+        for key in f["branches"]:
+            sols = f[f"branches/{key}/solutions"]
+            assert all(isinstance(sols[k], h5py.Dataset) for k in sols) and len(sols) == 12
+    for name in bf.labels:
+        mine, memory = bf.label(name), branches.label(name)
+        for a, b in ((mine.state, memory.state), (mine.tangent, memory.tangent)):
+            assert (a is None) == (b is None)
+            if a is not None:
+                for q in ("s", "y", "yp"):
+                    np.testing.assert_array_equal(getattr(a, q), getattr(b, q), err_msg=name)
+        assert mine.state.params == memory.state.params
+        if mine.tangent is not None:
+            assert mine.tangent.lam == memory.tangent.lam
