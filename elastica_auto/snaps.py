@@ -21,7 +21,8 @@ The scan integrates all grid values of k at once, brackets every sign change, re
 brackets together (Illinois regula falsi), and computes each root's index by the direct
 count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
 solve (difference Jacobian, all candidates at once) from every grid cell whose
-neighbourhood holds both signs of every residual component, and the distinct converged roots;
+neighbourhood holds both signs of every residual component or where |r| has a local minimum,
+and the distinct converged roots;
 a root that no such cell catches (a residual the grid does not resolve) is missed, so this is
 a search, not a proof of completeness. Each target records whether a computed branch of the
 same file passes through it, and its profile on the branch files' fixed grid (for drawing the
@@ -136,11 +137,11 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndar
     """The roots (d, n) of ``r: (d, m) -> (d, m)`` in the box ``[lo, hi]`` of R^d, sorted
     lexicographically.
 
-    ``r`` on a grid of about ``points`` points; a candidate at the centre of every cell whose
-    block of 3^d grid points (the cell and its neighbours up to one step on its upper side)
-    holds both signs of every component of r; Newton from all candidates together, the
+    ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
+    3^d grid points that holds both signs of every component of r, or where max |r_j| is
+    smallest among the block's points; Newton from all candidates together, the
     Jacobian by forward differences, each step cut to a grid cell; the converged ones (|r|
-    below 1e-9 of r's scale on the grid and the step below 1e-10 of the box) within half a
+    below 1e-9 of r's scale on the grid and the step below 1e-12 of the box) within half a
     cell of the box are kept, and roots closer than 1e-6 of the box merged."""
     d = len(lo)
     n = max(int(round(points ** (1.0 / d))), 3)
@@ -155,7 +156,14 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndar
         blocks = [comp[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
                   for o in np.ndindex(*(3,) * d)]
         ok &= (np.min(blocks, axis=0) <= 0) & (np.max(blocks, axis=0) >= 0)
-    corners = np.array(np.nonzero(ok))                        # the block's lowest corner
+    # and every grid point where |r| is smallest among its 3^d neighbours (a root between
+    # grid points where a component's zero set does not separate the block's points)
+    size = np.max(np.abs(rs), axis=0)
+    inner = size[(slice(1, n - 1),) * d]
+    least = np.ones_like(inner, bool)
+    for o in np.ndindex(*(3,) * d):
+        least &= inner <= size[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+    corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
     k = lo[:, None] + (corners + 1.0) * cell[:, None]         # its centre
     done = np.zeros(k.shape[1], bool)
     for _ in range(max_iter):
@@ -173,7 +181,7 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndar
         big = np.max(np.abs(step) / cell[:, None], axis=0)
         step *= np.minimum(1.0, 1.0 / np.maximum(big, 1e-300))
         k[:, live] = x + step
-        small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-10
+        small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-12
         converged = small & (np.max(np.abs(f[:, 0]), axis=0) < 1e-9 * scale)
         outside = np.any((k[:, live] < lo[:, None] - cell[:, None])
                          | (k[:, live] > hi[:, None] + cell[:, None]), axis=0)

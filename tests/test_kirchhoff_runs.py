@@ -218,3 +218,19 @@ def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):
     images = configuration_images(BranchFile(tmp_path / "arm.h5"), rod)
     assert images and all(v.startswith("data:image/png;base64,") for v in images.values())
 
+
+
+def test_the_snap_back_table_of_a_3d_run_has_both_unknowns():
+    """`snap_targets` on the spatial rod's rotating arm (eps = 0.25, P = pi^2/4, b2 = 2: the
+    folds end stable stretches in 3D too): every fold's target is the mirror-side buckled rod
+    (k1 = -+2.2160 = the planar target's theta'(0), k2 = 0), stable, with both columns."""
+    from elastica_auto.snaps import snap_targets
+    rod = load_problem(K3)
+    branches = ea.continuation(rod, {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 2.0}, "psi",
+                               bounds=(-1.0, 1.0), directions="both", max_points=100)
+    rows = snap_targets(rod, list(branches))
+    assert len(rows) == 2
+    for r in rows:
+        assert r["index"] == 0 and abs(r["k_2"]) < 1e-6
+        assert abs(r["k"]) == pytest.approx(2.2160, abs=1e-4)
+        assert r["k"] * r["target_m0"] > 0 and abs(r["target_z1"]) < 1e-8

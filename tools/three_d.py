@@ -252,11 +252,11 @@ def table_targets(bf2, b2_values, c_values):
                 cells = []
                 for r in rows:
                     hit = min(eqs, key=lambda e: abs(e.k[0] - r["k"]) + abs(e.k[1]))
-                    ok = abs(hit.k[0] - r["k"]) < 1e-5 and abs(hit.k[1]) < 1e-8
+                    ok = abs(hit.k[0] - r["k"]) < 1e-5 and abs(hit.k[1]) < 1e-6
                     cells.append(f"{r['k']:.4f}: " + (
                         f"{hit.index} ({int(hit.ordinates['index_in'])} + "
                         f"{int(hit.ordinates['index_out'])})" if ok else "not found"))
-                others = [e for e in eqs if e.index == 0 and abs(e.k[1]) > 1e-8]
+                others = [e for e in eqs if e.index == 0 and abs(e.k[1]) > 1e-6]
                 other = ", ".join(f"({e.k[0]:.4f}, {e.k[1]:.4f})" for e in others) or "none"
                 print(f"| {lp} | {p['eps']:g}, {p['P']:.4f} | {psi:.4f} | {b2:g}, {c:.4g} | "
                       f"{'; '.join(cells)} | {other} |", flush=True)
