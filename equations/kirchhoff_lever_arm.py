@@ -66,6 +66,10 @@ and at planar states (where the second variation decouples) ``index_in`` and ``i
 the counts of its e_z block and of its out-of-plane block (their sum is the index; -1 at
 non-planar states and where a block has a zero eigenvalue).
 
+``shooting`` (the snap-back targets): equilibria are the roots of the tip condition across F
+with m(0) = k1 e1 + k2 e2 across F (m.F is conserved and zero at the tip), |m(0)| bounded
+through the Hamiltonian (`moment_bound`; docs/three-d.md, "Snap-back targets in 3D").
+
 ``draw`` draws the configuration in space (the module's ``DRAW_PROJECTION`` is ``"3d"``: the
 engine gives it 3D axes); on 2D axes it projects it on the x-y plane, like the planar module.
 """
