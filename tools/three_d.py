@@ -4,6 +4,7 @@ paper stay stable for the spatial rod, from the branch files of the 3D runs.
     python tools/three_d.py stretches out/rotating_arm_3d.h5     # index_in = 0 stretches
     python tools/three_d.py changes out/rotating_arm_3d.h5       # where index_out changes
     python tools/three_d.py embedding out/rotating_arm_3d.h5 out/rotating_arm.h5
+    python tools/three_d.py folds out/rotating_arm_3d.h5 out/rotating_arm.h5
     python tools/three_d.py targets out/rotating_arm.h5 --b2 1 2 [--c 0.5]
     python tools/three_d.py snaps out/rotating_arm_3d.h5         # the 3D run's own targets
     python tools/three_d.py equilibria --set eps=0.5 "P=pi^2/4" psi=1.18 --b2 2
@@ -181,6 +182,29 @@ def table_changes(bf):
                                     else "not located")
         print(f"| {fixed} | {red:.4f} | [{bracket[0]:.4f}, {bracket[1]:.4f}] | {ym:.4f} | "
               f"{a} | {lo} / {hi} | {how} |")
+
+
+def table_folds(bf3, bf2):
+    """The folds (LP) of the 3D run against the planar run's at the same (eps, P), per b2:
+    how many, and the largest distance of each 3D fold to the nearest planar one."""
+    def folds(bf, b2=None):
+        out = {}
+        for br in bf.branches:
+            c = br.columns
+            if b2 is not None and float(c["b2"][0]) != b2:
+                continue
+            key = (float(c["eps"][0]), float(c["P"][0]))
+            out.setdefault(key, []).extend(c["psi"][c["type"] == "LP"].astype(float))
+        return {k: np.sort(v) for k, v in out.items()}
+    planar = folds(bf2)
+    print("| eps, P | b2 | folds (3D) | folds (planar) | largest difference |")
+    print("|---|---|---|---|---|")
+    for b2 in sorted({float(br.columns["b2"][0]) for br in bf3.branches}):
+        for key, got in sorted(folds(bf3, b2).items()):
+            want = planar[key]
+            worst = max(float(np.min(np.abs(want - v))) for v in got)
+            print(f"| {key[0]:g}, {key[1]:.4f} | {b2:g} | {len(got)} | {len(want)} | "
+                  f"{worst:.1e} |")
 
 
 def table_embedding(bf3, bf2):
@@ -410,7 +434,7 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("table", choices=("stretches", "changes", "embedding", "targets", "snaps",
                                       "embedded-stretches", "embedded-changes", "equilibria",
-                                      "embedded-labels"))
+                                      "embedded-labels", "folds"))
     ap.add_argument("files", nargs="*")
     ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
                     help="equilibria: the parameter values (the others: the defaults)")
@@ -428,6 +452,8 @@ def main(argv=None) -> int:
         table_stretches(files[0], not args.all)
     elif args.table == "changes":
         table_changes(files[0])
+    elif args.table == "folds":
+        table_folds(files[0], files[1])
     elif args.table == "embedding":
         table_embedding(files[0], files[1])
     elif args.table == "embedded-labels":
