@@ -89,7 +89,7 @@ def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
     points = {name: (by_number[br], pt - 1) for name, (br, pt) in bf.labels.items()}
     fig = Figure(figsize=(IMAGE_INCHES, IMAGE_INCHES), dpi=IMAGE_DPI)
     FigureCanvasAgg(fig)
-    ax = fig.add_axes((0, 0, 1, 1), projection=problem.draw_projection)
+    ax = fig.add_axes((0, 0, 1, 1), projection=getattr(problem, "draw_projection", None))
     ax.set_axis_off()
 
     out = {}
