@@ -822,7 +822,7 @@ def fig_configurations_3d(data_dir, out_dir):
                 found.setdefault(round(p["m0"], 3), {})[p["b2"]] = p
     rows = sorted(found.items())
     with matplotlib.rc_context(RC):
-        ncol = min(len(rows), 3) or 1
+        ncol = 3                  # one width whatever the number of equilibria
         nrow = -(-len(rows) // ncol) or 1
         fig = Figure(figsize=(2.6 * ncol + 0.3, 2.7 * nrow + 0.4), layout="constrained")
         gs = fig.add_gridspec(nrow, ncol)
