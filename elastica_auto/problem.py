@@ -63,6 +63,9 @@ and optionally
     draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
     solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
     values; enables the configurations in figures (see `elastica_auto.plots.layout`).
+``DRAW_PROJECTION``
+    the matplotlib projection of the axes ``draw`` gets (``"3d"`` for a spatial
+    configuration); default None, plain 2D axes.
 
 Only equation modules know any physics; everything in `elastica_auto` is generic.
 """
@@ -218,6 +221,10 @@ class Problem:
         if self._draw is not None and not callable(self._draw):
             raise ProblemError(f"{source}: draw must be a function draw(ax, profile, params), "
                                f"got {type(self._draw).__name__}")
+        self.draw_projection = getattr(module, "DRAW_PROJECTION", None)
+        if self.draw_projection is not None and not isinstance(self.draw_projection, str):
+            raise ProblemError(f"{source}: DRAW_PROJECTION must be a matplotlib projection "
+                               f"name such as '3d', got {self.draw_projection!r}")
         self._guess = getattr(module, "guess", None)
         self.integral_names = _sequence(source, "INTEGRALS", getattr(module, "INTEGRALS", ()),
                                         str)

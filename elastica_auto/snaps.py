@@ -12,10 +12,21 @@ equation-module hook
     (both vectorised over columns). For the elastica k = theta'(0), the residual is the
     free-end moment balance and the first integral bounds |k|.
 
+    ``k_lo`` and ``k_hi`` may also be sequences of d >= 2 numbers: the unknown is then
+    k in R^d, in the box between them, ``initial(k)`` takes k of shape (d, m) and
+    ``residual`` returns (d, m) (for the spatial rod, d = 2: the clamp moment across the
+    load; its component along the load is conserved and zero).
+
 The scan integrates all grid values of k at once, brackets every sign change, refines all
 brackets together (Illinois regula falsi), and computes each root's index by the direct
-count. Each target records whether a computed branch of the same file passes through it, and
-its profile on the branch files' fixed grid (for drawing the configuration after the snap).
+count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
+solve (difference Jacobian, all candidates at once) from every grid cell whose
+neighbourhood holds both signs of every residual component or where |r| has a local minimum,
+and the distinct converged roots;
+a root that no such cell catches (a residual the grid does not resolve) is missed, so this is
+a search, not a proof of completeness. Each target records whether a computed branch of the
+same file passes through it, and its profile on the branch files' fixed grid (for drawing the
+configuration after the snap).
 """
 
 from __future__ import annotations
@@ -29,15 +40,18 @@ from .solution import State
 from .stability import index
 
 SCAN_POINTS = 1201
+#: Grid points of the box scan (d >= 2 unknowns), about: BOX_POINTS ** (1/d) per axis.
+BOX_POINTS = 10201
 IVP_TOL = 1e-11
 PROFILE_NODES = 201
 
 
 @dataclass
 class Equilibrium:
-    """One equilibrium found by the scan: shooting value, solution, index, ordinates."""
+    """One equilibrium found by the scan: shooting value (a float, or a tuple of d >= 2),
+    solution, index, ordinates."""
 
-    k: float
+    k: float | tuple
     state: State
     index: int
     ordinates: dict
@@ -87,30 +101,108 @@ def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
 
 def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     """Every equilibrium at ``params`` (a root of the shooting residual in the module's bounds),
-    sorted by k. Requires the module hooks ``shooting`` and (for the index) ``second_variation``."""
+    sorted by k (lexicographically for d >= 2 unknowns, found by `scan_box`). Requires the
+    module hooks ``shooting`` and (for the index) ``second_variation``."""
     lo, hi, initial, residual = problem.shooting(params)
 
     def r(k):
-        k = np.atleast_1d(np.asarray(k, dtype=float))
+        k = np.asarray(k, dtype=float)
         y0 = initial(k)
         return residual(y0, _integrate(problem, params, y0))
 
-    ks = np.linspace(lo, hi, SCAN_POINTS)
-    rs = r(ks)
-    exact = ks[rs == 0.0]
-    idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
-    roots = np.sort(np.concatenate((exact, refine_brackets(r, ks[idx], ks[idx + 1], rs[idx],
-                                                           rs[idx + 1]))))
-    if len(roots) == 0:
+    if np.ndim(lo) == 0:
+        ks = np.linspace(lo, hi, SCAN_POINTS)
+        rs = r(ks)
+        exact = ks[rs == 0.0]
+        idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
+        roots = np.sort(np.concatenate((exact, refine_brackets(r, ks[idx], ks[idx + 1],
+                                                               rs[idx], rs[idx + 1]))))
+        keys = [float(k) for k in roots]
+    else:
+        roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+        keys = [tuple(float(v) for v in k) for k in roots.T]
+    if len(keys) == 0:
         return []
     s = np.linspace(0.0, 1.0, PROFILE_NODES)
     ys = _integrate(problem, params, initial(roots), s)
     out = []
-    for j, k in enumerate(roots):
+    for j, k in enumerate(keys):
         state = State.from_values(problem, s, ys[:, j, :], params)
-        out.append(Equilibrium(float(k), state, index(problem, state),
+        out.append(Equilibrium(k, state, index(problem, state),
                                problem.ordinate_values(s, state.y, params)))
     return out
+
+
+def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndarray:
+    """The roots (d, n) of ``r: (d, m) -> (d, m)`` in the box ``[lo, hi]`` of R^d, sorted
+    lexicographically.
+
+    ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
+    3^d grid points that holds both signs of every component of r, or where max |r_j| is
+    smallest among the block's points; Newton from all candidates together, the
+    Jacobian by forward differences, each step cut to a grid cell; the converged ones (|r|
+    below 1e-9 of r's scale on the grid and the step below 1e-12 of the box) within half a
+    cell of the box are kept, and roots closer than 1e-6 of the box merged."""
+    d = len(lo)
+    n = max(int(round(points ** (1.0 / d))), 3)
+    axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
+    width = np.maximum(hi - lo, 1e-300)
+    cell = width / (n - 1)
+    grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1)
+    rs = r(grid).reshape((d,) + (n,) * d)
+    scale = max(float(np.max(np.abs(rs))), 1e-300)
+    ok = np.ones((n - 2,) * d, bool)
+    for comp in rs:
+        blocks = [comp[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+                  for o in np.ndindex(*(3,) * d)]
+        ok &= (np.min(blocks, axis=0) <= 0) & (np.max(blocks, axis=0) >= 0)
+    # and every grid point where |r| is smallest among its 3^d neighbours (a root between
+    # grid points where a component's zero set does not separate the block's points)
+    size = np.max(np.abs(rs), axis=0)
+    inner = size[(slice(1, n - 1),) * d]
+    least = np.ones_like(inner, bool)
+    for o in np.ndindex(*(3,) * d):
+        least &= inner <= size[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+    corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
+    k = lo[:, None] + (corners + 1.0) * cell[:, None]         # its centre
+    done = np.zeros(k.shape[1], bool)
+    for _ in range(max_iter):
+        live = np.flatnonzero(~done)
+        if len(live) == 0:
+            break
+        x = k[:, live]
+        h = 1e-7 * (1 + np.abs(x))
+        shifted = [x + np.where(np.arange(d)[:, None] == j, h, 0.0) for j in range(d)]
+        f = r(np.hstack([x] + shifted)).reshape(d, d + 1, len(live))
+        jac = ((f[:, 1:] - f[:, :1]) / h[None, :, :]).transpose(2, 0, 1)   # (m, d, d)
+        # the pseudo-inverse: a singular Jacobian (a double root) takes the least step
+        step = -(np.linalg.pinv(jac) @ f[:, 0].T[:, :, None])[:, :, 0].T
+        step = np.where(np.isfinite(step), step, 0.0)
+        big = np.max(np.abs(step) / cell[:, None], axis=0)
+        step *= np.minimum(1.0, 1.0 / np.maximum(big, 1e-300))
+        k[:, live] = x + step
+        small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-12
+        converged = small & (np.max(np.abs(f[:, 0]), axis=0) < 1e-9 * scale)
+        outside = np.any((k[:, live] < lo[:, None] - cell[:, None])
+                         | (k[:, live] > hi[:, None] + cell[:, None]), axis=0)
+        done[live[converged | outside]] = True
+    final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
+    inside = np.all((k >= lo[:, None] - cell[:, None] / 2)
+                    & (k <= hi[:, None] + cell[:, None] / 2), axis=0)
+    k = k[:, inside & (final < 1e-9 * scale)]
+    roots: list[np.ndarray] = []
+    for x in k.T[np.lexsort(k[::-1])]:
+        if not any(np.max(np.abs(x - y) / width) < 1e-6 for y in roots):
+            roots.append(x)
+    return np.array(roots).T if roots else np.zeros((d, 0))
+
+
+def k_columns(k) -> dict:
+    """A target's shooting value as columns of the snap-back table: ``k``, and for d >= 2
+    unknowns ``k`` (the first), ``k_2``, ..., ``k_d``."""
+    if np.ndim(k) == 0:
+        return {"k": k}
+    return {"k": k[0], **{f"k_{j}": v for j, v in enumerate(k[1:], start=2)}}
 
 
 def snap_lps(branch):
@@ -249,7 +341,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                     continue  # the fold's own (vanishing, numerically a near-double) root
                 target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
                 row = {"lp": p.name, "branch": nb, "parameter": name,
-                       "value": params[name], "stable_side": side, "k": eq.k,
+                       "value": params[name], "stable_side": side, **k_columns(eq.k),
                        "index": eq.index, **{f"target_{o}": v
                                              for o, v in eq.ordinates.items()},
                        "on_branch": _on_branch(branches, name, period, target)}

@@ -66,7 +66,12 @@ and at planar states (where the second variation decouples) ``index_in`` and ``i
 the counts of its e_z block and of its out-of-plane block (their sum is the index; -1 at
 non-planar states and where a block has a zero eigenvalue).
 
-``draw`` projects the configuration on the x-y plane, like the planar module's.
+``shooting`` (the snap-back targets): equilibria are the roots of the tip condition across F
+with m(0) = k1 e1 + k2 e2 across F (m.F is conserved and zero at the tip), |m(0)| bounded
+through the Hamiltonian (`moment_bound`; docs/three-d.md, "Snap-back targets in 3D").
+
+``draw`` draws the configuration in space (the module's ``DRAW_PROJECTION`` is ``"3d"``: the
+engine gives it 3D axes); on 2D axes it projects it on the x-y plane, like the planar module.
 """
 
 import math
@@ -526,9 +531,107 @@ def second_variation(s, y, p):
                            constraints=() if mode is None else [Constraint(mode)])
 
 
+# ---- shooting (the snap-back targets) -------------------------------------------------------
+
+def load_frame(p):
+    """Two unit vectors (e1, e2) across the load F: e1 the part of e_z across F (e_z itself
+    when F lies in the x-y plane), e2 = F/|F| x e1. For P = 0, F's direction at P = 1."""
+    f = load({**p, "P": 1.0 if p["P"] >= 0 else -1.0})
+    f = f / np.linalg.norm(f)
+    e1 = np.array((0.0, 0.0, 1.0)) - f[2] * f
+    if np.linalg.norm(e1) < 1e-8:                  # F along e_z
+        e1 = np.array((1.0, 0.0, 0.0)) - f[0] * f
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(f, e1)
+
+
+def moment_bound(p):
+    """A bound on |m(0)| at every equilibrium, from the Hamiltonian H = (1/2) m_b.K^-1 m_b +
+    m_b.u_hat + F.d3 (conserved): at s = 1, |m| = |a x F| <= |eps P|, so H <= M^2/(2 k_min) +
+    M |u_hat| + |P| with M = |eps P|; at s = 0, H >= x^2/(2 k_max) - x |u_hat| - |P| with
+    x = |m(0)|; hence x <= k_max |u_hat| + sqrt((k_max |u_hat|)^2 + 2 k_max (H_1 + |P|))
+    (sqrt((eps P)^2 + 4 |P|) for the planar rod's K = 1, u_hat = 0)."""
+    k = stiffness(p)
+    kmin, kmax = float(np.min(k)), float(np.max(k))
+    uh = math.sqrt(p["u1"] ** 2 + p["u2"] ** 2 + p["u3"] ** 2)
+    big_m, big_p = abs(p["eps"] * p["P"]), abs(p["P"])
+    h1 = big_m ** 2 / (2 * kmin) + big_m * uh + big_p
+    return kmax * uh + math.sqrt((kmax * uh) ** 2 + 2 * kmax * (h1 + big_p))
+
+
+def shooting(p):
+    """Equilibria are the roots k in R^2 of the tip's moment balance with m(0) = k1 e1 +
+    k2 e2 (`load_frame`: m(0).F = 0, because m.F is conserved and m(1).F = (a x F).F = 0):
+    ``residual`` = ((m(1) - a x F).e1, (m(1) - a x F).e2), whose component along F vanishes
+    with m(0).F. In the plane (F in the x-y plane) k1 = m(0).e_z, the planar module's
+    theta'(0), and planar states are k2 = 0. |k| <= `moment_bound` (the Hamiltonian), so the
+    box is [-bound, bound]^2 (docs/three-d.md, "Snap-back targets in 3D")."""
+    e1, e2 = load_frame(p)
+    qc = clamp_quaternion(p)
+    f = load(p)
+    arm = p["eps"] * arm_body(p)
+    bound = moment_bound(p)
+
+    def initial(k):
+        k = np.asarray(k, dtype=float).reshape(2, -1)
+        m = np.outer(e1, k[0]) + np.outer(e2, k[1])
+        return np.vstack((np.zeros((3, k.shape[1])), np.repeat(qc[:, None], k.shape[1], 1), m))
+
+    def residual(ya, yb):
+        a = np.einsum("ij...,j->i...", rotation(yb[3:7]), arm)
+        gap = yb[7:10] - np.cross(a, f, axis=0)
+        return np.vstack((e1 @ gap, e2 @ gap))
+
+    return (-bound, -bound), (bound, bound), initial, residual
+
+
 # ---- drawing -------------------------------------------------------------------------------
 
+#: The engine gives ``draw`` 3D axes (matplotlib's mplot3d).
+DRAW_PROJECTION = "3d"
+
+#: Colour of the centreline's shadow on the plane z = 0 (its in-plane projection).
+SHADOW_COLOR = "0.7"
+
+
 def draw(ax, profile, p):
+    """The configuration in space on 3D axes: the clamp (a square plate across d3(0), hatched
+    by its frame's d1, d2), the centreline, its shadow on the plane z = 0 where it leaves the
+    plane, the lever arm, and the load F as an arrow ending at the arm's end, of fixed length.
+    On 2D axes, the projection on the x-y plane (the planar module's view)."""
+    if getattr(ax, "name", "") != "3d":
+        _draw_plane(ax, profile, p)
+        return
+    import elastica_auto.equations.elastica_lever_arm as planar
+    r = profile[0:3]
+    frame = rotation(profile[3:7, 0])
+    half = planar.CLAMP_HALF_WIDTH
+    corners = np.array([frame[:, 0] * a + frame[:, 1] * b
+                        for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1))]).T * half
+    ax.plot(*corners, color=planar.CLAMP_COLOR, lw=planar.LINE_WIDTH * 0.7, gid="clamp")
+    for v in np.linspace(-half, half, 5):
+        a = v * frame[:, 1]
+        b = a - 0.09 * frame[:, 2]
+        ax.plot(*np.column_stack((a, b)), color="0.35", lw=0.6)
+    if np.max(np.abs(r[2])) > 1e-3:
+        ax.plot(r[0], r[1], 0 * r[2], color=SHADOW_COLOR, lw=planar.LINE_WIDTH * 0.6,
+                ls="--", gid="shadow")
+    ax.plot(*r, color=planar.ROD_COLOR, lw=planar.LINE_WIDTH, gid="rod")
+    tip = r[:, -1]
+    end = tip + tip_arm(profile[:, -1], p)
+    ax.plot(*np.column_stack((tip, end)), color=planar.ARM_COLOR, lw=planar.LINE_WIDTH * 0.7,
+            gid="lever arm")
+    ax.plot(*end[:, None], "o", ms=planar.LINE_WIDTH * 1.8, color=planar.ARM_COLOR)
+    f = load(p)
+    if np.linalg.norm(f) > 1e-12:
+        arrow = planar.ARROW_LENGTH * f / np.linalg.norm(f)
+        tail = end - arrow
+        ax.quiver(*tail, *arrow, color=planar.LOAD_COLOR, lw=planar.LINE_WIDTH * 0.75,
+                  arrow_length_ratio=0.3, gid="load")
+        ax.plot(*tail[:, None], alpha=0)    # the arrow's tail inside the data limits
+
+
+def _draw_plane(ax, profile, p):
     """The configuration projected on the x-y plane (the planar module's view): clamp,
     centreline, lever arm and the load's in-plane part."""
     import elastica_auto.equations.elastica_lever_arm as planar

@@ -36,7 +36,7 @@ def _stem(name):
 
 def test_the_make_rules_give_each_figure_its_runs_and_each_run_its_restarts():
     rules = make_rules(REPO / "runs")
-    calls = re.findall(r"^\$\(eval \$\(call FIGURE,([a-z0-9-]+),([a-z_ ]+)\)\)", rules, re.M)
+    calls = re.findall(r"^\$\(eval \$\(call FIGURE,([a-z0-9-]+),([a-z0-9_ ]+)\)\)", rules, re.M)
     assert calls == [(f.name, " ".join(f.runs)) for f in in_paper_order()]
     assert [f.paper for f in in_paper_order()] == [str(n) for n in range(3, 13)] + [""] * (
         len(FIGURES) - 10)

@@ -38,6 +38,12 @@ REDUCED = {
     "higher_loads": [('bounds = ["-12*pi", "12*pi"]', 'bounds = ["-3*pi", "3*pi"]')],
     "pinned_arm": [('stop = ["n_abs > 80"]', 'stop = ["n_abs > 40"]')],
     # S3 and its copy a period on, weakly and strongly damped (about 4 s a landing)
+    # the spatial rod (figures rotating-arm-3d, configurations-3d): one (eps, P, b2), psi
+    # within [-pi, pi] (the shipped run: 16 branches over [-6 pi, 6 pi], minutes)
+    "rotating_arm_3d": [("eps = [0.25, 0.5]", "eps = [0.5]"),
+                        ('P = ["pi^2/4", "9*pi^2/4"]', 'P = ["9*pi^2/4"]'),
+                        ("b2 = [1, 2]", "b2 = [2]"),
+                        ('bounds = ["-6*pi", "6*pi"]', 'bounds = ["-pi", "pi"]')],
     "snap_damping": [("damping = [0.05, 0.1, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, "
                       "2.0, 4.0, 8.0]", "damping = [0.5, 20.0]"),
                      ('damping_folds = ["LP13", "LP10", "LP18", "LP20"]',

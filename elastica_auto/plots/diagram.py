@@ -105,14 +105,14 @@ def _grid(n: int, varying: list, groups) -> tuple[int, int]:
     return math.ceil(n / ncols), ncols
 
 
-def _draw_panel(ax, branches, xname, yname, period):
+def _draw_panel(ax, branches, xname, yname, period, index_column="index"):
     """The branches as lines styled by index and their labelled points marked; returns the
     indices drawn, the marker types drawn and the points to name [(priority, x, y, name,
     type)]."""
     indices, kinds, names = set(), set(), []
     for b in branches:
         x, y = b.columns[xname].astype(float), b.columns[yname].astype(float)
-        for xs, ys, k in index_runs(x, y, b.columns["index"], period):
+        for xs, ys, k in index_runs(x, y, b.columns[index_column], period):
             color, dash, lw = index_style(k)
             ax.plot(xs, ys, color=color, ls=dash, lw=lw, solid_capstyle="round",
                     dash_capstyle="butt", zorder=3 if k == 0 else 2)
@@ -176,11 +176,12 @@ def default_columns(bf: BranchFile, xname: str | None = None,
 
 
 def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
-                   period: float | None = None) -> Figure:
+                   period: float | None = None, index_column: str = "index") -> Figure:
     """The figure of ``yname`` against ``xname`` for every branch of ``bf``, one panel per
     combination of fixed parameter values (see `panel_groups`).
 
-    Defaults: see `default_columns`. ``period`` folds x into [0, period).
+    Defaults: see `default_columns`. ``period`` folds x into [0, period). The line styles
+    follow ``index_column`` (default the index; ``index_direct``: the direct count alone).
     """
     xname, yname = default_columns(bf, xname, yname)
     b0 = bf.branches[0]
@@ -196,7 +197,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
         axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True).ravel()
         indices, kinds, names = set(), set(), []
         for ax, (values, branches) in zip(axes, groups):
-            i, k, n = _draw_panel(ax, branches, xname, yname, period)
+            i, k, n = _draw_panel(ax, branches, xname, yname, period, index_column)
             indices |= i
             kinds |= k
             names.append(n)

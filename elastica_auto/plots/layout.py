@@ -56,27 +56,58 @@ def can_draw(c: Configuration | None) -> bool:
     return c is not None and equation_problem(c.equation).has_draw
 
 
+def projection(c: Configuration | None) -> str | None:
+    """The matplotlib projection of the axes ``c``'s module draws on (its
+    ``DRAW_PROJECTION``: None for plain axes, ``"3d"`` for a spatial configuration)."""
+    return None if c is None else equation_problem(c.equation).draw_projection
+
+
+def configuration_axes(fig, spec, c: Configuration | None):
+    """A subplot of ``fig`` in ``spec`` for drawing ``c``, with its module's projection."""
+    return fig.add_subplot(spec, projection=projection(c))
+
+
+def data_box(ax) -> np.ndarray:
+    """The extent of what is drawn on ``ax``, ``[[x0, x1], [y0, y1]]`` (and ``[z0, z1]`` on
+    3D axes)."""
+    if ax.name == "3d":
+        xy, zz = ax.xy_dataLim, ax.zz_dataLim
+        return np.array(((xy.x0, xy.x1), (xy.y0, xy.y1), (zz.x0, zz.x1)))
+    b = ax.dataLim
+    return np.array(((b.x0, b.x1), (b.y0, b.y1)))
+
+
 def draw_configurations(axes, configurations, margin=0.08):
     """Draw each configuration in its axes, all at one scale: the limits of each axes are
-    centred on its drawing and fit the widest and the tallest one, plus ``margin`` of the
-    larger of the two on every side; equal aspect, no ticks, no frame."""
+    centred on its drawing and fit the widest and the tallest one (and on 3D axes the
+    deepest), plus ``margin`` of the largest extent on every side; equal aspect, no ticks,
+    no frame."""
     boxes = []
     for ax, c in zip(axes, configurations):
         equation_problem(c.equation).draw(ax, c.profile, c.params)
         if c.extra is not None:
             c.extra(ax)
-        boxes.append(ax.dataLim.frozen())
-    finite = [b for b in boxes if np.all(np.isfinite(b.extents))]
+        boxes.append(data_box(ax))
+    finite = [b for b in boxes if np.all(np.isfinite(b))]
     if not finite:
         return
-    w = max(b.width for b in finite)
-    h = max(b.height for b in finite)
-    pad = margin * max(w, h, 1e-12)
+    dims = max(len(b) for b in finite)
+    size = np.array([max((b[k, 1] - b[k, 0] for b in finite if len(b) > k), default=0.0)
+                     for k in range(dims)])
+    pad = margin * max(size.max(), 1e-12)
     for ax, b in zip(axes, boxes):
-        if np.all(np.isfinite(b.extents)):
-            cx, cy = (b.x0 + b.x1) / 2, (b.y0 + b.y1) / 2
-            ax.set_xlim(cx - w / 2 - pad, cx + w / 2 + pad)
-            ax.set_ylim(cy - h / 2 - pad, cy + h / 2 + pad)
+        if np.all(np.isfinite(b)):
+            centre = b.mean(axis=1)
+            half = size[:len(b)] / 2 + pad
+            if len(b) == 3:          # a cube: the same scale along all three axes
+                half[:] = half.max()
+                ax.set_zlim(centre[2] - half[2], centre[2] + half[2])
+            ax.set_xlim(centre[0] - half[0], centre[0] + half[0])
+            ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
+        if ax.name == "3d":
+            ax.set_box_aspect((1, 1, 1), zoom=1.3)
+            ax.set_axis_off()
+            continue
         ax.set_aspect("equal", adjustable="box")
         ax.set_xticks([])
         ax.set_yticks([])
@@ -530,7 +561,7 @@ class Panel:
 def _inset_row(fig, spec, insets: list[Inset]):
     """The numbered configurations side by side, at one scale."""
     gs = spec.subgridspec(1, max(len(insets), 1), wspace=0.03)
-    axes = [fig.add_subplot(gs[0, j]) for j in range(len(insets))]
+    axes = [configuration_axes(fig, gs[0, j], ins.config) for j, ins in enumerate(insets)]
     draw_configurations(axes, [ins.config for ins in insets])
     for ax, ins in zip(axes, insets):
         ax.set_title(ins.label, fontsize=8, color=LABEL_COLOR, weight="bold", pad=1.0)
@@ -541,9 +572,9 @@ def _snap_column(fig, spec, snaps: list[Snap]):
     shown = [s for s in snaps if s.before is not None]
     gs = spec.subgridspec(2, len(shown), wspace=0.12, hspace=0.3)
     for c, s in enumerate(shown):
-        a0 = fig.add_subplot(gs[0, c])
+        a0 = configuration_axes(fig, gs[0, c], s.before)
         a0.set_title(f"{s.tag}: before", fontsize=7.5, color=SNAP_COLOR, pad=1.0)
-        a1 = fig.add_subplot(gs[1, c])
+        a1 = configuration_axes(fig, gs[1, c], s.after)
         if s.after is not None:
             draw_configurations([a0, a1], [s.before, s.after], margin=0.04)
             a1.set_title(f"{s.tag}: after", fontsize=7.5, color=SNAP_COLOR, pad=1.0)

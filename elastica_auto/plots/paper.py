@@ -790,3 +790,56 @@ def fig_snap_damping(data_dir, out_dir):
                      r"each snap of figure 12 lands under $u_{tt} + c\,u_t = -\nabla E$ "
                      "(dotted: every stable equilibrium at the fold)", fontsize=9)
         return save(fig, out_dir, "snap_damping")
+
+
+# ------------------------------------------------------------- beyond the paper: the rod in 3D
+@figure("rotating-arm-3d", "",
+        "rotating arm of the spatial rod (`kirchhoff_lever_arm`), `b2` = 1 (left) and 2 "
+        "(right): `m(1).e_z` against `psi` folded into `[0, 2 pi)`, styled by the 3D index "
+        "(the direct count, in-plane plus out-of-plane), one panel per `(eps, P, b2)`",
+        ["rotating_arm_3d"])
+def fig_rotating_arm_3d(data_dir, out_dir):
+    from .diagram import diagram_figure
+    fig = diagram_figure(_open(data_dir, "rotating_arm_3d"), "psi", "m1", period=TWO_PI,
+                         index_column="index_direct")
+    with matplotlib.rc_context(RC):
+        return save(fig, out_dir, "rotating_arm_3d")
+
+
+@figure("configurations-3d", "",
+        "the spatial rod at `eps = 0.5`, `psi = pi/2`, `P = 9 pi^2/4`: the equilibria of "
+        "the 3D rotating arm there, drawn in space by the module's `draw` hook on 3D axes, "
+        "with their in-plane and out-of-plane indices for `b2` = 1 and 2",
+        ["rotating_arm_3d"])
+def fig_configurations_3d(data_dir, out_dir):
+    from .layout import configuration_axes
+    bf = _open(data_dir, "rotating_arm_3d")
+    found: dict = {}        # m0 (rounded) -> {b2: point}
+    for br in branches_where(bf, eps=0.5, P=P2):
+        for i, name in enumerate(br.label_names()):
+            p = Pt(bf, br, i)
+            if name.startswith("UZ") and same_value(p["psi"], PI / 2, TWO_PI):
+                found.setdefault(round(p["m0"], 3), {})[p["b2"]] = p
+    rows = sorted(found.items())
+    with matplotlib.rc_context(RC):
+        ncol = 3                  # one width whatever the number of equilibria
+        nrow = -(-len(rows) // ncol) or 1
+        fig = Figure(figsize=(2.6 * ncol + 0.3, 2.7 * nrow + 0.4), layout="constrained")
+        gs = fig.add_gridspec(nrow, ncol)
+        axes, configs = [], []
+        for j, (m0, by_b2) in enumerate(rows):
+            p = by_b2[min(by_b2)]
+            c = p.configuration()
+            ax = configuration_axes(fig, gs[j // ncol, j % ncol], c)
+            ax.view_init(elev=22, azim=-60)
+            split = ", ".join(f"$b_2={b:g}$: {int(q['index_in'])} + {int(q['index_out'])}"
+                              for b, q in sorted(by_b2.items()))
+            ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={m0:.2f}$" + "\n" + split,
+                         fontsize=7.5, pad=0)
+            axes.append(ax)
+            configs.append(c)
+        draw_configurations(axes, configs, margin=0.04)
+        fig.suptitle(r"spatial rod, $\epsilon=0.5$, $\psi=\pi/2$, $P=9\pi^2/4$: the "
+                     "equilibria of the rotating arm,\nindex in plane + out of plane",
+                     fontsize=9)
+        return save(fig, out_dir, "configurations_3d")

@@ -77,7 +77,7 @@ def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .layout import equation_problem
+    from .layout import data_box, equation_problem
     if problem is None:
         try:
             problem = equation_problem(bf.equation)
@@ -89,24 +89,31 @@ def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
     points = {name: (by_number[br], pt - 1) for name, (br, pt) in bf.labels.items()}
     fig = Figure(figsize=(IMAGE_INCHES, IMAGE_INCHES), dpi=IMAGE_DPI)
     FigureCanvasAgg(fig)
-    ax = fig.add_axes((0, 0, 1, 1))
+    ax = fig.add_axes((0, 0, 1, 1), projection=getattr(problem, "draw_projection", None))
     ax.set_axis_off()
 
     out = {}
     for name, (b, i) in points.items():
+        if ax.name == "3d":        # 3D axes keep their data limits: a fresh one per drawing
+            fig.clear()
+            ax = fig.add_axes((0, 0, 1, 1), projection="3d")
+            ax.set_axis_off()
         # removing the last drawing's artists is 50x faster than clearing the axes
         for artist in [*ax.lines, *ax.patches, *ax.texts, *ax.collections, *ax.images]:
             artist.remove()
         ax.ignore_existing_data_limits = True
         problem.draw(ax, b.profiles[i], {q: float(b.columns[q][i]) for q in bf.parameters})
-        box = ax.dataLim
-        if np.all(np.isfinite(box.extents)):
-            # a square around the drawing, 8% margin each side: one scale for all would
-            # need every drawing twice (the hook's artists cost more than the rendering)
-            cx, cy = (box.x0 + box.x1) / 2, (box.y0 + box.y1) / 2
-            half = max(box.width, box.height, 1e-12) * (0.5 + 0.08)
-            ax.set_xlim(cx - half, cx + half)
-            ax.set_ylim(cy - half, cy + half)
+        box = data_box(ax)
+        if np.all(np.isfinite(box)):
+            # a square (cube) around the drawing, 8% margin each side: one scale for all
+            # would need every drawing twice (the hook's artists cost more than the rendering)
+            centre = box.mean(axis=1)
+            half = max(np.max(box[:, 1] - box[:, 0]), 1e-12) * (0.5 + 0.08)
+            for k, set_lim in enumerate((ax.set_xlim, ax.set_ylim, getattr(ax, "set_zlim",
+                                                                            None))[:len(box)]):
+                set_lim(centre[k] - half, centre[k] + half)
+            if ax.name == "3d":
+                ax.set_box_aspect((1, 1, 1))
         out[name] = _png(fig)
     return out
 

@@ -1,0 +1,236 @@
+"""The spatial rod's runs, drawing and snap-back targets (docs/three-d.md) against oracles
+that do not use the spatial rod's own derivation:
+
+* the planar module (equations/elastica_lever_arm.py): with chi = beta = phi0 = 0 the 3D
+  rotating arm's folds are the planar ones, its in-plane index is the planar index, and the
+  3D shooting scan finds the planar scan's equilibria (k2 = 0, k1 = theta'(0));
+* the collocation solutions of the continuation: the shooting hook's residual vanishes there;
+* the conjugate-point count of the 3 x 3 Jacobi system (tests/form_reference.py, the Morse
+  index theorem) for the index of the 3D snap-back targets;
+* a system with known roots for the box scan (`elastica_auto.snaps.scan_box`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto.problem import load_problem
+
+K3 = "kirchhoff_lever_arm"
+#: eps = 0.5, P = pi^2/4, b2 = 2: the straight rod is unstable out of the plane (b2 times the
+#: critical load of eps = 0.5, 1.1597, lies below P), so along the rotating arm's branch the
+#: out-of-plane index goes 1 -> 0 at a branch point past the fold (docs/three-d.md).
+BASE = {"P": math.pi ** 2 / 4, "eps": 0.5}
+UZ = (-1.0, 0.3, 0.6, 1.0, 1.2)
+
+
+@pytest.fixture(scope="module")
+def arms():
+    planar, rod = load_problem("elastica_lever_arm"), load_problem(K3)
+    kw = dict(bounds=(-1.4, 1.4), directions="both", uz=UZ, max_points=200)
+    return (planar, rod, ea.continuation(planar, BASE, "psi", **kw),
+            ea.continuation(rod, {**BASE, "b2": 2.0}, "psi", **kw))
+
+
+def labelled(branches, kind):
+    return [(br, p) for br in branches for p in br.points if p.type == kind]
+
+
+def test_in_plane_index_and_folds_are_the_planar_module_s(arms):
+    """Planar embedding: at the user points (the same psi on both branches) index_in is the
+    planar index, and the folds agree to 1e-9."""
+    _, _, planar, rod = arms
+    uz2, uz3 = labelled(planar, "UZ"), labelled(rod, "UZ")
+    assert len(uz2) == len(uz3) >= 8
+    for (_, p2), (_, p3) in zip(uz2, uz3):
+        assert p3.params["psi"] == pytest.approx(p2.params["psi"], abs=1e-12)
+        assert p3.ordinates["m1"] == pytest.approx(p2.ordinates["m1"], abs=1e-7)
+        assert p3.ordinates["index_in"] == p2.index >= 0
+        assert p3.ordinates["index_in"] + p3.ordinates["index_out"] == p3.index
+    # along the whole branch, every counted point: the planar index where the planar branch
+    # passes the same state (interpolated in psi between two of its points of one index, the
+    # same m1 to 1e-3)
+    segments = []
+    for br in planar:
+        pts = br.points
+        for a, b in zip(pts, pts[1:]):
+            if a.index == b.index >= 0 and a.params["psi"] != b.params["psi"]:
+                segments.append((a.params["psi"], b.params["psi"], a.ordinates["m1"],
+                                 b.ordinates["m1"], a.index))
+    compared = 0
+    for br in rod:
+        for p in br.points:
+            if p.ordinates["index_in"] < 0:
+                continue
+            psi, m1 = p.params["psi"], p.ordinates["m1"]
+            for x0, x1, y0, y1, k in segments:
+                w = (psi - x0) / (x1 - x0)
+                if 0 <= w <= 1 and abs(y0 + w * (y1 - y0) - m1) < 1e-3:
+                    compared += 1
+                    assert p.ordinates["index_in"] == k, (psi, m1)
+                    break
+    assert compared >= 40
+    folds2 = sorted(p.params["psi"] for _, p in labelled(planar, "LP"))
+    folds3 = sorted(p.params["psi"] for _, p in labelled(rod, "LP"))
+    assert len(folds2) == len(folds3) == 2
+    assert np.max(np.abs(np.subtract(folds2, folds3))) < 1e-9
+    # the out-of-plane branch point after the fold (index_out 1 -> 0), where nothing moves
+    # in the plane: located, with the in-plane index unchanged across it
+    bps = [p for _, p in labelled(rod, "BP")]
+    assert bps and all(abs(abs(p.params["psi"]) - 1.1695) < 1e-3 for p in bps)
+
+
+def _frame_k(mod, y, p):
+    e1, e2 = mod.load_frame(p)
+    return np.array((e1 @ y[7:10, 0], e2 @ y[7:10, 0]))
+
+
+def test_shooting_residual_vanishes_at_collocation_solutions(arms):
+    """The shooting hook's y(0) is the collocation solution's (r = 0, the clamp, m(0)), and
+    integrating from it meets the tip condition to the collocation's accuracy; at a
+    non-planar state (the arm tilted by chi) as well, where k2 != 0."""
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    from elastica_auto.snaps import _integrate
+    _, rod, _, rods = arms
+    states = [br.label(p.name).state for br, p in labelled(rods, "UZ")[:4]]
+    br, pt = labelled(rods, "UZ")[1]
+    # the arm tilted out of its plane: chi folds at 0.11 and comes back to -0.1, z(1) = 0.37
+    (tilted,) = ea.continuation(rod, br.label(pt.name), "chi", bounds=(-0.1, 0.8),
+                                directions="+", max_points=60)
+    states.append(tilted.points[-1].state)
+    assert abs(states[-1].y[2, -1]) > 0.05                       # out of the plane
+    assert abs(_frame_k(mod, states[-1].y, states[-1].params)[1]) > 1e-3
+    for st in states:
+        p = st.params
+        y = st.y
+        lo, hi, initial, residual = mod.shooting(p)
+        k = _frame_k(mod, y, p)
+        assert np.all(np.abs(k) <= hi[0])                        # inside the bound
+        assert abs(mod.load(p) @ y[7:10, 0]) < 1e-8              # m(0).F = 0
+        y0 = initial(k[:, None])
+        assert np.max(np.abs(y0[:, 0] - y[:, 0])) < 1e-8
+        assert np.max(np.abs(residual(y0, _integrate(rod, p, y0)))) < 1e-6
+        # and a wrong start does not satisfy it
+        assert np.max(np.abs(residual(y0 + 0.05, _integrate(rod, p, y0 + 0.05)))) > 1e-3
+
+
+def jacobi_count(mod, state):
+    from form_reference import Form, conjugate_count
+
+    def field(name):
+        return lambda s: getattr(mod.second_variation(s, state(s), state.params), name)
+    end = mod.second_variation(state.s, state.y, state.params).E1
+    return conjugate_count(Form(k=3, A=field("A"), B=field("B"), C=field("C"), E1=end,
+                                G0=np.eye(3))).index
+
+
+@pytest.mark.parametrize("b2", [1.0, 2.0])
+def test_snap_targets_in_3d_are_equilibria_with_the_index_two_ways(arms, b2):
+    """At the rotating arm's fold (eps = 0.5, P = pi^2/4): the 3D scan's equilibria satisfy
+    the boundary conditions, include the planar scan's (k = (theta'(0), 0)), and each has the
+    same index by the engine's count and the conjugate-point count of the Jacobi system."""
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    from elastica_auto.snaps import enumerate_equilibria
+    planar, rod, planars, _ = arms
+    lp = labelled(planars, "LP")[0][1]
+    p3 = {**rod.defaults(), **lp.params, "b2": b2}
+    eqs = enumerate_equilibria(rod, p3)
+    flat = enumerate_equilibria(planar, lp.params)
+    assert [e.index for e in flat].count(0) >= 1
+    for e in flat:          # the planar equilibria, found again with k2 = 0
+        hit = [f for f in eqs if abs(f.k[0] - e.k) < 1e-6 and abs(f.k[1]) < 1e-8]
+        assert len(hit) == 1
+        assert hit[0].ordinates["index_in"] in (e.index, -1)
+    for e in eqs:
+        y = e.state.y
+        assert np.max(np.abs(rod.bc(y[:, 0], y[:, -1], p3))) < 1e-8
+        assert e.index == jacobi_count(mod, e.state) >= 0
+    assert len(eqs) >= len(flat)
+
+
+def test_scan_box_finds_every_root_of_a_known_system():
+    """r = (x^2 + y^2 - 4, sin(3 x) - y / 2) in [-3, 3]^2: the roots by an independent 1D
+    bracketing along the circle x = 2 cos t, y = 2 sin t."""
+    from scipy.optimize import brentq
+
+    from elastica_auto.snaps import scan_box
+
+    def r(k):
+        x, y = k
+        return np.vstack((x * x + y * y - 4, np.sin(3 * x) - y / 2))
+
+    got = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)))
+
+    def g(t):
+        return math.sin(6 * math.cos(t)) - math.sin(t)
+    ts = np.linspace(0, 2 * math.pi, 4001)
+    gs = [g(t) for t in ts]
+    want = [brentq(g, a, b) for a, b, fa, fb in zip(ts, ts[1:], gs, gs[1:]) if fa * fb < 0]
+    want = np.array([(2 * math.cos(t), 2 * math.sin(t)) for t in want])
+    assert got.shape == (2, len(want)) and len(want) >= 6
+    for w in want:
+        assert np.min(np.max(np.abs(got.T - w), axis=1)) < 1e-9
+
+
+def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):
+    """The module declares 3D axes; its drawing holds the centreline r(s) in space (its 3D
+    data is the profile's), the arm from the tip and the load arrow; the engine's layout
+    gives every axis one scale (a cube); on 2D axes it draws the x-y projection."""
+    from matplotlib.figure import Figure
+
+    from elastica_auto.plots.layout import Configuration, configuration_axes, \
+        draw_configurations
+    from elastica_auto.plots.viewer import configuration_images
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    _, rod, _, rods = arms
+    assert rod.draw_projection == "3d"
+    br, pt = labelled(rods, "UZ")[2]
+    st = br.label(pt.name).state
+    grid = np.linspace(0, 1, 51)
+    y = st(grid)
+    y[2] = 0.2 * grid ** 2                      # a spatial centreline to draw
+    c = Configuration(K3, y, st.params)
+    fig = Figure()
+    ax = configuration_axes(fig, fig.add_gridspec(1, 2)[0, 0], c)
+    assert ax.name == "3d"
+    draw_configurations([ax], [c])
+    lines = {ln.get_gid(): ln for ln in ax.lines}
+    xs, ys, zs = lines["rod"].get_data_3d()
+    assert np.allclose(xs, y[0]) and np.allclose(ys, y[1]) and np.allclose(zs, y[2])
+    ax0, ay0, az0 = lines["lever arm"].get_data_3d()
+    assert np.allclose((ax0[0], ay0[0], az0[0]), y[0:3, -1])
+    end = y[0:3, -1] + mod.tip_arm(y[:, -1], st.params)
+    assert np.allclose((ax0[1], ay0[1], az0[1]), end)
+    assert "load" in {col.get_gid() for col in ax.collections}
+    assert "shadow" in lines                     # the rod leaves the plane z = 0
+    spans = [np.ptp(lim) for lim in (ax.get_xlim(), ax.get_ylim(), ax.get_zlim())]
+    assert np.allclose(spans, spans[0])
+    flat = fig.add_subplot(1, 2, 2)
+    rod.draw(flat, y, st.params)
+    assert np.allclose(flat.lines[[ln.get_gid() for ln in flat.lines].index("rod")]
+                       .get_xydata().T, y[0:2])
+    from elastica_auto.store import BranchFile
+    ea.save(list(rods)[:1], tmp_path / "arm.h5", problem=rod)
+    images = configuration_images(BranchFile(tmp_path / "arm.h5"), rod)
+    assert images and all(v.startswith("data:image/png;base64,") for v in images.values())
+
+
+
+def test_the_snap_back_table_of_a_3d_run_has_both_unknowns():
+    """`snap_targets` on the spatial rod's rotating arm (eps = 0.25, P = pi^2/4, b2 = 2: the
+    folds end stable stretches in 3D too): every fold's target is the mirror-side buckled rod
+    (k1 = -+2.2160 = the planar target's theta'(0), k2 = 0), stable, with both columns."""
+    from elastica_auto.snaps import snap_targets
+    rod = load_problem(K3)
+    branches = ea.continuation(rod, {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 2.0}, "psi",
+                               bounds=(-1.0, 1.0), directions="both", max_points=100)
+    rows = snap_targets(rod, list(branches))
+    assert len(rows) == 2
+    for r in rows:
+        assert r["index"] == 0 and abs(r["k_2"]) < 1e-6
+        assert abs(r["k"]) == pytest.approx(2.2160, abs=1e-4)
+        assert r["k"] * r["target_m0"] > 0 and abs(r["target_z1"]) < 1e-8
