@@ -30,7 +30,24 @@ import numpy as np
 from .errors import ProblemError
 
 
-class Augmented:
+class NamesOfBase:
+    """The parameters' and ordinates' names and defaults of ``self.base``: for a problem
+    built around a module's problem (:class:`Augmented`, `elastica_auto.symmetry.Phased`)
+    whose extra unknowns are states, not parameters."""
+
+    @property
+    def parameter_names(self):
+        return self.base.parameter_names
+
+    @property
+    def ordinate_names(self):
+        return self.base.ordinate_names
+
+    def defaults(self):
+        return self.base.defaults()
+
+
+class Augmented(NamesOfBase):
     """``base`` (a :class:`~elastica_auto.problem.Problem`) with its integral conditions and
     the free parameters ``free`` as extra states (see the module docstring)."""
 
@@ -58,18 +75,6 @@ class Augmented:
         self._mu = np.arange(self.n0 + self.q, self.n)          # rows of mu in y
         self.integral_names = ()
         self.doc = base.doc
-
-    # -- names, as the base problem's -----------------------------------------------------------
-    @property
-    def parameter_names(self):
-        return self.base.parameter_names
-
-    @property
-    def ordinate_names(self):
-        return self.base.ordinate_names
-
-    def defaults(self):
-        return self.base.defaults()
 
     @property
     def extra_conditions(self) -> int:

@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .augmented import NamesOfBase
 from .errors import ProblemError
 from .solution import State, Tangent, trapezoid_weights
 
@@ -69,7 +70,7 @@ def _size(s, y) -> float:
     return math.sqrt(float(np.sum(trapezoid_weights(s) * np.sum(y * y, axis=0))))
 
 
-class Phased:
+class Phased(NamesOfBase):
     """``base`` (a :class:`~elastica_auto.problem.Problem`) with the phase condition on the
     generator at ``reference`` and the unfolding parameter: states (y, w, mu), the module's
     states, the running phase integral and mu (module docstring)."""
@@ -84,18 +85,6 @@ class Phased:
         self.integral_names = ()
         self.doc = base.doc
         self._g_ref = {}
-
-    # -- names, as the base problem's ---------------------------------------------------------
-    @property
-    def parameter_names(self):
-        return self.base.parameter_names
-
-    @property
-    def ordinate_names(self):
-        return self.base.ordinate_names
-
-    def defaults(self):
-        return self.base.defaults()
 
     extra_conditions = 0
 
