@@ -130,13 +130,21 @@ class Augmented(NamesOfBase):
         return np.concatenate((self.base.bc(ya[: self.n0], yb[: self.n0], pm), ya[w], yb[w]))
 
     def bc_jac(self, ya, yb, p):
+        """The boundary Jacobian. mu is read at s = 0 but equals its value at s = 1 at every
+        iterate (``mu' = 0`` is solved exactly), so a condition's derivative in mu may sit
+        in either end's column: in the column of the end the module's condition involves
+        (s = 0 if it involves y(0)). A condition at s = 1 alone then stays one-sided, and
+        the banded system needs no running sum for it (:mod:`elastica_auto.bordered`)."""
         pm = self._p(p, ya)
         n0, q, nbc = self.n0, self.q, self.base.nbc
         da, db = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
         ga, gb = self.base.bc_jac(ya[:n0], yb[:n0], pm)
         da[:nbc, :n0], db[:nbc, :n0] = ga, gb
-        for k, mu in zip(self._mu, self.free):   # mu is read at s = 0
-            da[:nbc, k] = self.base.bc_dp(ya[:n0], yb[:n0], pm, mu)
+        at_0 = np.any(da[:nbc, :n0] != 0, axis=1)
+        for k, mu in zip(self._mu, self.free):
+            dmu = self.base.bc_dp(ya[:n0], yb[:n0], pm, mu)
+            da[:nbc, k] = np.where(at_0, dmu, 0.0)
+            db[:nbc, k] = np.where(at_0, 0.0, dmu)
         for j in range(q):
             da[nbc + j, n0 + j] = 1.0
             db[nbc + q + j, n0 + j] = 1.0
