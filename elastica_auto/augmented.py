@@ -87,8 +87,10 @@ class Augmented(NamesOfBase):
     def _p(self, p, y):
         """``p`` with the free parameters' values from the states (their first node)."""
         y = np.asarray(y)
-        mu = y[self._mu, 0] if y.ndim == 2 else y[self._mu]
-        return {**p, **dict(zip(self.free, map(float, mu)))}
+        mu = (y[self._mu, 0] if y.ndim == 2 else y[self._mu]).tolist()
+        out = dict(p)
+        out.update(zip(self.free, mu))
+        return out
 
     def point_params(self, params, y):
         return self._p(params, y)
@@ -96,10 +98,11 @@ class Augmented(NamesOfBase):
     def rhs(self, s, y, p):
         pm = self._p(p, y)
         y0 = y[: self.n0]
-        out = np.zeros_like(y, dtype=float)
+        out = np.empty(y.shape)
         out[: self.n0] = self.base.rhs(s, y0, pm)
         if self.q:
             out[self.n0: self.n0 + self.q] = self.base.integrals(s, y0, pm)
+        out[self.n0 + self.q:] = 0.0
         return out
 
     def rhs_jac(self, s, y, p):

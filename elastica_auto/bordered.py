@@ -169,7 +169,7 @@ class Factorization:
     def sign(self) -> int:
         """The sign of the determinant of the banded matrix (+-1, or 0 if singular)."""
         diag = self.lu[self.st.kl + self.st.ku]
-        if not np.all(diag):
+        if not diag.all():
             return 0
         flips = np.count_nonzero(self.piv != np.arange(len(self.piv))) \
             + np.count_nonzero(diag < 0)
@@ -235,7 +235,7 @@ class Factorization:
         dc, dd = c - c0, np.asarray(d, dtype=float) - d0
 
         def delta(vy, vp):
-            return float(np.sum(dc * vy) + np.dot(dd, vp))
+            return float((dc * vy).sum() + np.dot(dd, vp))
 
         scale = delta(x_y, x_p) / (1.0 + delta(u_y, u_p))
         return x_y - scale * u_y, x_p - scale * u_p

@@ -43,10 +43,10 @@ NORM = "null_norm"
 
 def _step(y, v) -> float:
     """A central-difference step t for derivatives along v at y: t |v| ~ 1e-5 (1 + |y|)."""
-    vmax = float(np.max(np.abs(v))) if np.size(v) else 0.0
+    vmax = float(np.abs(v).max()) if v.size else 0.0
     if vmax == 0.0:
         return 1.0
-    return 1e-5 * (1.0 + float(np.max(np.abs(y)))) / vmax
+    return 1e-5 * (1.0 + float(np.abs(y).max())) / vmax
 
 
 def _null_states(base: Problem) -> tuple[str, ...]:
@@ -68,46 +68,59 @@ def fold_problem(base: Problem, lam: str) -> Problem:
     _check_base(base, lam, "a fold curve")
     n = base.n
 
+    # (written for few numpy calls: a fold-curve point calls these some 15 times)
     def rhs(s, Y, p):
         y, v = Y[:n], Y[n:]
-        return np.vstack((base.rhs(s, y, p), np.einsum("ijm,jm->im", base.rhs_jac(s, y, p), v)))
+        return np.concatenate((base.rhs(s, y, p),
+                               np.einsum("ijm,jm->im", base.rhs_jac(s, y, p), v)))
 
     def rhs_jac(s, Y, p):
         y, v = Y[:n], Y[n:]
         t = _step(y, v)
         J = base.rhs_jac(s, y, p)
-        out = np.zeros((2 * n, 2 * n, Y.shape[1]))
+        out = np.empty((2 * n, 2 * n, Y.shape[1]))
         out[:n, :n] = J
+        out[:n, n:] = 0.0
         out[n:, n:] = J
-        out[n:, :n] = (base.rhs_jac(s, y + t * v, p) - base.rhs_jac(s, y - t * v, p)) / (2 * t)
+        np.subtract(base.rhs_jac(s, y + t * v, p), base.rhs_jac(s, y - t * v, p),
+                    out=out[n:, :n])
+        out[n:, :n] *= 0.5 / t
         return out
 
     def rhs_dp(s, Y, p, name):
         y, v = Y[:n], Y[n:]
         t = _step(y, v)
-        return np.vstack((base.rhs_dp(s, y, p, name),
-                          (base.rhs_dp(s, y + t * v, p, name)
-                           - base.rhs_dp(s, y - t * v, p, name)) / (2 * t)))
+        return np.concatenate((base.rhs_dp(s, y, p, name),
+                               (base.rhs_dp(s, y + t * v, p, name)
+                                - base.rhs_dp(s, y - t * v, p, name)) / (2 * t)))
 
     def bc(Ya, Yb, p):
         ga, gb = base.bc_jac(Ya[:n], Yb[:n], p)
         return np.concatenate((base.bc(Ya[:n], Yb[:n], p), ga @ Ya[n:] + gb @ Yb[n:]))
 
+    def _ends_step(Ya, Yb):
+        """The difference step along v at the ends (:func:`_step` of both ends at once)."""
+        vmax = max(float(np.abs(Ya[n:]).max()), float(np.abs(Yb[n:]).max()))
+        if vmax == 0.0:
+            return 1.0
+        return 1e-5 * (1.0 + max(float(np.abs(Ya[:n]).max()),
+                                 float(np.abs(Yb[:n]).max()))) / vmax
+
     def bc_jac(Ya, Yb, p):
         ya, yb, va, vb = Ya[:n], Yb[:n], Ya[n:], Yb[n:]
-        t = _step(np.concatenate((ya, yb)), np.concatenate((va, vb)))
+        t = _ends_step(Ya, Yb)
         ga, gb = base.bc_jac(ya, yb, p)
         pa, pb = base.bc_jac(ya + t * va, yb + t * vb, p)
         ma, mb = base.bc_jac(ya - t * va, yb - t * vb, p)
         da, db = np.zeros((2 * n, 2 * n)), np.zeros((2 * n, 2 * n))
-        da[:n, :n], db[:n, :n] = ga, gb
-        da[n:, n:], db[n:, n:] = ga, gb
+        da[:n, :n] = da[n:, n:] = ga
+        db[:n, :n] = db[n:, n:] = gb
         da[n:, :n], db[n:, :n] = (pa - ma) / (2 * t), (pb - mb) / (2 * t)
         return da, db
 
     def bc_dp(Ya, Yb, p, name):
         ya, yb, va, vb = Ya[:n], Yb[:n], Ya[n:], Yb[n:]
-        t = _step(np.concatenate((ya, yb)), np.concatenate((va, vb)))
+        t = _ends_step(Ya, Yb)
         return np.concatenate((base.bc_dp(ya, yb, p, name),
                                (base.bc_dp(ya + t * va, yb + t * vb, p, name)
                                 - base.bc_dp(ya - t * va, yb - t * vb, p, name)) / (2 * t)))

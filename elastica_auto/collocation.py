@@ -116,6 +116,7 @@ class Discretisation:
         self.s_all = np.concatenate((self.s, self.s_mid))
         self.h6 = (self.h / 6)[:, None, None]
         self.h12 = (self.h * self.h / 12)[:, None, None]
+        self._h6, self._h8 = self.h / 6, self.h / 8
         self.eye = np.eye(self.n)
         self.x_lobatto = (self.s[:-1] + np.multiply.outer(_LOBATTO, self.h)).ravel()
         self.weights = trapezoid_weights(self.s)
@@ -130,11 +131,17 @@ class Discretisation:
     def evaluate(self, y, p, interior=None) -> Evaluation:
         """Residuals of the collocation equations and boundary conditions at (y, p)
         (``interior``: for the interface of Gauss collocation; there is none)."""
-        problem, h = self.problem, self.h
+        problem = self.problem
         f = problem.rhs(self.s, y, p)
-        y_mid = 0.5 * (y[:, 1:] + y[:, :-1]) - 0.125 * h * (f[:, 1:] - f[:, :-1])
+        y_mid = y[:, 1:] + y[:, :-1]
+        y_mid *= 0.5
+        y_mid -= self._h8 * (f[:, 1:] - f[:, :-1])
         f_mid = problem.rhs(self.s_mid, y_mid, p)
-        col = y[:, 1:] - y[:, :-1] - h / 6 * (f[:, :-1] + f[:, 1:] + 4 * f_mid)
+        simpson = f[:, :-1] + f[:, 1:]
+        simpson += 4 * f_mid
+        simpson *= self._h6
+        col = y[:, 1:] - y[:, :-1]
+        col -= simpson
         return Evaluation(y, f, y_mid, f_mid, col, problem.bc(y[:, 0], y[:, -1], p))
 
     def blocks(self, ev: Evaluation, p, names=()) -> Blocks:

@@ -73,7 +73,7 @@ class Row:
         return cls(np.zeros((disc.n, disc.m)), 1.0, float(lam))
 
     def residual(self, Y, lam) -> float:
-        return float(np.sum(self.c * Y) + self.d * lam - self.beta)
+        return float((self.c * Y).sum() + self.d * lam - self.beta)
 
 
 class Linearization:
@@ -126,7 +126,7 @@ class Linearization:
 def unit(disc: Discretisation, blocks: Blocks, v, v_lam: float, name: str) -> Tangent:
     """A solution (v, v_lam) of the linearised equations as a unit Tangent (its node slopes
     from the linearised right-hand side)."""
-    scale = np.sqrt(float(np.sum(disc.weights * np.sum(v * v, axis=0))) + v_lam * v_lam)
+    scale = np.sqrt(float((disc.weights * (v * v).sum(axis=0)).sum()) + v_lam * v_lam)
     v, v_lam = v / scale, v_lam / scale
     return Tangent(disc.s, v, blocks.slopes(v, v_lam, name), v_lam)
 
@@ -147,8 +147,8 @@ def rounding_floor(ev, row: Row, Y, lam) -> tuple[float, float]:
     problem, not the iteration, limits its forward error. At a regular point this changes
     nothing: the correction of such an iterate is far below the tolerance."""
     ulp = ROUNDING_ULPS * np.finfo(float).eps
-    border = abs(row.beta) + float(np.sum(np.abs(row.c * Y))) + abs(row.d * lam)
-    return (ulp * (1.0 + float(np.max(np.abs(Y))) + float(np.max(np.abs(ev.f)))),
+    border = abs(row.beta) + float(np.abs(row.c * Y).sum()) + abs(row.d * lam)
+    return (ulp * (1.0 + float(np.abs(Y).max()) + float(np.abs(ev.f).max())),
             ulp * (1.0 + border))
 
 
@@ -185,16 +185,16 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         ev, g = last[0]
         if not floor:   # once per solve: the size of the terms changes little between iterates
             floor.extend(rounding_floor(ev, row, Y, lam))
-        return (np.max(np.abs(ev.col)) <= floor[0] and np.max(np.abs(ev.bc)) <= floor[0]
-                and (K is None or np.max(np.abs(ev.stage)) <= floor[0]) and abs(g) <= floor[1])
+        return (np.abs(ev.col).max() <= floor[0] and np.abs(ev.bc).max() <= floor[0]
+                and (K is None or np.abs(ev.stage).max() <= floor[0]) and abs(g) <= floor[1])
 
     def correction(lin, Y, K, lam):
         p = {**params, name: lam}
         with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
             ev = disc.evaluate(Y, p, K)
         g = row.residual(Y, lam)
-        if not (np.all(np.isfinite(ev.col)) and np.all(np.isfinite(ev.bc)) and np.isfinite(g)
-                and (K is None or np.all(np.isfinite(ev.stage)))):
+        if not (np.isfinite(ev.col).all() and np.isfinite(ev.bc).all() and np.isfinite(g)
+                and (K is None or np.isfinite(ev.stage).all())):
             return None, None, None, np.inf
         last[0] = ev, g
         dY, dlam, dK = lin.correct(row, ev, g)

@@ -549,7 +549,7 @@ class _Walk:
         if self._add_events(step, found):
             return ds, True
         arclength = self.arclength + ds
-        residual = float(np.max(b.rms)) if self.all_folds else math.nan
+        residual = float(b.rms.max()) if self.all_folds else math.nan
         tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
         curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
                             (tb.lam - ta.lam) / step.dist)
