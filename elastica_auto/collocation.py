@@ -148,14 +148,21 @@ class Discretisation:
         """The Jacobian at the evaluated point, with columns for the parameters ``names``."""
         problem, m, n = self.problem, self.m, self.n
         y_all = np.concatenate((ev.y, ev.y_mid), axis=1)
-        jac_all = problem.rhs_jac(self.s_all, y_all, p).transpose(2, 0, 1)
+        # contiguous (node, row, column) blocks: the products below run faster on them
+        jac_all = np.ascontiguousarray(problem.rhs_jac(self.s_all, y_all, p).transpose(2, 0, 1))
         jac, jac_mid = jac_all[:m], jac_all[m:]
         # J_mid J_i and J_mid J_{i+1} in one batched product
         prod = jac_mid @ np.concatenate((jac[:-1], jac[1:]), axis=2)
-        h6, h12 = self.h6, self.h12
+        prod *= self.h12
+        h6 = self.h6
         shared = (2 * h6) * jac_mid
-        d0 = -self.eye - h6 * jac[:-1] - shared - h12 * prod[:, :, :n]
-        d1 = self.eye - h6 * jac[1:] - shared + h12 * prod[:, :, n:]
+        # (the formulas above, evaluated left to right in place)
+        d0 = np.subtract(-self.eye, h6 * jac[:-1])
+        d0 -= shared
+        d0 -= prod[:, :, :n]
+        d1 = np.subtract(self.eye, h6 * jac[1:])
+        d1 -= shared
+        d1 += prod[:, :, n:]
         ga, gb = problem.bc_jac(ev.y[:, 0], ev.y[:, -1], p)
         dcol, dbc, fps = {}, {}, {}
         for name in names:
@@ -164,7 +171,7 @@ class Discretisation:
             fps[name] = fp
             dfp = (fp[:, 1:] - fp[:, :-1]).T[:, :, None]
             dcol[name] = (-h6[:, 0, 0] * (fp[:, :-1] + fp[:, 1:] + 4 * fp_mid)
-                          + (h12 * (jac_mid @ dfp))[:, :, 0].T)
+                          + (self.h12 * (jac_mid @ dfp))[:, :, 0].T)
             dbc[name] = problem.bc_dp(ev.y[:, 0], ev.y[:, -1], p, name)
         return Blocks(d0, d1, np.asarray(ga, dtype=float), np.asarray(gb, dtype=float),
                       dcol, dbc, jac, fps)
