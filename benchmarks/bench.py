@@ -44,7 +44,8 @@ tol 1e-5 and 1e-7 for each ``ncol``: nodes and unknowns per point, the largest e
 F'(0), G'(0) and the inflow at its UZ points against scipy's solve_bvp at tol 1e-10, seconds.
 
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points. ``--saves``: the share
-of the rotating_arm run spent writing its branch file (also in ``main``).
+of the rotating_arm run spent writing its branch file (also in ``main``). ``--fold-curve``:
+section 4's fold curve alone (wall and CPU milliseconds per point).
 This machine's speed drifts: compare two commits by running this alternately on both.
 """
 
@@ -231,13 +232,14 @@ def fold_curve(points=500):
                           bounds=(-2 * math.pi, 2 * math.pi))
     lp = arm.label("LP1")
     ea.continuation(problem, lp, ["psi", "eps"], bounds=(0, 1), max_points=20)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     (br,) = ea.continuation(problem, lp, ["psi", "eps"], bounds=(0, 50), max_points=points,
                             ds=0.02, ds_max=0.02)
-    dt = time.perf_counter() - t0
+    dt, dc = time.perf_counter() - t0, time.process_time() - c0
     print(f"fold curve in (psi, eps) from the first fold at P = pi^2/4: {len(br.points)} "
-          f"points in {dt:.2f} s ({1000 * dt / len(br.points):.2f} ms/point; "
-          f"up to {int(br.columns['nodes'].max())} nodes)")
+          f"points in {dt:.2f} s ({1000 * dt / len(br.points):.2f} ms/point; CPU "
+          f"{1000 * dc / len(br.points):.2f} ms/point; up to {int(br.columns['nodes'].max())} "
+          "nodes)")
 
 
 def map_runs():
@@ -693,6 +695,8 @@ if __name__ == "__main__":
         index_cost()
     elif sys.argv[1:] == ["--size"]:
         size_cost()
+    elif sys.argv[1:] == ["--fold-curve"]:
+        fold_curve()
     elif sys.argv[1:] == ["--disk"]:
         disk_unknowns()
     elif sys.argv[1:] == ["--saves"]:
