@@ -21,14 +21,14 @@ import time
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from . import store
-from .branch import Branch
-from .errors import PlanError, StoreError
-from .options import ContinuationOptions
-from .plan import StartLike, make_plan
-from .problem import Problem
-from .run import Progress, RunResult, _built, compute, number_labels
-from .store import StoredLabel
+from .storage import store
+from .branches.branch import Branch
+from .core.errors import PlanError, StoreError
+from .core.options import ContinuationOptions
+from .execution.plan import StartLike, make_plan
+from .model.problem import Problem
+from .execution.run import Progress, RunResult, _built, compute, number_labels
+from .storage.store import StoredLabel
 
 
 class Branches(list):

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .errors import USER_ERRORS, RunFileError, StoreError
+from .core.errors import USER_ERRORS, RunFileError, StoreError
 EXIT_USER, EXIT_BRANCH_FAILED, EXIT_INTERRUPTED = 2, 1, 130
 
 
@@ -101,8 +101,8 @@ def _fmt_params(params: dict, names) -> str:
                    "direction) not in it yet.")
 def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resume):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
-    from .run import StartError, execute
-    from .runfile import load
+    from .execution.run import StartError, execute
+    from .execution.runfile import load
     out_dir = Path(out_dir)
     try:
         plan = load(resolve_run(name_or_path), out_dir=out_dir, overrides=overrides,
@@ -224,7 +224,7 @@ def _terminate(signum, frame):
 
 
 def _open(path):
-    from .store import BranchFile
+    from .storage.store import BranchFile
     try:
         return BranchFile(path)
     except StoreError as exc:
@@ -236,7 +236,7 @@ def _open(path):
 @click.option("--all", "all_points", is_flag=True, help="Every point, not only labelled ones.")
 def show(file, all_points):
     """Print an AUTO-like table of the labelled points of FILE.h5."""
-    from .store import rows
+    from .storage.store import rows
     bf = _open(file)
     cols = bf.parameters + bf.ordinates
     head = f"{'BR':>3} {'PT':>5} {'TY':>2} {'LAB':>6} " + " ".join(f"{c:>14}" for c in cols) \
@@ -301,7 +301,7 @@ def snaps(file):
               help="CSV file to write.")
 def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
-    from .store import export_csv
+    from .storage.store import export_csv
     bf = _open(file)
     try:
         path = export_csv(bf, Path(output))
@@ -367,7 +367,7 @@ def view(file, output, xname, yname, fold):
 
 def _values(option: str, items) -> dict[str, float]:
     """``NAME=VALUE`` items (VALUE an expression such as ``2*pi``) as a dict."""
-    from .expressions import evaluate
+    from .core.expressions import evaluate
     out = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -393,7 +393,7 @@ def path(equation, at, to, ds_max):
     equilibrium ends as the parameters move from --at to --to, and the stable equilibria
     there (EQUATION: a shipped module name or a .py file with the shooting hook)."""
     from .path import snaps_along
-    from .problem import load_problem
+    from .model.problem import load_problem
     a, b = _values("--at", at), _values("--to", to)
     if not b:
         _fail("--to: give at least one NAME=VALUE, the end of the path")

@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .branch import StoredLabel
-from .errors import PlanError
-from .problem import Ordinate, Parameter, Problem
+from .branches.branch import StoredLabel
+from .core.errors import PlanError
+from .model.problem import Ordinate, Parameter, Problem
 
 #: The name of the path parameter.
 PATH = "t"
@@ -120,7 +120,7 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
     module's defaults), in order of t, and the branches followed: ``(snaps, branches)``.
     ``options`` are `elastica_auto.continuation`'s options (``ds_max``, ...)."""
     from .api import continuation
-    from .snaps import enumerate_equilibria, snap_targets
+    from .analysis.snaps import enumerate_equilibria, snap_targets
     if not (base.has_shooting and base.has_second_variation):
         raise PlanError("path", f"{base.source} has no shooting or second_variation hook: "
                         "its equilibria at the start cannot be enumerated")
@@ -159,7 +159,7 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
 
 def _on(state, problem):
     """An equilibrium at A as a state of the path problem (t = 0)."""
-    from .solution import State
+    from .core.solution import State
     return State(state.s, state.y, state.yp, {**state.params, PATH: 0.0})
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from ..store import BranchFile
+from ..storage.store import BranchFile
 from .layout import same_value
 from .style import RC, index_label, index_style, marker_style
 

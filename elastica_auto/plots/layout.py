@@ -25,8 +25,8 @@ from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
 from scipy.interpolate import PchipInterpolator
 
-from ..problem import Problem, load_problem
-from ..store import BranchFile, StoredBranch
+from ..model.problem import Problem, load_problem
+from ..storage.store import BranchFile, StoredBranch
 from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
 
 TWO_PI = 2 * math.pi

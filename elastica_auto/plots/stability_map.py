@@ -14,8 +14,8 @@ import numpy as np
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 
-from ..maps import plane_groups
-from ..store import BranchFile
+from ..analysis.maps import plane_groups
+from ..storage.store import BranchFile
 from .diagram import _values_tex
 from .style import RC, marker_style
 

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .correctors import CorrectorFailure, FoldPoint, Solution
-from .newton import Linearization, Row, kernel
-from .solution import State, Tangent, difference, inner
+from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
+from ..numerics.newton import Linearization, Row, kernel
+from ..core.solution import State, Tangent, difference, inner
 
 
 @dataclass(frozen=True)

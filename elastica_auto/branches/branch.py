@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .solution import State, Tangent
-from .stability import count
+from ..core.solution import State, Tangent
+from ..numerics.stability import count
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)

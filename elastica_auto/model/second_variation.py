@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import ProblemError
+from ..core.errors import ProblemError
 
 #: Relative asymmetry above which A, B, E0 or E1 is refused as not symmetric: several rounding
 #: errors of a product of a few terms, far below any modelling asymmetry.

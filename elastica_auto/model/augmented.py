@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ProblemError
+from ..core.errors import ProblemError
 
 
 class NamesOfBase:

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .branch import PROFILE_GRID
-from .solution import State
-from .stability import index
+from ..branches.branch import PROFILE_GRID
+from ..core.solution import State
+from ..numerics.stability import index
 
 SCAN_POINTS = 1201
 #: Grid points of the box scan (d >= 2 unknowns), about: BOX_POINTS ** (1/d) per axis.

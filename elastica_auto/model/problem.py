@@ -85,7 +85,7 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import ProblemError
+from ..core.errors import ProblemError
 from .second_variation import Constraint, SecondVariation  # noqa: F401  (for modules)
 
 ENTERS = ("fixed", "free", "ode")

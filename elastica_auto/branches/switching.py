@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .correctors import make_corrector
-from .newton import Row, kernel, unit
-from .options import ContinuationOptions
-from .problem import Problem
-from .solution import State, Tangent
+from ..numerics.correctors import make_corrector
+from ..numerics.newton import Row, kernel, unit
+from ..core.options import ContinuationOptions
+from ..model.problem import Problem
+from ..core.solution import State, Tangent
 
 
 def switch_direction(problem: Problem, state: State, t1: Tangent, name: str,

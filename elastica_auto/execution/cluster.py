@@ -26,7 +26,7 @@ import time
 import uuid
 from typing import Callable
 
-from .errors import ClusterError
+from ..core.errors import ClusterError
 
 #: Seconds to reach the scheduler, and to wait for its first worker.
 CONNECT_TIMEOUT = 10.0
@@ -63,7 +63,7 @@ def connect(address: str):
         client.close()
         raise ClusterError(f"the workers of {address} cannot run elastica-auto "
                            f"({type(exc).__name__}: {_short(exc)}); install it on them") from None
-    from . import __version__
+    from .. import __version__
     wrong = sorted(w for w, v in versions.items() if v != __version__)
     if wrong:
         client.close()
@@ -113,7 +113,7 @@ def close(client, interrupted: bool = False):
 
 
 def _version() -> str:
-    from . import __version__
+    from .. import __version__
     return __version__
 
 
@@ -136,7 +136,7 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     ``branches`` in plan order and calling ``save()`` after each; True if interrupted
     (``stop``, a `threading.Event`, set: see `elastica_auto.interrupts.Interruptions`)."""
     from .run import _new_branch, _one_line
-    from .stepper import start_point
+    from ..branches.stepper import start_point
     offset = len(branches)
     token = uuid.uuid4().hex[:8]
     # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
@@ -273,7 +273,8 @@ class Background:
         self._pickle = pickle
         read, write = os.pipe()
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", f"from elastica_auto.cluster import serve; serve({write})"],
+            [sys.executable, "-c", f"from elastica_auto.execution.cluster import serve; "
+             f"serve({write})"],
             stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             pass_fds=(write,), start_new_session=True)
         os.close(write)

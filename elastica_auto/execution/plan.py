@@ -19,15 +19,15 @@ from typing import Iterable, Mapping, Union
 
 import numpy as np
 
-from .augmented import Augmented
-from .errors import PlanError, ProblemError
-from .events import UserValues
-from .expressions import evaluate
-from .options import ContinuationOptions, OptionsError
-from .problem import Problem
-from .stepper import Course, Limit, Stops
-from .solution import State
-from .store import StoredLabel
+from ..model.augmented import Augmented
+from ..core.errors import PlanError, ProblemError
+from ..branches.events import UserValues
+from ..core.expressions import evaluate
+from ..core.options import ContinuationOptions, OptionsError
+from ..model.problem import Problem
+from ..branches.stepper import Course, Limit, Stops
+from ..core.solution import State
+from ..storage.store import StoredLabel
 
 #: ``directions``: the signs of the steps from each start.
 DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
@@ -232,7 +232,7 @@ def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
     """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
     of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
     is solved for, ``mu`` continued (`elastica_auto.codim2`)."""
-    from . import codim2
+    from ..branches import codim2
     if len(parameter) != 2 or not all(isinstance(q, str) for q in parameter) \
             or parameter[0] == parameter[1]:
         raise PlanError("parameter", f"expected one name, or two different names (the fold's "

@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ProblemError
-from .second_variation import as_second_variation
-from .solution import at_fractions
+from ..core.errors import ProblemError
+from ..model.second_variation import as_second_variation
+from ..core.solution import at_fractions
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2

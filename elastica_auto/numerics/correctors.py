@@ -28,8 +28,8 @@ from . import bordered
 from .collocation import Discretisation, equidistributed_mesh
 from .gauss import GaussDiscretisation
 from .newton import NEWTON_TOL, Linearization, Row, fold_newton, newton
-from .options import ContinuationOptions
-from .solution import State, Tangent, inner
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent, inner
 
 #: A regridded mesh aims at this fraction of the tolerance, so that it serves many steps;
 #: the next step gets one when a point's error estimate exceeds REFINE_ABOVE tol.

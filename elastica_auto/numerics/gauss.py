@@ -48,7 +48,7 @@ from functools import lru_cache
 import numpy as np
 
 from .collocation import Blocks
-from .solution import at_fractions, trapezoid_weights
+from ..core.solution import at_fractions, trapezoid_weights
 
 #: The stage equations solved for given node values: Newton until the correction is below
 #: this (relative), at most STAGE_ITER iterations.

@@ -33,9 +33,9 @@ import types
 
 import numpy as np
 
-from .errors import PlanError, ProblemError, StartError
-from .problem import Ordinate, Problem
-from .solution import State
+from ..core.errors import PlanError, ProblemError, StartError
+from ..model.problem import Ordinate, Problem
+from ..core.solution import State
 
 #: The name of the normalisation integral of the null vector (a state ``int:null_norm``).
 NORM = "null_norm"

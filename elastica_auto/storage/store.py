@@ -57,11 +57,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import FORMAT_VERSION, __version__
-from .branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
+from .. import FORMAT_VERSION, __version__
+from ..branches.branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
                      column_names, export_names)
-from .errors import StoreError
-from .solution import State, Tangent
+from ..core.errors import StoreError
+from ..core.solution import State, Tangent
 
 FORMAT = "elastica-auto"
 
@@ -204,7 +204,7 @@ class Writer:
         return self
 
     def __exit__(self, *exc_info):
-        from .interrupts import Interruptions
+        from ..core.interrupts import Interruptions
         try:
             if self.written:
                 with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
@@ -297,7 +297,7 @@ class Writer:
     def finish(self):
         """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class).
         A Ctrl-C meanwhile is too late to stop anything: it waits for the file."""
-        from .interrupts import Interruptions
+        from ..core.interrupts import Interruptions
         try:
             with Interruptions():
                 _whole(self.path)
@@ -407,7 +407,7 @@ def _write_maps(f, maps):
 
 
 def _read_maps(f) -> list:
-    from .maps import StabilityMap
+    from ..analysis.maps import StabilityMap
     out = []
     for key in sorted(f.get("maps", {})):
         g = f["maps"][key]

@@ -17,11 +17,11 @@ import math
 import numpy as np
 
 from .branch import Branch
-from .collocation import Discretisation
-from .correctors import CorrectorFailure, make_corrector
-from .errors import StartError
-from .options import ContinuationOptions
-from .solution import State, Tangent
+from ..numerics.collocation import Discretisation
+from ..numerics.correctors import CorrectorFailure, make_corrector
+from ..core.errors import StartError
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent
 from .stepper import STATIONARY, Course, Origin, Stops, continue_branch
 
 def move(problem, start: State, targets: dict[str, float], options: ContinuationOptions, *,

@@ -45,12 +45,12 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Sequence
 
-from .errors import PlanError, RunFileError, StoreError
-from .expressions import evaluate
-from .options import ContinuationOptions
+from ..core.errors import PlanError, RunFileError, StoreError
+from ..core.expressions import evaluate
+from ..core.options import ContinuationOptions
 from .plan import BranchSpec, Plan, Start, Switch, make_plan
-from .problem import Problem, ProblemError, load_problem
-from .store import BranchFile, StoredLabel
+from ..model.problem import Problem, ProblemError, load_problem
+from ..storage.store import BranchFile, StoredLabel
 
 __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 

@@ -18,19 +18,20 @@ from typing import Callable
 
 import numpy as np
 
-from . import codim2, restart, store
-from .augmented import Augmented
-from .branch import Branch
-from .correctors import CorrectorFailure, make_corrector
-from .errors import USER_ERRORS, RunFileError, StartError
-from .interrupts import Interruptions
+from ..branches import codim2, restart
+from ..storage import store
+from ..model.augmented import Augmented
+from ..branches.branch import Branch
+from ..numerics.correctors import CorrectorFailure, make_corrector
+from ..core.errors import USER_ERRORS, RunFileError, StartError
+from ..core.interrupts import Interruptions
 from .plan import BranchSpec, Plan, Start
-from .solution import State, Tangent
-from .maps import stability_maps
-from .snaps import enumerate_equilibria, scans, snap_targets
-from .stability import label_stability
-from .stepper import INTERRUPTED, Origin, continue_branch, start_point
-from .switching import switch_direction
+from ..core.solution import State, Tangent
+from ..analysis.maps import stability_maps
+from ..analysis.snaps import enumerate_equilibria, scans, snap_targets
+from ..numerics.stability import label_stability
+from ..branches.stepper import INTERRUPTED, Origin, continue_branch, start_point
+from ..branches.switching import switch_direction
 
 
 @dataclass
@@ -444,7 +445,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
         if plan.damping:
-            from .landing import damping_sweep
+            from ..analysis.landing import damping_sweep
             try:
                 result.landings = damping_sweep(plan.problem, branches, plan.damping,
                                                 plan.damping_folds, result.warnings, on_landing)

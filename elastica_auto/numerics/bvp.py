@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_bvp
 
-from .problem import Problem
-from .solution import Curve, State, Tangent, trapezoid_weights
+from ..model.problem import Problem
+from ..core.solution import Curve, State, Tangent, trapezoid_weights
 
 
 def bc_tol(tol: float) -> float:

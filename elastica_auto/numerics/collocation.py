@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .solution import at_fractions, trapezoid_weights
+from ..core.solution import at_fractions, trapezoid_weights
 
 #: Lobatto points inside an interval other than its midpoint, as fractions of its length.
 _LOBATTO = (0.5 - 0.5 * np.sqrt(3.0 / 7.0), 0.5 + 0.5 * np.sqrt(3.0 / 7.0))

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import bordered
 from .collocation import Blocks, Discretisation
-from .solution import State, Tangent
+from ..core.solution import State, Tangent
 
 #: Newton stops when the scaled correction max |dY| / (1 + |Y|), |dlam| / (1 + |lam|) is
 #: below this: an order below the discretisation error at the default tol (solve_bvp stops

@@ -38,14 +38,14 @@ from typing import Callable
 import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
-from .correctors import CorrectorFailure, Solution, make_corrector
+from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Step, UserValues, crossings, locate_branch_point, locate_fold,
                      locate_index_change, locate_limit, locate_value, pair_suspected,
                      tangent_between)
-from .newton import Row
-from .options import ContinuationOptions
-from .solution import State, Tangent, difference, inner, norm, secant
-from .stability import Count, count, index_change, kernel_dimension
+from ..numerics.newton import Row
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent, difference, inner, norm, secant
+from ..numerics.stability import Count, count, index_change, kernel_dimension
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
@@ -244,7 +244,7 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
     (`elastica_auto.symmetry`); its points hold the module's states, their notes the
     unfolding parameter.
     """
-    from .symmetry import phased
+    from ..model.symmetry import phased
     phase = phased(problem, origin.state, origin.tangent if origin.kind == "switch" else None)
     if phase is not None:   # a family of solutions the symmetry turns: continued with a phase
         problem = phase     # condition (elastica_auto.symmetry)

@@ -47,8 +47,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .augmented import NamesOfBase
-from .errors import ProblemError
-from .solution import State, Tangent, trapezoid_weights
+from ..core.errors import ProblemError
+from ..core.solution import State, Tangent, trapezoid_weights
 
 #: A start whose generator is at most this (L2, relative to 1 + |y|) is a fixed point of the
 #: group: it is continued without the phase condition.
