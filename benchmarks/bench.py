@@ -260,12 +260,12 @@ def sweep(branches=64):
     import elastica_auto as ea
     from elastica_auto.execution import cluster
     from elastica_auto.execution.plan import make_plan
-    from elastica_auto.execution.run import _built, _in_process
+    from elastica_auto.execution.run import start_job, _in_process
     problem = ea.load_problem("elastica_lever_arm")
     eps = [0.2 + 0.3 * k / (branches // 2 - 1) for k in range(branches // 2)]
     plan = make_plan(problem, {"P": math.pi ** 2 / 4, "psi": 0.0}, "psi",
                      params={"eps": eps}, bounds=(-math.pi, math.pi), directions="both")
-    first = [_built(plan, spec) for spec in plan.branches]
+    first = [start_job(plan, spec) for spec in plan.branches]
     print(f"sweep of {len(first)} branches (psi in [-pi, pi], 32 arm lengths):")
     for workers in (0, 1, 2):
         client = cluster.local(workers) if workers else None
@@ -295,7 +295,7 @@ def landing(damped=3, damping=(0.5, 2.0)):
 
     import elastica_auto as ea
     from elastica_auto.analysis.landing import land
-    from elastica_auto.analysis.snaps import enumerate_equilibria, snap_lps
+    from elastica_auto.analysis.equilibria import enumerate_equilibria, snap_lps
     problem = ea.load_problem("elastica_lever_arm")
     branches = ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi ** 2 / 4}, "psi",
                                directions="both", bounds=(-6 * math.pi, 6 * math.pi))

@@ -1,6 +1,6 @@
 """elastica-auto: AUTO-07p-style continuation of boundary value problems on s in [0, 1].
 
-The engine continues the solutions of an equation module (`elastica_auto.problem`) in one
+The engine continues the solutions of an equation module (`elastica_auto.model.problem`) in one
 named parameter by Keller pseudo-arclength on a collocation discretisation, labels folds (LP),
 branch points (BP), user points (UZ) and end points (EP, MX) with the stability index on each
 side, and writes branches to HDF5. From Python::

@@ -390,14 +390,14 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monke
     jobs = 1 computes."""
     from elastica_auto.execution import runfile
     from elastica_auto.core.interrupts import Interruptions
-    from elastica_auto.execution.run import RunResult, _Alongside, _built, execute
+    from elastica_auto.execution.run import RunResult, _Alongside, start_job, execute
     from elastica_auto.analysis.snaps import scans
     from helpers import elastica_run_file
     run = elastica_run_file(tmp_path / "two.toml", uz=[0])
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     plan = runfile.load(run)
     pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
-    first = [_built(plan, spec) for spec in plan.branches]
+    first = [start_job(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
     monkeypatch.delitem(sys.modules, "scipy.integrate")
     with Interruptions() as signals:

@@ -291,7 +291,7 @@ def _inner_cells(m, rng, per_region, margin=3):
 def test_each_region_of_a_map_holds_one_count(wedge, elastica):
     """Enumerations at random points of each region (not the one the run used) find the
     region's number of stable equilibria: the fold curves bound the regions completely."""
-    from elastica_auto.analysis.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     (m,) = wedge.maps
     assert sorted(m.stable.tolist()) == [1, 2] and m.fixed["P"] == pytest.approx(P1)
     for k, j, i in _inner_cells(m, np.random.default_rng(1), per_region=6):

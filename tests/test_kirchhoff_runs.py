@@ -7,7 +7,7 @@ that do not use the spatial rod's own derivation:
 * the collocation solutions of the continuation: the shooting hook's residual vanishes there;
 * the conjugate-point count of the 3 x 3 Jacobi system (tests/form_reference.py, the Morse
   index theorem) for the index of the 3D snap-back targets;
-* a system with known roots for the box scan (`elastica_auto.analysis.snaps.scan_box`).
+* a system with known roots for the box scan (`elastica_auto.analysis.equilibria.scan_box`).
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def test_shooting_residual_vanishes_at_collocation_solutions(arms):
     integrating from it meets the tip condition to the collocation's accuracy; at a
     non-planar state (the arm tilted by chi) as well, where k2 != 0."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.analysis.snaps import _integrate
+    from elastica_auto.analysis.equilibria import _integrate
     _, rod, _, rods = arms
     states = [br.label(p.name).state for br, p in labelled(rods, "UZ")[:4]]
     br, pt = labelled(rods, "UZ")[1]
@@ -134,7 +134,7 @@ def test_snap_targets_in_3d_are_equilibria_with_the_index_two_ways(arms, b2):
     the boundary conditions, include the planar scan's (k = (theta'(0), 0)), and each has the
     same index by the engine's count and the conjugate-point count of the Jacobi system."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.analysis.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     planar, rod, planars, _ = arms
     lp = labelled(planars, "LP")[0][1]
     p3 = {**rod.defaults(), **lp.params, "b2": b2}
@@ -157,7 +157,7 @@ def test_scan_box_finds_every_root_of_a_known_system():
     bracketing along the circle x = 2 cos t, y = 2 sin t."""
     from scipy.optimize import brentq
 
-    from elastica_auto.analysis.snaps import scan_box
+    from elastica_auto.analysis.equilibria import scan_box
 
     def r(k):
         x, y = k

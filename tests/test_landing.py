@@ -16,7 +16,7 @@ import pytest
 
 import elastica_auto.analysis.landing as landing_module
 from elastica_auto.analysis.landing import NODES, PUSH, land
-from elastica_auto.analysis.snaps import enumerate_equilibria, snap_lps
+from elastica_auto.analysis.equilibria import enumerate_equilibria, snap_lps
 
 
 P_HIGH = 9 * math.pi ** 2 / 4

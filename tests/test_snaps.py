@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import shooting
-from elastica_auto.analysis.snaps import enumerate_equilibria, snap_targets
+from elastica_auto.analysis.equilibria import enumerate_equilibria
+from elastica_auto.analysis.snaps import snap_targets
 from helpers import run_cli
 
 

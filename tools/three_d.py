@@ -18,7 +18,7 @@ counted at each stored point (the planar profile embedded: r = (x, y, 0), q = q_
 Q_REF, m = kappa e_z), with index_in the planar index.
 
 Every table is markdown, computed from the files (and, for ``targets``, by the 3D shooting
-enumeration `elastica_auto.analysis.snaps.enumerate_equilibria` of ``kirchhoff_lever_arm``).
+enumeration `elastica_auto.analysis.equilibria.enumerate_equilibria` of ``kirchhoff_lever_arm``).
 In the tables, "LP 0.8173" is a stretch ending at a located fold, "BP" at a located branch
 point, "~" between two points where nothing was located (the midpoint). Along a branch, a
 stretch is a run of points with one (index_in, index_out); the rows where
@@ -247,7 +247,7 @@ def table_targets(bf2, b2_values, c_values):
     their 3D index (the 3D enumeration at the fold's parameters, the same state: k1 =
     theta'(0), k2 = 0), and every other stable 3D equilibrium there."""
     from elastica_auto.model.problem import load_problem
-    from elastica_auto.analysis.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     rod = load_problem("kirchhoff_lever_arm")
     folds = {}
     for r in bf2.snaps:
@@ -379,7 +379,7 @@ def table_equilibria(values: dict, b2_values, c_values):
     """Every equilibrium of the spatial rod at the parameter ``values`` (the 3D shooting
     scan), for each (b2, c): k = (k1, k2), z(1), index (in + out where planar)."""
     from elastica_auto.model.problem import load_problem
-    from elastica_auto.analysis.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     rod = load_problem("kirchhoff_lever_arm")
     print("| " + ", ".join(values) + " | b2, c | k1 | k2 | z(1) | index | in + out |")
     print("|---|---|---|---|---|---|---|")

@@ -1,7 +1,7 @@
 """Where a snap lands: the rod's dynamics from a fold that ends a stable branch.
 
 At such a fold the stable equilibrium stops existing as the parameter moves past it, and the
-snap-back scan (`elastica_auto.snaps`) lists every stable equilibrium left at the fold's
+snap-back scan (`elastica_auto.analysis.snaps`) lists every stable equilibrium left at the fold's
 parameters. Which one the rod reaches is decided by its dynamics. An equation module supplies
 them through the optional hook
 
@@ -39,6 +39,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+
+from ..core.errors import one_line
 
 #: Intervals of the uniform grid of the method of lines (the discrete equilibria are within
 #: O(h^2) of the BVP's; tests/test_landing.py measures the order).
@@ -116,7 +118,7 @@ def land(problem, state, null, equilibria, parameter: str, beyond: int,
     """Follow the dynamics of ``problem`` from the fold's solution ``state`` pushed along
     its null vector ``null`` (the tangent stored with the LP), with ``parameter`` moved
     `BEYOND` past the fold in the direction ``beyond`` (+1 or -1), to the equilibrium it
-    ends at among ``equilibria`` (`elastica_auto.snaps.Equilibrium`, every one at the fold's
+    ends at among ``equilibria`` (`analysis.equilibria.Equilibrium`, every one at the fold's
     parameters). ``damping``: None for the overdamped flow, else ``c`` of the damped
     model."""
     params = dict(state.params)
@@ -258,7 +260,7 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
     ``target_<ordinate>`` values and ``energy_released``, and the ``transit_time``.
     ``on_landing(done, total, row)`` is called after each landing.
     """
-    from .snaps import beyond_fold, enumerate_equilibria, snap_lps
+    from .equilibria import beyond_fold, enumerate_equilibria, snap_lps
     warnings = warnings if warnings is not None else []
     found = [(nb, br, p, side) for nb, br in enumerate(branches, start=1)
              for p, side in snap_lps(br) if folds is None or p.name in folds]
@@ -279,7 +281,7 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
                            damping=float(c))
             except Exception as exc:  # the module's hook failing: this landing only
                 warnings.append(f"{p.name}, damping {c:g}: the dynamics failed: "
-                                f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+                                f"{one_line(exc)}")
                 end = None
             if end is not None and end.target is None:
                 warnings.append(f"{p.name}, damping {c:g}: the dynamics ended at no "

@@ -11,7 +11,7 @@ needs one complete enumeration per region, not one per point of the plane:
 2. the free cells fall into connected regions (`scipy.ndimage.label`; joined across the
    period's edges);
 3. each region of at least ``MIN_CELLS`` cells gets one enumeration of all equilibria
-   (`elastica_auto.snaps.enumerate_equilibria`, the module's ``shooting`` and
+   (`elastica_auto.analysis.equilibria.enumerate_equilibria`, the module's ``shooting`` and
    ``second_variation`` hooks) at its deepest cell, the one farthest from any curve and from
    the window's edges.
 
@@ -148,7 +148,7 @@ def stability_maps(problem, branches, x: str, y: str, bounds, nx=NX, ny=NY,
                    progress=None) -> list[StabilityMap]:
     """The map of each plane of a fold-curve run (``branches`` of ``problem``, the module's
     own problem, with curves in ``x`` solved for and ``y`` continued within ``bounds``)."""
-    from .snaps import enumerate_equilibria
+    from .equilibria import enumerate_equilibria
     period = problem.parameters[x].period
     out = []
     for fixed, members in plane_groups(branches, problem.parameter_names, x, y):

@@ -5,7 +5,7 @@ values. A Newton solve at the new, fixed values fails where a restart is most wa
 Jacobian is singular at a fold (LP), a branch point (BP) or a cusp (CP), and nearly so near
 one. :func:`move` continues instead, in each changed parameter in turn, from the solution
 so far to the parameter's new value, with the other parameters held at their current values:
-the engine's own pseudo-arclength loop (`elastica_auto.stepper.continue_branch`), bounded by
+the engine's own pseudo-arclength loop (`branches.stepper.continue_branch`), bounded by
 the current and the new value, so that a branch that gets there ends (EP) exactly at it.
 """
 

@@ -1,6 +1,6 @@
 """The pseudo-arclength loop: predict, correct, check, detect, locate, accept.
 
-One call of :func:`continue_branch` fills one :class:`~elastica_auto.branch.Branch`: from a
+One call of :func:`continue_branch` fills one :class:`~elastica_auto.branches.branch.Branch`: from a
 start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
 n-th fold (``stop = ["LP4"]``), or a corrector failure at ``ds_min`` (MX).
 
@@ -8,16 +8,16 @@ Each step from a solution a (with its unit tangent t_a, oriented along the direc
 travel):
 
 1. **predict and correct**: Keller's system ``<x - a, t_a> = ds`` from ``a + ds t_a``
-   (:mod:`elastica_auto.correctors`), on a's mesh or a coarser one; the corrector regrids b
+   (:mod:`elastica_auto.numerics.correctors`), on a's mesh or a coarser one; the corrector regrids b
    if its error estimate exceeds ``tol``;
 2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
    the tangent turned by more than ``max_angle``, or the correction moved b farther than
    ``ds / 2`` from the predictor (it would have jumped to another branch);
 3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
-   parameter's slope dips inside the step (:func:`~elastica_auto.events.pair_suspected`;
+   parameter's slope dips inside the step (:func:`~elastica_auto.branches.events.pair_suspected`;
    the step is probed for the slope's minimum, and retried shorter if a fold is there);
-4. **locate** each, exactly (:mod:`elastica_auto.events`); a fold or branch point that
+4. **locate** each, exactly (:mod:`elastica_auto.branches.events`); a fold or branch point that
    cannot be located, or a stability index at b that the fold rule does not predict,
    rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
    with a warning;
@@ -241,13 +241,13 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
 
     Where the module declares a symmetry that moves the start (a circle of solutions), the
     branch is continued with a phase condition and an unfolding parameter
-    (`elastica_auto.symmetry`); its points hold the module's states, their notes the
+    (`elastica_auto.model.symmetry`); its points hold the module's states, their notes the
     unfolding parameter.
     """
     from ..model.symmetry import phased
     phase = phased(problem, origin.state, origin.tangent if origin.kind == "switch" else None)
     if phase is not None:   # a family of solutions the symmetry turns: continued with a phase
-        problem = phase     # condition (elastica_auto.symmetry)
+        problem = phase     # condition (elastica_auto.model.symmetry)
         origin = Origin(phase.lift(origin.state), phase.lift_tangent(origin.tangent),
                         origin.kind)
     _continue(branch, problem, course, origin, progress)

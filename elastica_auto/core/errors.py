@@ -36,3 +36,15 @@ class StartError(RuntimeError):
 
 
 USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError, ClusterError)
+
+
+def error_text(exc: BaseException) -> str:
+    """``exc``'s message on one line (white space collapsed), or its type's name if it has
+    none: for a line that says what failed already."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def one_line(exc: BaseException) -> str:
+    """``exc`` as ``"<type>: <message on one line>"``: for a line that names what failed
+    only, as a failed branch or a warning does."""
+    return f"{type(exc).__name__}: " + " ".join(str(exc).split())

@@ -6,13 +6,13 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 
-#: The correctors (:mod:`elastica_auto.correctors`).
+#: The correctors (:mod:`elastica_auto.numerics.correctors`).
 CORRECTORS = ("collocation", "solve_bvp")
 #: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
 NCOL_RANGE = (2, 7)
 
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
-#: norm of `elastica_auto.solution` (the L2 norm of y plus |lam|), in the module's units. The
+#: norm of `elastica_auto.core.solution` (the L2 norm of y plus |lam|), in the module's units. The
 #: predictor is a straight line along the tangent, which a curved branch leaves within a few
 #: of its own length scales: the shipped runs need ds_max <= 2, and a problem whose values are
 #: in the millions wants rescaling, not steps of millions (1e300 even overflows to inf once

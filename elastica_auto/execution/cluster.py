@@ -26,7 +26,7 @@ import time
 import uuid
 from typing import Callable
 
-from ..core.errors import ClusterError
+from ..core.errors import ClusterError, error_text, one_line
 
 #: Seconds to reach the scheduler, and to wait for its first worker.
 CONNECT_TIMEOUT = 10.0
@@ -50,7 +50,7 @@ def connect(address: str):
         client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address} "
-                           f"({type(exc).__name__}: {_short(exc)})") from None
+                           f"({type(exc).__name__}: {error_text(exc)[:200]})") from None
     try:
         client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError):
@@ -62,7 +62,8 @@ def connect(address: str):
     except Exception as exc:  # the workers cannot unpickle a function of this package
         client.close()
         raise ClusterError(f"the workers of {address} cannot run elastica-auto "
-                           f"({type(exc).__name__}: {_short(exc)}); install it on them") from None
+                           f"({type(exc).__name__}: {error_text(exc)[:200]}); install it on them"
+                           ) from None
     from .. import __version__
     wrong = sorted(w for w, v in versions.items() if v != __version__)
     if wrong:
@@ -117,15 +118,11 @@ def _version() -> str:
     return __version__
 
 
-def _short(exc: BaseException) -> str:
-    return " ".join(str(exc).split())[:200] or type(exc).__name__
-
-
 def _task(plan, k: int, job):
     """Branch number ``k`` of ``plan`` from ``job``, on a worker: (branch, worker address)."""
     from distributed import get_worker
 
-    from .run import compute_branch
+    from .jobs import compute_branch
     branch = compute_branch(plan, k, job)
     return branch, get_worker().address
 
@@ -134,8 +131,8 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                    on_tasks: TaskProgress | None = None, stop=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
     ``branches`` in plan order and calling ``save()`` after each; True if interrupted
-    (``stop``, a `threading.Event`, set: see `elastica_auto.interrupts.Interruptions`)."""
-    from .run import _new_branch, _one_line
+    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
+    from .jobs import new_branch
     from ..branches.stepper import start_point
     offset = len(branches)
     token = uuid.uuid4().hex[:8]
@@ -174,8 +171,8 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                 exc = f.exception() if f.status == "error" else None
                 if exc is None:
                     exc = RuntimeError(f"the task was {f.status} (its workers died)")
-                br = _new_branch(plan, jobs_list[i])
-                br.end, br.message = "MX", f"not computed: {_one_line(exc)}"
+                br = new_branch(plan, jobs_list[i])
+                br.end, br.message = "MX", f"not computed: {one_line(exc)}"
                 br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
                 br.points.append(start_point(br, jobs_list[i].origin))
             done[i] = br
@@ -227,7 +224,7 @@ def serve(results_fd: int):
             send(("done", tag, future.result()))
             return
         exc = future.exception() if future.status == "error" else None
-        send(("error", tag, f"{type(exc).__name__}: {_short(exc)}" if exc is not None
+        send(("error", tag, f"{type(exc).__name__}: {error_text(exc)[:200]}" if exc is not None
               else f"RuntimeError: the task was {future.status} (its workers died)"))
 
     inp = sys.stdin.buffer

@@ -2,7 +2,7 @@
 
 :func:`make_plan` is the single place where the arguments of
 :func:`elastica_auto.continuation` are checked, for calls from Python and for run files
-alike (:mod:`elastica_auto.runfile` parses TOML into these arguments). It raises
+alike (:mod:`elastica_auto.execution.runfile` parses TOML into these arguments). It raises
 :class:`PlanError`, whose ``key`` names the argument at fault, so that each front end can
 report it in its own terms (a keyword, or a run-file key).
 """
@@ -81,7 +81,7 @@ class Plan:
 
     ``name``, ``path`` and ``text`` describe the run file, if there is one (they are stored
     in the branch file); a plan made from Python has the name ``continuation``. ``curve`` is
-    ``"fold"`` or ``"bp"`` for a two-parameter continuation (`elastica_auto.codim2`): the
+    ``"fold"`` or ``"bp"`` for a two-parameter continuation (`elastica_auto.branches.codim2`): the
     problem is then the fold or branch-point system, ``base`` the module's own problem."""
 
     problem: Problem
@@ -129,9 +129,9 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     branches per value; the first parameter varies slowest), each start in order, each
     direction. ``free`` names the parameters solved for where the module has more conditions
     than states (default: its ``FREE``); the plan's problem then carries them
-    (`elastica_auto.augmented`). ``maps``: for fold curves, also the stability maps of their
-    planes (`elastica_auto.maps`). ``landing``: where each snap lands, by the module's
-    dynamics (`elastica_auto.landing`); ``damping``: also the damped model's landing for
+    (`elastica_auto.model.augmented`). ``maps``: for fold curves, also the stability maps of their
+    planes (`elastica_auto.analysis.maps`). ``landing``: where each snap lands, by the module's
+    dynamics (`elastica_auto.analysis.landing`); ``damping``: also the damped model's landing for
     each of these ``c``, from the folds labelled ``damping_folds`` (default every fold
     ending a stable branch). Raises :class:`PlanError` naming the argument at
     fault.
@@ -231,7 +231,7 @@ def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
                         **rest) -> Plan:
     """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
     of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
-    is solved for, ``mu`` continued (`elastica_auto.codim2`)."""
+    is solved for, ``mu`` continued (`elastica_auto.branches.codim2`)."""
     from ..branches import codim2
     if len(parameter) != 2 or not all(isinstance(q, str) for q in parameter) \
             or parameter[0] == parameter[1]:

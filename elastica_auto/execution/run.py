@@ -3,12 +3,11 @@
 The branch file is rewritten (atomically) after every branch, so an interrupted or failing run
 leaves every completed branch on disk. Computed in this process (``jobs = 1``), the branch in
 progress is kept up to its last point and ends with an MX label; on a Dask cluster
-(`elastica_auto.cluster`) the unfinished tasks are cancelled.
+(`elastica_auto.execution.cluster`) the unfinished tasks are cancelled.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import threading
 import time
@@ -18,20 +17,21 @@ from typing import Callable
 
 import numpy as np
 
-from ..branches import codim2, restart
-from ..storage import store
-from ..model.augmented import Augmented
-from ..branches.branch import Branch
-from ..numerics.correctors import CorrectorFailure, make_corrector
-from ..core.errors import USER_ERRORS, RunFileError, StartError
-from ..core.interrupts import Interruptions
-from .plan import BranchSpec, Plan, Start
-from ..core.solution import State, Tangent
+from ..analysis.equilibria import enumerate_equilibria
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import enumerate_equilibria, scans, snap_targets
-from ..numerics.stability import label_stability
-from ..branches.stepper import INTERRUPTED, Origin, continue_branch, start_point
+from ..analysis.snaps import scans, snap_targets
+from ..branches import codim2, restart
+from ..branches.branch import Branch
+from ..branches.stepper import INTERRUPTED, Origin, start_point
 from ..branches.switching import switch_direction
+from ..core.errors import USER_ERRORS, RunFileError, StartError, one_line
+from ..core.interrupts import Interruptions
+from ..core.solution import State, Tangent
+from ..model.augmented import Augmented
+from ..numerics.correctors import CorrectorFailure, make_corrector
+from ..storage import store
+from .jobs import Job, Progress, cell, compute_branch, new_branch
+from .plan import BranchSpec, Plan, Start
 
 
 @dataclass
@@ -51,17 +51,9 @@ class RunResult:
         return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
 
 
-@dataclass
-class Job:
-    """One branch to compute: its spec and where it starts."""
-
-    spec: BranchSpec
-    origin: Origin
-
-
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
     """The start of a branch: an exact solution, a stored label (continued to the spec's
-    parameter values where they change its own, `elastica_auto.restart`), or the other branch
+    parameter values where they change its own, `branches.restart`), or the other branch
     at a BP."""
     problem, opt = plan.problem, plan.options
     if spec.start.kind == "trivial":
@@ -118,7 +110,7 @@ def _from_values(plan: Plan, params: dict) -> State:
 
 
 def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
-    """The first point of a fold or branch-point curve (`elastica_auto.codim2`) through the
+    """The first point of a fold or branch-point curve (`elastica_auto.branches.codim2`) through the
     LP or BP ``stored`` of the module's problem: its solution with the null vector there,
     solved at the spec's parameters. At an LP the null vector is the stored tangent (its
     parameter component is zero at a fold); at a BP of the exact family it is the second
@@ -148,7 +140,7 @@ def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
     return start
 
 
-def _built(plan: Plan, spec: BranchSpec) -> Job:
+def start_job(plan: Plan, spec: BranchSpec) -> Job:
     """:func:`build_start`, with the equation module failing there reported as a StartError
     (one line) rather than a traceback."""
     try:
@@ -156,11 +148,7 @@ def _built(plan: Plan, spec: BranchSpec) -> Job:
     except (StartError, *USER_ERRORS):
         raise
     except Exception as exc:
-        raise StartError(f"{spec.start}: {_one_line(exc)}") from exc
-
-
-def _one_line(exc: BaseException) -> str:
-    return f"{type(exc).__name__}: " + " ".join(str(exc).split())
+        raise StartError(f"{spec.start}: {one_line(exc)}") from exc
 
 
 def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
@@ -197,58 +185,6 @@ def number_labels(branches: list[Branch], first: int = 1, counters: dict | None 
                 p.label = counters[p.type]
 
 
-#: Progress callback: (branch number, points so far, folds so far, current parameter value).
-Progress = Callable[[int, int, int, float], None]
-
-
-def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = None,
-                   should_stop: Callable[[], bool] | None = None) -> Branch:
-    """Continue branch number ``k`` of the file from ``job``'s start, then label its
-    stability. Ctrl-C (or ``should_stop()`` turning true) or a failure ends the branch early
-    with MX, keeping every point computed so far (`elastica_auto.stepper.continue_branch`):
-    one failing branch does not cost the run its other branches. A Ctrl-C once the
-    continuation is over waits for the labelling, and sets ``interrupted`` on the branch,
-    which is kept whole."""
-    br = _new_branch(plan, job)
-
-    def on_step(b, lam):
-        if should_stop is not None and should_stop():
-            raise KeyboardInterrupt
-        if progress is not None:
-            progress(k, len(b.points), len(b.folds), lam)
-
-    t0 = time.perf_counter()
-    # raised after the continuation, a signal would throw the computed branch away: one
-    # context raises during the continuation (which ends the branch at its last point) and
-    # only records after it
-    with Interruptions(raising=True) as late:
-        try:
-            continue_branch(br, plan.problem, plan.course, job.origin, on_step)
-        except KeyboardInterrupt:  # after the continuation's own handling: the branch is whole
-            pass
-        late.raising = False
-        if plan.curve == "fold":
-            codim2.label_fold_curve(br, plan.problem, plan.base)
-        label_stability(br, plan.problem)
-    br.interrupted = br.interrupted or late.stop.is_set()
-    br.seconds = time.perf_counter() - t0
-    return br
-
-
-def _new_branch(plan: Plan, job: Job) -> Branch:
-    spec = job.spec
-    return Branch.of(plan.problem, plan.parameter, spec.direction, str(spec.start),
-                     plan.options.to_dict(), singular_start=job.origin.kind != "regular",
-                     cell=cell(spec))
-
-
-def cell(spec: BranchSpec) -> str:
-    """The cell of the plan a branch computes, as stored with it (``--resume`` skips the
-    cells already in the file): its start, the parameter values given to it, its direction."""
-    return json.dumps({"start": str(spec.start), "direction": spec.direction,
-                       "params": {k: spec.params[k] for k in sorted(spec.params)}})
-
-
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
     BPs where that fails are reported in ``warnings``."""
@@ -262,7 +198,7 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
                 except StartError as exc:
                     warnings.append(str(exc))
                 except Exception as exc:  # the module failing at the branch point
-                    warnings.append(f"switch at {p.name}: {_one_line(exc)}")
+                    warnings.append(f"switch at {p.name}: {one_line(exc)}")
     return jobs
 
 
@@ -311,7 +247,7 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     while count and kept.branches[count - 1].attrs["message"] == INTERRUPTED:
         count -= 1
     done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
-    first = [_built(plan, spec) for spec in plan.branches if cell(spec) not in done]
+    first = [start_job(plan, spec) for spec in plan.branches if cell(spec) not in done]
     result = RunResult(writer.path, [], 0.0, kept=count)
     if kept is not None and not first and count == len(kept.branches):  # all there already
         result.path, result.seconds = kept.path, time.perf_counter() - t_run
@@ -382,12 +318,12 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             on_landing: Callable[[int, int, dict], None] | None = None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
-    fold curves' planes, `elastica_auto.maps`, and the damped model's landings,
-    `elastica_auto.landing.damping_sweep`, each reported to ``on_landing``), into
+    fold curves' planes, `elastica_auto.analysis.maps`, and the damped model's landings,
+    `elastica_auto.analysis.landing.damping_sweep`, each reported to ``on_landing``), into
     ``result`` (labels numbered); ``save()`` after each branch. An interruption ends it
     with ``result.interrupted`` set.
 
-    The branches are computed as tasks of a Dask cluster (`elastica_auto.cluster`;
+    The branches are computed as tasks of a Dask cluster (`elastica_auto.execution.cluster`;
     ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
     ``scheduler`` address, or else a local one of ``jobs`` worker processes. With ``jobs = 1``
     (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
@@ -443,14 +379,14 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                 result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
                                 + result.snaps)
         except Exception as exc:  # the module failing in the scan: keep the branches
-            result.warnings.append(f"snap-back scan failed: {_one_line(exc)}")
+            result.warnings.append(f"snap-back scan failed: {one_line(exc)}")
         if plan.damping:
             from ..analysis.landing import damping_sweep
             try:
                 result.landings = damping_sweep(plan.problem, branches, plan.damping,
                                                 plan.damping_folds, result.warnings, on_landing)
             except Exception as exc:  # the module failing in the scan: keep the branches
-                result.warnings.append(f"damped landings failed: {_one_line(exc)}")
+                result.warnings.append(f"damped landings failed: {one_line(exc)}")
             for row in result.landings:
                 row["branch"] += result.kept
             if kept is not None:
@@ -463,7 +399,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                                              plan.parameter,
                                              (plan.stops.lower, plan.stops.upper))
             except Exception as exc:  # as for the snap-back scan
-                result.warnings.append(f"stability map failed: {_one_line(exc)}")
+                result.warnings.append(f"stability map failed: {one_line(exc)}")
     if pool is not None:
         pool.background.close(wait=5.0)
 
@@ -495,11 +431,11 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
 
 class _Alongside:
     """Branches computed in this process from the start of the list, and by a local Dask
-    cluster from its end (`elastica_auto.cluster.Background`) once it has started in the
+    cluster from its end (`elastica_auto.execution.cluster.Background`) once it has started in the
     background, one task per worker at a time: nothing waits for the cluster, and a run
     done before it is up never uses it. The branches are saved in the plan's order as they
     complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
-    As each branch is saved, the snap-back scans its folds need (`elastica_auto.snaps.scans`)
+    As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
     go to the cluster too, if it is up. If the cluster ends (or never starts), this process
     computes what it had been given."""
 
@@ -566,7 +502,7 @@ class _Alongside:
             br, worker = value
             br.worker = worker
         else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
-            br = _new_branch(self.plan, job)
+            br = new_branch(self.plan, job)
             br.end, br.message = "MX", f"not computed: {value}"
             name, _, text = value.partition(": ")
             br.diagnostics = {"exception": name, "error": text}

@@ -68,7 +68,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     """Read and validate a run file; restart files are looked up in ``out_dir`` first.
 
     Each table is read into the arguments of :func:`elastica_auto.continuation` (TOML types
-    and expressions checked here); :func:`~elastica_auto.plan.make_plan` checks their
+    and expressions checked here); :func:`~elastica_auto.execution.plan.make_plan` checks their
     meaning, as for a call from Python, and its errors are reported under the run-file key.
 
     ``overrides`` are the command line's ``--set NAME=VALUE`` (:func:`apply_overrides`), and

@@ -32,7 +32,7 @@ from ..core.errors import ProblemError
 
 class NamesOfBase:
     """The parameters' and ordinates' names and defaults of ``self.base``: for a problem
-    built around a module's problem (:class:`Augmented`, `elastica_auto.symmetry.Phased`)
+    built around a module's problem (:class:`Augmented`, `elastica_auto.model.symmetry.Phased`)
     whose extra unknowns are states, not parameters."""
 
     @property
@@ -48,7 +48,7 @@ class NamesOfBase:
 
 
 class Augmented(NamesOfBase):
-    """``base`` (a :class:`~elastica_auto.problem.Problem`) with its integral conditions and
+    """``base`` (a :class:`~elastica_auto.model.problem.Problem`) with its integral conditions and
     the free parameters ``free`` as extra states (see the module docstring)."""
 
     def __init__(self, base, free):
@@ -161,7 +161,7 @@ class Augmented(NamesOfBase):
     #: The shooting scan enumerates the module's states at fixed parameters; with free
     #: parameters it has no meaning.
     has_shooting = False
-    #: Nor have the module's dynamics (`elastica_auto.landing`), which hold them fixed.
+    #: Nor have the module's dynamics (`elastica_auto.analysis.landing`), which hold them fixed.
     has_gradient_flow = False
 
     @property
@@ -171,7 +171,7 @@ class Augmented(NamesOfBase):
     def exact_start(self, s, p):
         """The module's exact start, completed with the running integrals (trapezoidal) and
         the free parameters' values in ``p``; it satisfies the integral conditions only
-        approximately, so it is always solved from (see `elastica_auto.run.build_start`)."""
+        approximately, so it is always solved from (see `execution.run.build_start`)."""
         return self.complete(s, self.base.exact_start(s, p), p)
 
     def guess(self, s, p):

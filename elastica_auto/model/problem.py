@@ -41,24 +41,24 @@ and optionally
     the second variation of the energy at the solution ``y`` on the points ``s`` (sorted, from
     0 to 1): ``int_0^1 (h'.A h' + 2 h'.C h + h.B h) ds`` plus end terms, for perturbations
     h(s) in R^k, with the end conditions and constraints that the admissible h satisfy
-    (`elastica_auto.second_variation`); or the scalar tuple ``(a, b, c)`` for ``int_0^1
+    (`elastica_auto.model.second_variation`); or the scalar tuple ``(a, b, c)`` for ``int_0^1
     (a h'^2 + b h^2) ds + c h(1)^2`` with ``h(0) = 0``. Enables the stability index (see
-    `elastica_auto.stability`).
+    `elastica_auto.numerics.stability`).
 ``shooting(p)`` -> ``(k_lo, k_hi, initial, residual)``
     a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
     [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
-    (see `elastica_auto.snaps`).
-``gradient_flow(p, nodes)`` -> `elastica_auto.landing.Flow`
+    (see `elastica_auto.analysis.snaps`).
+``gradient_flow(p, nodes)`` -> `elastica_auto.analysis.landing.Flow`
     the energy of the equilibria at ``p`` discretised on ``nodes`` (a uniform grid of
     [0, 1]) and its overdamped dynamics; enables where a snap lands (see
-    `elastica_auto.landing`).
-``symmetry(s, y, p)`` -> `elastica_auto.symmetry.Symmetry` or None
+    `elastica_auto.analysis.landing`).
+``symmetry(s, y, p)`` -> `elastica_auto.model.symmetry.Symmetry` or None
     a continuous symmetry of the problem at ``p`` (None where ``p`` breaks it): the
     generator g(y) of a one-parameter group that maps solutions to solutions and an unfolding
     field b(y) outside the range of the linearisation (the gradient of the conserved quantity
     that goes with the group), each (n, m). A branch that starts at a state the group moves
     is continued with a phase condition and an unfolding parameter (see
-    `elastica_auto.symmetry`).
+    `elastica_auto.model.symmetry`).
 ``draw(ax, profile, params)``
     draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
     solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
@@ -91,7 +91,7 @@ from .second_variation import Constraint, SecondVariation  # noqa: F401  (for mo
 ENTERS = ("fixed", "free", "ode")
 
 #: Column names the engine itself uses next to the parameters and ordinates: the columns of a
-#: stored branch (`elastica_auto.store._write_branch`) and the extra fields of its rows and CSV
+#: stored branch (`storage.store._write_branch`) and the extra fields of its rows and CSV
 #: export (`store.rows`, `store.export_csv`). A parameter or ordinate of the same name would
 #: overwrite one of them, so none may be named so; keep this in step with store.py.
 RESERVED_NAMES = frozenset({
@@ -319,7 +319,7 @@ class Problem:
 
     def point_params(self, params: dict, y) -> dict[str, float]:
         """The parameter values of a solution (free parameters are part of ``y`` in
-        `elastica_auto.augmented`; here there are none)."""
+        `elastica_auto.model.augmented`; here there are none)."""
         return dict(params)
 
     # -- integral conditions and free parameters ---------------------------------------------
@@ -361,7 +361,7 @@ class Problem:
     def with_free(self, free=None) -> "Problem":
         """The problem the engine solves: this one if it has one condition per state, else
         the one with the integral conditions and the free parameters ``free`` (default the
-        module's ``FREE``) carried as extra states (`elastica_auto.augmented`).
+        module's ``FREE``) carried as extra states (`elastica_auto.model.augmented`).
         ProblemError if the number of free parameters is not the number of extra
         conditions."""
         free = tuple(self.free if free is None else free)
@@ -409,7 +409,7 @@ class Problem:
         return self._gradient_flow is not None
 
     def gradient_flow(self, p, nodes):
-        """The module's `elastica_auto.landing.Flow` at ``p`` on ``nodes``."""
+        """The module's `elastica_auto.analysis.landing.Flow` at ``p`` on ``nodes``."""
         return self._gradient_flow(dict(p), np.asarray(nodes, dtype=float))
 
     @property

@@ -18,7 +18,7 @@ for perturbations h(s) in R^k, on the h that satisfy
 
 A must be symmetric positive definite at every point (the Legendre condition: without it the
 form has infinitely many negative eigenvalues and no index), B, E0 and E1 symmetric, C any.
-The engine (`elastica_auto.stability`) counts the negative eigenvalues of the form on that
+The engine (`elastica_auto.numerics.stability`) counts the negative eigenvalues of the form on that
 space: its stability index.
 
 The scalar tuple ``(a, b, c)`` of the first version of the hook, with an optional fourth element

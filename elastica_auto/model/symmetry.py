@@ -71,7 +71,7 @@ def _size(s, y) -> float:
 
 
 class Phased(NamesOfBase):
-    """``base`` (a :class:`~elastica_auto.problem.Problem`) with the phase condition on the
+    """``base`` (a :class:`~elastica_auto.model.problem.Problem`) with the phase condition on the
     generator at ``reference`` and the unfolding parameter: states (y, w, mu), the module's
     states, the running phase integral and mu (module docstring)."""
 

@@ -242,7 +242,7 @@ class Factorization:
 
 
 def factor(blocks, names, border=(), split=None) -> Factorization:
-    """Factorise the bordered Jacobian: ``blocks`` (:class:`~elastica_auto.collocation.Blocks`)
+    """Factorise the bordered Jacobian: ``blocks`` (:class:`~numerics.collocation.Blocks`)
     with columns for the parameters ``names`` and ``len(names)`` border rows ``border`` =
     [(c (n, m), d (k,))]. ``split``: the boundary rows' (left, right, mixed), default from
     the blocks themselves."""

@@ -71,7 +71,7 @@ class Blocks:
 
     def condense(self, ev: Evaluation):
         """The node residual the banded system is solved for: ``col`` itself (no interior
-        unknowns to condense; :class:`~elastica_auto.gauss.GaussBlocks` has them)."""
+        unknowns to condense; :class:`~elastica_auto.numerics.gauss.GaussBlocks` has them)."""
         return ev.col
 
     def interior(self, ev, dY, dp, name):

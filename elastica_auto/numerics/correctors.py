@@ -2,15 +2,15 @@
 solves on a hyperplane, and fold location, each returning a :class:`Solution`.
 
 ``corrector = "collocation"`` (the default, :class:`Collocation`): Newton's method on the
-collocation equations assembled directly (:mod:`elastica_auto.newton`), one banded LU per
+collocation equations assembled directly (:mod:`elastica_auto.numerics.newton`), one banded LU per
 step reused for chord iterations, the mesh kept between steps while solve_bvp's error
 estimate stays under ``tol`` and regridded by equidistribution when it does not
-(:func:`~elastica_auto.collocation.equidistributed_mesh`); folds by bordered Newton on the
+(:func:`~elastica_auto.numerics.collocation.equidistributed_mesh`); folds by bordered Newton on the
 minimally augmented system, on a mesh that resolves the solution and its null vector to
 ``fold_tol``.
 
 ``corrector = "solve_bvp"`` (:class:`SolveBVP`): the same discretisation solved by
-`scipy.integrate.solve_bvp` (:mod:`elastica_auto.bvp`), folds by its extended system: an
+`scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), folds by its extended system: an
 independent check of the first.
 
 Either way a :class:`Solution` carries the factorised bordered Jacobian at the point, on the
@@ -104,8 +104,8 @@ def _boundary_pattern(problem):
 
 class Collocation:
     """The collocation corrector for continuing ``problem`` in ``parameter``: Gauss
-    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.gauss`), or
-    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.collocation`)."""
+    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.numerics.gauss`), or
+    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.numerics.collocation`)."""
 
     name = "collocation"
     #: whether ``options.ncol`` chooses the discretisation (else always the cubic scheme)

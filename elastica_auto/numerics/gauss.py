@@ -22,7 +22,7 @@ interval is ``G_K dK - E dy_i + G_p dp = r_G``, ``C_K dK - dy_i + dy_{i+1} + C_p
     (W E - I) dy_i + dy_{i+1} + (C_p - W G_p) dp = r_C - W r_G,
 
 blocks ``d0 = W E - I``, ``d1 = I``, ``dcol = C_p - W G_p`` of exactly the shape the Lobatto
-scheme gives (:mod:`elastica_auto.collocation`), so the bordered banded machinery is the same.
+scheme gives (:mod:`numerics.collocation`), so the bordered banded machinery is the same.
 Newton carries the stage values as unknowns (:meth:`GaussBlocks.condense`,
 :meth:`GaussBlocks.interior`); where only node values are known the stage equations are
 solved on each interval for them, which makes the node residual ``C(Y)`` a function of the
@@ -37,7 +37,7 @@ is ``c_k h^(k+1) |u^(k+1)|`` with ``c_k = max_tau |int_0^tau prod_j (t - tau_j)|
 to ``1 + |y|`` per component and the Euclidean norm over components: an estimate of the
 largest relative error of the solution between the nodes (the nodes themselves are far more
 accurate). The mesh equidistributes ``|u^(k+1)|^(1/(k+1))``
-(:func:`~elastica_auto.collocation.equidistributed_mesh` with ``order = k + 1``).
+(:func:`~elastica_auto.numerics.collocation.equidistributed_mesh` with ``order = k + 1``).
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ class GaussEvaluation:
 
 
 class GaussBlocks(Blocks):
-    """:class:`~elastica_auto.collocation.Blocks` of the condensed system, with what the
+    """:class:`~elastica_auto.numerics.collocation.Blocks` of the condensed system, with what the
     condensation needs: ``ginv`` (m-1, nk, nk) = G_K^{-1}, ``w`` (m-1, n, nk) = W and
     ``gp[name]`` (m-1, nk) = G_p; ``stage_jac`` (m-1, k, n, n) = f_y at the stages (set by
     :meth:`GaussDiscretisation.blocks`)."""
@@ -136,7 +136,7 @@ def _unstacked(a, n, k):
 
 class GaussDiscretisation:
     """The Gauss collocation equations of ``problem`` with ``ncol`` points per interval on
-    the mesh ``s`` (the interface of :class:`~elastica_auto.collocation.Discretisation`)."""
+    the mesh ``s`` (the interface of :class:`~numerics.collocation.Discretisation`)."""
 
     def __init__(self, problem, s, ncol: int):
         self.problem = problem

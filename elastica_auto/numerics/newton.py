@@ -2,7 +2,7 @@
 bordered Newton method that locates folds.
 
 The unknowns are the node values Y (n, m) and one free parameter lam; the equations are the
-collocation equations and boundary conditions F(Y, lam) = 0 (:mod:`elastica_auto.collocation`)
+collocation equations and boundary conditions F(Y, lam) = 0 (:mod:`numerics.collocation`)
 and one linear condition, the border row
 
     <c, Y> + d lam = beta,
@@ -10,7 +10,7 @@ and one linear condition, the border row
 which is the pseudo-arclength condition ``<x - x_0, t_0> = ds`` (c = quadrature weights times
 t_0's state part, d = t_0's parameter part), a hyperplane of a step, or ``lam = value``.
 
-The Jacobian is factorised as a banded matrix (:mod:`elastica_auto.bordered`); once factorised
+The Jacobian is factorised as a banded matrix (:mod:`numerics.bordered`); once factorised
 at one point it serves chord iterations at nearby points and, through a rank-one update, other
 border rows. Steps are accepted by the natural monotonicity test (Deuflhard): the next chord
 correction must be smaller than the last; if not, the Jacobian is refactorised at the current
@@ -85,7 +85,7 @@ class Linearization:
         self.disc, self.name, self.row, self.split = disc, name, row, split
         self.Y, self.lam = Y, float(lam)
         self.params = {**params, name: self.lam}
-        # Gauss collocation's stage values: given, or solved for Y (see elastica_auto.gauss)
+        # Gauss collocation's stage values: given, or solved for Y (see numerics.gauss)
         self.ev = disc.evaluate(Y, self.params, interior)
         self.blocks = disc.blocks(self.ev, self.params, (name,))
         self.fact = bordered.factor(self.blocks, (name,), [(row.c, [row.d])], split)

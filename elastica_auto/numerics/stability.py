@@ -3,7 +3,7 @@ count" and "The fold rule").
 
 The index of an equilibrium is the number of negative eigenvalues of the second variation of
 its energy. An equation module provides it through the optional hook ``second_variation(s, y,
-p)``, a `elastica_auto.second_variation.SecondVariation`::
+p)``, a `elastica_auto.model.second_variation.SecondVariation`::
 
     d2E[h] = int_0^1 ( h'.A h' + 2 h'.C h + h.B h ) ds + h(0).E0 h(0) + h(1).E1 h(1)
 

@@ -60,7 +60,7 @@ import numpy as np
 from .. import FORMAT_VERSION, __version__
 from ..branches.branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
                      column_names, export_names)
-from ..core.errors import StoreError
+from ..core.errors import StoreError, error_text
 from ..core.solution import State, Tangent
 
 FORMAT = "elastica-auto"
@@ -394,7 +394,7 @@ def _read_table(f, name: str) -> list[dict]:
 
 
 def _write_maps(f, maps):
-    """/maps/NNN: one stability map per plane (`elastica_auto.maps.StabilityMap`): attributes
+    """/maps/NNN: one stability map per plane (`analysis.maps.StabilityMap`): attributes
     x, y, fixed (JSON) and extent; datasets cells and the region table."""
     if "maps" in f:
         del f["maps"]
@@ -503,10 +503,6 @@ def _solution_names(g) -> list[str] | None:
     return [x.decode() if isinstance(x, bytes) else x for x in g["label"][()]]
 
 
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
-
-
 class _Source:
     """Where a `BranchFile` reads from: its path, and the identity (device, inode, size,
     modification time) of the file it found there on opening.
@@ -546,7 +542,7 @@ class _Source:
         except FileNotFoundError:
             raise StoreError(f"{self.path}: no such file (removed since it was opened)") from None
         except (OSError, KeyError, ValueError, TypeError) as exc:
-            raise self.damaged(f"{what} unreadable ({_one_line(exc)})") from exc
+            raise self.damaged(f"{what} unreadable ({error_text(exc)})") from exc
 
 
 def _dataset(g, name: str, shape: tuple) -> np.ndarray:
@@ -666,7 +662,7 @@ class StoredBranch:
     """A branch read back from a file: its attributes, columns and profiles.
 
     ``columns`` maps each column name of a branch in memory
-    (`elastica_auto.branch.column_names`, in that order, then any other stored column) to one
+    (`branches.branch.column_names`, in that order, then any other stored column) to one
     numpy array per column, one row per point; ``label`` holds label names (``LP3``, ``""``
     elsewhere). ``profiles`` is the array (points, states, grid) of every state on the file's
     profile grid. Both are read from the file on first access (a column at a time) and kept;
@@ -749,7 +745,7 @@ class BranchFile:
         except StoreError:
             raise
         except (OSError, KeyError, ValueError, TypeError) as exc:
-            raise StoreError(f"{self.path}: unreadable branch file ({_one_line(exc)})") from exc
+            raise StoreError(f"{self.path}: unreadable branch file ({error_text(exc)})") from exc
 
     def _damaged(self, what: str) -> StoreError:
         return self._source.damaged(what)
@@ -837,7 +833,7 @@ class BranchFile:
 
     @property
     def maps(self) -> list:
-        """The stability maps a fold-curve run stored (`elastica_auto.maps.StabilityMap`, one
+        """The stability maps a fold-curve run stored (`analysis.maps.StabilityMap`, one
         per plane; none for other runs), read from the file on first use."""
         if self._maps is None:
             self._maps = self._source.read("maps", _read_maps)
@@ -866,7 +862,7 @@ def _fmt(v):
 
 
 def rows(bf: BranchFile, labelled_only=False):
-    """Yield one dict per point, of its export columns (`elastica_auto.branch.export_names`):
+    """Yield one dict per point, of its export columns (`branches.branch.export_names`):
     parameters and ordinates as floats, indices as text ('' where unknown)."""
     names = export_names(bf.parameters, bf.ordinates)
     for b in bf.branches:
