@@ -137,24 +137,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
     def on_branch(k, br):
         if tty:
             click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
-        folds = ", ".join(
-            f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
-            f" {br.transition(p)}".rstrip() for p in br.folds)
-        start = f" from {br.start}" if br.start != "trivial" else ""
-        bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
-                        for p in br.points if p.type == "BP")
-        cps = ", ".join(p.name for p in br.points if p.type == "CP")
-        click.echo(f"branch {of(k)} {_fmt_params(br.points[0].params, varying)}{start} "
-                   f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
-                   f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
-                   + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
-                   + (f"; cusps {cps}" if cps else ""))
-        for w in br.warnings:
-            click.echo(f"  warning: {w}")
-        if br.disagreements:
-            click.echo(f"  index disagreements at {len(br.disagreements)} points: "
-                       + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
-                                   for p in br.disagreements[:5]))
+        _report_branch(of(k), br, varying)
 
     def on_landing(done, total, row):
         if tty:
@@ -190,6 +173,38 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         kept = f"; the earlier {out} is unchanged" if result.path != out else ""
         click.echo(f"\ninterrupted: {saved}{kept}", err=True)
         sys.exit(EXIT_INTERRUPTED)
+    _report_run(plan, result)
+    if result.failed:
+        click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
+        sys.exit(EXIT_BRANCH_FAILED)
+
+
+def _report_branch(number: str, br, varying):
+    """The line of a computed branch (``number``: "k/total"), its warnings and its index
+    disagreements."""
+    folds = ", ".join(
+        f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
+        f" {br.transition(p)}".rstrip() for p in br.folds)
+    start = f" from {br.start}" if br.start != "trivial" else ""
+    bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
+                    for p in br.points if p.type == "BP")
+    cps = ", ".join(p.name for p in br.points if p.type == "CP")
+    click.echo(f"branch {number} {_fmt_params(br.points[0].params, varying)}{start} "
+               f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
+               f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
+               + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
+               + (f"; cusps {cps}" if cps else ""))
+    for w in br.warnings:
+        click.echo(f"  warning: {w}")
+    if br.disagreements:
+        click.echo(f"  index disagreements at {len(br.disagreements)} points: "
+                   + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
+                               for p in br.disagreements[:5]))
+
+
+def _report_run(plan, result):
+    """What a finished run found besides its branches (warnings, snap-back targets, damped
+    landings, stability maps), then its totals."""
     for w in result.warnings:
         click.echo(f"warning: {w}")
     if result.snaps:
@@ -213,9 +228,6 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
                                                   for p in b.points)) else "")
                + f"{result.seconds:.2f} s "
                f"-> {result.path}")
-    if result.failed:
-        click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
-        sys.exit(EXIT_BRANCH_FAILED)
 
 
 def _terminate(signum, frame):

@@ -100,7 +100,6 @@ class Plan:
     name: str = "continuation"
     path: Path | None = None
     text: str = ""
-    description: str = ""
     base: Problem | None = None
     scheduler: str | None = None
 
@@ -180,6 +179,17 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     opts = _options(options)
     grid = _grid(problem, params)
     starts = _starts if _starts is not None else _parse_starts(problem, start)
+    specs = _specs(starts, grid, directions)
+    at_fold, limits = _stops(problem, stop)
+    return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
+                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
+                landing=landing, damping=damping, damping_folds=damping_folds)
+
+
+def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:
+    """The branches of a plan: the other branch at each stored BP (both ways, at its
+    parameters), then for each combination of the ``grid`` values (the first parameter
+    varying slowest) each start in order, in each of the ``directions``."""
     specs = []
     for st, _ in starts:  # the other branch at a stored BP: both ways, at its parameters
         if st.kind == "switch":
@@ -198,11 +208,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
                 raise PlanError("params", f"{', '.join(twice)} given both in the start and "
                                 "in params")
             specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
-    at_fold, limits = _stops(problem, stop)
-    return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
-                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
-                landing=landing, damping=damping, damping_folds=damping_folds)
-
+    return specs
 
 def _damping(damping, folds, landing: bool):
     """The checked ``damping`` values (positive, finite) and fold labels (``LP<n>``)."""

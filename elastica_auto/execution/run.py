@@ -368,40 +368,49 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
     result.interrupted = interrupted
     if not interrupted:
-        try:
-            result.snaps = snap_targets(plan.problem, branches, result.warnings,
-                                        landing=plan.landing,
-                                        cache=pool.scans if pool is not None else None)
-            for row in result.snaps:           # numbered after the kept branches
-                row["branch"] += result.kept
-                row["on_branch"] += result.kept if row["on_branch"] else 0
-            if kept is not None:
-                result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
-                                + result.snaps)
-        except Exception as exc:  # the module failing in the scan: keep the branches
-            result.warnings.append(f"snap-back scan failed: {one_line(exc)}")
-        if plan.damping:
-            from ..analysis.landing import damping_sweep
-            try:
-                result.landings = damping_sweep(plan.problem, branches, plan.damping,
-                                                plan.damping_folds, result.warnings, on_landing)
-            except Exception as exc:  # the module failing in the scan: keep the branches
-                result.warnings.append(f"damped landings failed: {one_line(exc)}")
-            for row in result.landings:
-                row["branch"] += result.kept
-            if kept is not None:
-                result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
-                                   + result.landings)
-        if plan.maps:
-            every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
-            try:
-                result.maps = stability_maps(plan.base, every, plan.problem.free[0],
-                                             plan.parameter,
-                                             (plan.stops.lower, plan.stops.upper))
-            except Exception as exc:  # as for the snap-back scan
-                result.warnings.append(f"stability map failed: {one_line(exc)}")
+        _analyse(plan, result, kept, pool.scans if pool is not None else None, on_landing)
     if pool is not None:
         pool.background.close(wait=5.0)
+
+
+def _analyse(plan: Plan, result: RunResult, kept, scans_done: dict | None,
+             on_landing: Callable[[int, int, dict], None] | None):
+    """The computed branches' snap-back targets, and as the plan asks, the damped model's
+    landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
+    branches). A failure of the module in any of them is a warning: the branches stand.
+    ``scans_done``: the equilibrium scans computed already (`snap_targets`'s ``cache``)."""
+    branches = result.branches
+    try:
+        result.snaps = snap_targets(plan.problem, branches, result.warnings,
+                                    landing=plan.landing, cache=scans_done)
+        for row in result.snaps:           # numbered after the kept branches
+            row["branch"] += result.kept
+            row["on_branch"] += result.kept if row["on_branch"] else 0
+        if kept is not None:
+            result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
+                            + result.snaps)
+    except Exception as exc:  # the module failing in the scan: keep the branches
+        result.warnings.append(f"snap-back scan failed: {one_line(exc)}")
+    if plan.damping:
+        from ..analysis.landing import damping_sweep
+        try:
+            result.landings = damping_sweep(plan.problem, branches, plan.damping,
+                                            plan.damping_folds, result.warnings, on_landing)
+        except Exception as exc:  # the module failing in the scan: keep the branches
+            result.warnings.append(f"damped landings failed: {one_line(exc)}")
+        for row in result.landings:
+            row["branch"] += result.kept
+        if kept is not None:
+            result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
+                               + result.landings)
+    if plan.maps:
+        every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
+        try:
+            result.maps = stability_maps(plan.base, every, plan.problem.free[0],
+                                         plan.parameter,
+                                         (plan.stops.lower, plan.stops.upper))
+        except Exception as exc:  # as for the snap-back scan
+            result.warnings.append(f"stability map failed: {one_line(exc)}")
 
 
 def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alongside:
