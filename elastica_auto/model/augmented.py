@@ -164,10 +164,6 @@ class Augmented(NamesOfBase):
     #: Nor have the module's dynamics (`elastica_auto.analysis.landing`), which hold them fixed.
     has_gradient_flow = False
 
-    @property
-    def has_guess(self) -> bool:
-        return self.base.has_guess
-
     def exact_start(self, s, p):
         """The module's exact start, completed with the running integrals (trapezoidal) and
         the free parameters' values in ``p``; it satisfies the integral conditions only

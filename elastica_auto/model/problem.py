@@ -370,10 +370,6 @@ class Problem:
         from .augmented import Augmented
         return Augmented(self, free)
 
-    @property
-    def has_guess(self) -> bool:
-        return self._guess is not None
-
     def guess(self, s, p):
         """The module's approximate solution on mesh ``s`` at ``p``, or None."""
         if self._guess is None:

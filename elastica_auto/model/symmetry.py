@@ -168,7 +168,7 @@ class Phased(NamesOfBase):
     def second_variation(self, s, y, p):
         return self.base.second_variation(s, y[: self.n0], p)
 
-    has_shooting = has_gradient_flow = has_guess = has_symmetry = False
+    has_shooting = has_gradient_flow = has_symmetry = False
 
     # -- to and from the module's states ------------------------------------------------------
     def lift(self, state: State) -> State:

@@ -41,21 +41,19 @@ class SolveResult:
 
     success: bool
     state: State | None
-    lam: float
     niter: int
     residual: float
-    nodes: int
     message: str
     extra: dict = field(default_factory=dict)
 
 
-def _result(sol, params, lam, n, bc_residual):
+def _result(sol, params, n, bc_residual):
     residual = float(max(np.max(sol.rms_residuals), np.max(np.abs(bc_residual))))
     state = None
     if sol.success:
         state = State(sol.x, sol.y[:n], sol.yp[:n], params)
-    return SolveResult(bool(sol.success), state, lam, int(sol.niter), residual, len(sol.x),
-                       sol.message, {"rms_residuals": sol.rms_residuals})
+    return SolveResult(bool(sol.success), state, int(sol.niter), residual, sol.message,
+                       {"rms_residuals": sol.rms_residuals})
 
 
 def solve_fixed(problem: Problem, guess: Curve, params: dict, tol: float,
@@ -76,7 +74,7 @@ def solve_fixed(problem: Problem, guess: Curve, params: dict, tol: float,
     sol = solve_bvp(fun, bc, guess.s, guess(guess.s), fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
                     bc_tol=bc_tol(tol), max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1])
-    return _result(sol, params, float("nan"), problem.n, res)
+    return _result(sol, params, problem.n, res)
 
 
 def solve_arclength(problem: Problem, base: State, tangent: Tangent, name: str, ds: float,
@@ -141,7 +139,7 @@ def solve_arclength(problem: Problem, base: State, tangent: Tangent, name: str, 
                     fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1], sol.p)
-    return _result(sol, prm(sol.p), float(sol.p[0]), n, res)
+    return _result(sol, prm(sol.p), n, res)
 
 
 def solve_fold(problem: Problem, base: State, phi: Curve, name: str, tol: float,
@@ -204,7 +202,7 @@ def solve_fold(problem: Problem, base: State, phi: Curve, name: str, tol: float,
     sol = solve_bvp(fun, bc, s, Y0, p=[fixed[name]], fun_jac=fun_jac, tol=tol, bc_tol=bc_tol(tol),
                     max_nodes=max_nodes)
     res = bc(sol.y[:, 0], sol.y[:, -1], sol.p)
-    out = _result(sol, prm(sol.p), float(sol.p[0]), n, res)
+    out = _result(sol, prm(sol.p), n, res)
     if out.success:
         out.extra["phi"] = Curve(sol.x, sol.y[n:2 * n], sol.yp[n:2 * n])
     return out
