@@ -158,7 +158,6 @@ class NewtonResult:
     Y: np.ndarray
     lam: float
     niter: int
-    factorizations: int
     message: str = ""
     contraction: float = 0.0   # the first iteration's |correction 2| / |correction 1|
     correction: float = float("nan")    # the size of the last correction
@@ -206,22 +205,20 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     def moved(K, dK, alpha):
         return None if K is None else K - alpha * dK
 
-    nfact = 0
     fresh = lin is None
     if fresh:
         lin = Linearization(disc, name, params, Y, lam, row, split, K)
-        nfact = 1
     dY, dlam, dK, size = correction(lin, Y, K, lam)
     if not np.isfinite(size):
-        return NewtonResult(False, Y, lam, 0, nfact, "non-finite residual at the initial guess",
+        return NewtonResult(False, Y, lam, 0, "non-finite residual at the initial guess",
                             correction=size)
     first = None
     for it in range(1, MAX_ITER + 1):
         if size <= tol:
-            return NewtonResult(True, Y - dY, lam - dlam, it, nfact, contraction=first or 0.0,
+            return NewtonResult(True, Y - dY, lam - dlam, it, contraction=first or 0.0,
                                 interior=moved(K, dK, 1.0))
         if at_rounding(Y, lam):     # the correction is amplified rounding
-            return NewtonResult(True, Y, lam, it, nfact, contraction=first or 0.0, interior=K)
+            return NewtonResult(True, Y, lam, it, contraction=first or 0.0, interior=K)
         alpha = 1.0
         while True:
             Y1, lam1, K1 = Y - alpha * dY, lam - alpha * dlam, moved(K, dK, alpha)
@@ -230,14 +227,13 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
                 break
             if not fresh:  # the Jacobian is stale: refactorise here first, then damp
                 lin = Linearization(disc, name, params, Y, lam, row, split, K)
-                nfact += 1
                 fresh = True
                 dY, dlam, dK, size = correction(lin, Y, K, lam)
                 alpha = 1.0
                 continue
             alpha /= 2
             if alpha < 1 / 16:
-                return NewtonResult(False, Y, lam, it, nfact,
+                return NewtonResult(False, Y, lam, it,
                                     f"no decrease of the Newton correction ({size:.2e})",
                                     correction=size)
         theta = size1 / size
@@ -247,12 +243,11 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         ahead = np.log(tol / size1) / np.log(theta) if 0 < theta < 1 and size1 > tol else 0
         if ahead > CHORD_AHEAD:
             lin = Linearization(disc, name, params, Y, lam, row, split, K)
-            nfact += 1
             fresh = True
             dY, dlam, dK, size = correction(lin, Y, K, lam)
         else:
             dY, dlam, dK, size, fresh = dY1, dlam1, dK1, size1, False
-    return NewtonResult(False, Y, lam, MAX_ITER, nfact,
+    return NewtonResult(False, Y, lam, MAX_ITER,
                         f"no convergence in {MAX_ITER} iterations (correction {size:.2e})",
                         correction=size)
 
@@ -263,7 +258,6 @@ class FoldResult:
     Y: np.ndarray
     lam: float
     phi: Tangent | None          # the null vector (unit, lam part 0)
-    g: float                     # the test function at the result
     niter: int
     message: str = ""
 
@@ -297,7 +291,6 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     blocks = disc.blocks(ev, p, (name,))
     frozen_col, frozen_bc = blocks.dcol[name], blocks.dbc[name]
     c = disc.weights * t.on(disc.s).y
-    v = g = None
     for it in range(1, max_iter + 1):
         aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
                      {name: frozen_bc}, blocks.jac, blocks.fp)
@@ -316,7 +309,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         dlam = float(dlam[0])
         size = scaled_norm(dY, dlam, Y, lam)
         if not size < FOLD_MAX_CORRECTION:  # started near the fold: this diverges (or is NaN)
-            return FoldResult(False, Y, lam, None, g, it,
+            return FoldResult(False, Y, lam, None, it,
                               f"Newton correction {size:.2g} (diverging)")
         Y, lam = Y - dY, lam - dlam
         p = {**params, name: lam}
@@ -324,8 +317,8 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         blocks = disc.blocks(ev, p, (name,))
         if size <= tol:
             # the null vector of the last iterate, within the last correction of this one's
-            return FoldResult(True, Y, lam, unit(disc, blocks, v, 0.0, name), g, it)
-    return FoldResult(False, Y, lam, None, np.nan if g is None else g, max_iter,
+            return FoldResult(True, Y, lam, unit(disc, blocks, v, 0.0, name), it)
+    return FoldResult(False, Y, lam, None, max_iter,
                       f"no convergence in {max_iter} iterations")
 
 
