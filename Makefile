@@ -36,7 +36,8 @@ clean:
 # *.pdf. A branch file is recomputed only when its run file, the engine or a file it restarts
 # from changed; a figure is redrawn only when its branch files or the plotting code changed.
 RUNS   ?= runs
-ENGINE  = $(wildcard elastica_auto/*.py equations/*.py)
+ENGINE  = $(wildcard elastica_auto/*.py equations/*.py \
+            $(filter-out elastica_auto/plots/%,$(wildcard elastica_auto/*/*.py)))
 PLOTS   = $(wildcard elastica_auto/plots/*.py)
 
 .PHONY: figures runs gallery fig-rotating-arm

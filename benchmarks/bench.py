@@ -72,13 +72,13 @@ def step_cost(intervals=(100, 400, 1600), steps=40):
     locate the first fold met (on meshes refined to fold_tol, as in a run)."""
     import numpy as np
 
-    from elastica_auto.correctors import Collocation
-    from elastica_auto.events import Step, locate_fold
-    from elastica_auto.options import ContinuationOptions
-    from elastica_auto.problem import load_problem
-    from elastica_auto.solution import State, secant
-    from elastica_auto.stability import index
-    from elastica_auto.stepper import start_solution
+    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.branches.events import Step, locate_fold
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.core.solution import State, secant
+    from elastica_auto.numerics.stability import index
+    from elastica_auto.branches.stepper import start_solution
 
     problem = load_problem("elastica_lever_arm")
     params = {**problem.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
@@ -107,8 +107,8 @@ def step_cost(intervals=(100, 400, 1600), steps=40):
 
 
 def in_process(corrector):
-    from elastica_auto.run import execute
-    from elastica_auto.runfile import load
+    from elastica_auto.execution.run import execute
+    from elastica_auto.execution.runfile import load
     import dataclasses
 
     plan = load(REPO / "runs" / "rotating_arm.toml")
@@ -196,8 +196,8 @@ max_points = {n}
 MEMORY_PROBE = """\
 import resource, sys
 from pathlib import Path
-from elastica_auto.run import execute
-from elastica_auto.runfile import load
+from elastica_auto.execution.run import execute
+from elastica_auto.execution.runfile import load
 r = execute(load(Path(sys.argv[1])), Path(sys.argv[2]), jobs=1)
 print(len(r.branches[0].points), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
@@ -260,19 +260,19 @@ def sweep(branches=64):
     and the engine imported on each worker, before the clock, so that only the branches and
     their scheduling are timed; no snap-back scan)."""
     import elastica_auto as ea
-    from elastica_auto import cluster
-    from elastica_auto.plan import make_plan
-    from elastica_auto.run import _built, _in_process
+    from elastica_auto.execution import cluster
+    from elastica_auto.execution.plan import make_plan
+    from elastica_auto.execution.run import start_job, _in_process
     problem = ea.load_problem("elastica_lever_arm")
     eps = [0.2 + 0.3 * k / (branches // 2 - 1) for k in range(branches // 2)]
     plan = make_plan(problem, {"P": math.pi ** 2 / 4, "psi": 0.0}, "psi",
                      params={"eps": eps}, bounds=(-math.pi, math.pi), directions="both")
-    first = [_built(plan, spec) for spec in plan.branches]
+    first = [start_job(plan, spec) for spec in plan.branches]
     print(f"sweep of {len(first)} branches (psi in [-pi, pi], 32 arm lengths):")
     for workers in (0, 1, 2):
         client = cluster.local(workers) if workers else None
         if client is not None:
-            client.run(importlib.import_module, "elastica_auto.run")
+            client.run(importlib.import_module, "elastica_auto.execution.run")
         branches = []
         t0 = time.perf_counter()
         if client is None:
@@ -296,8 +296,8 @@ def landing(damped=3, damping=(0.5, 2.0)):
     import numpy as np
 
     import elastica_auto as ea
-    from elastica_auto.landing import land
-    from elastica_auto.snaps import enumerate_equilibria, snap_lps
+    from elastica_auto.analysis.landing import land
+    from elastica_auto.analysis.equilibria import enumerate_equilibria, snap_lps
     problem = ea.load_problem("elastica_lever_arm")
     branches = ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi ** 2 / 4}, "psi",
                                directions="both", bounds=(-6 * math.pi, 6 * math.pi))
@@ -330,10 +330,10 @@ def index_cost(repeats=400):
     of the paper's loads) on 100 intervals, unconstrained and with one constraint."""
     import numpy as np
 
-    from elastica_auto.problem import load_problem
-    from elastica_auto.second_variation import Constraint, SecondVariation
-    from elastica_auto.solution import State
-    from elastica_auto.stability import count, count_form
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.model.second_variation import Constraint, SecondVariation
+    from elastica_auto.core.solution import State
+    from elastica_auto.numerics.stability import count, count_form
 
     def median_ms(f):
         f()
@@ -377,17 +377,17 @@ class _Phases:
     """Wall time per phase of a step: the outermost call of a wrapped function counts."""
 
     GROUPS = {
-        "assembly": [("collocation", "Discretisation", "evaluate"),
-                     ("collocation", "Discretisation", "blocks"),
-                     ("gauss", "GaussDiscretisation", "evaluate"),
-                     ("gauss", "GaussDiscretisation", "blocks")],
-        "factor": [("bordered", None, "factor")],
-        "solves": [("bordered", "Factorization", "solve"),
-                   ("bordered", "Factorization", "solve_transpose"),
-                   ("bordered", "Factorization", "solve_with_border")],
-        "estimate+tests": [("collocation", "Discretisation", "rms_residuals"),
-                           ("gauss", "GaussDiscretisation", "rms_residuals"),
-                           ("bordered", "Factorization", "sign")],
+        "assembly": [("numerics.collocation", "Discretisation", "evaluate"),
+                     ("numerics.collocation", "Discretisation", "blocks"),
+                     ("numerics.gauss", "GaussDiscretisation", "evaluate"),
+                     ("numerics.gauss", "GaussDiscretisation", "blocks")],
+        "factor": [("numerics.bordered", None, "factor")],
+        "solves": [("numerics.bordered", "Factorization", "solve"),
+                   ("numerics.bordered", "Factorization", "solve_transpose"),
+                   ("numerics.bordered", "Factorization", "solve_with_border")],
+        "estimate+tests": [("numerics.collocation", "Discretisation", "rms_residuals"),
+                           ("numerics.gauss", "GaussDiscretisation", "rms_residuals"),
+                           ("numerics.bordered", "Factorization", "sign")],
     }
 
     def __init__(self):
@@ -436,7 +436,7 @@ def _stacked_elastica(copies):
 
     import numpy as np
 
-    from elastica_auto.problem import Problem, load_problem
+    from elastica_auto.model.problem import Problem, load_problem
 
     base = load_problem("elastica_lever_arm")
     n = base.n
@@ -478,11 +478,11 @@ def _size_systems():
     import numpy as np
 
     import elastica_auto as ea
-    from elastica_auto.codim2 import fold_problem
-    from elastica_auto.correctors import Collocation
-    from elastica_auto.options import ContinuationOptions
-    from elastica_auto.problem import load_problem
-    from elastica_auto.solution import State
+    from elastica_auto.branches.codim2 import fold_problem
+    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.core.solution import State
 
     s = np.linspace(0.0, 1.0, 101)
     out = []
@@ -522,10 +522,10 @@ def size_cost(steps=30, schemes=(0, 4)):
 
     import numpy as np
 
-    from elastica_auto.correctors import Collocation
-    from elastica_auto.options import ContinuationOptions
-    from elastica_auto.stability import index
-    from elastica_auto.stepper import start_solution
+    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.numerics.stability import index
+    from elastica_auto.branches.stepper import start_solution
 
     has_ncol = "ncol" in {f.name for f in dataclasses.fields(ContinuationOptions)}
     if not has_ncol:
@@ -588,8 +588,8 @@ def disk_unknowns(tols=(1e-5, 1e-7), schemes=(0, 2, 3, 4, 5, 6, 7)):
 
     import numpy as np
 
-    from elastica_auto.run import execute
-    from elastica_auto.runfile import load
+    from elastica_auto.execution.run import execute
+    from elastica_auto.execution.runfile import load
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -627,9 +627,9 @@ def saves(rounds=3):
     """The share of the rotating_arm run (``--jobs 1``, in this process) spent writing its
     branch file: every save after a branch and the run's last write (`store.Writer`'s
     ``save``, ``finish`` and the leaving of its context), best of ``rounds``."""
-    from elastica_auto import store
-    from elastica_auto.run import execute
-    from elastica_auto.runfile import load
+    from elastica_auto.storage import store
+    from elastica_auto.execution.run import execute
+    from elastica_auto.execution.runfile import load
 
     spent = [0.0]
 

@@ -1,6 +1,6 @@
 """elastica-auto: AUTO-07p-style continuation of boundary value problems on s in [0, 1].
 
-The engine continues the solutions of an equation module (`elastica_auto.problem`) in one
+The engine continues the solutions of an equation module (`elastica_auto.model.problem`) in one
 named parameter by Keller pseudo-arclength on a collocation discretisation, labels folds (LP),
 branch points (BP), user points (UZ) and end points (EP, MX) with the stability index on each
 side, and writes branches to HDF5. From Python::
@@ -18,13 +18,14 @@ FORMAT_VERSION = 2
 
 #: Public name -> the module that defines it.
 _PUBLIC = {
-    "load_problem": "problem", "Problem": "problem",
-    "SecondVariation": "second_variation", "Constraint": "second_variation",
+    "load_problem": "model.problem", "Problem": "model.problem",
+    "SecondVariation": "model.second_variation", "Constraint": "model.second_variation",
     "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
-    "Switch": "plan", "ContinuationOptions": "options", "snaps_along": "path",
-    "BranchFile": "store", "Branch": "branch", "StoredLabel": "branch",
-    "PlanError": "errors", "ProblemError": "errors", "StoreError": "errors",
-    "RunFileError": "errors", "StartError": "errors",
+    "Switch": "execution.plan", "ContinuationOptions": "core.options", "snaps_along": "path",
+    "BranchFile": "storage.store", "Branch": "branches.branch",
+    "StoredLabel": "branches.branch",
+    "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",
+    "RunFileError": "core.errors", "StartError": "core.errors",
     "view": "plots.viewer",
 }
 

@@ -10,8 +10,8 @@
     again = ea.continuation(problem, branches.label("LP1"), "eps", bounds=(0, 1))
     ea.save(branches, "out/mine.h5")
 
-A run file is the same call written in TOML (:mod:`elastica_auto.runfile`); both go through
-:func:`elastica_auto.plan.make_plan` and give the same branches.
+A run file is the same call written in TOML (:mod:`execution.runfile`); both go through
+:func:`elastica_auto.execution.plan.make_plan` and give the same branches.
 """
 
 from __future__ import annotations
@@ -21,19 +21,19 @@ import time
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from . import store
-from .branch import Branch
-from .errors import PlanError, StoreError
-from .options import ContinuationOptions
-from .plan import StartLike, make_plan
-from .problem import Problem
-from .run import Progress, RunResult, _built, compute, number_labels
-from .store import StoredLabel
+from .storage import store
+from .branches.branch import Branch
+from .core.errors import PlanError, StoreError
+from .core.options import ContinuationOptions
+from .execution.plan import StartLike, make_plan
+from .model.problem import Problem
+from .execution.run import Progress, RunResult, compute, number_labels, start_job
+from .storage.store import StoredLabel
 
 
 class Branches(list):
     """The branches of one :func:`continuation`, in order: a list of
-    :class:`~elastica_auto.branch.Branch`, with labels numbered through all of them as in a
+    :class:`~elastica_auto.branches.branch.Branch`, with labels numbered through all of them as in a
     branch file (LP1, LP2, ... in branch and point order).
 
     Attributes
@@ -47,10 +47,10 @@ class Branches(list):
         Branch points where switching failed, a failed snap-back scan.
     maps : list of StabilityMap
         With ``map=True``: the stability map of each plane of the fold curves
-        (`elastica_auto.maps`).
+        (`elastica_auto.analysis.maps`).
     landings : list of dict
         With ``damping``: where the damped model lands, a row per fold and damping value
-        (`elastica_auto.landing.damping_sweep`).
+        (`elastica_auto.analysis.landing.damping_sweep`).
     seconds : float
         Wall-clock time of the whole computation.
     """
@@ -129,12 +129,12 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         boundary conditions, integral conditions); default: the module's ``FREE``.
     map : bool
         With two parameters and LP starts: also the stability map of each plane of the
-        fold curves (``branches.maps``; `elastica_auto.maps`). Only meaningful when the
+        fold curves (``branches.maps``; `elastica_auto.analysis.maps`). Only meaningful when the
         starts give every fold curve of the plane.
     landing : bool
         Also where each snap lands: the rod's dynamics from every fold that ends a stable
         branch, to the snap-back target it reaches (``branches.snaps``, column ``landed``;
-        `elastica_auto.landing`). Needs the module's ``gradient_flow`` hook.
+        `elastica_auto.analysis.landing`). Needs the module's ``gradient_flow`` hook.
     damping : list of float, optional
         With ``landing``: also where the damped model ``u_tt + c u_t = -grad E`` lands, for
         each ``c``, from each fold ending a stable branch (``branches.landings``, a row per
@@ -147,17 +147,17 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         processes (1: in this process; a script needs ``if __name__ == "__main__":``).
     scheduler : str, optional
         The address of a Dask scheduler (``tcp://host:port``): the branches are computed as
-        tasks of its cluster instead (`elastica_auto.cluster`); ``jobs`` is then unused.
+        tasks of its cluster instead (`elastica_auto.execution.cluster`); ``jobs`` is then unused.
     progress : callable, optional
         Called as ``progress(branch, points, folds, value)`` during the continuation.
     **options
-        :class:`~elastica_auto.options.ContinuationOptions` by name: ``ds``, ``ds_min``,
+        :class:`~elastica_auto.core.options.ContinuationOptions` by name: ``ds``, ``ds_min``,
         ``ds_max``, ``max_points``, ``ntst``, ``tol``, ``corrector``, ...
 
     Returns
     -------
     Branches
-        One :class:`~elastica_auto.branch.Branch` per start, value and direction (starts in
+        One :class:`~elastica_auto.branches.branch.Branch` per start, value and direction (starts in
         order, each in each direction), then the switched ones. A branch that failed ends
         with an MX label and says why in ``branch.message``.
 
@@ -179,7 +179,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                      damping=damping, damping_folds=damping_folds)
     t0 = time.perf_counter()
     try:
-        first = [_built(plan, spec) for spec in plan.branches]
+        first = [start_job(plan, spec) for spec in plan.branches]
     except KeyboardInterrupt:  # while a start was built (a restart's continuation, say)
         raise Interrupted(Branches([], plan.problem, [], [], time.perf_counter() - t0, [],
                                    [])) from None
@@ -199,7 +199,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
 def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | None = None,
          run: str | None = None) -> Path:
     """Write ``branches`` to the branch file ``path`` (HDF5, as ``elastica-auto run``
-    writes; read it back with :class:`~elastica_auto.store.BranchFile`).
+    writes; read it back with :class:`~elastica_auto.storage.store.BranchFile`).
 
     The file is written to a temporary name and renamed over ``path``. Labels are numbered
     through the file in branch and point order (the branches keep their own numbering).

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .errors import USER_ERRORS, RunFileError, StoreError
+from .core.errors import USER_ERRORS, RunFileError, StoreError
 EXIT_USER, EXIT_BRANCH_FAILED, EXIT_INTERRUPTED = 2, 1, 130
 
 
@@ -101,8 +101,8 @@ def _fmt_params(params: dict, names) -> str:
                    "direction) not in it yet.")
 def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resume):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
-    from .run import StartError, execute
-    from .runfile import load
+    from .execution.run import StartError, execute
+    from .execution.runfile import load
     out_dir = Path(out_dir)
     try:
         plan = load(resolve_run(name_or_path), out_dir=out_dir, overrides=overrides,
@@ -137,24 +137,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
     def on_branch(k, br):
         if tty:
             click.echo("\r" + " " * 78 + "\r", nl=False, err=True)
-        folds = ", ".join(
-            f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
-            f" {br.transition(p)}".rstrip() for p in br.folds)
-        start = f" from {br.start}" if br.start != "trivial" else ""
-        bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
-                        for p in br.points if p.type == "BP")
-        cps = ", ".join(p.name for p in br.points if p.type == "CP")
-        click.echo(f"branch {of(k)} {_fmt_params(br.points[0].params, varying)}{start} "
-                   f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
-                   f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
-                   + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
-                   + (f"; cusps {cps}" if cps else ""))
-        for w in br.warnings:
-            click.echo(f"  warning: {w}")
-        if br.disagreements:
-            click.echo(f"  index disagreements at {len(br.disagreements)} points: "
-                       + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
-                                   for p in br.disagreements[:5]))
+        _report_branch(of(k), br, varying)
 
     def on_landing(done, total, row):
         if tty:
@@ -190,6 +173,38 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         kept = f"; the earlier {out} is unchanged" if result.path != out else ""
         click.echo(f"\ninterrupted: {saved}{kept}", err=True)
         sys.exit(EXIT_INTERRUPTED)
+    _report_run(plan, result)
+    if result.failed:
+        click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
+        sys.exit(EXIT_BRANCH_FAILED)
+
+
+def _report_branch(number: str, br, varying):
+    """The line of a computed branch (``number``: "k/total"), its warnings and its index
+    disagreements."""
+    folds = ", ".join(
+        f"{p.name}{' (NOT LOCATED)' if p.fold_residual != p.fold_residual else ''}"
+        f" {br.transition(p)}".rstrip() for p in br.folds)
+    start = f" from {br.start}" if br.start != "trivial" else ""
+    bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
+                    for p in br.points if p.type == "BP")
+    cps = ", ".join(p.name for p in br.points if p.type == "CP")
+    click.echo(f"branch {number} {_fmt_params(br.points[0].params, varying)}{start} "
+               f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
+               f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
+               + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
+               + (f"; cusps {cps}" if cps else ""))
+    for w in br.warnings:
+        click.echo(f"  warning: {w}")
+    if br.disagreements:
+        click.echo(f"  index disagreements at {len(br.disagreements)} points: "
+                   + ", ".join(f"pt {br.points.index(p) + 1} ({p.note})"
+                               for p in br.disagreements[:5]))
+
+
+def _report_run(plan, result):
+    """What a finished run found besides its branches (warnings, snap-back targets, damped
+    landings, stability maps), then its totals."""
     for w in result.warnings:
         click.echo(f"warning: {w}")
     if result.snaps:
@@ -213,9 +228,6 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
                                                   for p in b.points)) else "")
                + f"{result.seconds:.2f} s "
                f"-> {result.path}")
-    if result.failed:
-        click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
-        sys.exit(EXIT_BRANCH_FAILED)
 
 
 def _terminate(signum, frame):
@@ -224,7 +236,7 @@ def _terminate(signum, frame):
 
 
 def _open(path):
-    from .store import BranchFile
+    from .storage.store import BranchFile
     try:
         return BranchFile(path)
     except StoreError as exc:
@@ -236,7 +248,7 @@ def _open(path):
 @click.option("--all", "all_points", is_flag=True, help="Every point, not only labelled ones.")
 def show(file, all_points):
     """Print an AUTO-like table of the labelled points of FILE.h5."""
-    from .store import rows
+    from .storage.store import rows
     bf = _open(file)
     cols = bf.parameters + bf.ordinates
     head = f"{'BR':>3} {'PT':>5} {'TY':>2} {'LAB':>6} " + " ".join(f"{c:>14}" for c in cols) \
@@ -301,7 +313,7 @@ def snaps(file):
               help="CSV file to write.")
 def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
-    from .store import export_csv
+    from .storage.store import export_csv
     bf = _open(file)
     try:
         path = export_csv(bf, Path(output))
@@ -367,7 +379,7 @@ def view(file, output, xname, yname, fold):
 
 def _values(option: str, items) -> dict[str, float]:
     """``NAME=VALUE`` items (VALUE an expression such as ``2*pi``) as a dict."""
-    from .expressions import evaluate
+    from .core.expressions import evaluate
     out = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -393,7 +405,7 @@ def path(equation, at, to, ds_max):
     equilibrium ends as the parameters move from --at to --to, and the stable equilibria
     there (EQUATION: a shipped module name or a .py file with the shooting hook)."""
     from .path import snaps_along
-    from .problem import load_problem
+    from .model.problem import load_problem
     a, b = _values("--at", at), _values("--to", to)
     if not b:
         _fail("--to: give at least one NAME=VALUE, the end of the path")

@@ -9,7 +9,7 @@ and B follow t, the others keep A's values. `snaps_along` then
 1. enumerates every equilibrium at A (the module's ``shooting`` hook, as for snap-back
    targets) and continues each in t over [0, 1], both ways;
 2. at each fold where a stable (index 0) stretch ends as t increases, lists every stable
-   equilibrium at that fold's parameters (`elastica_auto.snaps.snap_targets`): where a rod
+   equilibrium at that fold's parameters (`elastica_auto.analysis.snaps.snap_targets`): where a rod
    moved quasi-statically from A to B along the path snaps to.
 
 Which of several stable equilibria the rod lands on is not decided here (it depends on the
@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .branch import StoredLabel
-from .errors import PlanError
-from .problem import Ordinate, Parameter, Problem
+from .branches.branch import StoredLabel
+from .core.errors import PlanError
+from .model.problem import Ordinate, Parameter, Problem
 
 #: The name of the path parameter.
 PATH = "t"
@@ -106,7 +106,7 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
 @dataclass
 class Snap:
     """A fold on the path where a stable stretch ends as t increases, and the stable
-    equilibria there (each a row of `elastica_auto.snaps.snap_targets`: its ordinates,
+    equilibria there (each a row of `elastica_auto.analysis.snaps.snap_targets`: its ordinates,
     index, whether a computed branch passes through it)."""
 
     t: float
@@ -120,7 +120,8 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
     module's defaults), in order of t, and the branches followed: ``(snaps, branches)``.
     ``options`` are `elastica_auto.continuation`'s options (``ds_max``, ...)."""
     from .api import continuation
-    from .snaps import enumerate_equilibria, snap_targets
+    from .analysis.equilibria import enumerate_equilibria
+    from .analysis.snaps import snap_targets
     if not (base.has_shooting and base.has_second_variation):
         raise PlanError("path", f"{base.source} has no shooting or second_variation hook: "
                         "its equilibria at the start cannot be enumerated")
@@ -159,7 +160,7 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
 
 def _on(state, problem):
     """An equilibrium at A as a state of the path problem (t = 0)."""
-    from .solution import State
+    from .core.solution import State
     return State(state.s, state.y, state.yp, {**state.params, PATH: 0.0})
 
 

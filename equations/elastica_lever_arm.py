@@ -25,8 +25,8 @@ import math
 
 import numpy as np
 
-from elastica_auto.landing import Flow
-from elastica_auto.problem import Ordinate, Parameter
+from elastica_auto.analysis.landing import Flow
+from elastica_auto.model.problem import Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y")
 
@@ -173,7 +173,7 @@ def shooting(p):
 def gradient_flow(p, nodes):
     """The overdamped dynamics theta_t = -dE/dtheta = theta'' + P sin(theta - alpha) with
     theta(0) = theta0 and the free-end condition theta'(1) + eps P sin(psi + alpha - theta(1))
-    = 0, by the method of lines on ``nodes`` (for `elastica_auto.landing`).
+    = 0, by the method of lines on ``nodes`` (for `elastica_auto.analysis.landing`).
 
     u is theta at the nodes s_1..s_N (theta_0 = theta0 is clamped). The energy of the
     docstring, discretised with differences for kappa and the trapezoidal rule::
@@ -187,7 +187,7 @@ def gradient_flow(p, nodes):
     Its equilibria are the second-order finite-difference solutions of the BVP."""
     from scipy.sparse import diags
 
-    from elastica_auto.solution import trapezoid_weights
+    from elastica_auto.core.solution import trapezoid_weights
     h = np.diff(nodes)
     w = trapezoid_weights(nodes)[1:]
     big_p, a, eps, t0 = p["P"], p["alpha"], p["eps"], p["theta0"]

@@ -78,8 +78,8 @@ import math
 
 import numpy as np
 
-from elastica_auto.problem import Constraint, Ordinate, Parameter, SecondVariation
-from elastica_auto.solution import trapezoid_weights
+from elastica_auto.model.problem import Constraint, Ordinate, Parameter, SecondVariation
+from elastica_auto.core.solution import trapezoid_weights
 
 STATES = ("x", "y", "z", "q0", "q1", "q2", "q3", "mx", "my", "mz")
 
@@ -352,7 +352,7 @@ def _blocks(s, y, p):
     state given on the nodes ``s``, each as ``evaluate(pts)`` for `stability.count_form`
     (the state interpolated by cubic Hermite with the slopes of the ODE, as the engine
     does), or None where the form does not decouple (a non-planar state)."""
-    from elastica_auto.solution import State
+    from elastica_auto.core.solution import State
     state = State(s, y, rhs(s, y, p), p)
     form = second_variation(s, y, p)
     scale = max(np.max(np.abs(form.A)), np.max(np.abs(form.B)), np.max(np.abs(form.C)),
@@ -379,7 +379,7 @@ def _blocks(s, y, p):
 
 def _split_index(which):
     def fn(s, y, p):
-        from elastica_auto.stability import count_form
+        from elastica_auto.numerics.stability import count_form
         blocks = _blocks(s, y, p)
         if blocks is None:
             return -1.0
@@ -475,7 +475,7 @@ def symmetry(s, y, p):
     (m.d3 for b2 = 1, u1 = u2 = 0; m.e for F along e) and zero at both ends (d3(0) = e;
     m(1) = eps d3(1) x F): the unfolded solutions have mu = 0 (docs/kirchhoff.md). None where
     the parameters break the symmetry."""
-    from elastica_auto.symmetry import Symmetry
+    from elastica_auto.model.symmetry import Symmetry
     if not is_symmetric(p):
         return None
     e = clamp_axis(p)

@@ -1,6 +1,6 @@
 """The Bratu (Gelfand) problem: u'' + lam exp(u) = 0 on x in [0, 1], u(0) = u(1) = 0.
 
-A small non-elastica equation module for elastica-auto (see `elastica_auto.problem` for the
+A small non-elastica equation module for elastica-auto (see `elastica_auto.model.problem` for the
 protocol). First-order state ``[u, v]`` with v = u'::
 
     u' = v,  v' = -lam exp(u),  u(0) = 0,  u(1) = 0.
@@ -24,8 +24,8 @@ fold. The distinguished ordinate of lam, which the fold rule reads, is dE/dlam =
 """
 
 import numpy as np
-from elastica_auto.problem import Ordinate, Parameter, SecondVariation
-from elastica_auto.solution import hermite, simpson
+from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.core.solution import hermite, simpson
 
 STATES = ("u", "v")
 

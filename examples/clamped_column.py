@@ -1,6 +1,6 @@
 """A column clamped at both ends: theta(0) = theta0, theta(1) = 0 and x(1) = 0.
 
-A small equation module for elastica-auto (see `elastica_auto.problem` for the protocol): the
+A small equation module for elastica-auto (see `elastica_auto.model.problem` for the protocol): the
 clamped-guided column of ``guided_column.py`` with its upper end also held on the axis,
 x(1) = 0, by a lateral reaction Q, an unknown solved for (``FREE``). First-order state
 ``[theta, kappa, x, y]``::
@@ -23,7 +23,7 @@ index is the number of them below P.
 
 import numpy as np
 
-from elastica_auto.problem import Constraint, Ordinate, Parameter, SecondVariation
+from elastica_auto.model.problem import Constraint, Ordinate, Parameter, SecondVariation
 
 STATES = ("theta", "kappa", "x", "y")
 

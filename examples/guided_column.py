@@ -1,6 +1,6 @@
 """A clamped-guided column: theta(0) = theta0, theta(1) = 0, the ends free to move sideways.
 
-A small equation module for elastica-auto (see `elastica_auto.problem` for the protocol): an
+A small equation module for elastica-auto (see `elastica_auto.model.problem` for the protocol): an
 inextensible elastic column of unit length and stiffness, clamped at s = 0 and held at s = 1
 by a guide that keeps the tangent vertical but lets the end slide sideways, under a dead
 compressive load P at s = 1. First-order state ``[theta, kappa, x, y]``::
@@ -21,7 +21,7 @@ Distinguished ordinates: dE/dP = y(1) for P (it enters the equation) and m0 = th
 
 import numpy as np
 
-from elastica_auto.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
 
 STATES = ("theta", "kappa", "x", "y")
 

@@ -1,6 +1,6 @@
 """Von Karman's rotating-disk flow with wall suction: a boundary layer with a free parameter.
 
-A user module for elastica-auto (see `elastica_auto.problem` for the protocol). An infinite
+A user module for elastica-auto (see `elastica_auto.model.problem` for the protocol). An infinite
 disk rotates with angular velocity Omega in a viscous fluid at rest; with z the axial distance
 in units of sqrt(nu / Omega), the similarity solution ``(u, v, w) = (r Omega F(z), r Omega
 G(z), sqrt(nu Omega) H(z))`` satisfies (von Karman 1921; Cochran 1934)
@@ -27,7 +27,7 @@ H(1) + inflow.
 
 import numpy as np
 
-from elastica_auto.problem import Ordinate, Parameter
+from elastica_auto.model.problem import Ordinate, Parameter
 
 STATES = ("F", "dF", "G", "dG", "H")
 

@@ -1,7 +1,7 @@
 """A nonlinear eigenvalue problem with branch points: u'' + p u (1 + u^2) = 0 on x in [0, 1],
 u(0) = u(1) = 0.
 
-A small equation module for elastica-auto (see `elastica_auto.problem` for the protocol),
+A small equation module for elastica-auto (see `elastica_auto.model.problem` for the protocol),
 fixed at both ends. Its branch points are found from the determinant of the bordered
 collocation Jacobian, which needs no stability hook. First-order state ``[u, v]``, v = u'::
 
@@ -26,8 +26,8 @@ dE/dp = -int (u^2/2 + u^4/4) ds (``dE_dp``).
 
 import numpy as np
 
-from elastica_auto.problem import Ordinate, Parameter, SecondVariation
-from elastica_auto.solution import simpson
+from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto.core.solution import simpson
 
 STATES = ("u", "v")
 

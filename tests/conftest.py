@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from elastica_auto import runfile
-from elastica_auto.problem import load_problem
+from elastica_auto.execution import runfile
+from elastica_auto.model.problem import load_problem
 from helpers import ROTATING_ARM, RunOutput, elastica_run_file, run_cli, run_plan
 
 

@@ -10,9 +10,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from elastica_auto import runfile
-from elastica_auto.run import execute
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.execution.run import execute
+from elastica_auto.storage.store import BranchFile
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"
@@ -50,7 +50,7 @@ def elastica_run_file(path: Path, *, eps="0.25", P="pi^2/4", directions="both",
 @dataclass
 class RunOutput:
     plan: runfile.Plan
-    result: object          # elastica_auto.run.RunResult
+    result: object          # elastica_auto.execution.run.RunResult
     file: BranchFile
 
 

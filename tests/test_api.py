@@ -16,8 +16,8 @@ import pytest
 from scipy.optimize import brentq
 
 import elastica_auto as ea
-from elastica_auto import runfile
-from elastica_auto.branch import EXTRA_COLUMNS, export_names
+from elastica_auto.execution import runfile
+from elastica_auto.branches.branch import EXTRA_COLUMNS, export_names
 from helpers import EXAMPLES, elastica_run_file, run_cli, run_plan
 
 BRATU = EXAMPLES / "bratu.py"

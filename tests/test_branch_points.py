@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from elastica_auto import runfile
+from elastica_auto.execution import runfile
 from helpers import EXAMPLES, run_plan
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from helpers import elastica_run_file, run_cli
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 
 PARAMS = ["P", "eps", "psi", "alpha", "theta0"]
 ORDS = ["m1", "beta", "mA", "gamma", "m0"]

@@ -21,7 +21,7 @@ import pytest
 
 import elastica_auto
 
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 from helpers import ROTATING_ARM, run_cli, signalling_elastica, wait_for
 
 BIN = Path(sys.executable).parent
@@ -116,8 +116,8 @@ def test_both_workers_computed_branches_and_are_named(on_cluster, in_one_process
 
 def test_a_cluster_run_reports_its_tasks(tmp_path):
     """on_tasks: tasks done of all, points so far, workers; the last call has every task."""
-    from elastica_auto import runfile
-    from elastica_auto.run import execute
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import execute
     from helpers import elastica_run_file
     calls = []
     plan = runfile.load(elastica_run_file(tmp_path / "small.toml", uz=[0]))
@@ -200,7 +200,7 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, cli_exe):
 
 
 def test_a_run_file_names_its_scheduler(cluster, tmp_path):
-    from elastica_auto import runfile
+    from elastica_auto.execution import runfile
     from helpers import elastica_run_file
     path = elastica_run_file(tmp_path / "small.toml", uz=[0])
     path.write_text(path.read_text() + f'\n[execution]\nscheduler = "{cluster}"\n')
@@ -301,8 +301,8 @@ def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, mon
     cluster of one worker, started meanwhile, computes the other (this process waits, in its
     first step, for the worker to start: else it could finish both first). The file is the
     one jobs = 1 writes, number for number, snap-back table (scanned on the worker) too."""
-    from elastica_auto import runfile
-    from elastica_auto.run import execute
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import execute
     from helpers import elastica_run_file
     flag, started = tmp_path / "wait", tmp_path / "started"
     _waiting_elastica(tmp_path / "mine.py", flag, started)
@@ -322,8 +322,8 @@ def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, mon
 
 def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
-    from elastica_auto import cluster, runfile
-    from elastica_auto.run import execute
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution.run import execute
     from helpers import EXAMPLES
 
     def refused(*args, **kwargs):
@@ -346,7 +346,7 @@ def test_a_one_branch_run_imports_only_what_it_uses(tmp_path):
             f"r = CliRunner().invoke(main, ['run', {str(EXAMPLES / 'bratu.toml')!r}, '--out', "
             f"{str(tmp_path)!r}])\n"
             "assert r.exit_code == 0, r.output\n"
-            "print(sorted(m for m in ('distributed', 'dask', 'elastica_auto.cluster', "
+            "print(sorted(m for m in ('distributed', 'dask', 'elastica_auto.execution.cluster', "
             "'scipy.integrate', 'matplotlib', 'plotly') if m in sys.modules))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
@@ -388,16 +388,16 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monke
     anything: this process computes every branch and every snap-back scan (its integrator
     not imported yet, as in a command's process), and the run ends with the branches that
     jobs = 1 computes."""
-    from elastica_auto import runfile
-    from elastica_auto.interrupts import Interruptions
-    from elastica_auto.run import RunResult, _Alongside, _built, execute
-    from elastica_auto.snaps import scans
+    from elastica_auto.execution import runfile
+    from elastica_auto.core.interrupts import Interruptions
+    from elastica_auto.execution.run import RunResult, _Alongside, start_job, execute
+    from elastica_auto.analysis.snaps import scans
     from helpers import elastica_run_file
     run = elastica_run_file(tmp_path / "two.toml", uz=[0])
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     plan = runfile.load(run)
     pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
-    first = [_built(plan, spec) for spec in plan.branches]
+    first = [start_job(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
     monkeypatch.delitem(sys.modules, "scipy.integrate")
     with Interruptions() as signals:

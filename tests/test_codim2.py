@@ -1,4 +1,5 @@
-"""Two-parameter continuation (`elastica_auto.codim2`): fold curves and branch-point curves.
+"""Two-parameter continuation (`elastica_auto.branches.codim2`): fold curves and
+branch-point curves.
 
 Checked against methods that are not the engine's: every fold-curve point is a fold of the
 shooting formulation (r = 0 and dr/dk0 = 0, tests/shooting.py); a fold curve through the folds
@@ -18,7 +19,7 @@ from scipy.optimize import brentq
 
 import elastica_auto as ea
 import shooting
-from elastica_auto import runfile
+from elastica_auto.execution import runfile
 from helpers import run_plan
 
 P1, P2 = math.pi ** 2 / 4, 9 * math.pi ** 2 / 4
@@ -290,7 +291,7 @@ def _inner_cells(m, rng, per_region, margin=3):
 def test_each_region_of_a_map_holds_one_count(wedge, elastica):
     """Enumerations at random points of each region (not the one the run used) find the
     region's number of stable equilibria: the fold curves bound the regions completely."""
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     (m,) = wedge.maps
     assert sorted(m.stable.tolist()) == [1, 2] and m.fixed["P"] == pytest.approx(P1)
     for k, j, i in _inner_cells(m, np.random.default_rng(1), per_region=6):
@@ -371,7 +372,7 @@ def test_a_fold_curve_meets_the_critical_load_curve_on_the_straight_rod(wedge, e
 def test_export_marks_the_cusps(cusp_curves, tmp_path):
     """The exported rows of a fold-curve file: every parameter, the ordinates, type CP."""
     import csv
-    from elastica_auto.store import export_csv
+    from elastica_auto.storage.store import export_csv
     path = ea.save(cusp_curves, tmp_path / "cusps.h5")
     out = export_csv(ea.BranchFile(path), tmp_path / "cusps.csv")
     with open(out, newline="") as fh:

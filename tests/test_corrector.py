@@ -20,8 +20,9 @@ import pytest
 from scipy.integrate._bvp import collocation_fun
 
 import shooting
-from elastica_auto import bordered, runfile
-from elastica_auto.collocation import Blocks, Discretisation, equidistributed_mesh
+from elastica_auto.numerics import bordered
+from elastica_auto.execution import runfile
+from elastica_auto.numerics.collocation import Blocks, Discretisation, equidistributed_mesh
 from helpers import EXAMPLES, ROTATING_ARM, run_plan
 
 # ---- the discretisation ------------------------------------------------------------------
@@ -71,7 +72,7 @@ def test_collocation_jacobian_is_the_derivative_of_the_equations(elastica):
 def test_equidistributed_mesh_meets_its_target(elastica):
     """A regridded mesh brings the error estimate of a converged solution to about the
     target (within the factor 2 the step's margins allow for)."""
-    from elastica_auto.newton import Row, newton
+    from elastica_auto.numerics.newton import Row, newton
     p = {**elastica.defaults(), "P": 9 * math.pi ** 2 / 4, "eps": 0.5}
     k0 = shooting.solve_at(0.7, p["P"], p["eps"], 6.0)
     s = np.linspace(0.0, 1.0, 41)
@@ -213,7 +214,7 @@ def test_the_solve_bvp_corrector_steps_by_solve_bvp(tmp_path, monkeypatch):
     """With corrector = "solve_bvp" every accepted step is a solve_bvp solve (it inherited the
     collocation Newton's step, and the cross-check of the two correctors was none: 19
     collocation steps and 1 solve_bvp call on Bratu's branch)."""
-    from elastica_auto import bvp
+    from elastica_auto.numerics import bvp
     real, calls = bvp.solve_arclength, [0]
 
     def counted(*args, **kwargs):

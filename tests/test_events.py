@@ -14,7 +14,7 @@ import pytest
 
 import shooting
 from helpers import elastica_run_file, run_plan
-from elastica_auto import runfile
+from elastica_auto.execution import runfile
 
 P, EPS = math.pi ** 2 / 4, 0.25
 

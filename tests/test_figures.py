@@ -18,8 +18,8 @@ from PIL import Image
 
 from elastica_auto.plots.__main__ import make_rules
 from elastica_auto.plots.paper import FIGURES, in_paper_order
-from elastica_auto.problem import load_problem
-from elastica_auto.store import BranchFile
+from elastica_auto.model.problem import load_problem
+from elastica_auto.storage.store import BranchFile
 from test_paper_runs import REPO, build_paper, make
 
 

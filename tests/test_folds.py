@@ -11,7 +11,7 @@ import pytest
 
 import shooting
 from helpers import REPO, elastica_run_file, run_plan
-from elastica_auto import runfile
+from elastica_auto.execution import runfile
 
 TWO_PI = 2 * math.pi
 
@@ -224,7 +224,7 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     (Without the probe the translate check is all there is: where every translate of a pair
     is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.) In this
     process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
-    from elastica_auto import stepper
+    from elastica_auto.branches import stepper
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
     monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
     missed = _cusp_folds(tmp_path / "without", jobs=1, ds_max=1.0)

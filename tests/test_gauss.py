@@ -19,11 +19,12 @@ import numpy as np
 import pytest
 
 import shooting
-from elastica_auto import bordered, runfile
-from elastica_auto.gauss import GaussDiscretisation, tableau
-from elastica_auto.newton import Row, newton
-from elastica_auto.options import ContinuationOptions, OptionsError
-from elastica_auto.problem import load_problem
+from elastica_auto.numerics import bordered
+from elastica_auto.execution import runfile
+from elastica_auto.numerics.gauss import GaussDiscretisation, tableau
+from elastica_auto.numerics.newton import Row, newton
+from elastica_auto.core.options import ContinuationOptions, OptionsError
+from elastica_auto.model.problem import load_problem
 from helpers import EXAMPLES, ROTATING_ARM, run_plan
 
 
@@ -241,8 +242,8 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
     """Nodes, stages and the parameter: the correction from the condensed banded system (and
     the stage correction recovered from it) against a dense solve of the whole uncondensed
     Newton system, its Jacobian by central differences of the residuals."""
-    from elastica_auto.correctors import Collocation
-    from elastica_auto.newton import Linearization
+    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.numerics.newton import Linearization
 
     rng = np.random.default_rng(10 + k)
     s, y, p = _elastica_state(elastica, 4, rng)

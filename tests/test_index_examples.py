@@ -26,9 +26,10 @@ from scipy.interpolate import CubicHermiteSpline
 from scipy.optimize import brentq
 
 import elastica_auto as ea
-from elastica_auto import runfile, stability
-from elastica_auto.branch import PROFILE_GRID
-from elastica_auto.solution import State
+from elastica_auto.execution import runfile
+from elastica_auto.numerics import stability
+from elastica_auto.branches.branch import PROFILE_GRID
+from elastica_auto.core.solution import State
 from form_reference import Form, conjugate_count, dense_count
 from helpers import EXAMPLES, run_plan
 
@@ -269,7 +270,7 @@ def test_a_branch_point_whose_index_change_is_not_its_kernel_is_flagged(monkeypa
     """The stepper compares the index change across a branch point with the dimension of the
     kernel there; made to disagree (a kernel of dimension 2 reported), the BP says so in its
     note and the branch keeps a warning."""
-    from elastica_auto import stepper
+    from elastica_auto.branches import stepper
     monkeypatch.setattr(stepper, "kernel_dimension", lambda problem, state: 2)
     problem = ea.load_problem(EXAMPLES / "nonlinear_eigenvalue.py")
     (br,) = ea.continuation(problem, {"p": 0.0}, "p", bounds=(-1, 12), ds=0.5, ds_max=2.0)

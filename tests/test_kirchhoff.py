@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 import elastica_auto as ea
-from elastica_auto import stability
-from elastica_auto.problem import SecondVariation, load_problem
+from elastica_auto.numerics import stability
+from elastica_auto.model.problem import SecondVariation, load_problem
 
 K3 = "kirchhoff_lever_arm"
 PSI_UZ = (-0.5, 0.3, 0.6)
@@ -257,7 +257,7 @@ def conjugate_index(mod, state):
 
 
 def straight(mod, problem, **params):
-    from elastica_auto.solution import State
+    from elastica_auto.core.solution import State
     p = {par.name: par.default for par in mod.PARAMETERS}
     p.update(params)
     s = np.linspace(0, 1, 41)
@@ -367,7 +367,7 @@ def test_draw_projects_on_the_plane(modules, generic):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from elastica_auto.branch import PROFILE_GRID
+    from elastica_auto.branches.branch import PROFILE_GRID
     _, _, mod = modules
     fig, ax = plt.subplots()
     mod.draw(ax, generic(PROFILE_GRID), generic.params)
@@ -633,7 +633,7 @@ def test_isotropic_buckled_branch_with_a_phase_condition(modules, isotropic):
     spectrum has that zero eigenvalue."""
     from form_reference import Form, dense_count
 
-    from elastica_auto.collocation import Discretisation
+    from elastica_auto.numerics.collocation import Discretisation
     _, rod, mod = modules
     switched = isotropic[1:]
     assert len(switched) == 2

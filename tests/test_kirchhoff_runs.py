@@ -7,7 +7,7 @@ that do not use the spatial rod's own derivation:
 * the collocation solutions of the continuation: the shooting hook's residual vanishes there;
 * the conjugate-point count of the 3 x 3 Jacobi system (tests/form_reference.py, the Morse
   index theorem) for the index of the 3D snap-back targets;
-* a system with known roots for the box scan (`elastica_auto.snaps.scan_box`).
+* a system with known roots for the box scan (`elastica_auto.analysis.equilibria.scan_box`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import elastica_auto as ea
-from elastica_auto.problem import load_problem
+from elastica_auto.model.problem import load_problem
 
 K3 = "kirchhoff_lever_arm"
 #: eps = 0.5, P = pi^2/4, b2 = 2: the straight rod is unstable out of the plane (b2 times the
@@ -94,7 +94,7 @@ def test_shooting_residual_vanishes_at_collocation_solutions(arms):
     integrating from it meets the tip condition to the collocation's accuracy; at a
     non-planar state (the arm tilted by chi) as well, where k2 != 0."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.snaps import _integrate
+    from elastica_auto.analysis.equilibria import _integrate
     _, rod, _, rods = arms
     states = [br.label(p.name).state for br, p in labelled(rods, "UZ")[:4]]
     br, pt = labelled(rods, "UZ")[1]
@@ -134,7 +134,7 @@ def test_snap_targets_in_3d_are_equilibria_with_the_index_two_ways(arms, b2):
     the boundary conditions, include the planar scan's (k = (theta'(0), 0)), and each has the
     same index by the engine's count and the conjugate-point count of the Jacobi system."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     planar, rod, planars, _ = arms
     lp = labelled(planars, "LP")[0][1]
     p3 = {**rod.defaults(), **lp.params, "b2": b2}
@@ -157,7 +157,7 @@ def test_scan_box_finds_every_root_of_a_known_system():
     bracketing along the circle x = 2 cos t, y = 2 sin t."""
     from scipy.optimize import brentq
 
-    from elastica_auto.snaps import scan_box
+    from elastica_auto.analysis.equilibria import scan_box
 
     def r(k):
         x, y = k
@@ -213,7 +213,7 @@ def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):
     rod.draw(flat, y, st.params)
     assert np.allclose(flat.lines[[ln.get_gid() for ln in flat.lines].index("rod")]
                        .get_xydata().T, y[0:2])
-    from elastica_auto.store import BranchFile
+    from elastica_auto.storage.store import BranchFile
     ea.save(list(rods)[:1], tmp_path / "arm.h5", problem=rod)
     images = configuration_images(BranchFile(tmp_path / "arm.h5"), rod)
     assert images and all(v.startswith("data:image/png;base64,") for v in images.values())
@@ -224,7 +224,7 @@ def test_the_snap_back_table_of_a_3d_run_has_both_unknowns():
     """`snap_targets` on the spatial rod's rotating arm (eps = 0.25, P = pi^2/4, b2 = 2: the
     folds end stable stretches in 3D too): every fold's target is the mirror-side buckled rod
     (k1 = -+2.2160 = the planar target's theta'(0), k2 = 0), stable, with both columns."""
-    from elastica_auto.snaps import snap_targets
+    from elastica_auto.analysis.snaps import snap_targets
     rod = load_problem(K3)
     branches = ea.continuation(rod, {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 2.0}, "psi",
                                bounds=(-1.0, 1.0), directions="both", max_points=100)

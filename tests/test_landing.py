@@ -1,4 +1,4 @@
-"""Where a snap lands (elastica_auto.landing and the elastica's gradient_flow hook).
+"""Where a snap lands (elastica_auto.analysis.landing and the elastica's gradient_flow hook).
 
 Independent references: the energy of the module's docstring differentiated by central
 differences (the flow's force and Jacobian); the BVP's equilibria found by shooting (the
@@ -14,9 +14,9 @@ import math
 import numpy as np
 import pytest
 
-import elastica_auto.landing as landing_module
-from elastica_auto.landing import NODES, PUSH, land
-from elastica_auto.snaps import enumerate_equilibria, snap_lps
+import elastica_auto.analysis.landing as landing_module
+from elastica_auto.analysis.landing import NODES, PUSH, land
+from elastica_auto.analysis.equilibria import enumerate_equilibria, snap_lps
 
 
 P_HIGH = 9 * math.pi ** 2 / 4
@@ -215,9 +215,9 @@ def test_the_damping_sweep_is_checked_saved_and_listed(arm, elastica, tmp_path, 
     the key); a fold that ends no stable branch is a warning; the landings survive a save
     and ``snaps`` lists them."""
     import elastica_auto as ea
-    from elastica_auto.errors import PlanError
-    from elastica_auto.landing import damping_sweep
-    from elastica_auto.store import BranchFile
+    from elastica_auto.core.errors import PlanError
+    from elastica_auto.analysis.landing import damping_sweep
+    from elastica_auto.storage.store import BranchFile
     from helpers import run_cli
     start = {"eps": 0.5, "P": P_HIGH}
     for kwargs, key in ((dict(damping=[1.0]), "damping"),          # without landing
@@ -256,9 +256,9 @@ def test_landing_is_asked_for_and_needs_the_hook(arm, elastica, tmp_path):
     """The landing columns come with ``landing`` and the hook: without either the table is
     as before; asking a module without the hook is an error naming the argument."""
     import elastica_auto as ea
-    from elastica_auto.errors import PlanError
-    from elastica_auto.problem import load_problem
-    from elastica_auto.snaps import snap_targets
+    from elastica_auto.core.errors import PlanError
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.analysis.snaps import snap_targets
     from helpers import REPO
     source = (REPO / "equations" / "elastica_lever_arm.py").read_text()
     (tmp_path / "no_flow.py").write_text(source.replace("def gradient_flow(",

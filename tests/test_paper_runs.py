@@ -22,7 +22,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 import shooting
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 
 REPO = Path(__file__).resolve().parents[1]
 TWO_PI = 2 * math.pi
@@ -372,7 +372,7 @@ def test_every_region_of_the_stability_maps_holds_one_count(paper, run, elastica
     """Enumerations at random points of the maps' regions, away from the curves, find each
     region's number of stable equilibria."""
     from scipy import ndimage
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     maps = _open(paper, run).maps
     assert maps
     rng = np.random.default_rng(7)

@@ -30,10 +30,10 @@ from scipy.linalg import null_space
 from scipy.optimize import brentq
 
 import elastica_auto as ea
-from elastica_auto import stability
-from elastica_auto.branch import PROFILE_GRID
-from elastica_auto.problem import load_problem
-from elastica_auto.solution import State
+from elastica_auto.numerics import stability
+from elastica_auto.branches.branch import PROFILE_GRID
+from elastica_auto.model.problem import load_problem
+from elastica_auto.core.solution import State
 
 STOP = ["n_abs > 80"]          # past the first fold of each direction
 

@@ -14,10 +14,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import elastica_auto as ea
-from elastica_auto.errors import ProblemError
+from elastica_auto.core.errors import ProblemError
 from elastica_auto.plots.diagram import diagram_figure, panel_groups, value_tex
 from elastica_auto.plots.layout import Inset, Panel, Pt, draw_panel, equation_problem
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 from helpers import EXAMPLES
 
 P1, P2 = math.pi ** 2 / 4, 9 * math.pi ** 2 / 4

@@ -19,7 +19,7 @@ from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
 
 import elastica_auto as ea
-from elastica_auto import runfile
+from elastica_auto.execution import runfile
 from helpers import EXAMPLES, run_plan
 
 
@@ -109,7 +109,7 @@ def test_a_stop_on_an_ordinate_is_located():
 
 GUESSING = '''
 import numpy as np
-from elastica_auto.problem import Ordinate, Parameter
+from elastica_auto.model.problem import Ordinate, Parameter
 STATES = ("u", "v")
 PARAMETERS = [Parameter("lam", 2.0, "lam", "ode")]
 def rhs(s, y, p):

@@ -13,9 +13,9 @@ from scipy.optimize import brentq
 import elastica_auto as ea
 import shooting
 from helpers import elastica_run_file, invariant, invariant_bound, run_cli, run_plan
-from elastica_auto import runfile
-from elastica_auto.errors import StartError
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.core.errors import StartError
+from elastica_auto.storage.store import BranchFile
 
 
 def _restart_toml(path, start, directions="both", bounds=("0", "1")):

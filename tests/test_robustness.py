@@ -23,9 +23,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from elastica_auto import runfile
-from elastica_auto.run import StartError, build_start, compute_branch
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.execution.run import StartError, build_start, compute_branch
+from elastica_auto.storage.store import BranchFile
 from helpers import REPO, run_cli, signalling_elastica, wait_for
 
 SMALL = textwrap.dedent("""\
@@ -235,12 +235,13 @@ def test_an_interruption_after_a_branch_is_computed_keeps_it(tmp_path, monkeypat
     and the run stops after it. Raised there, it lost the branch (CI saw "no branch saved"
     once in 50 runs of the two-runs-one-file test; the moments just after the continuation
     and just after the branch lay between two signal handlers)."""
-    from elastica_auto import run as run_module
-    from elastica_auto import store
+    from elastica_auto.execution import jobs as jobs_module
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.storage import store
     (tmp_path / "two.toml").write_text(SMALL.replace("eps = 0.25", "eps = [0.25, 0.5]"))
     plan = runfile.load(tmp_path / "two.toml")
-    target, after = {"continuation's end": ((run_module, "continue_branch"), True),
-                     "labelling": ((run_module, "label_stability"), False),
+    target, after = {"continuation's end": ((jobs_module, "continue_branch"), True),
+                     "labelling": ((jobs_module, "label_stability"), False),
                      "computed": ((run_module, "compute_branch"), True),
                      "saving": ((store.Writer, "save"), False)}[where]
     real = getattr(*target)
@@ -266,8 +267,8 @@ def test_a_step_interrupted_while_it_is_accepted_ends_at_the_point_before(tmp_pa
     """Ctrl-C after a step's end point is put in the branch but before the walk moves on to
     it: the branch ends MX at the point accepted before, every point in order, as the same
     branch computed without the interruption up to there."""
-    from elastica_auto import run as run_module
-    from elastica_auto.branch import Branch
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.branches.branch import Branch
     (tmp_path / "one.toml").write_text(SMALL)
     plan = runfile.load(tmp_path / "one.toml")
     full = run_module.execute(plan, tmp_path / "full", jobs=1).branches[0]

@@ -21,7 +21,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 from helpers import EXAMPLES, run_cli, wait_for
 
 BRATU = (EXAMPLES / "bratu.py").read_text()
@@ -287,8 +287,8 @@ def test_the_snap_scan_survives_an_exact_zero_of_the_residual():
     exactly 0.0 depends on the floating point of the machine; the next test makes the same
     degenerate case by construction."""
     import shooting
-    from elastica_auto.problem import load_problem
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
 
     P, eps, psi = 9 * math.pi ** 2 / 4, 0.364, -5.02385641025641
     elastica = load_problem("elastica_lever_arm")
@@ -303,7 +303,7 @@ def test_regula_falsi_stops_at_an_exact_zero():
     """The bracket [0, 1] of k - 1/2 is solved exactly by the first regula falsi step (0.5 and
     its residual 0.0 are exact); the bracket [2, 3] of (k - 2.2)^3 needs many more, during
     which the first must not be iterated into 0 / 0."""
-    from elastica_auto.snaps import refine_brackets
+    from elastica_auto.analysis.equilibria import refine_brackets
 
     calls = []
 

@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 import pytest
 
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 from helpers import run_cli, signalling_elastica, wait_for
 from test_robustness import IN_BRANCH_2, LONG_MINE, SMALL, one_line_error
 
@@ -359,8 +359,9 @@ import sys
 import threading
 from pathlib import Path
 
-from elastica_auto import runfile, store
-from elastica_auto.run import execute
+from elastica_auto.execution import runfile
+from elastica_auto.storage import store
+from elastica_auto.execution.run import execute
 
 stage, count, marker = sys.argv[3], int(sys.argv[4]), Path(sys.argv[5])
 seen = []
@@ -392,8 +393,8 @@ def whole_run(tmp_path_factory):
     from helpers import elastica_run_file
     root = tmp_path_factory.mktemp("whole")
     toml = elastica_run_file(root / "small.toml", uz=[0, 1])
-    from elastica_auto import runfile
-    from elastica_auto.run import execute
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import execute
     return toml, BranchFile(execute(runfile.load(toml), root / "out", jobs=1).path)
 
 

@@ -13,10 +13,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from elastica_auto import runfile, stability
-from elastica_auto.problem import load_problem
-from elastica_auto.solution import State
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.numerics import stability
+from elastica_auto.model.problem import load_problem
+from elastica_auto.core.solution import State
+from elastica_auto.storage.store import BranchFile
 from helpers import run_cli
 from test_robustness import SMALL, one_line_error
 
@@ -96,7 +97,7 @@ def test_index_of_a_state_with_nan_is_unknown(elastica):
 NAN_MODULE = textwrap.dedent('''\
     """u'' + k u = 0, u(0) = u'(1) = 0, with k = lam up to lam = 1 and undefined (NaN) beyond."""
     import numpy as np
-    from elastica_auto.problem import Ordinate, Parameter
+    from elastica_auto.model.problem import Ordinate, Parameter
 
     STATES = ("u", "v")
     PARAMETERS = [Parameter("lam", 0.0, r"\\lambda", "ode")]
@@ -203,7 +204,7 @@ def test_fold_counts_take_ascii_digits_only(stop, tmp_path, cli_exe):
 
 GOOD_MODULE = textwrap.dedent('''\
     import numpy as np
-    from elastica_auto.problem import Ordinate, Parameter
+    from elastica_auto.model.problem import Ordinate, Parameter
 
     STATES = ("u", "v")
     PARAMETERS = [Parameter("lam", 0.0, "lam", "ode")]

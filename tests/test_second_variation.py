@@ -1,4 +1,4 @@
-"""The index of vector quadratic forms (elastica_auto.second_variation, stability.count_form),
+"""The index of vector quadratic forms (elastica_auto.model.second_variation, stability.count_form),
 checked against two independent references (tests/form_reference.py) and analytic counts.
 
 The form, for h(s) in R^k on [0, 1]::
@@ -29,9 +29,9 @@ import functools
 import numpy as np
 import pytest
 
-from elastica_auto.errors import ProblemError
-from elastica_auto.second_variation import Constraint, SecondVariation
-from elastica_auto.stability import count_form
+from elastica_auto.core.errors import ProblemError
+from elastica_auto.model.second_variation import Constraint, SecondVariation
+from elastica_auto.numerics.stability import count_form
 from form_reference import Form, conjugate_count, dense_count, fixed_rows
 
 MESH = np.linspace(0.0, 1.0, 61)

@@ -1,4 +1,4 @@
-"""Snap-back targets and the shooting scan of all equilibria (elastica_auto.snaps).
+"""Snap-back targets and the shooting scan of all equilibria (elastica_auto.analysis.snaps).
 
 Independent references: the straight rod and the mirror symmetry theta -> -theta of the problem
 at psi = alpha = theta0 = 0; the critical loads of cot sqrt(P) = eps sqrt(P) (the straight rod's
@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import shooting
-from elastica_auto.snaps import enumerate_equilibria, snap_targets
+from elastica_auto.analysis.equilibria import enumerate_equilibria
+from elastica_auto.analysis.snaps import snap_targets
 from helpers import run_cli
 
 
@@ -145,7 +146,7 @@ def test_snaps_command(rotating_arm, cli_exe):
 
 
 def test_modules_without_the_hooks_have_no_targets():
-    from elastica_auto.problem import load_problem
+    from elastica_auto.model.problem import load_problem
     from helpers import REPO
     bratu = load_problem(str(REPO / "examples" / "bratu.py"))
     assert not bratu.has_shooting

@@ -38,8 +38,9 @@ from scipy.optimize import brentq
 
 import jacobi
 import shooting
-from elastica_auto import runfile, stability
-from elastica_auto.solution import State
+from elastica_auto.execution import runfile
+from elastica_auto.numerics import stability
+from elastica_auto.core.solution import State
 from helpers import elastica_run_file, run_cli, run_plan
 
 TWO_PI = 2 * math.pi

@@ -1,4 +1,5 @@
-"""Reading branch files lazily (`elastica_auto.store.BranchFile`), and restart files opened once.
+"""Reading branch files lazily (`elastica_auto.storage.store.BranchFile`), and restart files
+opened once.
 
 Opening checks the layout from the datasets' shapes and reads only the label columns; a column,
 the profiles or a label's solution is read on first use, from a file opened and closed for that
@@ -20,10 +21,10 @@ import numpy as np
 import pytest
 
 import elastica_auto as ea
-from elastica_auto import runfile
-from elastica_auto.branch import column_names
-from elastica_auto.errors import StoreError
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.branches.branch import column_names
+from elastica_auto.core.errors import StoreError
+from elastica_auto.storage.store import BranchFile
 from helpers import EXAMPLES
 
 BRATU = EXAMPLES / "bratu.py"

@@ -14,8 +14,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from elastica_auto import runfile
-from elastica_auto.store import BranchFile
+from elastica_auto.execution import runfile
+from elastica_auto.storage.store import BranchFile
 from helpers import run_cli, signalling_elastica, wait_for
 
 SWEEP = """\

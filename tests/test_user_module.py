@@ -22,8 +22,8 @@ import pytest
 from scipy.optimize import brentq, minimize_scalar
 
 from helpers import EXAMPLES, REPO, run_cli, run_plan
-from elastica_auto import runfile
-from elastica_auto.problem import load_problem
+from elastica_auto.execution import runfile
+from elastica_auto.model.problem import load_problem
 
 BRATU_TOML = EXAMPLES / "bratu.toml"
 

@@ -17,7 +17,7 @@ import pytest
 
 import elastica_auto as ea
 from elastica_auto.plots import viewer
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 from helpers import run_cli
 
 

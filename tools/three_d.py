@@ -18,7 +18,7 @@ counted at each stored point (the planar profile embedded: r = (x, y, 0), q = q_
 Q_REF, m = kappa e_z), with index_in the planar index.
 
 Every table is markdown, computed from the files (and, for ``targets``, by the 3D shooting
-enumeration `elastica_auto.snaps.enumerate_equilibria` of ``kirchhoff_lever_arm``).
+enumeration `elastica_auto.analysis.equilibria.enumerate_equilibria` of ``kirchhoff_lever_arm``).
 In the tables, "LP 0.8173" is a stretch ending at a located fold, "BP" at a located branch
 point, "~" between two points where nothing was located (the midpoint). Along a branch, a
 stretch is a run of points with one (index_in, index_out); the rows where
@@ -35,7 +35,7 @@ import sys
 
 import numpy as np
 
-from elastica_auto.store import BranchFile
+from elastica_auto.storage.store import BranchFile
 
 TWO_PI = 2 * math.pi
 FIXED = ("eps", "P", "b2", "c")
@@ -246,8 +246,8 @@ def table_targets(bf2, b2_values, c_values):
     """For each fold of the planar file's snap-back table: its stable planar targets and
     their 3D index (the 3D enumeration at the fold's parameters, the same state: k1 =
     theta'(0), k2 = 0), and every other stable 3D equilibrium there."""
-    from elastica_auto.problem import load_problem
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     rod = load_problem("kirchhoff_lever_arm")
     folds = {}
     for r in bf2.snaps:
@@ -304,7 +304,7 @@ class Embedded:
 
     def __init__(self, br, grid, b2, c):
         import elastica_auto.equations.kirchhoff_lever_arm as rod
-        from elastica_auto.stability import count_form
+        from elastica_auto.numerics.stability import count_form
         self.number, self.attrs, self._br = br.number, dict(br.attrs), br
         self.attrs["ordinate"] = "m1"
         self._grid, self._b2, self._c = grid, float(b2), float(c)
@@ -329,7 +329,7 @@ class Embedded:
         j: each found by bisection on the shifted count to 1e-6, then linear interpolation
         in the parameter."""
         import elastica_auto.equations.kirchhoff_lever_arm as rod
-        from elastica_auto.stability import count_form
+        from elastica_auto.numerics.stability import count_form
         lam = self.columns[self.parameter].astype(float)
 
         def eigenvalue(row):
@@ -378,8 +378,8 @@ class EmbeddedFile:
 def table_equilibria(values: dict, b2_values, c_values):
     """Every equilibrium of the spatial rod at the parameter ``values`` (the 3D shooting
     scan), for each (b2, c): k = (k1, k2), z(1), index (in + out where planar)."""
-    from elastica_auto.problem import load_problem
-    from elastica_auto.snaps import enumerate_equilibria
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
     rod = load_problem("kirchhoff_lever_arm")
     print("| " + ", ".join(values) + " | b2, c | k1 | k2 | z(1) | index | in + out |")
     print("|---|---|---|---|---|---|---|")
@@ -398,7 +398,7 @@ def table_embedded_labels(bf2, b2_values, c_values):
     """The stable (index 0) user points of a planar file, each distinct state once, with
     the out-of-plane index of the spatial rod at that planar state for each (b2, c)."""
     import elastica_auto.equations.kirchhoff_lever_arm as rod
-    from elastica_auto.stability import count_form
+    from elastica_auto.numerics.stability import count_form
     grid = bf2.profile_grid
     pairs = [(b2, c) for b2 in b2_values for c in c_values]
     print("| eps, P | psi (mod 2 pi) | m(0).e_z | " + " | ".join(
@@ -445,7 +445,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     files = [BranchFile(f) for f in args.files]
     if args.table == "equilibria":
-        from elastica_auto.expressions import evaluate
+        from elastica_auto.core.expressions import evaluate
         table_equilibria({k: float(evaluate(v)) for k, v in (a.split("=", 1) for a in args.set)},
                          args.b2, args.c)
     elif args.table == "stretches":

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from ..store import BranchFile
+from ..storage.store import BranchFile
 from .layout import same_value
 from .style import RC, index_label, index_style, marker_style
 
@@ -89,7 +89,8 @@ def value_tex(v: float) -> str:
     return f"{v:.4g}"
 
 
-def _values_tex(bf: BranchFile, values: dict) -> str:
+def values_tex(bf: BranchFile, values: dict) -> str:
+    """Parameter values as a panel title: ``$name=value$`` in the file's TeX names."""
     return ", ".join(rf"${bf.tex.get(q, q).strip('$')}={value_tex(v)}$"
                      for q, v in values.items())
 
@@ -202,7 +203,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
             kinds |= k
             names.append(n)
             if values:
-                ax.set_title(_values_tex(bf, values), fontsize=9)
+                ax.set_title(values_tex(bf, values), fontsize=9)
             if period is not None:
                 ax.set_xlim(0, period)
             ax.grid(alpha=0.25)
@@ -214,7 +215,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                 ax.set_xlabel(bf.tex.get(xname, xname))
         fig.supylabel(bf.tex.get(yname, yname))
         count = f"{len(bf.branches)} branch{'es' if len(bf.branches) != 1 else ''}"
-        fig.suptitle(f"{bf.run}: {count}" + (f"; {_values_tex(bf, common)}" if common else ""),
+        fig.suptitle(f"{bf.run}: {count}" + (f"; {values_tex(bf, common)}" if common else ""),
                      fontsize=10)
         handles = [Line2D([], [], color=c, ls=d, lw=w, label=index_label(k))
                    for k in sorted(indices, key=lambda k: (k < 0, k))

@@ -25,8 +25,8 @@ from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
 from scipy.interpolate import PchipInterpolator
 
-from ..problem import Problem, load_problem
-from ..store import BranchFile, StoredBranch
+from ..model.problem import Problem, load_problem
+from ..storage.store import BranchFile, StoredBranch
 from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
 
 TWO_PI = 2 * math.pi
@@ -325,19 +325,7 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
     two dashed copies out of phase would look like a solid line. With ``smooth``, the line
     through the points is a monotone (PCHIP) cubic in each coordinate against the chord length,
     not a polygon: it passes through every point and adds no turning point between two."""
-    data = []
-    for bf, br in items:
-        x = br.columns[xname].astype(float)
-        # the ordinate first, then every other ordinate: copies of the same equilibria
-        # coincide in all of them, distinct equilibria that look alike in one do not
-        names = [yname] + [o for o in bf.ordinates if o != yname]
-        F = np.array([br.columns[o].astype(float) for o in names])
-        index = np.asarray(br.columns["index"])
-        if period:
-            x, F, index, wrap = _fold(x, F, index, period)
-        else:
-            wrap = np.zeros(max(len(x) - 1, 0), bool)
-        data.append((x, F, index, wrap))
+    data = _branch_data(items, xname, yname, period)
     if not data:
         return set()
     allx = np.concatenate([d[0] for d in data])
@@ -355,28 +343,8 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
         if n < 2:
             continue
         P = np.column_stack((x / sx, (F / sF[:, None]).T))
-        dup = np.zeros(n, bool)
-        if dedupe:
-            # against the branches drawn before, and against this branch's own earlier
-            # points (a branch can pass the same equilibria again, a period later)
-            others_a, others_b = np.vstack(drawn_a), np.vstack(drawn_b)
-            own_a, own_b = P[:-1][~wrap], P[1:][~wrap]
-            own_i = np.flatnonzero(~wrap)
-            for a in range(0, n, 32):
-                b = min(a + 32, n)
-                keep = own_i < a - 8
-                dup[a:b] = _distance_to_segments(
-                    P[a:b], np.vstack((others_a, own_a[keep])),
-                    np.vstack((others_b, own_b[keep]))) < tol
-        hidden = dup[:-1] & dup[1:]
-        if hidden.any():
-            # short visible pieces between hidden stretches are the same curve sampled at
-            # other points (chords bend away from it by more than tol): hide them too
-            edges = np.flatnonzero(np.diff(np.concatenate(([1], hidden.astype(int), [1]))))
-            for a, b in zip(edges[::2], edges[1::2]):      # visible runs [a, b)
-                if b - a <= 3 and (a == 0 or hidden[a - 1]) and (b == len(hidden)
-                                                                 or hidden[b]):
-                    hidden[a:b] = True
+        hidden = (_retraced(P, wrap, np.vstack(drawn_a), np.vstack(drawn_b), tol) if dedupe
+                  else np.zeros(n - 1, bool))
         visible = ~hidden & ~wrap
         i = 0
         while i < n - 1:
@@ -398,6 +366,53 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
         drawn_a.append(P[:-1][~wrap])
         drawn_b.append(P[1:][~wrap])
     return seen
+
+
+def _branch_data(items, xname, yname, period):
+    """Per branch of ``items``: (x, ordinates F (``yname`` first), index, wrap), with x
+    folded into [0, period) and ``wrap`` marking the segments across a wrap."""
+    data = []
+    for bf, br in items:
+        x = br.columns[xname].astype(float)
+        # the ordinate first, then every other ordinate: copies of the same equilibria
+        # coincide in all of them, distinct equilibria that look alike in one do not
+        names = [yname] + [o for o in bf.ordinates if o != yname]
+        F = np.array([br.columns[o].astype(float) for o in names])
+        index = np.asarray(br.columns["index"])
+        if period:
+            x, F, index, wrap = _fold(x, F, index, period)
+        else:
+            wrap = np.zeros(max(len(x) - 1, 0), bool)
+        data.append((x, F, index, wrap))
+    return data
+
+
+def _retraced(P, wrap, others_a, others_b, tol):
+    """The segments of the scaled points ``P`` to hide: both ends within ``tol`` of a segment
+    [others_a, others_b] drawn before or of this branch's own earlier segments, and the short
+    visible pieces between two such stretches."""
+    n = len(P)
+    dup = np.zeros(n, bool)
+    # against the branches drawn before, and against this branch's own earlier
+    # points (a branch can pass the same equilibria again, a period later)
+    own_a, own_b = P[:-1][~wrap], P[1:][~wrap]
+    own_i = np.flatnonzero(~wrap)
+    for a in range(0, n, 32):
+        b = min(a + 32, n)
+        keep = own_i < a - 8
+        dup[a:b] = _distance_to_segments(
+            P[a:b], np.vstack((others_a, own_a[keep])),
+            np.vstack((others_b, own_b[keep]))) < tol
+    hidden = dup[:-1] & dup[1:]
+    if hidden.any():
+        # short visible pieces between hidden stretches are the same curve sampled at
+        # other points (chords bend away from it by more than tol): hide them too
+        edges = np.flatnonzero(np.diff(np.concatenate(([1], hidden.astype(int), [1]))))
+        for a, b in zip(edges[::2], edges[1::2]):      # visible runs [a, b)
+            if b - a <= 3 and (a == 0 or hidden[a - 1]) and (b == len(hidden)
+                                                             or hidden[b]):
+                hidden[a:b] = True
+    return hidden
 
 
 def place_labels(ax, insets, step=13.0, min_gap=11.0, taken=()):

@@ -26,7 +26,7 @@ from matplotlib.patches import ConnectionPatch
 from matplotlib.ticker import MultipleLocator
 
 from ..equations.elastica_lever_arm import arm_end
-from ..store import BranchFile, StoredBranch
+from ..storage.store import BranchFile, StoredBranch
 from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
                      draw_configurations, draw_panel, find_equilibrium, label_point,
                      mark_number, same_value, save)

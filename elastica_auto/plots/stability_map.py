@@ -1,6 +1,6 @@
 """Stability maps of a fold-curve run, drawn from its branch file (nothing is recomputed).
 
-One panel per plane (`elastica_auto.maps`, stored in ``/maps`` by the run): each region
+One panel per plane (`elastica_auto.analysis.maps`, stored in ``/maps`` by the run): each region
 between fold curves shaded and numbered by how many stable equilibria it holds, the fold
 curves over it (folded into one period of a periodic first parameter), cusps (CP) marked.
 """
@@ -14,9 +14,9 @@ import numpy as np
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 
-from ..maps import plane_groups
-from ..store import BranchFile
-from .diagram import _values_tex
+from ..analysis.maps import plane_groups
+from ..storage.store import BranchFile
+from .diagram import values_tex
 from .style import RC, marker_style
 
 #: A region gets its number written in it from this many cells on (smaller ones are only
@@ -59,7 +59,7 @@ def draw_map(ax, bf: BranchFile, m, cmap, norm):
     ax.set_ylim(m.extent[2], m.extent[3])
     ax.set_xlabel(bf.tex.get(m.x, m.x))
     ax.set_ylabel(bf.tex.get(m.y, m.y))
-    ax.set_title(_values_tex(bf, {k: v for k, v in m.fixed.items() if v != 0}) or "",
+    ax.set_title(values_tex(bf, {k: v for k, v in m.fixed.items() if v != 0}) or "",
                  fontsize=9.5)
 
 

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import USER_ERRORS, StoreError
-from ..store import BranchFile, same_file, write_atomically
+from ..core.errors import USER_ERRORS, StoreError
+from ..storage.store import BranchFile, same_file, write_atomically
 from .diagram import MARKED, MARKER_TEXT, default_columns, fixed_parameters, panel_groups
 from .style import MARKERS, SNAP_COLOR, index_label, index_style
 

@@ -1,0 +1,216 @@
+"""All equilibria at given parameters, and the folds that end a stable stretch of a branch.
+
+What the snap-back targets (`snaps`), the snap's landing (`landing`), the stability maps
+(`maps`) and the snaps along a path (`elastica_auto.path`) share. The equilibria are found by
+a bounded shooting scan (docs/design.md, "Enumerating all equilibria"), through the optional
+equation-module hook
+
+``shooting(p) -> (k_lo, k_hi, initial, residual)``
+    equilibria at parameters ``p`` are the roots ``k`` in ``[k_lo, k_hi]`` of
+    ``residual(y(0), y(1))`` with ``y(0) = initial(k)`` and y integrated by the module's ``rhs``
+    (both vectorised over columns). For the elastica k = theta'(0), the residual is the
+    free-end moment balance and the first integral bounds |k|.
+
+    ``k_lo`` and ``k_hi`` may also be sequences of d >= 2 numbers: the unknown is then
+    k in R^d, in the box between them, ``initial(k)`` takes k of shape (d, m) and
+    ``residual`` returns (d, m) (for the spatial rod, d = 2: the clamp moment across the
+    load; its component along the load is conserved and zero).
+
+The scan integrates all grid values of k at once, brackets every sign change, refines all
+brackets together (Illinois regula falsi), and computes each root's index by the direct
+count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
+solve (difference Jacobian, all candidates at once) from every grid cell whose
+neighbourhood holds both signs of every residual component or where |r| has a local minimum,
+and the distinct converged roots;
+a root that no such cell catches (a residual the grid does not resolve) is missed, so this is
+a search, not a proof of completeness.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.solution import State
+from ..numerics.stability import index
+
+SCAN_POINTS = 1201
+#: Grid points of the box scan (d >= 2 unknowns), about: BOX_POINTS ** (1/d) per axis.
+BOX_POINTS = 10201
+IVP_TOL = 1e-11
+PROFILE_NODES = 201
+
+
+@dataclass
+class Equilibrium:
+    """One equilibrium found by the scan: shooting value (a float, or a tuple of d >= 2),
+    solution, index, ordinates."""
+
+    k: float | tuple
+    state: State
+    index: int
+    ordinates: dict
+
+
+def _integrate(problem, params, y0, s_eval=None):
+    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together; y at s = 1 (or at
+    ``s_eval``), shape (n, m) (or (n, m, len(s_eval)))."""
+    from scipy.integrate import solve_ivp
+    n, m = y0.shape
+
+    def f(s, z):
+        return problem.rhs(np.full(m, s), z.reshape(n, m), params).ravel()
+
+    sol = solve_ivp(f, (0.0, 1.0), y0.ravel(), method="DOP853", rtol=IVP_TOL, atol=IVP_TOL,
+                    t_eval=s_eval)
+    if not sol.success:
+        raise RuntimeError(f"shooting integration failed: {sol.message}")
+    if s_eval is None:
+        return sol.y[:, -1].reshape(n, m)
+    return sol.y.reshape(n, m, len(s_eval))
+
+
+def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
+    """The root in each bracket [a, b] of ``r`` (vectorised; ``fa fb < 0``), all refined
+    together by Illinois regula falsi.
+
+    A bracket is done once it is shorter than 1e-13 (relative) or ``r`` is exactly 0 at its
+    newest end, which is then the root; only the others are evaluated again. (Iterating a done
+    bracket would meet ``fa = fb = 0`` after an exact zero, and 0 / 0 would make its root NaN.)
+    """
+    a, b, fa, fb = (np.array(v, dtype=float) for v in (a, b, fa, fb))
+    for _ in range(max_iter):
+        # fa and fb have opposite signs in a live bracket (fa is only ever halved or set to
+        # a nonzero fb), so fb - fa cannot vanish
+        live = np.flatnonzero((np.abs(b - a) >= 1e-13 * (1 + np.abs(a))) & (fb != 0.0))
+        if len(live) == 0:
+            break
+        c = b[live] - fb[live] * (b[live] - a[live]) / (fb[live] - fa[live])
+        fc = r(c)
+        same = fc * fb[live] > 0
+        a[live] = np.where(same, a[live], b[live])
+        fa[live] = np.where(same, fa[live] / 2, fb[live])
+        b[live], fb[live] = c, fc
+    return b
+
+
+def enumerate_equilibria(problem, params) -> list[Equilibrium]:
+    """Every equilibrium at ``params`` (a root of the shooting residual in the module's bounds),
+    sorted by k (lexicographically for d >= 2 unknowns, found by `scan_box`). Requires the
+    module hooks ``shooting`` and (for the index) ``second_variation``."""
+    lo, hi, initial, residual = problem.shooting(params)
+
+    def r(k):
+        k = np.asarray(k, dtype=float)
+        y0 = initial(k)
+        return residual(y0, _integrate(problem, params, y0))
+
+    if np.ndim(lo) == 0:
+        ks = np.linspace(lo, hi, SCAN_POINTS)
+        rs = r(ks)
+        exact = ks[rs == 0.0]
+        idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
+        roots = np.sort(np.concatenate((exact, refine_brackets(r, ks[idx], ks[idx + 1],
+                                                               rs[idx], rs[idx + 1]))))
+        keys = [float(k) for k in roots]
+    else:
+        roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+        keys = [tuple(float(v) for v in k) for k in roots.T]
+    if len(keys) == 0:
+        return []
+    s = np.linspace(0.0, 1.0, PROFILE_NODES)
+    ys = _integrate(problem, params, initial(roots), s)
+    out = []
+    for j, k in enumerate(keys):
+        state = State.from_values(problem, s, ys[:, j, :], params)
+        out.append(Equilibrium(k, state, index(problem, state),
+                               problem.ordinate_values(s, state.y, params)))
+    return out
+
+
+def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndarray:
+    """The roots (d, n) of ``r: (d, m) -> (d, m)`` in the box ``[lo, hi]`` of R^d, sorted
+    lexicographically.
+
+    ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
+    3^d grid points that holds both signs of every component of r, or where max |r_j| is
+    smallest among the block's points; Newton from all candidates together, the
+    Jacobian by forward differences, each step cut to a grid cell; the converged ones (|r|
+    below 1e-9 of r's scale on the grid and the step below 1e-12 of the box) within half a
+    cell of the box are kept, and roots closer than 1e-6 of the box merged."""
+    d = len(lo)
+    n = max(int(round(points ** (1.0 / d))), 3)
+    axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
+    width = np.maximum(hi - lo, 1e-300)
+    cell = width / (n - 1)
+    grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1)
+    rs = r(grid).reshape((d,) + (n,) * d)
+    scale = max(float(np.max(np.abs(rs))), 1e-300)
+    ok = np.ones((n - 2,) * d, bool)
+    for comp in rs:
+        blocks = [comp[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+                  for o in np.ndindex(*(3,) * d)]
+        ok &= (np.min(blocks, axis=0) <= 0) & (np.max(blocks, axis=0) >= 0)
+    # and every grid point where |r| is smallest among its 3^d neighbours (a root between
+    # grid points where a component's zero set does not separate the block's points)
+    size = np.max(np.abs(rs), axis=0)
+    inner = size[(slice(1, n - 1),) * d]
+    least = np.ones_like(inner, bool)
+    for o in np.ndindex(*(3,) * d):
+        least &= inner <= size[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+    corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
+    k = lo[:, None] + (corners + 1.0) * cell[:, None]         # its centre
+    done = np.zeros(k.shape[1], bool)
+    for _ in range(max_iter):
+        live = np.flatnonzero(~done)
+        if len(live) == 0:
+            break
+        x = k[:, live]
+        h = 1e-7 * (1 + np.abs(x))
+        shifted = [x + np.where(np.arange(d)[:, None] == j, h, 0.0) for j in range(d)]
+        f = r(np.hstack([x] + shifted)).reshape(d, d + 1, len(live))
+        jac = ((f[:, 1:] - f[:, :1]) / h[None, :, :]).transpose(2, 0, 1)   # (m, d, d)
+        # the pseudo-inverse: a singular Jacobian (a double root) takes the least step
+        step = -(np.linalg.pinv(jac) @ f[:, 0].T[:, :, None])[:, :, 0].T
+        step = np.where(np.isfinite(step), step, 0.0)
+        big = np.max(np.abs(step) / cell[:, None], axis=0)
+        step *= np.minimum(1.0, 1.0 / np.maximum(big, 1e-300))
+        k[:, live] = x + step
+        small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-12
+        converged = small & (np.max(np.abs(f[:, 0]), axis=0) < 1e-9 * scale)
+        outside = np.any((k[:, live] < lo[:, None] - cell[:, None])
+                         | (k[:, live] > hi[:, None] + cell[:, None]), axis=0)
+        done[live[converged | outside]] = True
+    final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
+    inside = np.all((k >= lo[:, None] - cell[:, None] / 2)
+                    & (k <= hi[:, None] + cell[:, None] / 2), axis=0)
+    k = k[:, inside & (final < 1e-9 * scale)]
+    roots: list[np.ndarray] = []
+    for x in k.T[np.lexsort(k[::-1])]:
+        if not any(np.max(np.abs(x - y) / width) < 1e-6 for y in roots):
+            roots.append(x)
+    return np.array(roots).T if roots else np.zeros((d, 0))
+
+
+def snap_lps(branch):
+    """LPs of ``branch`` that bound an index-0 segment: (point, stable side 'before'/'after')."""
+    out = []
+    for k, p in enumerate(branch.points):
+        if p.type != "LP" or k == 0 or k + 1 >= len(branch.points):
+            continue
+        before, after = p.index, branch.points[k + 1].index
+        if before == 0 and after > 0:
+            out.append((p, "before"))
+        elif after == 0 and before > 0:
+            out.append((p, "after"))
+    return out
+
+
+def beyond_fold(branch, point, side: str) -> int:
+    """The direction (+1 or -1) in which ``branch``'s parameter moves past the fold
+    ``point`` from its stable side (``side``, as `snap_lps` gives it): where the stable
+    equilibrium no longer exists."""
+    k = branch.points.index(point)
+    other = branch.points[k - 1 if side == "before" else k + 1]
+    return int(np.sign(point.params[branch.parameter] - other.params[branch.parameter]))

@@ -1,0 +1,168 @@
+"""Snap-back targets: where a stable branch ends at a fold, which stable equilibria remain?
+
+At an LP next to an index-0 segment a stable equilibrium stops existing as the parameter moves
+past the fold value, and the structure snaps to another stable equilibrium at the same
+parameter values. The candidates are *all* the equilibria there, as the shooting scan of
+`elastica_auto.analysis.equilibria` finds them. Each target records whether a computed branch
+of the same file passes through it, and its profile on the branch files' fixed grid (for
+drawing the configuration after the snap).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..branches.branch import PROFILE_GRID
+from ..core.errors import one_line
+from ..core.solution import State
+from .equilibria import Equilibrium, beyond_fold, enumerate_equilibria, snap_lps
+
+def k_columns(k) -> dict:
+    """A target's shooting value as columns of the snap-back table: ``k``, and for d >= 2
+    unknowns ``k`` (the first), ``k_2``, ..., ``k_d``."""
+    if np.ndim(k) == 0:
+        return {"k": k}
+    return {"k": k[0], **{f"k_{j}": v for j, v in enumerate(k[1:], start=2)}}
+
+
+def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
+    """Number (1-based) of a branch with the target's fixed parameters that passes through the
+    target, or 0: the branch, interpolated at the target's parameter value (modulo the
+    period), has the target's ordinates within ``tol`` (relative). Ordinates are physical, so
+    they match on every periodic copy of a solution, whose states may differ by 2 pi."""
+    value = target.state.params[parameter]
+    want = np.array(list(target.ordinates.values()))
+    for nb, br in enumerate(branches, start=1):
+        p0 = br.points[0].params
+        # the parameters fixed along the branch (on a path, others move with the path's)
+        fixed = [q for q in p0 if q != parameter and np.ptp(br.column(q)) == 0]
+        if br.parameter != parameter or any(abs(p0[q] - target.state.params[q]) > 1e-12
+                                            for q in fixed):
+            continue
+        lam = br.column(parameter)
+        if period:
+            lam = value + np.remainder(lam - value + period / 2, period) - period / 2
+        ords = np.array([[p.ordinates[o] for o in target.ordinates] for p in br.points])
+        for i in np.flatnonzero((lam[:-1] - value) * (lam[1:] - value) <= 0):
+            if lam[i + 1] == lam[i] or abs(lam[i + 1] - lam[i]) > (period or np.inf) / 2:
+                continue
+            w = (value - lam[i]) / (lam[i + 1] - lam[i])
+            got = (1 - w) * ords[i] + w * ords[i + 1]
+            if np.max(np.abs(got - want)) < tol * (1 + np.max(np.abs(want))):
+                return nb
+    return 0
+
+
+def scan_key(problem, parameter: str, params: dict) -> tuple:
+    """The key of the enumeration at ``params``: the parameters rounded to 10 digits, the
+    continued one modulo its period (periodic copies of a fold have the same equilibria)."""
+    period = problem.parameters[parameter].period
+    return tuple(sorted((q, round(v if q != parameter or not period
+                                  else float(np.remainder(v, period)), 10))
+                        for q, v in params.items()))
+
+
+def scans(problem, branch) -> dict[tuple, dict]:
+    """The enumerations `snap_targets` needs for ``branch``: key (`scan_key`) -> the
+    parameters to enumerate at (those of the first fold with that key), one per key."""
+    if not (problem.has_shooting and problem.has_second_variation):
+        return {}
+    out = {}
+    for p, _ in snap_lps(branch):
+        out.setdefault(scan_key(problem, branch.parameter, p.params), dict(p.params))
+    return out
+
+
+def snap_targets(problem, branches, warnings: list | None = None,
+                 landing: bool = False, cache: dict | None = None) -> list[dict]:
+    """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
+    values (excluding the fold's own solution), with the branch that passes through it.
+
+    With ``landing`` (and the module's ``gradient_flow`` hook), the row of the equilibrium
+    the rod's overdamped dynamics reach from the fold (`elastica_auto.analysis.landing`) has
+    ``landed = 1`` and the energy released and transit time; the other rows ``landed = 0``
+    and NaN. A fold whose dynamics
+    fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
+    gets a line saying why.
+
+    ``cache``: enumerations computed already (elsewhere: on a cluster's workers, as the
+    branches came in), key (`scan_key`) -> (parameters, `enumerate_equilibria` there); one
+    is used where its parameters are those of the first fold with its key (of a periodic
+    parameter, another copy's differ by a period, and so may its equilibria's states), and
+    the others are computed here: the rows are the same whoever computed them."""
+    if not (problem.has_shooting and problem.has_second_variation):
+        return []
+    landing = landing and problem.has_gradient_flow
+    given, cache, exact, landings = cache or {}, {}, {}, {}
+    rows = []
+    for nb, br in enumerate(branches, start=1):
+        name = br.parameter
+        period = problem.parameters[name].period
+        for p, side in snap_lps(br):
+            params = dict(p.params)
+            key = scan_key(problem, name, params)
+            own = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
+            if key not in cache:
+                there = given.get(key)
+                cache[key] = exact[own] = (there[1] if there is not None and there[0] == params
+                                           else enumerate_equilibria(problem, params))
+            k_fold = p.state.y[:, 0]
+            reached = None
+            if landing:
+                beyond = beyond_fold(br, p, side)
+                # periodic copies of a fold land alike: the same parameters (mod the period)
+                # and the same initial values y(0), hence the same solution
+                at = (key, beyond, tuple(np.round(p.state.y[:, 0], 8)))
+                if at not in landings:
+                    # the dynamics' end is compared with equilibria at the fold's own
+                    # parameters: a periodic copy of the cached ones (a parameter moved by
+                    # its period) may differ from them by a period in the states (theta0)
+                    if own not in exact:
+                        exact[own] = enumerate_equilibria(problem, params)
+                    there = exact[own]
+                    landings[at] = _landing(problem, p, there, name, beyond,
+                                            warnings if warnings is not None else [])
+                    if landings[at] is not None and landings[at].target is not None:
+                        # the same equilibrium in the cached list: by its ordinates, which
+                        # are physical and so the same on every periodic copy
+                        hit = there[landings[at].target].ordinates
+                        landings[at].target = int(np.argmin(
+                            [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
+                             for eq in cache[key]]))
+                reached = landings[at]
+            for j, eq in enumerate(cache[key]):
+                if eq.index != 0:
+                    continue
+                shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
+                if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
+                    continue  # the fold's own (vanishing, numerically a near-double) root
+                target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
+                row = {"lp": p.name, "branch": nb, "parameter": name,
+                       "value": params[name], "stable_side": side, **k_columns(eq.k),
+                       "index": eq.index, **{f"target_{o}": v
+                                             for o, v in eq.ordinates.items()},
+                       "on_branch": _on_branch(branches, name, period, target)}
+                if landing:
+                    here = reached is not None and reached.target == j
+                    row.update(landed=int(here),
+                               energy_released=reached.energy_released if here else np.nan,
+                               transit_time=reached.transit_time if here else np.nan)
+                rows.append({**row, "profile": eq.state(PROFILE_GRID)})
+    return rows
+
+
+def _landing(problem, point, equilibria, name, beyond, warnings: list):
+    """`elastica_auto.analysis.landing.land` from ``point``, or None with a line in ``warnings``: a
+    failure of the module's dynamics costs the fold its landing, not the run its snap-back
+    table."""
+    from .landing import land
+    try:
+        landing = land(problem, point.state, point.tangent, equilibria, name, beyond)
+    except Exception as exc:  # the module's hook failing: the targets stand without a landing
+        warnings.append(f"{point.name}: the dynamics from the fold failed: "
+                        f"{one_line(exc)}")
+        return None
+    if landing.target is None:
+        warnings.append(f"{point.name}: the dynamics from the fold ended at no enumerated "
+                        f"stable equilibrium (the nearest is {landing.distance:.3g} away)")
+    return landing

@@ -1,0 +1,283 @@
+"""Two-parameter continuation: fold curves and branch-point curves (AUTO-07p's ISW = 2).
+
+A fold of the boundary value problem F(y; lam, mu) = 0 (y' = f(s, y; p), g(y(0), y(1); p) = 0)
+in its parameter ``lam`` is a solution y at which the linearised problem has a null vector v:
+
+    v' = f_y(s, y; p) v,    g_a v(0) + g_b v(1) = 0,    int_0^1 |v|^2 ds = 1.
+
+`fold_problem` writes these, together with F = 0, as one boundary value problem on the
+states (y, v): 2 n states, 2 n boundary conditions, one integral condition (the null vector's
+normalisation) and ``lam`` free. Continued in a second parameter ``mu`` by the ordinary
+engine, its solutions are folds of the one-parameter problem at every point: a *fold curve*
+in the (lam, mu) plane. Where ``mu`` turns along it (a fold of the fold curve), two folds of
+the one-parameter family in ``lam`` meet and vanish: a cusp, labelled CP.
+
+`branch_point_problem` does the same for the module's exact family y0(s; p) (its
+``exact_start``, the straight rod of the elastica): the branch points of that family are the
+parameter values where the linearised problem about y0 has a null vector,
+
+    v' = f_y(s, y0; p) v,    g_a v(0) + g_b v(1) = 0,    int_0^1 |v|^2 ds = 1,
+
+n states, ``lam`` free: the *critical-load curves* of the elastica in (eps, P).
+
+The second derivatives the Jacobians of these systems need (f_yy v, the parameter
+derivatives of f_y v) are central differences of the module's first derivatives along v:
+by the symmetry of second derivatives, d/dy (f_y v) = d/dt f_y(y + t v) at t = 0, one pair of
+calls per Jacobian. Both problems are ordinary `Problem` objects (modules built here), so
+everything the engine does (steps, folds, branch points, user points, files) applies.
+"""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+
+from ..core.errors import PlanError, ProblemError, StartError
+from ..model.problem import Ordinate, Problem
+from ..core.solution import State
+
+#: The name of the normalisation integral of the null vector (a state ``int:null_norm``).
+NORM = "null_norm"
+
+
+def _step(y, v) -> float:
+    """A central-difference step t for derivatives along v at y: t |v| ~ 1e-5 (1 + |y|)."""
+    vmax = float(np.abs(v).max()) if v.size else 0.0
+    if vmax == 0.0:
+        return 1.0
+    return 1e-5 * (1.0 + float(np.abs(y).max())) / vmax
+
+
+def _null_states(base: Problem) -> tuple[str, ...]:
+    return tuple(f"null:{name}" for name in base.states)
+
+
+def _check_base(base: Problem, lam: str, what: str):
+    if base.extra_conditions or getattr(base, "free", ()) and base.free:
+        raise PlanError("parameter", f"{base.source}: {what} of a module with integral "
+                        "conditions or free parameters is not supported")
+    if lam not in base.parameters:
+        raise PlanError("parameter", f"unknown parameter {lam!r}; {base.source} declares "
+                        f"{', '.join(base.parameter_names)}")
+
+
+def fold_problem(base: Problem, lam: str) -> Problem:
+    """The fold system of ``base`` in ``lam`` (module docstring): states (y, v), the integral
+    condition ``null_norm``, ``lam`` free; the ordinates are ``base``'s, of y."""
+    _check_base(base, lam, "a fold curve")
+    n = base.n
+
+    # (written for few numpy calls: a fold-curve point calls these some 15 times)
+    def rhs(s, Y, p):
+        y, v = Y[:n], Y[n:]
+        return np.concatenate((base.rhs(s, y, p),
+                               np.einsum("ijm,jm->im", base.rhs_jac(s, y, p), v)))
+
+    def rhs_jac(s, Y, p):
+        y, v = Y[:n], Y[n:]
+        t = _step(y, v)
+        J = base.rhs_jac(s, y, p)
+        out = np.empty((2 * n, 2 * n, Y.shape[1]))
+        out[:n, :n] = J
+        out[:n, n:] = 0.0
+        out[n:, n:] = J
+        np.subtract(base.rhs_jac(s, y + t * v, p), base.rhs_jac(s, y - t * v, p),
+                    out=out[n:, :n])
+        out[n:, :n] *= 0.5 / t
+        return out
+
+    def rhs_dp(s, Y, p, name):
+        y, v = Y[:n], Y[n:]
+        t = _step(y, v)
+        return np.concatenate((base.rhs_dp(s, y, p, name),
+                               (base.rhs_dp(s, y + t * v, p, name)
+                                - base.rhs_dp(s, y - t * v, p, name)) / (2 * t)))
+
+    def bc(Ya, Yb, p):
+        ga, gb = base.bc_jac(Ya[:n], Yb[:n], p)
+        return np.concatenate((base.bc(Ya[:n], Yb[:n], p), ga @ Ya[n:] + gb @ Yb[n:]))
+
+    def _ends_step(Ya, Yb):
+        """The difference step along v at the ends (:func:`_step` of both ends at once)."""
+        vmax = max(float(np.abs(Ya[n:]).max()), float(np.abs(Yb[n:]).max()))
+        if vmax == 0.0:
+            return 1.0
+        return 1e-5 * (1.0 + max(float(np.abs(Ya[:n]).max()),
+                                 float(np.abs(Yb[:n]).max()))) / vmax
+
+    def bc_jac(Ya, Yb, p):
+        ya, yb, va, vb = Ya[:n], Yb[:n], Ya[n:], Yb[n:]
+        t = _ends_step(Ya, Yb)
+        ga, gb = base.bc_jac(ya, yb, p)
+        pa, pb = base.bc_jac(ya + t * va, yb + t * vb, p)
+        ma, mb = base.bc_jac(ya - t * va, yb - t * vb, p)
+        da, db = np.zeros((2 * n, 2 * n)), np.zeros((2 * n, 2 * n))
+        da[:n, :n] = da[n:, n:] = ga
+        db[:n, :n] = db[n:, n:] = gb
+        da[n:, :n], db[n:, :n] = (pa - ma) / (2 * t), (pb - mb) / (2 * t)
+        return da, db
+
+    def bc_dp(Ya, Yb, p, name):
+        ya, yb, va, vb = Ya[:n], Yb[:n], Ya[n:], Yb[n:]
+        t = _ends_step(Ya, Yb)
+        return np.concatenate((base.bc_dp(ya, yb, p, name),
+                               (base.bc_dp(ya + t * va, yb + t * vb, p, name)
+                                - base.bc_dp(ya - t * va, yb - t * vb, p, name)) / (2 * t)))
+
+    module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
+                     lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp,
+                     [_on_y(o, n) for o in base.ordinates.values()], first=n)
+    return Problem(module, base.source).with_free((lam,))
+
+
+def branch_point_problem(base: Problem, lam: str) -> Problem:
+    """The branch-point system of ``base``'s exact family in ``lam`` (module docstring):
+    states v, the integral condition ``null_norm``, ``lam`` free; the ordinates are
+    ``base``'s, of the exact solution."""
+    _check_base(base, lam, "a branch-point curve")
+
+    def y0(s, p):
+        y = base.exact_start(np.asarray(s, dtype=float), p)
+        if y is None:
+            raise ProblemError(f"{base.source} has no exact solution at "
+                             f"{', '.join(f'{k}={v:g}' for k, v in p.items())}")
+        return y
+
+    def rhs(s, v, p):
+        return np.einsum("ijm,jm->im", base.rhs_jac(s, y0(s, p), p), v)
+
+    def rhs_jac(s, v, p):
+        return base.rhs_jac(s, y0(s, p), p)
+
+    def along_family(fn, p, name, shape):
+        """d fn / d p[name] along the exact family (central differences); NaN for a
+        parameter the family does not extend in (the elastica's straight rod and psi)."""
+        h = 1e-6 * (1.0 + abs(p[name]))
+        up, dn = {**p, name: p[name] + h}, {**p, name: p[name] - h}
+        probe = np.array([0.0, 1.0])
+        if base.exact_start(probe, up) is None or base.exact_start(probe, dn) is None:
+            return np.full(shape, np.nan)
+        return (fn(up) - fn(dn)) / (2 * h)
+
+    def rhs_dp(s, v, p, name):
+        return along_family(lambda q: rhs(s, v, q), p, name, v.shape)
+
+    def ends(p):
+        y = y0(np.array([0.0, 1.0]), p)
+        return y[:, 0], y[:, 1]
+
+    def bc(va, vb, p):
+        ga, gb = base.bc_jac(*ends(p), p)
+        return ga @ va + gb @ vb
+
+    def bc_jac(va, vb, p):
+        return base.bc_jac(*ends(p), p)
+
+    def bc_dp(va, vb, p, name):
+        return along_family(lambda q: bc(va, vb, q), p, name, va.shape)
+
+    ordinates = [Ordinate(o.name, o.tex, (lambda fn: lambda s, v, p: fn(s, y0(s, p), p))(o.fn),
+                          o.parameter, o.doc) for o in base.ordinates.values()]
+    module = _module(base, f"Branch points of the exact family of {base.source} in {lam}.",
+                     _null_states(base), lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp,
+                     ordinates, first=0)
+    return Problem(module, base.source).with_free((lam,))
+
+
+def _on_y(o: Ordinate, n: int) -> Ordinate:
+    return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n], p), o.parameter, o.doc)
+
+
+def _module(base, doc, states, lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp, ordinates, first):
+    """A module namespace for `Problem`: the given functions, the null vector's
+    normalisation (states ``first`` on) as the integral condition, ``lam`` free."""
+
+    def integrals(s, Y, p):
+        return (np.sum(Y[first:] ** 2, axis=0) - 1.0)[None, :]
+
+    def integrals_jac(s, Y, p):
+        out = np.zeros((1, Y.shape[0], Y.shape[1]))
+        out[0, first:] = 2 * Y[first:]
+        return out
+
+    def integrals_dp(s, Y, p, name):
+        return np.zeros((1, Y.shape[1]))
+
+    return types.SimpleNamespace(
+        __doc__=doc, STATES=states, PARAMETERS=list(base.parameters.values()),
+        ORDINATES=ordinates, rhs=rhs, rhs_jac=rhs_jac, rhs_dp=rhs_dp, bc=bc, bc_jac=bc_jac,
+        bc_dp=bc_dp, INTEGRALS=(NORM,), integrals=integrals, integrals_jac=integrals_jac,
+        integrals_dp=integrals_dp, FREE=(lam,))
+
+
+def _normalised(s, v):
+    """v scaled so that int_0^1 |v|^2 ds = 1 (trapezoidal rule on the mesh)."""
+    norm2 = np.trapezoid(np.sum(v ** 2, axis=0), s)
+    if not norm2 > 0:
+        raise StartError("the null vector at the start is zero")
+    return v / np.sqrt(norm2)
+
+
+def fold_start(problem, state: State, null) -> State:
+    """The fold system's state at a fold ``state`` of the module's problem, with null vector
+    ``null`` (n, m) on ``state.s`` (approximate: solve from it)."""
+    y = np.vstack((state.y, _normalised(state.s, null)))
+    return State.from_values(problem, state.s, problem.complete(state.s, y, state.params),
+                             state.params)
+
+
+def branch_point_start(problem, state: State, null) -> State:
+    """The branch-point system's state at a branch point ``state`` of the exact family, with
+    null vector ``null`` (n, m) on ``state.s`` (approximate: solve from it)."""
+    v = _normalised(state.s, null)
+    return State.from_values(problem, state.s, problem.complete(state.s, v, state.params),
+                             state.params)
+
+
+def family_slope(base: Problem, state: State, lam: str) -> np.ndarray:
+    """d y0 / d lam of the exact family on ``state.s`` (central differences)."""
+    p, h = state.params, 1e-6 * (1.0 + abs(state.params[lam]))
+    return (base.exact_start(state.s, {**p, lam: p[lam] + h})
+            - base.exact_start(state.s, {**p, lam: p[lam] - h})) / (2 * h)
+
+
+#: A fold of a fold curve is a cusp where the solved-for parameter is stationary too: its
+#: tangent component, relative to the whole tangent, below this. It is ~1e-10 at the cusps
+#: of the elastica and 0.4-0.6 at its other folds of fold curves (docs/two-parameter.md).
+CUSP_SLOPE = 1e-3
+#: A fold of a fold curve is on the exact family where its solution is that family's to
+#: this (relative, max norm): ~1e-6 at the elastica's, where the fold is located to ~1e-6
+#: in eps; 0.1 or more elsewhere.
+ON_FAMILY = 1e-4
+
+
+def label_fold_curve(branch, problem, base: Problem) -> None:
+    """Label the codimension-two points of a fold curve among its folds (LP, where the
+    continued parameter turns and two folds of the one-parameter family meet):
+
+    - CP, a cusp, where the solved-for parameter is stationary as well
+      (|d lam / d sigma| < CUSP_SLOPE |tangent|);
+    - BP, where the fold's solution is the module's exact solution (its ``exact_start``,
+      the straight rod) at those parameters, to ON_FAMILY: the fold curve meets the
+      exact family's branch-point curve (a critical load).
+
+    The other folds stay LP: there the two folds that meet face opposite ways (the
+    one-parameter branches reconnect, or an isola appears), and ``lam`` moves through."""
+    row = problem.n - 1                          # the free parameter is the last state
+    n = base.n
+    for p in branch.points:
+        if p.type != "LP" or p.tangent is None:
+            continue
+        t = p.tangent
+        states = np.trapezoid(np.sum(t.y[:row] ** 2, axis=0), t.s)
+        slope = abs(t.y[row, 0]) / np.sqrt(states + t.y[row, 0] ** 2 + t.lam ** 2)
+        note = f"d{problem.free[0]}/ds = {slope:.1e} of the tangent"
+        if slope < CUSP_SLOPE:
+            p.type = "CP"
+        y = p.state.y[:n]
+        y0 = base.exact_start(p.state.s, p.params)
+        if y0 is not None and np.max(np.abs(y - y0)) <= ON_FAMILY * (1 + np.max(np.abs(y0))):
+            p.type = "BP"
+            note += "; on the exact family: the fold curve meets its branch-point curve"
+        p.note = "; ".join(filter(None, (p.note, note)))

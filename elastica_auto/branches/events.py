@@ -1,0 +1,369 @@
+"""Special points inside one continuation step, and their exact location.
+
+A step goes from a to b, both solutions with their unit tangents ``t`` (oriented along the
+direction of travel) and the sign of the determinant of their bordered Jacobians, on one mesh.
+
+* LP (fold): the parameter component of the tangent changes sign between a and b. Located by
+  bordered Newton on the minimally augmented system (the corrector's ``fold``), started from
+  the solution on the step where that component, interpolated linearly, vanishes.
+* BP (branch point): the determinant changes sign (it does not at a fold: AUTO-07p's test for
+  boundary value problems). Located as the zero of the determinant, scaled by its value at a,
+  on the hyperplanes ``<x - a, secant> = sigma`` by the Illinois method.
+* A fold pair inside one step leaves both test functions unchanged; :func:`pair_suspected`
+  reads it off the cubic that interpolates the parameter along the step (values and slopes at
+  both ends): a slope that dips toward zero, or changes sign twice, inside the step.
+* UZ (user point) and EP at a parameter bound: the parameter crosses a given value (for
+  periodic values, any value + k * period), between two knots (a, the folds, b) where it is
+  monotone. Solved at that value from the knots' interpolation, checked to lie between them,
+  else by the Illinois method on the parameter along the hyperplanes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
+from ..numerics.newton import Linearization, Row, kernel
+from ..core.solution import State, Tangent, difference, inner
+
+
+@dataclass(frozen=True)
+class UserValues:
+    """UZ values of the continued parameter; with ``period`` every ``v + k period`` counts."""
+
+    values: tuple[float, ...]
+    period: float | None = None
+
+
+def crossings(a: float, b: float, spec: UserValues) -> list[float]:
+    """The user values c crossed on the way from a to b: c in (a, b] (or [b, a) going down),
+    ordered in the direction of travel."""
+    if a == b:
+        return []
+    lo, hi = min(a, b), max(a, b)
+    found = []
+    for v in spec.values:
+        if spec.period is None:
+            cands = [v]
+        else:
+            T = spec.period
+            cands = [v + j * T
+                     for j in range(math.ceil((lo - v) / T), math.floor((hi - v) / T) + 1)]
+        for c in cands:
+            if (a < c <= b) or (b <= c < a):
+                found.append(c)
+    return sorted(set(found), reverse=bool(b < a))
+
+
+@dataclass
+class Step:
+    """An accepted step from a to b: the unit secant, its length, the arclength at a, ds."""
+
+    a: Solution
+    b: Solution
+    secant: Tangent
+    dist: float
+    arclength: float
+    ds: float
+    name: str
+
+    def sigma(self, state: State) -> float:
+        """Coordinate of a solution along the secant from a (0 at a, dist at b)."""
+        return inner(difference(state, self.a.state, self.name, state.s), self.secant, state.s)
+
+    def position(self, sigma: float) -> float:
+        """Pseudo-arclength of the point at coordinate sigma (for ordering the points)."""
+        return self.arclength + self.ds * sigma / self.dist
+
+
+@dataclass
+class Located:
+    """A point located inside a step: its solution (linearised on its hyperplane), its
+    coordinate sigma along the secant, and the test function's value there."""
+
+    solution: Solution
+    sigma: float
+    value: float
+
+
+def along(corr, step: Step, fn, lo: float = 0.0, hi: float | None = None, s=None,
+          ends: tuple[float, float] | None = None, xtol: float = 1e-12) -> Located:
+    """Where the test function ``fn(solution)`` changes sign along the step: the solution on
+    the hyperplane ``<x - a, secant> = sigma`` found by the Illinois method in sigma in
+    [lo, hi] (default the whole step), on the mesh ``s`` (default b's), to ``xtol`` of the
+    step. ``ends``: fn at lo and hi where known (None where not). The one locator of every
+    event but folds.
+    CorrectorFailure if fn has one sign at both ends."""
+    s = step.b.mesh if s is None else s
+    hi = step.dist if hi is None else hi
+    found = {}
+
+    def f(sigma):
+        sol = corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
+        found[sigma] = sol
+        return fn(sol)
+
+    f0, f1 = ends or (None, None)
+    f0 = f(lo) if f0 is None else f0
+    f1 = f(hi) if f1 is None else f1
+    if f0 * f1 > 0:
+        raise CorrectorFailure("no sign change along the step")
+    sigma = _illinois(f, lo, hi, f0, f1, xtol * step.dist)
+    value = f(sigma) if sigma not in found else fn(found[sigma])
+    return Located(found[sigma], sigma, value)
+
+
+def _illinois(f, x0, x1, f0, f1, xtol, maxiter=60):
+    """A root of f in [x0, x1] with f0 f1 < 0 by the Illinois variant of regula falsi."""
+    for _ in range(maxiter):
+        x = x1 - f1 * (x1 - x0) / (f1 - f0)
+        fx = f(x)
+        if fx == 0.0 or abs(x1 - x0) < xtol:
+            return x
+        if fx * f1 < 0:
+            x0, f0 = x1, f1
+        else:
+            f0 /= 2
+        x1, f1 = x, fx
+        if abs(x1 - x0) < xtol:
+            return x1
+    return x1
+
+
+def locate_fold(corr, step: Step, before: State | None = None) -> FoldPoint:
+    """The fold between a and b, where the tangents' parameter components differ in sign.
+
+    Bordered Newton (the corrector's ``fold``) from the solution on the step where that
+    component, interpolated linearly, vanishes; if that converges off the step or to the fold
+    ``before`` (the branch's previous one: a pair closer than the interpolation can tell),
+    from where it vanishes exactly, found by the Illinois method along the step. Raises
+    CorrectorFailure if neither lands in the step."""
+    la, lb = step.a.tangent.lam, step.b.tangent.lam
+    reason = ""
+    for start in ("estimate", "root"):
+        if start == "estimate":
+            near = corr.on_plane(step.a, step.secant, step.dist * la / (la - lb), step.b.mesh,
+                                 regrid=False)
+        else:
+            near = _slope_root(corr, step)
+        try:
+            fold = corr.fold(near)
+        except CorrectorFailure as exc:
+            reason = str(exc)
+            continue
+        where = step.sigma(fold.state)
+        d = difference(fold.state, step.a.state, step.name, fold.state.s)
+        off = math.sqrt(max(inner(d, d, fold.state.s) - where * where, 0.0))
+        if not (-0.01 * step.dist <= where <= 1.01 * step.dist) or off > step.dist:
+            reason = (f"the fold system converged off the step (at sigma = {where:.3g} of "
+                      f"{step.dist:.3g}, {off:.3g} beside it)")
+        elif before is not None and _same(fold.state, before, step.name):
+            reason = "the fold system converged to the fold before"
+        else:
+            return fold
+    raise CorrectorFailure(reason)
+
+
+def _same(x: State, y: State, name: str) -> bool:
+    """The same solution (a fold found twice), to the accuracy folds are located to."""
+    lam = x.params[name]
+    if abs(y.params[name] - lam) > 1e-9 * (1 + abs(lam)):
+        return False
+    s = x.s
+    return bool(np.max(np.abs(x.y - y(s))) <= 1e-6 * (1 + np.max(np.abs(x.y))))
+
+
+def _slope_root(corr, step: Step) -> Solution:
+    """The solution on the step where the tangent's parameter component vanishes (to 1e-6
+    of the step)."""
+    return along(corr, step, lambda sol: sol.tangent.lam,
+                 ends=(step.a.tangent.lam, step.b.tangent.lam), xtol=1e-6).solution
+
+
+def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]:
+    """(sign, log|det|) of the bordered Jacobian at ``sol`` on mesh ``s`` with the border row
+    of ``row_direction``: a test function that varies smoothly along a step on one mesh."""
+    lin = sol.lin
+    t = row_direction.on(s)
+    if not (np.array_equal(lin.disc.s, s) and lin.row.d == t.lam
+            and np.array_equal(lin.row.c, lin.disc.weights * t.y)):
+        disc = corr.disc(s)
+        lin = Linearization(disc, corr.parameter, sol.state.params, sol.state(s), sol.lam,
+                            Row(disc.weights * t.y, t.lam, 0.0), corr.split)
+    return lin.sign, lin.fact.logdet
+
+
+def locate_branch_point(corr, step: Step) -> Located:
+    """The branch point between a and b, where the determinant changes sign: the root of
+    ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
+    and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
+    equidistributed ones. ``value``: the scaled determinant there.
+
+    The sign change must survive a re-solve of a and b on that mesh with every interval
+    halved: a change of sign that an under-resolved mesh makes (a discrete eigenvalue that
+    crosses zero on one mesh only) is not a branch point. CorrectorFailure where it does
+    not."""
+    name = step.name
+    s, lo, hi = step.b.mesh, 0.0, step.dist
+    for _ in range(4):
+        bp = _branch_point_on(corr, step, s, lo, hi)
+        sol = bp.solution
+        v, v_lam = kernel(sol.lin)
+        disc = sol.lin.disc
+        rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
+                                                           v, v_lam, name))
+        if rms.max() <= corr.options.fold_tol:
+            _check_on_finer_mesh(corr, step, sol.mesh)
+            return bp
+        s = corr.regrid(s, rms, corr.options.fold_tol)
+        width = 0.02 * step.dist
+        lo, hi = max(bp.sigma - width, 0.0), min(bp.sigma + width, step.dist)
+    raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
+                           "4 meshes")
+
+
+def _check_on_finer_mesh(corr, step: Step, s):
+    """CorrectorFailure unless the determinant has opposite signs at a and b solved again on
+    the mesh ``s`` with its intervals halved (with as many halved as ``max_nodes`` allows)."""
+    room = max(corr.options.max_nodes - len(s), 0)
+    widest = np.argsort(np.diff(s))[::-1][:room]
+    fine = np.sort(np.concatenate([s, (s[widest] + s[widest + 1]) / 2]))
+    signs = [_det_on(corr, corr.on_plane(step.a, step.secant, sigma, fine, regrid=False),
+                     step.secant, fine)[0] for sigma in (0.0, step.dist)]
+    if signs[0] * signs[1] >= 0:
+        raise CorrectorFailure("the determinant's change of sign does not survive a finer "
+                               f"mesh ({len(fine)} nodes)")
+
+
+def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
+    """The root of the scaled determinant on mesh ``s``, bracketed in [lo, hi] if possible,
+    else in [0, dist]."""
+    sec, a = step.secant, step.a
+
+    def det(sigma):
+        sol = corr.on_plane(a, sec, sigma, s, regrid=False) if sigma else a
+        return _det_on(corr, sol, sec, s)
+
+    (sign0, ref), (sign1, log1) = det(lo), det(hi)
+    if sign0 * sign1 >= 0 and (lo, hi) != (0.0, step.dist):
+        lo, hi = 0.0, step.dist
+        (sign0, ref), (sign1, log1) = det(lo), det(hi)
+    if sign0 * sign1 >= 0:
+        raise CorrectorFailure("the determinant does not change sign along the secant")
+
+    def tau(sol):
+        sign, logdet = _det_on(corr, sol, sec, s)
+        # sign 0: a pivot exactly zero, the branch point itself (exp(-inf - ref) would be 0
+        # too, but not where ref is -inf as well)
+        return sign * math.exp(min(logdet - ref, 700.0)) if sign else 0.0
+
+    return along(corr, step, tau, lo, hi, s,
+                 ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))))
+
+
+def locate_index_change(corr, step: Step, index_of, index_a: int,
+                        xtol: float = 1e-10) -> Located:
+    """Where the stability index ``index_of(state)`` leaves ``index_a`` along the step, by
+    bisection on the hyperplanes ``<x - a, secant> = sigma`` (the index is a step function:
+    -1 where it is not counted, at the zero eigenvalue itself, is left out), to ``xtol`` of the
+    step; ``value`` is the index just past it. For a branch point of even multiplicity,
+    where the determinant keeps its sign and only the index says that eigenvalues crossed
+    zero. CorrectorFailure where the index at b is ``index_a``."""
+    s = step.b.mesh
+    lo, hi, past = 0.0, step.dist, index_of(step.b.state)
+    if past == index_a:
+        raise CorrectorFailure("the index does not change along the step")
+    best = step.b
+    while hi - lo > xtol * step.dist:
+        mid = 0.5 * (lo + hi)
+        sol = corr.on_plane(step.a, step.secant, mid, s, regrid=False)
+        k = index_of(sol.state)
+        if k == index_a:
+            lo = mid
+        elif k >= 0:
+            hi, past, best = mid, k, sol
+        else:       # on the zero eigenvalue itself
+            return Located(sol, mid, float(past))
+    return Located(best, hi, float(past))
+
+
+def pair_suspected(step: Step, dip: float = 0.5) -> float | None:
+    """Where inside the step a fold pair may hide, as a fraction of the step, or None.
+
+    The parameter along the step is modelled by the cubic with its values and slopes (the
+    tangents' parameter components, per unit arclength) at a and b; its slope is then the
+    quadratic ``q(u) = l_a + beta u + gamma u^2`` on u in [0, 1]. Suspected: q changes sign
+    inside (two folds the end tests cannot see), or dips below ``dip`` times the smaller end
+    slope (a near-cusp, where a pair can be narrower than the model)."""
+    la, lb = step.a.tangent.lam, step.b.tangent.lam
+    if la == 0.0 or la * lb <= 0:
+        return None
+    mean = (step.b.lam - step.a.lam) / step.dist
+    gamma = 3.0 * (la + lb - 2.0 * mean)
+    beta = lb - la - gamma
+    sign = math.copysign(1.0, la)
+    if sign * gamma <= 0:
+        return None         # q is concave in the direction of travel: no interior minimum
+    u = -beta / (2 * gamma)
+    if not 0.0 < u < 1.0:
+        return None
+    q_min = la + beta * u + gamma * u * u
+    if sign * q_min <= dip * min(abs(la), abs(lb)):
+        return u
+    return None
+
+
+def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
+                 value: float) -> tuple[State, float]:
+    """The solution with the continued parameter equal to ``value`` between the knots x and y
+    (secant coordinates s0 < s1): solved at that value from their interpolation (chord
+    iterations with b's Jacobian), checked to lie between them, else found by the Illinois
+    method on the parameter along the hyperplanes. Raises CorrectorFailure if neither
+    works."""
+    name = step.name
+    lx, ly = x.params[name], y.params[name]
+    w = (value - lx) / (ly - lx)
+    s = step.b.mesh
+    guess = State(s, (1 - w) * x(s) + w * y(s), (1 - w) * x.derivative(s) + w * y.derivative(s),
+                  {**y.params, name: value})
+    margin = 0.05 * (s1 - s0) + 1e-12
+    try:
+        state = corr.at_value(guess, y.params, value, lin=step.b.lin)
+        sigma = step.sigma(state)
+        if s0 - margin <= sigma <= s1 + margin:
+            return state, min(max(sigma, s0), s1)
+    except CorrectorFailure:
+        pass
+
+    def lam(sol):
+        return sol.lam - value
+
+    ends = (step.a.lam - value if s0 == 0.0 else None,
+            step.b.lam - value if s1 == step.dist else None)
+    try:
+        at = along(corr, step, lam, s0, s1, s, ends=ends)
+    except CorrectorFailure:
+        raise CorrectorFailure(f"{name} does not cross {value:.6g} in this step") from None
+    sol = at.solution
+    return corr.at_value(sol.state, y.params, value, lin=sol.lin), at.sigma
+
+
+def locate_limit(corr, problem, step: Step, limit) -> Located:
+    """Where a limit on an ordinate or a free parameter (``stop = ["u_max > 5"]``) is
+    reached inside the step, its excess passing zero."""
+    return along(corr, step, lambda sol: limit.excess(problem, sol.state),
+                 ends=(limit.excess(problem, step.a.state), limit.excess(problem, step.b.state)))
+
+
+def tangent_between(step: Step, sigma: float) -> Tangent:
+    """The unit tangent at coordinate sigma of the step, interpolated between a's and b's
+    (for labelled points that are not located by a linearisation of their own)."""
+    u = min(max(sigma / step.dist, 0.0), 1.0)
+    s = step.b.mesh
+    ta, tb = step.a.tangent.on(s), step.b.tangent
+    t = Tangent(s, (1 - u) * ta.y + u * tb.y, (1 - u) * ta.yp + u * tb.yp,
+                (1 - u) * ta.lam + u * tb.lam)
+    return t.scaled(1.0 / max(float(np.sqrt(inner(t, t))), 1e-300))

@@ -1,0 +1,213 @@
+"""A restart at changed parameter values: the labelled solution carried there by continuation.
+
+A restart from a label at new values of some of its parameters needs the solution at those
+values. A Newton solve at the new, fixed values fails where a restart is most wanted: its
+Jacobian is singular at a fold (LP), a branch point (BP) or a cusp (CP), and nearly so near
+one. :func:`move` continues instead, in each changed parameter in turn, from the solution
+so far to the parameter's new value, with the other parameters held at their current values:
+the engine's own pseudo-arclength loop (`branches.stepper.continue_branch`), bounded by
+the current and the new value, so that a branch that gets there ends (EP) exactly at it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .branch import Branch
+from ..numerics.collocation import Discretisation
+from ..numerics.correctors import CorrectorFailure, make_corrector
+from ..core.errors import StartError
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent
+from .stepper import STATIONARY, Course, Origin, Stops, continue_branch
+
+def move(problem, start: State, targets: dict[str, float], options: ContinuationOptions, *,
+         tangent: Tangent | None = None, tangent_parameter: str | None = None,
+         singular: bool = False, where: str = "") -> State:
+    """The solution of ``problem`` at the parameter values ``targets``, continued from
+    ``start``.
+
+    Each parameter of ``targets`` (in their order) is continued from its current value to
+    its target, the others held fixed, and the branch that ends exactly at the target gives
+    the solution from which the next parameter is continued.
+
+    Parameters
+    ----------
+    problem
+        The problem ``start`` solves (the plan's, free parameters included).
+    start : State
+        The labelled solution.
+    targets : dict
+        The new values, by parameter (not free ones: those are solved for).
+    options : ContinuationOptions
+        Step control and accuracy of the continuations (the run's own; ``max_points``, the
+        size of the branch to compute, at least its default; from a ``singular`` start, no
+        mesh coarser than the start's).
+    tangent, tangent_parameter
+        The label's stored tangent and the parameter it belongs to: it orients the first
+        continuation if that is in the same parameter.
+    singular : bool
+        ``start`` is a fold, branch point or cusp (an LP, BP or CP label): the first
+        continuation does not look for its own singularity in its first step.
+    where : str
+        The start, as error messages name it.
+
+    Returns
+    -------
+    State
+        The solution, at exactly the ``targets`` values.
+
+    Raises
+    ------
+    StartError
+        A target not reached: which parameter, its target, and where its continuation
+        stopped and why (it turned back at a fold, failed, ...).
+
+    Notes
+    -----
+    From a start where the parameter is stationary (the label's singular kind, or a tangent
+    whose parameter component is at most STATIONARY) the way the parameter moves is not
+    decided by the parameter, so both directions are continued; if both reach the target,
+    the shorter branch (in arclength) wins, the solution nearest the start, and on a tie
+    direction + (along the stored tangent). From any other start only the direction toward
+    the target is continued: the other ends at once at the current value, which bounds it.
+
+    A parameter with a period is continued to the translate of its target (by whole periods)
+    nearest its current value, at most half a period away: the solution set repeats with the
+    period, and a restart at ``psi + 2 pi`` is the label's own solution, which a continuation
+    over a whole period, through its folds, need not reach. The solution at the targets
+    themselves is then solved for by Newton from the one continued to their translates (its
+    translate: the same solution where the parameter enters periodically).
+    """
+    # a short max_points asks for a short branch, not for a start that cannot be reached
+    options = dataclasses.replace(
+        options, max_points=max(options.max_points, ContinuationOptions.max_points))
+    if singular:
+        # a fold moves between meshes of tol by as much as a small move from it (1e-7): the
+        # moves keep at least the label's mesh (its fold located to fold_tol) by not
+        # coarsening below it (a tighter tol would ask Newton for more than the conditioning
+        # near a cusp allows)
+        options = dataclasses.replace(options, ntst=min(max(options.ntst, len(start.s) - 1),
+                                                        options.max_nodes - 1))
+    near = {q: _nearest_translate(problem, q, v, start.params[q]) for q, v in targets.items()}
+    state, moved = start, []
+    for q, value in near.items():
+        if value == state.params[q]:
+            continue
+        first = not moved
+        origin = Origin(state, tangent if first and q == tangent_parameter else None,
+                        "singular" if singular and first else "regular")
+        state = _reached(problem, origin, q, value, targets[q], options, where, moved)
+        moved.append((q, value))
+    if near == targets:
+        return state
+    # whole periods commute with the moves: one solve at the end, from a moved (regular) state
+    params = {**state.params, **targets}
+    if _solves(problem, state, params):  # Newton would not start at a fold's own translate
+        return State(state.s, state.y, problem.rhs(state.s, state.y, params),
+                     problem.point_params(params, state.y))
+    q = next(iter(targets))
+    try:
+        return make_corrector(problem, q, options).at_value(state, params, params[q])
+    except CorrectorFailure as exc:
+        turned = [k for k in targets if near[k] != targets[k]]
+        raise StartError(f"{where}: no solution at "
+                         f"{', '.join(f'{k} = {targets[k]:.12g}' for k in turned)} by Newton "
+                         f"from the one at its translate "
+                         f"{', '.join(f'{k} = {near[k]:.12g}' for k in turned)} ({exc})") from None
+
+
+def _nearest_translate(problem, q: str, value: float, current: float) -> float:
+    """``value`` less the whole periods of ``q`` (if it has one) that bring it nearest
+    ``current``; ``current`` itself if that is within the rounding of the subtraction (a
+    translate of the label by whole periods is not a move by an ulp, to one side of a fold
+    or the other by chance)."""
+    period = problem.parameters[q].period
+    turns = round((value - current) / period) if period else 0
+    if turns == 0:
+        return value
+    near = value - turns * period
+    return current if abs(near - current) <= 4 * math.ulp(abs(value) + abs(turns * period)) \
+        else near
+
+
+def _solves(problem, state: State, params: dict) -> bool:
+    """``state`` solves the collocation equations at ``params`` as well as at its own
+    parameters (to twice their residual, and rounding): it is its own translate by whole
+    periods where the parameters enter periodically."""
+    disc = Discretisation(problem, state.s)
+
+    def residual(p):
+        ev = disc.evaluate(state.y, p)
+        return max(float(np.max(np.abs(ev.col))), float(np.max(np.abs(ev.bc))))
+
+    return residual(params) <= 2 * residual(state.params) + 1e-14 * (1 + np.max(np.abs(state.y)))
+
+
+def _reached(problem, origin: Origin, q: str, value: float, asked: float,
+             options: ContinuationOptions, where: str, moved: list) -> State:
+    """The solution at ``q = value`` continued from ``origin`` (see :func:`move`); ``asked``
+    (the target, of which ``value`` may be a translate) and ``moved`` (the parameters moved
+    before) are for the error message."""
+    current = origin.state.params[q]
+    toward = 1 if value > current else -1
+    branches = [_continued(problem, origin, q, value, options, toward)]
+    if origin.kind == "singular" or _stationary(branches[0]):
+        branches.append(_continued(problem, origin, q, value, options, -toward))
+    reached = [b for b in branches if _ends_at(b, q, value)]
+    if not reached:
+        after = (f" (after moving {', '.join(f'{k} to {v:.12g}' for k, v in moved)})"
+                 if moved else "")
+        translate = (f" (the translate of {asked:.12g} by whole periods nearest the label's)"
+                     if value != asked else "")
+        raise StartError(f"{where}: {q} = {value:.12g}{translate} not reached by continuation "
+                         f"from {q} = {current:.12g}{after}: "
+                         f"{_why(branches, q, value, current)}")
+    return min(reached, key=lambda b: (b.points[-1].arclength, -b.direction)).points[-1].state
+
+
+def _continued(problem, origin: Origin, q: str, value: float, options: ContinuationOptions,
+               direction: int) -> Branch:
+    """The continuation in ``q`` from ``origin`` in ``direction``, bounded by the current value
+    and ``value``. A Ctrl-C during it is raised again (it would read as "not reached")."""
+    current = origin.state.params[q]
+    branch = Branch.of(problem, q, direction, "restart", options.to_dict())
+    continue_branch(branch, problem,
+                    Course(q, options, Stops(min(current, value), max(current, value))), origin)
+    if branch.interrupted:
+        raise KeyboardInterrupt
+    return branch
+
+
+def _ends_at(branch: Branch, q: str, value: float) -> bool:
+    """The branch ends with its bound EP at exactly ``q = value`` (an EP where the bound was
+    not located, at the step's end, has another value)."""
+    last = branch.points[-1]
+    return branch.end == "EP" and last.type == "EP" and last.params[q] == value
+
+
+def _stationary(branch: Branch) -> bool:
+    """``q`` is stationary at the branch's start (its tangent's ``q`` component is ~0)."""
+    t = branch.points[0].tangent
+    return t is not None and abs(t.lam) <= STATIONARY
+
+
+def _why(branches: list[Branch], q: str, value: float, current: float) -> str:
+    """Where the branch that came nearest ``q = value`` stopped, and why: it turned back (at
+    a fold, or at the start where ``q`` is stationary), or it ended there (MX, max_points)."""
+    toward = math.copysign(1.0, value - current)
+
+    def furthest(b):  # the first of the points nearest the target
+        return max(range(len(b.points)), key=lambda k: toward * b.points[k].params[q])
+
+    branch, k = max(((b, furthest(b)) for b in branches),
+                    key=lambda bk: toward * bk[0].points[bk[1]].params[q])
+    p = branch.points[k]
+    at = f"{q} = {p.params[q]:.12g}"
+    if k < len(branch.points) - 1:
+        fold = p.type == "LP" or (k == 0 and _stationary(branch))
+        return f"the branch turns back at {at}" + (" (a fold)" if fold else "")
+    return f"the continuation stopped at {at}: {branch.message}"

@@ -1,0 +1,827 @@
+"""The pseudo-arclength loop: predict, correct, check, detect, locate, accept.
+
+One call of :func:`continue_branch` fills one :class:`~elastica_auto.branches.branch.Branch`: from a
+start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
+n-th fold (``stop = ["LP4"]``), or a corrector failure at ``ds_min`` (MX).
+
+Each step from a solution a (with its unit tangent t_a, oriented along the direction of
+travel):
+
+1. **predict and correct**: Keller's system ``<x - a, t_a> = ds`` from ``a + ds t_a``
+   (:mod:`elastica_auto.numerics.correctors`), on a's mesh or a coarser one; the corrector regrids b
+   if its error estimate exceeds ``tol``;
+2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
+   the tangent turned by more than ``max_angle``, or the correction moved b farther than
+   ``ds / 2`` from the predictor (it would have jumped to another branch);
+3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
+   branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
+   parameter's slope dips inside the step (:func:`~elastica_auto.branches.events.pair_suspected`;
+   the step is probed for the slope's minimum, and retried shorter if a fold is there);
+4. **locate** each, exactly (:mod:`elastica_auto.branches.events`); a fold or branch point that
+   cannot be located, or a stability index at b that the fold rule does not predict,
+   rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
+   with a warning;
+5. **accept**: the folds and branch points split the step into monotone pieces, on which user
+   points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
+   step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .branch import PROFILE_GRID, Branch, Point, new_point
+from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
+from .events import (Located, Step, UserValues, crossings, locate_branch_point, locate_fold,
+                     locate_index_change, locate_limit, locate_value, pair_suspected,
+                     tangent_between)
+from ..numerics.newton import Row
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent, difference, inner, norm, secant
+from ..numerics.stability import Count, count, index_change, kernel_dimension
+
+#: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
+RETRY_HALVINGS = 6
+#: A fold's translate is looked for where the branch passes it with ordinates within
+#: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
+TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
+#: ds grows after a step whose Newton iteration contracted at least this fast (and whose
+#: tangent turned by less than half of max_angle).
+EASY_CONTRACTION = 0.3
+#: A unit tangent whose parameter component is at most this leaves the parameter stationary
+#: to first order: its orientation is then decided by :func:`_orientation`.
+STATIONARY = 1e-6
+#: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
+RISE_NOISE = 1e-10
+#: At most this many solves look for the minimum of the parameter's slope inside a step
+#: where the cubic model suspects a fold pair (`_Walk._probe`).
+PROBES = 4
+
+
+@dataclass(frozen=True)
+class Limit:
+    """``stop = ["norm > 100"]``: the branch ends where ``name`` (an ordinate or a free
+    parameter) passes ``value`` upwards (``sign`` +1, ``>``) or downwards (-1, ``<``)."""
+
+    name: str
+    sign: int
+    value: float
+
+    def __str__(self):
+        return f"{self.name} {'>' if self.sign > 0 else '<'} {self.value:g}"
+
+    def excess(self, problem, state: State) -> float:
+        """sign (quantity - value) at ``state``: positive once the limit is passed."""
+        p = problem.point_params(state.params, state.y)
+        q = p[self.name] if self.name in p else \
+            problem.ordinate_values(state.s, state.y, state.params)[self.name]
+        return self.sign * (q - self.value)
+
+
+@dataclass(frozen=True)
+class Stops:
+    """Where a branch ends: bounds on the continued parameter, the n-th fold (or None), and
+    limits on ordinates or free parameters."""
+
+    lower: float = -math.inf
+    upper: float = math.inf
+    at_fold: int | None = None
+    limits: tuple[Limit, ...] = ()
+
+
+@dataclass
+class _Event:
+    sigma: float
+    kind: str
+    state: State
+    tangent: Tangent | None
+    residual: float = float("nan")
+    note: str = ""
+    message: str = ""      # an EP's: why the branch ends there
+
+
+class _Reject(Exception):
+    """The step is rejected: retry with ``ds``, for the reason in the message (``residual``:
+    the corrector's last Newton correction, if it failed)."""
+
+    def __init__(self, message: str, ds: float, residual: float = float("nan")):
+        super().__init__(message)
+        self.ds, self.residual = ds, residual
+
+
+def start_solution(corr, start: State, direction: int, guess: Tangent | None,
+                   exact: bool) -> Solution:
+    """The start as a linearised solution, its tangent oriented so that the parameter moves in
+    ``direction`` (along a stored tangent ``guess`` where the parameter is stationary).
+    ``exact``: ``guess`` is the direction to follow as it is (the other branch at a branch
+    point, where the bordered Jacobian is singular).
+
+    The two directions always leave along +t and -t of one tangent t. Where the parameter is
+    stationary to first order (|t_lam| <= STATIONARY: a fold, a cusp, a hysteresis point),
+    the sign of t_lam is rounding and says nothing; t is then oriented along ``guess``, or
+    else by :func:`_orientation`, which does not depend on the sign the solver returned."""
+    name = corr.parameter
+    disc = corr.disc(start.s)
+    lam = start.params[name]
+    if exact:
+        t = guess.on(disc.s)
+        sol = corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
+        sol.tangent = t
+        sol.extra["singular"] = True
+        return sol
+    if guess is not None:
+        g = guess.on(disc.s)
+        row = Row(disc.weights * g.y, g.lam, 0.0)
+    else:
+        row = Row.value(disc, 0.0)
+    t = corr.solution(disc, start.params, start.y, lam, row).tangent
+    if abs(t.lam) > STATIONARY:
+        sign = 1.0 if t.lam * direction > 0 else -1.0
+    elif guess is not None:  # t is oriented along the stored tangent: <guess, t> > 0
+        sign = float(direction)
+    else:
+        sign = direction * _orientation(corr, disc, start, t)
+    t = t.scaled(sign)
+    return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
+
+
+def _orientation(corr, disc, start: State, t: Tangent) -> float:
+    """+1 if t, else -1 (-t), is the way a stationary start goes up in the parameter.
+
+    A probe on the hyperplanes at +-ds along t (ds the options' first step): at a cusp or
+    hysteresis point, lam - lam_0 ~ c sigma^3, and the side where the parameter rose is
+    +. Where both sides agree (a fold or a pitchfork, lam - lam_0 ~ c sigma^2) or a probe
+    fails, or a rise is within RISE_NOISE, the side of t whose largest component (in absolute
+    value, over every state and node; the first of equals) is positive: a choice made by the
+    solution, not by the sign the solver returned."""
+    name = corr.parameter
+    sol = corr.solution(disc, start.params, start.y, start.params[name],
+                        Row(disc.weights * t.y, t.lam, 0.0))
+    ds = abs(corr.options.ds)
+    try:
+        rise = [corr.on_plane(sol, t, side * ds, regrid=False).lam - sol.lam
+                for side in (1.0, -1.0)]
+    except CorrectorFailure:
+        rise = [0.0, 0.0]
+    noise = RISE_NOISE * (1.0 + abs(sol.lam))
+    if rise[0] * rise[1] < 0 and min(abs(r) for r in rise) > noise:
+        return 1.0 if rise[0] > 0 else -1.0
+    # the first of the largest components (an antisymmetric kernel has two of one size)
+    size = np.abs(t.y.ravel())
+    first = int(np.argmax(size >= (1.0 - 1e-8) * size.max()))
+    return 1.0 if t.y.ravel()[first] > 0 else -1.0
+
+
+def _vertex(points) -> float | None:
+    """The abscissa of the vertex of the parabola through three (u, f) points, if it is a
+    minimum inside (0, 1); else None."""
+    (u0, f0), (u1, f1), (u2, f2) = points
+    if not u0 < u1 < u2:
+        return None
+    d01, d12 = (f1 - f0) / (u1 - u0), (f2 - f1) / (u2 - u1)
+    curvature = (d12 - d01) / (u2 - u0)
+    if not curvature > 0:
+        return None
+    u = (u0 + u1) / 2 - d01 / (2 * curvature)
+    return u if 0.0 < u < 1.0 else None
+
+
+#: The message of a branch ended by Ctrl-C or SIGTERM (a ``--resume`` computes it again).
+INTERRUPTED = "interrupted by the user"
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Where a branch starts: a solution, a tangent to start along (or None: the bordered
+    tangent there), and what kind of point it is: ``"regular"``; ``"singular"`` (a fold or a
+    branch point: none is sought in the first step, where the start's own would be found);
+    ``"switch"`` (the other branch at a branch point: ``tangent`` is its direction, already
+    oriented, used as it is, since the bordered tangent system is singular there)."""
+
+    state: State
+    tangent: Tangent | None = None
+    kind: str = "regular"
+
+    def __post_init__(self):
+        if self.kind not in ("regular", "singular", "switch"):
+            raise ValueError(f"unknown kind of start {self.kind!r}")
+        if self.kind == "switch" and self.tangent is None:
+            raise ValueError("a switch needs the direction of the other branch")
+
+
+@dataclass(frozen=True)
+class Course:
+    """How a branch is continued: the parameter, the options, where it ends, its UZ values.
+    ``all_folds``: every point is a fold (a fold curve), and its ``fold_residual`` is the
+    point's largest error estimate, of the solution and its null vector together."""
+
+    parameter: str
+    options: ContinuationOptions
+    stops: Stops = Stops()
+    user_values: tuple[UserValues, ...] = ()
+    all_folds: bool = False
+
+
+def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
+                    progress: Callable[[Branch, float], None] | None = None) -> Branch:
+    """Continue from ``origin`` in ``course.parameter`` in ``branch.direction``; fills
+    ``branch``.
+
+    Points are added as they are accepted. Nothing escapes: Ctrl-C, or an exception (the
+    equation module raising, or returning what the engine cannot use), ends the branch at its
+    last accepted point, labelled MX, with ``branch.interrupted`` set or the exception's type,
+    message and place in ``branch.message`` and ``branch.diagnostics``.
+
+    Where the module declares a symmetry that moves the start (a circle of solutions), the
+    branch is continued with a phase condition and an unfolding parameter
+    (`elastica_auto.model.symmetry`); its points hold the module's states, their notes the
+    unfolding parameter.
+    """
+    from ..model.symmetry import phased
+    phase = phased(problem, origin.state, origin.tangent if origin.kind == "switch" else None)
+    if phase is not None:   # a family of solutions the symmetry turns: continued with a phase
+        problem = phase     # condition (elastica_auto.model.symmetry)
+        origin = Origin(phase.lift(origin.state), phase.lift_tangent(origin.tangent),
+                        origin.kind)
+    _continue(branch, problem, course, origin, progress)
+    if phase is not None:
+        phase.drop(branch)
+    return branch
+
+
+def _continue(branch: Branch, problem, course: Course, origin: Origin, progress):
+    walk = None
+    try:
+        corr = make_corrector(problem, course.parameter, course.options)
+        try:
+            a = start_solution(corr, origin.state, branch.direction, origin.tangent,
+                               origin.kind == "switch")
+        except CorrectorFailure as exc:
+            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+                                    note="singular start"))
+            branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
+            return branch
+        walk = _Walk(branch, problem, corr, course, progress, origin.kind != "regular")
+        walk.run(a)
+    except KeyboardInterrupt:
+        branch.interrupted = True
+        _end_early(branch, problem, walk, origin, INTERRUPTED)
+    except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
+        frames = traceback.extract_tb(exc.__traceback__)
+        # the module's own line if it raised, else where the engine met what it returned
+        module_file = getattr(problem.module, "__file__", None)
+        at = next((f for f in reversed(frames) if f.filename == module_file), frames[-1])
+        where = f"{Path(at.filename).name}:{at.lineno} in {at.name}"
+        error = " ".join(str(exc).split())  # one line, as every message of a branch
+        last = walk.a.state if walk is not None and walk.a is not None else origin.state
+        when = f"after point {len(branch.points)}" if branch.points else "at the start"
+        _end_early(branch, problem, walk, origin,
+                   f"{type(exc).__name__}: {error} ({where}) {when} "
+                   f"({course.parameter} = {last.params[course.parameter]:g})")
+        branch.diagnostics = {"exception": type(exc).__name__, "error": str(exc),
+                              "where": where, "step": len(branch.points),
+                              "traceback": [f"{f.filename}:{f.lineno} in {f.name}"
+                                            for f in frames]}
+    return branch
+
+
+def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
+    """End ``branch`` early with ``message``: its last point becomes MX (a labelled one keeps
+    its label and is followed by an MX of its own). A branch without points gets its start,
+    labelled MX, so that every branch has a point to show and restart from (without calling
+    the module, which may be what failed, if it fails there: :func:`start_point`)."""
+    branch.end, branch.message = "MX", message
+    if not branch.points:
+        try:
+            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+                                    tangent=origin.tangent))
+        except Exception:  # the module fails at the start itself
+            branch.insert(start_point(branch, origin))
+        return
+    base = walk.base_point if walk is not None else None
+    # a step interrupted while it was being accepted may have put in its end point before the
+    # walk moved on to it: the branch ends at the last point accepted whole
+    while base is not None and branch.points[-1] is not base and not branch.points[-1].type:
+        branch.points.pop()
+    last = branch.points[-1]
+    if last.type:  # keep its label (the start's EP, say); end with an MX of its own
+        branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,
+                                tangent=last.tangent, direct=last.index_direct))
+    else:  # the last accepted point, whose solution the walk still has
+        walk.end_at_base("MX", message)
+
+
+def start_point(branch: Branch, origin: Origin) -> Point:
+    """The start as an MX point, without calling the equation module: NaN ordinates, an
+    unknown index, and the profile interpolated linearly from the values alone (the
+    derivatives may be what is broken)."""
+    state = origin.state
+    return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
+                                                                    float("nan")),
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
+                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
+                 state=state, tangent=origin.tangent)
+
+
+class _Walk:
+    """The state of one continuation: the last accepted solution, ds, the arclength."""
+
+    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
+        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
+        self.stops, self.user_values = course.stops, course.user_values
+        self.all_folds = course.all_folds
+        self.progress, self.singular_start = progress, singular_start
+        self.name = branch.parameter
+        self.a, self.base_point = None, None
+        self.ordinate = next((o for o in self.problem.ordinates.values()
+                              if o.parameter == self.name), None)
+        self.enters = self.problem.parameters[self.name].enters
+        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
+        self.event_retries = 0
+
+    # -- the loop ---------------------------------------------------------------------------
+    def run(self, a: Solution):
+        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
+        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
+        self._walk(a)
+        if self.until is None and self.branch.end != "LP":
+            self._complete_translates()
+
+    def _walk(self, a: Solution):
+        opt, branch = self.opt, self.branch
+        self.base_point = self._add(a.state, type="EP", arclength=0.0, tangent=a.tangent)
+        if self.singular_start:
+            self.base_point.note = ""
+        self.a, self.arclength, self.first = a, 0.0, True
+        self.curvature = None
+        ds = abs(opt.ds)
+        history = []
+        retries = 0
+        while True:
+            if len(branch.points) >= opt.max_points:
+                self.end_at_base("EP", f"reached max_points = {opt.max_points}")
+                return
+            try:
+                ds_next, ended = self._step(ds, retries)
+            except _Reject as rej:
+                history.append({"ds": ds, "residual": rej.residual,
+                                "nodes": len(self.a.mesh), "message": str(rej)})
+                retries += 1
+                ds = rej.ds
+                if ds < opt.ds_min:
+                    # an infinite residual is Newton's mark for residuals that are not finite,
+                    # which only the module's functions can make from a finite guess
+                    why = (" (the equation module returned NaN or inf there)"
+                           if math.isinf(rej.residual) else "")
+                    self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                                            f"after point {len(branch.points)} "
+                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
+                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
+                                          "nodes": len(self.a.mesh), "history": history[-12:]}
+                    return
+                continue
+            if ended:
+                return
+            history.clear()
+            retries = 0
+            ds = ds_next
+
+    def _add(self, state: State, **fields) -> Point:
+        if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
+                and hasattr(self.corr, "disc"):
+            # a start, user or end point of a fold curve: its error estimate, as for a step
+            disc = self.corr.disc(state.s)
+            fields["fold_residual"] = float(np.max(disc.rms_residuals(state.y, state.yp,
+                                                                       state.params)))
+        return self.branch.insert(new_point(self.problem, state, **fields))
+
+    def end_at_base(self, kind: str, message: str):
+        """End the branch at the last accepted point, labelled ``kind`` (a point already
+        labelled keeps its label, and ``kind`` follows as a point of its own)."""
+        branch, a = self.branch, self.a
+        if self.base_point.type:
+            self._add(a.state, type=kind, arclength=self.arclength, tangent=a.tangent,
+                      direct=self.base_point.index_direct)
+        else:
+            branch.relabel(self.base_point, kind, a.state, a.tangent)
+        branch.end, branch.message = kind, message
+
+    def _step(self, ds: float, retries: int) -> tuple[float, bool]:
+        """One step of length ds from self.a: returns (next ds, whether the branch ended);
+        raises _Reject to retry with a smaller ds."""
+        step, cos_turn = self._correct(ds)
+        found, counted = self._detect(step, retries)
+        return self._accept(step, found, counted, retries, cos_turn)
+
+    def _correct(self, ds: float) -> tuple[Step, float]:
+        """Predict and correct (on the mesh chosen for the step), then check the new point:
+        a turn of the tangent beyond max_angle, or a correction that moved it more than
+        ds / 2 from the predictor (a jump to another branch), rejects the step."""
+        opt, corr, a, name = self.opt, self.corr, self.a, self.name
+        mesh = corr.next_mesh(a)
+        if mesh is not a.mesh:  # the step's mesh: linearise a there once, for both uses
+            a = self.a = corr.relinearize(a, mesh)
+        try:
+            b = corr.step(a, ds, self.curvature)
+        except CorrectorFailure as exc:
+            raise _Reject(str(exc), ds / 2, exc.residual) from None
+        s = b.mesh
+        cos_turn = inner(a.tangent.on(s), b.tangent, s)
+        if cos_turn < math.cos(opt.max_angle):
+            raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
+                          " deg > max_angle", ds / 2)
+        sec, dist = secant(a.state, b.state, name)
+        if not self.first or not a.extra.get("singular"):
+            pred = Tangent(s, a.state(s) + ds * a.tangent.on(s).y - b.state.y,
+                           a.state.derivative(s) + ds * a.tangent.on(s).yp - b.state.yp,
+                           a.lam + ds * a.tangent.lam - b.lam)
+            jump = norm(pred)
+            if jump > 0.5 * ds:
+                raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
+                              f"(ds = {ds:.3g})", ds / 2)
+        return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
+
+    def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
+        """The folds and branch points in the step, located, and the index at b, checked
+        against the fold rule; a fold pair suspected inside the step, a fold that cannot be
+        located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
+        then with a warning). Returns the events and b's index."""
+        corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
+        s = b.mesh
+        skip = self.first and self.singular_start
+        a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
+        fold = a.tangent.lam * b.tangent.lam < 0 and not skip
+        bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+        counted = count(self.problem, b.state)
+        index_a, index_b = self.base_point.index_direct, counted.index
+        # retries for a fold that cannot be located or a fold rule that fails count until a
+        # step with a fold is accepted: shorter steps that stop before the fold do not reset
+        # them (they would approach the fold for ever)
+        can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
+        if not (fold or bp) and can_retry and not skip:
+            u = pair_suspected(step)
+            if u is not None:
+                self._probe(step, u, ds, index_a)
+        found = []
+        located = self._branch_point(step, can_retry) if bp else None
+        if fold:
+            try:
+                found.append(self._fold_event(step, bp))
+            except CorrectorFailure as exc:
+                if can_retry:
+                    self.event_retries += 1
+                    raise _Reject(f"fold not located ({exc})", ds / 2) from None
+                if 0 <= index_a == index_b:
+                    # the parameter turns, the fold system is singular and no eigenvalue
+                    # crossed zero: not a simple fold (where the index changes by one) but a
+                    # pitchfork passed along its other branch
+                    found.append(_Event(step.dist / 2, "BP", b.state, b.tangent,
+                                        note="turning point without index change (the fold "
+                                             f"system fails: {exc})"))
+                else:
+                    self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
+                                                f"located: {exc}")
+                    found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
+                                        note=f"fold not located: {exc}"))
+        elif located is not None:
+            note = self._kernel_check(located.solution.state, index_a, index_b)
+            found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
+                                abs(located.value), note=note))
+        if index_a >= 0 and index_b >= 0 and not skip:
+            expected = self._rule(step, found, index_a)
+            if (expected is not None and expected != index_b and not found and not can_retry
+                    and (index_b - index_a) % 2 == 0):
+                found.append(self._even_branch_point(step, index_a, index_b))
+                expected = None
+            if expected is not None and expected != index_b:
+                if can_retry:
+                    self.event_retries += 1
+                    raise _Reject(f"index {index_b} at the new point, the fold rule gives "
+                                  f"{expected}", ds / 2)
+                self.branch.warnings.append(
+                    f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
+                    f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
+        if found:
+            self.event_retries = 0
+        return found, counted
+
+    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> _Event:
+        """A branch point where the index changed by an even number with neither a fold nor
+        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
+        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
+        does not see. Located where the index changes (bisection)."""
+        def index_of(state):
+            return count(self.problem, state).index
+        at = locate_index_change(self.corr, step, index_of, index_a)
+        state = at.solution.state
+        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
+                "(a branch point of even multiplicity)")
+        kernel = self._kernel_check(state, index_a, index_b)
+        return _Event(at.sigma, "BP", state, step.secant, note="; ".join(filter(None, (note,
+                                                                                    kernel))))
+
+    def _kernel_check(self, state, index_a: int, index_b: int) -> str:
+        """At a branch point crossed by the branch, the index changes by the dimension of the
+        second variation's kernel there (an eigenvalue crosses zero for each kernel
+        direction): '' where it does, else a note, also kept as a warning."""
+        if index_a < 0 or index_b < 0 or not self.problem.has_second_variation:
+            return ""
+        kernel = kernel_dimension(self.problem, state)
+        if kernel == abs(index_b - index_a):
+            return ""
+        note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
+                f"dimension {kernel if kernel >= 0 else 'unknown'}")
+        self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
+        return note
+
+    def _accept(self, step: Step, found: list[_Event], counted: Count, retries: int,
+                cos_turn: float) -> tuple[float, bool]:
+        """Add the step's events and its end point b; the next ds (grown after an easy step)
+        and whether the branch ended."""
+        opt, a, b, ds = self.opt, step.a, step.b, step.ds
+        if self._add_events(step, found):
+            return ds, True
+        arclength = self.arclength + ds
+        residual = float(b.rms.max()) if self.all_folds else math.nan
+        tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
+        curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
+                            (tb.lam - ta.lam) / step.dist)
+        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter,
+                          direct=counted.index, fold_residual=residual,
+                          note=counted.reason if counted.refused else "")
+        # the walk moves on to b in one statement that calls nothing (no signal lands inside)
+        self.base_point, self.a, self.arclength, self.curvature, self.first = \
+            point, b, arclength, curvature, False
+        if self.progress is not None:
+            self.progress(self.branch, b.lam)
+        if self.until is not None:
+            origin, direction, distance = self.until
+            s = b.mesh
+            if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
+                self.branch.end, self.branch.message = "EP", "reached the end of the segment"
+                return ds, True
+        if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
+                and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
+            ds = min(ds * opt.growth, opt.ds_max)
+        return ds, False
+
+    # -- folds at every translate of a periodic parameter -------------------------------------
+    def _complete_translates(self):
+        """The solution set is periodic in a parameter with a period, so a fold found at
+        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
+        Where it passes without one (a fold pair stepped over), the step there is walked again
+        with steps of at most 1/32 of its length; a translate still missing is a warning."""
+        period = self.problem.parameters[self.name].period
+        if period is None:
+            return
+        for _ in range(3):
+            gaps = self._missing_translates(period, TRANSLATE_NEAR)
+            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
+                break
+        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
+            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
+                                        f"{lam:.6g}, a translate of a fold by a period")
+
+    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
+        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
+        whole periods, within the range the branch travelled) where the branch has no fold."""
+        pts = self.branch.points
+        lam = np.array([p.params[self.name] for p in pts])
+        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
+        folds = [k for k, p in enumerate(pts) if p.type == "LP" and not p.note]
+        out = {}
+        for k in folds:
+            scale = 1.0 + np.abs(ords[k])
+            for j in range(math.ceil((lam.min() - lam[k]) / period),
+                           math.floor((lam.max() - lam[k]) / period) + 1):
+                target = lam[k] + j * period
+                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
+                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
+                                 for g in folds):
+                    continue
+                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
+                # fold's parameter is an extreme value, which the branch touches, not crosses
+                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
+                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
+                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
+                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
+                for i in np.flatnonzero(near):
+                    out[int(i)] = float(target)
+        return out
+
+    def _refine(self, i: int) -> bool:
+        """Walk the step from point i to point i+1 again with small steps, and put the points
+        (and any folds, branch points, user points) it finds between them. False if it could
+        not be done (the two points could not be solved again from their profiles)."""
+        pts, corr, name = self.branch.points, self.corr, self.name
+        try:
+            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
+        except CorrectorFailure:
+            return False
+        sec, dist = secant(p.state, q.state, name)
+        if inner(p.tangent, sec, sec.s) < 0:
+            t = p.tangent.scaled(-1.0)
+            disc = corr.disc(p.mesh)
+            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
+                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
+        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
+                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
+        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
+        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values),
+                     None, False)
+        walk.until = (p.state, sec, dist * (1 - 1e-7))
+        walk.run(p)
+        if sub.end != "EP":
+            return False
+        grid = PROFILE_GRID
+        w = np.gradient(grid)
+        origin = p.state(grid)
+
+        def sigma(pt):
+            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
+                         + (pt.params[name] - p.lam) * sec.lam)
+
+        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        total = sub.points[-1].arclength
+        a0, a1 = pts[i].arclength, pts[i + 1].arclength
+        for pt in new:
+            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
+        pts[i + 1:i + 1] = new
+        self.branch.warnings.extend(sub.warnings)
+        return True
+
+    def _resolve(self, point) -> Solution:
+        """A point of the branch as a linearised solution: its stored solution if labelled,
+        else solved again at its parameters from its profile."""
+        state = point.state
+        if state is None:
+            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
+        return self.corr.point(state)
+
+    # -- detection helpers ------------------------------------------------------------------
+    def _probe(self, step: Step, u: float, ds: float, index_a: int):
+        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
+        look for the slope's minimum along the step. Each probe solves on the hyperplane at
+        u and reads the tangent and index there; a tangent turned over (or an index that
+        differs from a's) means a fold pair: retry with a step that ends before it. Else the
+        next u is the vertex of the parabola through the three lowest slopes known (the
+        ends' and the probes'), up to PROBES probes or until u moves by less than 1e-3: a
+        pair narrower than the model's error (near a cusp) is found all the same."""
+        sign = math.copysign(1.0, step.a.tangent.lam)
+        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
+        for _ in range(PROBES):
+            try:
+                mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
+            except CorrectorFailure:
+                raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
+            t = mid.tangent
+            if inner(t, step.secant, mid.mesh) < 0:
+                t = t.scaled(-1.0)
+            if sign * t.lam <= 0 or (
+                    index_a >= 0 and count(self.problem, mid.state).index != index_a):
+                raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
+                              max(u * ds / 2, ds / 8))
+            known.append((u, sign * t.lam))
+            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
+            if nxt is None or abs(nxt - u) < 1e-3:
+                return
+            u = nxt
+
+    def _fold_event(self, step: Step, bp: bool) -> _Event:
+        before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
+        fp = locate_fold(self.corr, step, before[0] if before else None)
+        phi = fp.phi
+        if inner(phi, step.secant, phi.s) < 0:
+            phi = phi.scaled(-1.0)
+        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
+        if bp:  # the parameter turns where the determinant changes sign: a branch point
+            return _Event(sigma, "BP", fp.state, step.secant, fp.residual,
+                          note="turning point without index change")
+        return _Event(sigma, "LP", fp.state, phi, fp.residual)
+
+    def _branch_point(self, step: Step, can_retry: bool) -> Located | None:
+        """The branch point where the determinant changed sign in the step, located, or
+        None (with a warning) once retries are spent.
+
+        A step whose branch point cannot be located is retried shorter: where the step
+        jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
+        has the other sign), the solutions on the hyperplanes between the two branches fail
+        or the sign change does not survive a finer mesh, and a shorter step follows the
+        branch round its corner."""
+        try:
+            return locate_branch_point(self.corr, step)
+        except CorrectorFailure as exc:
+            if can_retry:
+                self.event_retries += 1
+                raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
+            self.branch.warnings.append(f"branch point between {self.name} = "
+                                        f"{step.a.lam:.6g} and {step.b.lam:.6g} not located: "
+                                        f"{exc}")
+            return None
+
+    def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
+        """The index at b by the fold rule from a's (None where the rule does not apply)."""
+        if self.ordinate is None:
+            return None
+        out = index_a
+        for e in sorted(found, key=lambda e: e.sigma):
+            if e.kind != "LP" or e.note:
+                return None
+            # xi'' from the tangents (robust at any step length), dB/dtau across the step
+            change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
+                                  self._ordinate(step.b.state) - self._ordinate(step.a.state))
+            if change == 0:
+                return None
+            out += change
+        return out
+
+    def _ordinate(self, state: State) -> float:
+        return float(self.ordinate.fn(state.s, state.y, state.params))
+
+    # -- user points, bounds, and adding the events -----------------------------------------
+    def _add_events(self, step: Step, found: list[_Event]) -> bool:
+        """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
+        return True if the branch ends in this step. Folds split the step: a value is solved
+        between the two knots that bracket it, so it cannot converge to the other side."""
+        branch, name, stops = self.branch, self.name, self.stops
+        inside = sorted((e for e in found if e.kind == "LP" and not e.note
+                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
+        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
+                 + [(step.dist, step.b.state)])
+        events = list(found)
+        bound_hit = None
+        for (s0, x), (s1, y) in zip(knots, knots[1:]):
+            lx, ly = x.params[name], y.params[name]
+            for spec in self.user_values:
+                for c in crossings(lx, ly, spec):
+                    ev = self._value_event(step, x, y, s0, s1, c, "UZ")
+                    if ev is not None:
+                        events.append(ev)
+            bound = stops.upper if lx <= stops.upper < ly else \
+                stops.lower if ly < stops.lower <= lx else None
+            if bound is not None:
+                bound_hit = self._value_event(step, x, y, s0, s1, bound, "EP")
+                if bound_hit is None:
+                    bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
+                break
+        limit_hit = self._limit_event(step)
+        if limit_hit is not None and (bound_hit is None or limit_hit.sigma < bound_hit.sigma):
+            bound_hit = limit_hit
+        if bound_hit is not None:
+            events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
+        events.sort(key=lambda e: e.sigma)
+        nfolds = len(branch.folds)
+        for e in events:
+            self._add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
+                      fold_residual=e.residual, note=e.note)
+            if e.kind == "LP":
+                nfolds += 1
+                if stops.at_fold is not None and nfolds >= stops.at_fold:
+                    cut = step.position(e.sigma)
+                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
+                    branch.end = "LP"
+                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
+                    return True
+            if e.kind == "EP":
+                branch.end = "EP"
+                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
+                return True
+        return False
+
+    def _limit_event(self, step: Step) -> _Event | None:
+        """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
+        event (None if none is passed)."""
+        first = None
+        for limit in self.stops.limits:
+            if not (limit.excess(self.problem, step.a.state) < 0
+                    <= limit.excess(self.problem, step.b.state)):
+                continue
+            try:
+                at = locate_limit(self.corr, self.problem, step, limit)
+            except CorrectorFailure as exc:
+                self.branch.warnings.append(f"stop {limit} not located: {exc}")
+                at = None
+            sigma = step.dist if at is None else at.sigma
+            if first is None or sigma < first.sigma:
+                state = step.b.state if at is None else at.solution.state
+                value = limit.value + limit.sign * (0.0 if at is None else at.value)
+                first = _Event(sigma, "EP", state, tangent_between(step, sigma),
+                               message=f"reached {limit.name} = {value:.6g} (stop {limit})")
+        return first
+
+    def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
+        try:
+            state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
+        except CorrectorFailure as exc:
+            what = "user point" if kind == "UZ" else "bound"
+            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
+            return None
+        return _Event(sigma, kind, state, tangent_between(step, sigma))
+

@@ -1,0 +1,117 @@
+"""Continuation options, validated on construction (AUTO-07p's names where they exist)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+
+#: The correctors (:mod:`elastica_auto.numerics.correctors`).
+CORRECTORS = ("collocation", "solve_bvp")
+#: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
+NCOL_RANGE = (2, 7)
+
+#: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
+#: norm of `elastica_auto.core.solution` (the L2 norm of y plus |lam|), in the module's units. The
+#: predictor is a straight line along the tangent, which a curved branch leaves within a few
+#: of its own length scales: the shipped runs need ds_max <= 2, and a problem whose values are
+#: in the millions wants rescaling, not steps of millions (1e300 even overflows to inf once
+#: squared in the norms).
+MAX_STEP = 1e3
+
+
+class OptionsError(ValueError):
+    """Inconsistent continuation options."""
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """Step control, corrector accuracy and stopping rules for one branch.
+
+    Attributes
+    ----------
+    ds : float
+        Initial pseudo-arclength step (its sign is ignored; the direction is set per branch).
+    ds_min, ds_max : float
+        Bounds on |ds|; ``ds_min <= |ds| <= ds_max <= MAX_STEP`` (1e3). The step halves on
+        corrector failure and the branch ends with MX once it would drop below ``ds_min``.
+    growth : float
+        Factor applied to |ds| after a step that converged on the first mesh (>= 1).
+    max_points : int
+        Points per branch including the start (AUTO's NMX).
+    ntst : int
+        Mesh intervals of the starting mesh, and the fewest a mesh is coarsened to.
+    max_nodes : int
+        Largest number of mesh nodes.
+    tol : float
+        Error tolerance for continuation points: the largest rms relative collocation
+        residual on a mesh interval (solve_bvp's measure). The residual of the cubic
+        collocation scales like h^3 while the error scales like h^4, so 1e-5 gives points good
+        to about 1e-7 (relative) on meshes of 50-250 nodes.
+        With Gauss collocation (``ncol``) it bounds an
+        estimate of the largest relative error between the nodes instead (the nodes are far
+        more accurate; docs/numerics.md).
+    fold_tol : float
+        The same tolerance for located folds and branch points, applied to the solution and
+        its null vector (user and end points use ``tol``); 1e-7 puts folds within ~1e-10 of
+        an independent shooting solve (tests/test_folds.py checks 1e-9).
+    max_angle : float
+        Largest angle (radians) between successive tangents; a larger turn rejects the step.
+    corrector : str
+        ``"collocation"`` (the default: Newton on the collocation equations with one banded
+        LU per step and the mesh adapted between steps) or ``"solve_bvp"`` (the same
+        discretisation solved by `scipy.integrate.solve_bvp`, an independent check).
+    ncol : int
+        The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
+        points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
+        solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
+    """
+
+    ds: float = 0.05
+    ds_min: float = 1e-6
+    ds_max: float = 0.5
+    growth: float = 1.4
+    max_points: int = 2000
+    ntst: int = 50
+    max_nodes: int = 5000
+    tol: float = 1e-5
+    fold_tol: float = 1e-7
+    max_angle: float = 0.35
+    corrector: str = "collocation"
+    ncol: int = 0
+
+    def __post_init__(self):
+        if self.corrector not in CORRECTORS:
+            raise OptionsError(f"corrector must be one of {', '.join(CORRECTORS)}, "
+                               f"got {self.corrector!r}")
+        for f in fields(self):
+            if f.name == "corrector":
+                continue
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise OptionsError(f"{f.name} must be a finite number, got {v!r}")
+        if not 0 < self.ds_min <= abs(self.ds) <= self.ds_max:
+            raise OptionsError(f"need 0 < ds_min <= |ds| <= ds_max, got ds_min={self.ds_min}, "
+                               f"ds={self.ds}, ds_max={self.ds_max}")
+        if self.ds_max > MAX_STEP:
+            raise OptionsError(f"ds_max must be <= {MAX_STEP:g}, got {self.ds_max}")
+        if self.growth < 1:
+            raise OptionsError(f"growth must be >= 1, got {self.growth}")
+        if self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1] \
+                or int(self.ncol) != self.ncol:
+            raise OptionsError(f"ncol must be 0 (the cubic scheme) or an integer from "
+                               f"{NCOL_RANGE[0]} to {NCOL_RANGE[1]}, got {self.ncol!r}")
+        for name in ("max_points", "ntst", "max_nodes"):
+            v = getattr(self, name)
+            if int(v) != v or v < 2:
+                raise OptionsError(f"{name} must be an integer >= 2, got {v!r}")
+        if self.max_nodes <= self.ntst:
+            raise OptionsError(f"max_nodes ({self.max_nodes}) must exceed ntst ({self.ntst})")
+        for name in ("tol", "fold_tol"):
+            if not 0 < getattr(self, name) < 1:
+                raise OptionsError(f"{name} must be in (0, 1), got {getattr(self, name)}")
+        if not 0 < self.max_angle < math.pi / 2:
+            raise OptionsError(f"max_angle must be in (0, pi/2) radians, got {self.max_angle}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)

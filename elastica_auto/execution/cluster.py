@@ -1,0 +1,331 @@
+"""Branches as tasks on a Dask cluster: a local one of ``--jobs N`` worker processes, or the
+one whose scheduler is at ``--scheduler ADDRESS`` (or a run file's ``[execution]
+scheduler``, or ``continuation(..., scheduler=...)``).
+
+Each branch is one task, ``_task(plan, k, job)``, that continues the branch on a worker and
+returns it with the worker's address (stored as the branch's ``worker`` attribute). The
+plan travels with each task; the equation module goes with it, as its source text, so a
+worker needs the elastica-auto package but not the module's file. The client collects
+the branches and writes them in the plan's order, so the branch file is the same whatever
+computed it.
+
+A worker that dies has its task rescheduled by the scheduler (a task whose workers die four
+times is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
+finished; the finished ones are written (the branches in progress are lost; with ``--jobs
+1``, in this process, the branch in progress ends at its next step and is kept).
+``distributed`` is imported only here, for a cluster: its import alone costs about a second.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+import time
+import uuid
+from typing import Callable
+
+from ..core.errors import ClusterError, error_text, one_line
+
+#: Seconds to reach the scheduler, and to wait for its first worker.
+CONNECT_TIMEOUT = 10.0
+
+#: Seconds between looks at the tasks' states.
+POLL = 0.05
+#: Tasks a local cluster gives each worker thread at a time (Dask's worker-saturation): the
+#: one it runs and the next. A worker that dies takes both; the queued one is suspected of
+#: the death once, then Dask reruns the suspect on its own, so the innocent branch is well
+#: within the three deaths a task is allowed (tests/test_robustness_failures.py).
+SATURATION = 2.0
+#: ``on_tasks(done, total, points, workers)``: progress of the tasks of a cluster run.
+TaskProgress = Callable[[int, int, int, int], None]
+
+
+def connect(address: str):
+    """A client of the scheduler at ``address`` with at least one worker that can import
+    elastica-auto; ClusterError (one line) otherwise."""
+    from distributed import Client
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address} "
+                           f"({type(exc).__name__}: {error_text(exc)[:200]})") from None
+    try:
+        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError):
+        client.close()
+        raise ClusterError(f"the Dask scheduler at {address} has no workers "
+                           f"(none joined within {CONNECT_TIMEOUT:g} s)") from None
+    try:
+        versions = client.run(_version)
+    except Exception as exc:  # the workers cannot unpickle a function of this package
+        client.close()
+        raise ClusterError(f"the workers of {address} cannot run elastica-auto "
+                           f"({type(exc).__name__}: {error_text(exc)[:200]}); install it on them"
+                           ) from None
+    from .. import __version__
+    wrong = sorted(w for w, v in versions.items() if v != __version__)
+    if wrong:
+        client.close()
+        raise ClusterError(f"the workers {', '.join(wrong)} of {address} run elastica-auto "
+                           f"{versions[wrong[0]]}, this is {__version__}")
+    return client
+
+
+def local(workers: int, threads: bool = False):
+    """A client of a new Dask cluster of ``workers`` single-threaded worker processes on this
+    machine (`close` ends both). Its workers are this process's children and watch it: they
+    end at once if it is killed outright (SIGKILL), even in the middle of a task
+    (tests/test_robustness_failures.py checks it). ``threads``: the workers are threads of
+    this process instead, and there is no dashboard (`serve`: up in a third of the time)."""
+    import logging
+
+    import dask
+    from distributed import Client, LocalCluster
+    # Two tasks per single-threaded worker (SATURATION): the next branch waits on the worker,
+    # not behind a round trip to the scheduler (4-5 ms a task here, 5% of a short branch).
+    # The scheduler's HTTP server on any free port: its default, 8787, may be taken (by
+    # another run), and taking another would print a warning. Dask's own logs are silenced up
+    # to CRITICAL, in the workers too: a failure reaches the user as the branch's MX line, and
+    # a worker closing after its scheduler logs a heartbeat traceback at ERROR (seen in CI).
+    with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=not threads,
+                               dashboard_address=None if threads else ":0",
+                               silence_logs=logging.CRITICAL, memory_limit=0)
+    return Client(cluster, set_as_default=False)
+
+
+def close(client, interrupted: bool = False):
+    """Close ``client`` and, if it made one, its local cluster; after an interruption, its
+    workers are ended first, at once (a task in a slow step would hold up a graceful close)."""
+    cluster = client.cluster
+    if cluster is not None and interrupted:
+        for nanny in list(cluster.workers.values()):
+            process = getattr(getattr(nanny, "process", None), "process", None)
+            if process is not None and process.pid:
+                try:
+                    os.kill(process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+    client.close()
+    if cluster is not None:
+        cluster.close(timeout=10)
+
+
+def _version() -> str:
+    from .. import __version__
+    return __version__
+
+
+def _task(plan, k: int, job):
+    """Branch number ``k`` of ``plan`` from ``job``, on a worker: (branch, worker address)."""
+    from distributed import get_worker
+
+    from .jobs import compute_branch
+    branch = compute_branch(plan, k, job)
+    return branch, get_worker().address
+
+
+def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
+                   on_tasks: TaskProgress | None = None, stop=None) -> bool:
+    """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
+    ``branches`` in plan order and calling ``save()`` after each; True if interrupted
+    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
+    from .jobs import new_branch
+    from ..branches.stepper import start_point
+    offset = len(branches)
+    token = uuid.uuid4().hex[:8]
+    # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
+    # data the scheduler cannot recompute, and a worker that dies would take it, and every
+    # task waiting for it, down with it. One `map` is one message to the scheduler: a
+    # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64.
+    numbers = [offset + i + 1 for i in range(len(jobs_list))]
+    futures = {f: i for i, f in enumerate(client.map(
+        _task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
+        key=[f"elastica-branch-{k}-{token}" for k in numbers]))}
+    pending, done, points, finished = set(futures), {}, 0, 0
+    last = 0.0
+
+    def report(force=False):
+        nonlocal last
+        now = time.monotonic()
+        if on_tasks is not None and (force or now - last > 0.5):
+            last = now
+            on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
+
+    stop = stop if stop is not None else threading.Event()
+    while pending and not stop.is_set():
+        ready = {f for f in pending if f.done()}
+        if not ready:
+            time.sleep(POLL)
+            report()
+            continue
+        pending -= ready
+        for f in ready:
+            i = futures[f]
+            if f.status == "finished":
+                br, worker = f.result()
+                br.worker = worker
+            else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
+                exc = f.exception() if f.status == "error" else None
+                if exc is None:
+                    exc = RuntimeError(f"the task was {f.status} (its workers died)")
+                br = new_branch(plan, jobs_list[i])
+                br.end, br.message = "MX", f"not computed: {one_line(exc)}"
+                br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
+                br.points.append(start_point(br, jobs_list[i].origin))
+            done[i] = br
+            finished += 1
+            points += len(br.points)
+        while len(branches) - offset in done:
+            branches.append(done.pop(len(branches) - offset))
+            save()
+            if on_branch is not None:
+                on_branch(len(branches), branches[-1])
+        report()
+    if stop.is_set():
+        client.cancel(list(pending))
+        if done:  # finished beyond a gap in the plan's order
+            branches.extend(done[i] for i in sorted(done))
+            save()
+        return True
+    report(force=True)
+    return False
+
+
+# -- the default run: this process computes at once, a local cluster joins in the background --
+
+def serve(results_fd: int):
+    """The background helper of a default run (`Background`), in its own process: reads
+    ``workers`` then ``(tag, function, args)`` requests as pickles from stdin, computes each
+    as a task of a local cluster of ``workers`` (`local`) that it starts, and writes
+    ``("ready", workers)`` once the cluster is up, then ``("done", tag, value)`` or
+    ``("error", tag, message)`` per task, as pickles on the file descriptor ``results_fd``.
+    It is the Dask client and the scheduler's host, so that the command's own process, busy
+    with branches, imports nothing of ``distributed`` and runs no scheduler. At the end of
+    its input (the command closed it, or ended, even killed outright) it ends its workers at
+    once and exits. One worker is a thread of this process, which is then a worker too: a
+    task that ends the process ends the helper, and the command computes what it had handed
+    it."""
+    import pickle
+    import sys
+
+    out = os.fdopen(results_fd, "wb")
+    lock = threading.Lock()
+
+    def send(message):
+        with lock:
+            pickle.dump(message, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.flush()
+
+    def report(tag, future):
+        if future.status == "finished":
+            send(("done", tag, future.result()))
+            return
+        exc = future.exception() if future.status == "error" else None
+        send(("error", tag, f"{type(exc).__name__}: {error_text(exc)[:200]}" if exc is not None
+              else f"RuntimeError: the task was {future.status} (its workers died)"))
+
+    inp = sys.stdin.buffer
+    workers = pickle.load(inp)
+    # one worker: a thread of this process (no worker process to start: the cluster is up
+    # in about a third of the time); more: worker processes, each with a core of its own
+    client = local(workers, threads=workers == 1)
+    # the client's view of the workers may be older than the cluster's: wait until it has
+    # all of them (the command hands out one task per worker it is told of)
+    client.wait_for_workers(workers)
+    send(("ready", workers))
+    try:
+        while True:
+            try:
+                tag, function, args = pickle.load(inp)
+            except EOFError:
+                break
+            future = client.submit(function, *args, pure=False,
+                                   key=f"elastica-{tag[0]}-{uuid.uuid4().hex[:12]}")
+            future.add_done_callback(lambda f, tag=tag: report(tag, f))
+    finally:
+        if workers > 1:
+            close(client, interrupted=True)
+        os._exit(0)
+
+
+def _call(function, *args):
+    """A task of the helper's cluster: ``function(*args)`` and the worker's address."""
+    from distributed import get_worker
+    return function(*args), get_worker().address
+
+
+class Background:
+    """The local cluster of a default run, started in a helper process (`serve`) while this
+    process computes: `submit` hands it a task once it is ``ready``; each result reaches
+    ``on_result(tag, ok, value)`` (``value``: the result and the worker's address, or the
+    error's one line), called from a reading thread. `close` ends it at once."""
+
+    def __init__(self, workers: int, on_result):
+        import pickle
+        import subprocess
+        import sys
+        self._pickle = pickle
+        read, write = os.pipe()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", f"from elastica_auto.execution.cluster import serve; "
+             f"serve({write})"],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            pass_fds=(write,), start_new_session=True)
+        os.close(write)
+        self._results = os.fdopen(read, "rb")
+        self.workers = 0                     # set once ready
+        self.ready = threading.Event()
+        self.on_result = on_result
+        self._lock = threading.Lock()
+        self._send(workers)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _send(self, message) -> bool:
+        try:
+            with self._lock:
+                self._pickle.dump(message, self.proc.stdin,
+                                  protocol=self._pickle.HIGHEST_PROTOCOL)
+                self.proc.stdin.flush()
+            return True
+        except (OSError, ValueError):        # the helper has ended
+            return False
+
+    def _read(self):
+        while True:
+            try:
+                message = self._pickle.load(self._results)
+            except Exception:  # the helper ended (or failed to start): the run goes on here
+                self.ready.clear()
+                self.on_result(None, False, "the local cluster ended")
+                return
+            if message[0] == "ready":
+                self.workers = message[1]
+                self.ready.set()
+                self.on_result(None, True, None)
+            else:
+                self.on_result(message[1], message[0] == "done", message[2])
+
+    def submit(self, tag, function, args) -> bool:
+        """Hand ``function(*args)`` to the cluster; False if it has ended."""
+        return self._send((tag, _call, (function, *args)))
+
+    def finish(self):
+        """No more tasks: the helper ends its cluster and exits, while this process goes on."""
+        self.ready.clear()
+        with contextlib.suppress(OSError):
+            self.proc.stdin.close()
+
+    def close(self, wait: float = 0.0):
+        """End the helper and its cluster: after ``wait`` seconds for it to end by itself
+        (after `finish`), at once (its workers hold nothing of value)."""
+        self.finish()
+        with contextlib.suppress(Exception):
+            self.proc.wait(timeout=wait)
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()

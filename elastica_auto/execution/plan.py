@@ -1,0 +1,420 @@
+"""What to compute: the validated arguments of one continuation, as a plan of branches.
+
+:func:`make_plan` is the single place where the arguments of
+:func:`elastica_auto.continuation` are checked, for calls from Python and for run files
+alike (:mod:`elastica_auto.execution.runfile` parses TOML into these arguments). It raises
+:class:`PlanError`, whose ``key`` names the argument at fault, so that each front end can
+report it in its own terms (a keyword, or a run-file key).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Iterable, Mapping, Union
+
+import numpy as np
+
+from ..model.augmented import Augmented
+from ..core.errors import PlanError, ProblemError
+from ..branches.events import UserValues
+from ..core.expressions import evaluate
+from ..core.options import ContinuationOptions, OptionsError
+from ..model.problem import Problem
+from ..branches.stepper import Course, Limit, Stops
+from ..core.solution import State
+from ..storage.store import StoredLabel
+
+#: ``directions``: the signs of the steps from each start.
+DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
+
+
+@dataclass(frozen=True)
+class Switch:
+    """Start on the other branch through a branch point (AUTO-07p's ``ISW=-1``).
+
+    ``label`` is a BP label, from a branch file (``BranchFile(path).label("BP1")``) or from
+    branches in memory (``branches.label("BP1")``)."""
+
+    label: StoredLabel
+
+
+#: What a branch can start from: the module's exact solution at these parameter values, a
+#: labelled solution, or the other branch at a labelled branch point.
+StartLike = Union[Mapping[str, float], StoredLabel, Switch]
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a branch starts: the module's exact solution (``trivial``), a labelled solution
+    (``label``), the other branch at a branch point (``switch``), or the fold or branch-point
+    curve through a labelled LP or BP of the module's problem (``fold``, ``bp``)."""
+
+    kind: str
+    file: Path | None = None
+    label: str = ""
+    stored: StoredLabel | None = field(default=None, compare=False, repr=False)
+
+    def __str__(self):
+        if self.kind == "trivial":
+            return "trivial"
+        where = f"{self.file.name}:{self.label}" if self.file is not None else self.label
+        return f"switch at {where}" if self.kind == "switch" else where
+
+
+@dataclass(frozen=True)
+class BranchSpec:
+    """One branch to compute: start, parameter values, direction."""
+
+    start: Start
+    params: dict
+    direction: int
+
+
+@dataclass
+class Plan:
+    """A validated continuation: the problem, the branches and what applies to all of them.
+
+    ``name``, ``path`` and ``text`` describe the run file, if there is one (they are stored
+    in the branch file); a plan made from Python has the name ``continuation``. ``curve`` is
+    ``"fold"`` or ``"bp"`` for a two-parameter continuation (`elastica_auto.branches.codim2`): the
+    problem is then the fold or branch-point system, ``base`` the module's own problem."""
+
+    problem: Problem
+    parameter: str
+    options: ContinuationOptions
+    stops: Stops
+    user_values: list[UserValues]
+    branches: list[BranchSpec] = field(default_factory=list)
+    varying: list[str] = field(default_factory=list)
+    switch_count: int = 0
+    maps: bool = False
+    landing: bool = False
+    damping: tuple[float, ...] = ()
+    damping_folds: tuple[str, ...] | None = None
+    curve: str | None = None
+    name: str = "continuation"
+    path: Path | None = None
+    text: str = ""
+    base: Problem | None = None
+    scheduler: str | None = None
+
+    @property
+    def output_name(self) -> str:
+        return f"{self.name}.h5"
+
+    @property
+    def course(self) -> Course:
+        return Course(self.parameter, self.options, self.stops, tuple(self.user_values),
+                      all_folds=self.curve == "fold")
+
+
+def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
+              params: Mapping[str, float | Iterable[float]] | None = None,
+              bounds: tuple[float, float] | None = None, directions: str = "+",
+              uz: Iterable[float] = (), uz_period: float | None = None,
+              stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
+              options: Mapping[str, object] | ContinuationOptions | None = None,
+              maps: bool = False, landing: bool = False,
+              damping: Iterable[float] = (), damping_folds: Iterable[str] | None = None,
+              _starts: list | None = None) -> Plan:
+    """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
+
+    The branches are, for each combination of the ``params`` values (a list gives one set of
+    branches per value; the first parameter varies slowest), each start in order, each
+    direction. ``free`` names the parameters solved for where the module has more conditions
+    than states (default: its ``FREE``); the plan's problem then carries them
+    (`elastica_auto.model.augmented`). ``maps``: for fold curves, also the stability maps of their
+    planes (`elastica_auto.analysis.maps`). ``landing``: where each snap lands, by the module's
+    dynamics (`elastica_auto.analysis.landing`); ``damping``: also the damped model's landing for
+    each of these ``c``, from the folds labelled ``damping_folds`` (default every fold
+    ending a stable branch). Raises :class:`PlanError` naming the argument at
+    fault.
+    """
+    if not isinstance(maps, bool):
+        raise PlanError("map", f"expected true or false, got {maps!r}")
+    if not isinstance(landing, bool):
+        raise PlanError("landing", f"expected true or false, got {landing!r}")
+    if not isinstance(problem, (Problem, Augmented)):
+        raise PlanError("problem", f"expected a problem from load_problem(), got "
+                        f"{type(problem).__name__}")
+    if landing and (isinstance(parameter, (list, tuple)) or not (
+            problem.has_gradient_flow and problem.has_shooting and problem.has_second_variation)):
+        raise PlanError("landing", "where a snap lands needs one continued parameter and the "
+                        "module's gradient_flow, shooting and second_variation hooks")
+    damping, damping_folds = _damping(damping, damping_folds, landing)
+    if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
+                             or not all(isinstance(q, str) for q in free)):
+        raise PlanError("free", f"expected a list of parameter names, got {free!r}")
+    if isinstance(parameter, (list, tuple)):
+        return _two_parameter_plan(problem, start, parameter, params=params, bounds=bounds,
+                                   directions=directions, uz=uz, uz_period=uz_period,
+                                   stop=stop, switch=switch, free=free, options=options,
+                                   maps=maps)
+    try:
+        problem = problem.with_free(None if free is None else tuple(free))
+    except ProblemError as exc:
+        raise PlanError("free", str(exc)) from None
+    if not isinstance(parameter, str) or parameter not in problem.parameters:
+        raise PlanError("parameter", f"unknown parameter {parameter!r}; {problem.source} "
+                        f"declares {', '.join(problem.parameter_names)}")
+    if maps and _starts is None:
+        raise PlanError("map", "stability maps are drawn from fold curves: give two parameters "
+                        "and LP starts")
+    if parameter in getattr(problem, "free", ()) and isinstance(problem, Augmented):
+        raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
+                        "continue in another one")
+    if not isinstance(directions, str) or directions not in DIRECTIONS:
+        raise PlanError("directions", f"expected one of {', '.join(map(repr, DIRECTIONS))}, "
+                        f"got {directions!r}")
+    lower, upper = _bounds(bounds)
+    user_values = _user_values(uz, uz_period)
+    if isinstance(switch, bool) or not isinstance(switch, int) or switch < 0:
+        raise PlanError("switch", f"expected a count >= 0 of branch points to switch at, "
+                        f"got {switch!r}")
+    opts = _options(options)
+    grid = _grid(problem, params)
+    starts = _starts if _starts is not None else _parse_starts(problem, start)
+    specs = _specs(starts, grid, directions)
+    at_fold, limits = _stops(problem, stop)
+    return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
+                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
+                landing=landing, damping=damping, damping_folds=damping_folds)
+
+
+def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:
+    """The branches of a plan: the other branch at each stored BP (both ways, at its
+    parameters), then for each combination of the ``grid`` values (the first parameter
+    varying slowest) each start in order, in each of the ``directions``."""
+    specs = []
+    for st, _ in starts:  # the other branch at a stored BP: both ways, at its parameters
+        if st.kind == "switch":
+            if grid:
+                raise PlanError("params", "a branch switched at a branch point has that "
+                                "point's parameters; give no params")
+            specs += [BranchSpec(st, {}, d) for d in (1, -1)]
+    keys = list(grid)
+    for combo in itertools.product(*(grid[k] for k in keys)):
+        for st, given in starts:
+            if st.kind == "switch":
+                continue
+            values = dict(zip(keys, combo))
+            twice = sorted(set(given) & set(values))
+            if twice:
+                raise PlanError("params", f"{', '.join(twice)} given both in the start and "
+                                "in params")
+            specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
+    return specs
+
+def _damping(damping, folds, landing: bool):
+    """The checked ``damping`` values (positive, finite) and fold labels (``LP<n>``)."""
+    if isinstance(damping, (str, bytes)) or not isinstance(damping, Iterable):
+        raise PlanError("damping", f"expected a list of damping values, got {damping!r}")
+    damping = tuple(damping)
+    if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+               and c > 0 for c in damping):
+        raise PlanError("damping", f"expected positive numbers, got {list(damping)!r}")
+    if damping and not landing:
+        raise PlanError("damping", "the damped model's landings need landing = true")
+    if folds is None:
+        return damping, None
+    if isinstance(folds, (str, bytes)) or not isinstance(folds, Iterable):
+        raise PlanError("damping_folds", f"expected a list of fold labels, got {folds!r}")
+    folds = tuple(folds)
+    if not all(isinstance(f, str) and re.fullmatch(r"LP[1-9][0-9]*", f) for f in folds):
+        raise PlanError("damping_folds", f"expected fold labels such as \"LP3\", got "
+                        f"{list(folds)!r}")
+    if not damping:
+        raise PlanError("damping_folds", "give the damping values too")
+    return damping, folds
+
+
+def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
+                        **rest) -> Plan:
+    """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
+    of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
+    is solved for, ``mu`` continued (`elastica_auto.branches.codim2`)."""
+    from ..branches import codim2
+    if len(parameter) != 2 or not all(isinstance(q, str) for q in parameter) \
+            or parameter[0] == parameter[1]:
+        raise PlanError("parameter", f"expected one name, or two different names (the fold's "
+                        f"parameter, then the continued one), got {parameter!r}")
+    lam, mu = parameter
+    for q in parameter:
+        if q not in base.parameters:
+            raise PlanError("parameter", f"unknown parameter {q!r}; {base.source} declares "
+                            f"{', '.join(base.parameter_names)}")
+    if free is not None:
+        raise PlanError("free", f"a two-parameter continuation solves for {lam!r}; give no free")
+    if switch:
+        raise PlanError("switch", "no switching on a two-parameter continuation")
+    items = list(start) if isinstance(start, (list, tuple)) else [start]
+    if not items or not all(isinstance(x, StoredLabel) for x in items):
+        raise PlanError("start", "a two-parameter continuation starts from LP or BP labels "
+                        "(BranchFile(path).label(\"LP1\"))")
+    kinds = {x.name[:2] for x in items}
+    if not kinds <= {"LP", "BP"} or len(kinds) != 1:
+        raise PlanError("start", f"expected LP labels (fold curves) or BP labels (branch-point "
+                        f"curves), not a mix; got {', '.join(x.name for x in items)}")
+    for x in items:
+        _start(base, x)
+        if x.tangent_parameter != lam:
+            raise PlanError("start", f"{x.name} is a {'fold' if 'LP' in kinds else 'branch point'}"
+                            f" in {x.tangent_parameter!r}, not in {lam!r}")
+    curve = "fold" if kinds == {"LP"} else "bp"
+    try:
+        problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
+            base, lam)
+    except ProblemError as exc:
+        raise PlanError("parameter", str(exc)) from None
+    if curve == "bp" and base.exact_start(np.linspace(0, 1, 3), items[0].state.params) is None:
+        raise PlanError("start", f"{base.source} has no exact family (exact_start) at "
+                        f"{items[0].name}: branch-point curves follow its branch points")
+    plan = make_plan(problem, [], mu,
+                     _starts=[(Start(curve, x.path, x.name, x), {}) for x in items], **rest)
+    if maps and (curve != "fold" or not (base.has_shooting and base.has_second_variation)):
+        raise PlanError("map", "stability maps need fold curves (LP starts) of a module with "
+                        "the shooting and second_variation hooks")
+    plan.curve, plan.base, plan.maps = curve, base, maps
+    return plan
+
+
+def _finite(key: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise PlanError(key, f"expected a finite number, got {v!r}")
+    return float(v)
+
+
+def _bounds(bounds) -> tuple[float, float]:
+    if bounds is None:
+        return -math.inf, math.inf
+    if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
+        raise PlanError("bounds", f"expected (lower, upper), got {bounds!r}")
+    lower, upper = (_finite("bounds", v) for v in bounds)
+    if not lower < upper:
+        raise PlanError("bounds", f"need lower < upper, got {lower:g}, {upper:g}")
+    return lower, upper
+
+
+def _user_values(uz, uz_period) -> list[UserValues]:
+    if isinstance(uz, (str, bytes)) or not isinstance(uz, Iterable):
+        raise PlanError("uz", f"expected a list of values, got {uz!r}")
+    values = tuple(_finite("uz", v) for v in uz)
+    if uz_period is not None:
+        if not values:
+            raise PlanError("uz_period", "given without uz")
+        if not _finite("uz_period", uz_period) > 0:
+            raise PlanError("uz_period", f"must be positive, got {uz_period:g}")
+    return [UserValues(values, uz_period and float(uz_period))] if values else []
+
+
+def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
+    """``stop = ["LP4", "u_max > 100"]``: the fold count at which a branch ends (the
+    smallest given), and the limits on ordinates or free parameters."""
+    if isinstance(stop, (str, bytes)) or not isinstance(stop, Iterable):
+        raise PlanError("stop", f"expected a list such as [\"LP4\"], got {stop!r}")
+    at, limits = None, []
+    names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
+    for item in stop:
+        if not isinstance(item, str):
+            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
+                            f"got {item!r}")
+        op = ">" if ">" in item else "<" if "<" in item else None
+        if op is not None:
+            name, _, text = (x.strip() for x in item.partition(op))
+            if name not in names:
+                raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
+                                f"parameter ({', '.join(names) or 'none'})")
+            try:
+                value = evaluate(text)
+            except ValueError as exc:
+                raise PlanError("stop", f"{item!r}: {exc}") from None
+            limits.append(Limit(name, 1 if op == ">" else -1, value))
+        # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
+        elif item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
+                and int(item[2:]) > 0:
+            at = min(int(item[2:]), at or math.inf)
+        else:
+            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
+                            f"got {item!r}")
+    return at, tuple(limits)
+
+
+def _options(options) -> ContinuationOptions:
+    if isinstance(options, ContinuationOptions):
+        return options
+    known = {f.name for f in fields(ContinuationOptions)}
+    unknown = sorted(set(options or {}) - known)
+    if unknown:
+        raise PlanError("options", f"unknown option {unknown[0]!r}; expected one of "
+                        f"{', '.join(sorted(known))}")
+    try:
+        return ContinuationOptions(**(options or {}))
+    except OptionsError as exc:
+        raise PlanError("options", str(exc)) from None
+
+
+def _grid(problem: Problem, params) -> dict[str, list[float]]:
+    grid = {}
+    for name, v in (params or {}).items():
+        if name not in problem.parameters:
+            raise PlanError(f"params.{name}", f"unknown parameter; {problem.source} declares "
+                            f"{', '.join(problem.parameter_names)}")
+        values = list(v) if isinstance(v, (list, tuple)) else [v]
+        if not values:
+            raise PlanError(f"params.{name}", "empty list")
+        grid[name] = [_finite(f"params.{name}", x) for x in values]
+    return grid
+
+
+def _parse_starts(problem: Problem, start) -> list[tuple[Start, dict[str, float]]]:
+    """Each start, with the parameter values it was given (a dict start's)."""
+    items = list(start) if isinstance(start, (list, tuple)) else [start]
+    if not items:
+        raise PlanError("start", "empty list")
+    return [_start(problem, item) for item in items]
+
+
+def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
+    if isinstance(item, Mapping):
+        values = {}
+        for name, v in item.items():
+            if name not in problem.parameters:
+                raise PlanError("start", f"unknown parameter {name!r}; {problem.source} "
+                                f"declares {', '.join(problem.parameter_names)}")
+            values[name] = _finite(f"start.{name}", v)
+        return Start("trivial"), values
+    kind = "switch" if isinstance(item, Switch) else "label"
+    label = item.label if isinstance(item, Switch) else item
+    if not isinstance(label, StoredLabel):
+        raise PlanError("start", "expected parameter values (a dict), a label "
+                        "(BranchFile(path).label(\"UZ1\")) or Switch(label), got "
+                        f"{type(item).__name__}")
+    if kind == "switch" and not label.name.startswith("BP"):
+        raise PlanError("start", f"{label.name}: switching branches needs a BP label")
+    if label.equation and Path(label.equation).stem != problem.name:
+        where = label.path.name if label.path is not None else label.name
+        raise PlanError("start", f"{where} was computed with {label.equation!r}, not "
+                        f"{problem.source!r}")
+    if len(label.state.y) > problem.n \
+            and tuple(label.states[: problem.n]) == tuple(problem.states):
+        label = _module_states(label, problem.n)
+    if len(label.state.y) != problem.n:
+        raise PlanError("start", f"{label.name} has {len(label.state.y)} states, "
+                        f"{problem.source} {problem.n}")
+    return Start(kind, label.path, label.name, label), {}
+
+
+def _module_states(label: StoredLabel, n: int) -> StoredLabel:
+    """A label of a two-parameter continuation (a fold curve's CP, say) as a solution of the
+    module's own problem: its first ``n`` states, at all its parameter values (the solved-for
+    one included); no tangent (the stored one is the curve's)."""
+    s = label.state
+    state = State(s.s, s.y[:n], s.yp[:n], s.params)
+    return dataclasses.replace(label, state=state, tangent=None, tangent_parameter=None,
+                               states=label.states[:n])
+

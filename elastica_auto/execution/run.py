@@ -1,0 +1,632 @@
+"""Execute a plan: build each start, continue each branch, number labels, write the file.
+
+The branch file is rewritten (atomically) after every branch, so an interrupted or failing run
+leaves every completed branch on disk. Computed in this process (``jobs = 1``), the branch in
+progress is kept up to its last point and ends with an MX label; on a Dask cluster
+(`elastica_auto.execution.cluster`) the unfinished tasks are cancelled.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..analysis.equilibria import enumerate_equilibria
+from ..analysis.maps import stability_maps
+from ..analysis.snaps import scans, snap_targets
+from ..branches import codim2, restart
+from ..branches.branch import Branch
+from ..branches.stepper import INTERRUPTED, Origin, start_point
+from ..branches.switching import switch_direction
+from ..core.errors import USER_ERRORS, RunFileError, StartError, one_line
+from ..core.interrupts import Interruptions
+from ..core.solution import State, Tangent
+from ..model.augmented import Augmented
+from ..numerics.correctors import CorrectorFailure, make_corrector
+from ..storage import store
+from .jobs import Job, Progress, cell, compute_branch, new_branch
+from .plan import BranchSpec, Plan, Start
+
+
+@dataclass
+class RunResult:
+    path: Path | None
+    branches: list[Branch]
+    seconds: float
+    interrupted: bool = False
+    snaps: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    maps: list = field(default_factory=list)
+    landings: list = field(default_factory=list)
+    kept: int = 0
+
+    @property
+    def failed(self) -> list[int]:
+        return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
+
+
+def build_start(plan: Plan, spec: BranchSpec) -> Job:
+    """The start of a branch: an exact solution, a stored label (continued to the spec's
+    parameter values where they change its own, `branches.restart`), or the other branch
+    at a BP."""
+    problem, opt = plan.problem, plan.options
+    if spec.start.kind == "trivial":
+        return _checked(plan, Job(spec, Origin(_from_values(plan, {**problem.defaults(),
+                                                                   **spec.params}))))
+    stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
+    state, tangent = stored.state, stored.tangent
+    if spec.start.kind in ("fold", "bp"):
+        return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
+    if spec.start.kind == "switch":
+        if not spec.start.label.startswith("BP"):
+            raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
+        return _switch_job(plan, spec, state, tangent)
+    # free parameters are solved for: a value given to one is no place to move to
+    free = problem.free if isinstance(problem, Augmented) else ()
+    targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
+    if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
+        state = restart.move(problem, state, targets, opt, tangent=tangent,
+                             tangent_parameter=stored.tangent_parameter,
+                             singular=spec.start.label[:2] in ("LP", "BP", "CP"),
+                             where=str(spec.start))
+    if targets or stored.tangent_parameter != plan.parameter:
+        tangent = None
+    singular = spec.start.label[:2] in ("LP", "BP") and not targets
+    return _checked(plan, Job(spec, Origin(state, tangent,
+                                           "singular" if singular else "regular")))
+
+
+def _from_values(plan: Plan, params: dict) -> State:
+    """The start at parameter values: the module's exact solution there; or, where it has
+    none, its guess, solved from at those values (as is every start of a problem with
+    integral conditions or free parameters, whose completed start is only approximate)."""
+    problem, opt = plan.problem, plan.options
+    s = np.linspace(0.0, 1.0, opt.ntst + 1)
+    y = problem.exact_start(s, params)
+    solve = y is None or isinstance(problem, Augmented)
+    what = "its exact start"
+    if y is None:
+        y, what = problem.guess(s, params), "its guess"
+    fixed = ", ".join(f"{k}={v:g}" for k, v in params.items())
+    if y is None:
+        raise StartError(f"{problem.source} has no exact start or guess at {fixed}; "
+                         "start from a label (start = \"FILE.h5:LABEL\")")
+    state = State.from_values(problem, s, y, params)
+    if not solve:
+        return state
+    try:
+        state = make_corrector(problem, plan.parameter, opt).point(state).state
+    except CorrectorFailure as exc:
+        raise StartError(f"{problem.source}: no solution found from {what} at {fixed} "
+                         f"({exc})") from None
+    state.params = problem.point_params(state.params, state.y)
+    return state
+
+
+def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
+    """The first point of a fold or branch-point curve (`elastica_auto.branches.codim2`) through the
+    LP or BP ``stored`` of the module's problem: its solution with the null vector there,
+    solved at the spec's parameters. At an LP the null vector is the stored tangent (its
+    parameter component is zero at a fold); at a BP of the exact family it is the second
+    direction through the branch point less its component along the family."""
+    base, problem, opt = plan.base, plan.problem, plan.options
+    state, tangent = stored.state, stored.tangent
+    if tangent is None:
+        raise StartError(f"{spec.start}: no tangent stored with the label")
+    if spec.start.kind == "fold":
+        null = tangent.on(state.s).y
+        start = codim2.fold_start(problem, state, null)
+    else:
+        lam = stored.tangent_parameter
+        direction = switch_direction(base, state, tangent, lam, opt)
+        if direction is None:
+            raise StartError(f"{spec.start}: no null vector at the branch point")
+        null = direction.on(state.s).y - direction.lam * codim2.family_slope(base, state, lam)
+        start = codim2.branch_point_start(problem, state, null)
+    start.params = {**start.params, **spec.params}
+    try:
+        start = make_corrector(problem, plan.parameter, opt).point(start).state
+    except CorrectorFailure as exc:
+        raise StartError(f"{spec.start}: the {'fold' if spec.start.kind == 'fold' else 'branch'}"
+                         f"{'' if spec.start.kind == 'fold' else '-point'} system has no solution "
+                         f"there ({exc})") from None
+    start.params = problem.point_params(start.params, start.y)
+    return start
+
+
+def start_job(plan: Plan, spec: BranchSpec) -> Job:
+    """:func:`build_start`, with the equation module failing there reported as a StartError
+    (one line) rather than a traceback."""
+    try:
+        return build_start(plan, spec)
+    except (StartError, *USER_ERRORS):
+        raise
+    except Exception as exc:
+        raise StartError(f"{spec.start}: {one_line(exc)}") from exc
+
+
+def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
+    if tangent is None:
+        raise StartError(f"{spec.start}: no tangent stored with the branch point")
+    direction = switch_direction(plan.problem, state, tangent, plan.parameter, plan.options)
+    if direction is None:
+        raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
+                         "of the linearised problem not found)")
+    d = spec.direction
+    return _checked(plan, Job(spec, Origin(state, Tangent(direction.s, d * direction.y,
+                                                          d * direction.yp, d * direction.lam),
+                                           "switch")))
+
+
+def _checked(plan: Plan, job: Job) -> Job:
+    lam = job.origin.state.params[plan.parameter]
+    if not plan.stops.lower <= lam <= plan.stops.upper:
+        raise StartError(f"{job.spec.start}: the start has {plan.parameter} = {lam:g}, outside "
+                         f"the bounds [{plan.stops.lower:g}, {plan.stops.upper:g}]")
+    return job
+
+
+def number_labels(branches: list[Branch], first: int = 1, counters: dict | None = None):
+    """Number the branches from ``first``, and labels per type through the file in branch and
+    point order (LP1, LP2, ...), after the ``counters`` (type -> last number) of branches
+    already in the file."""
+    counters = dict(counters or {})
+    for k, br in enumerate(branches, first):
+        br.number = k
+        for p in br.points:
+            if p.type:
+                counters[p.type] = counters.get(p.type, 0) + 1
+                p.label = counters[p.type]
+
+
+def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
+    """``switch = N``: both directions of the other branch at the first N BPs of each branch;
+    BPs where that fails are reported in ``warnings``."""
+    jobs = []
+    for br in branches:
+        for p in [q for q in br.points if q.type == "BP"][: plan.switch_count]:
+            for d in (1, -1):
+                spec = BranchSpec(Start("switch", None, p.name), {}, d)
+                try:
+                    jobs.append(_switch_job(plan, spec, p.state, p.tangent))
+                except StartError as exc:
+                    warnings.append(str(exc))
+                except Exception as exc:  # the module failing at the branch point
+                    warnings.append(f"switch at {p.name}: {one_line(exc)}")
+    return jobs
+
+
+def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
+            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
+            on_start: Callable[[], None] | None = None, scheduler: str | None = None,
+            on_tasks=None, resume: bool = False,
+            on_landing: Callable[[int, int, dict], None] | None = None) -> RunResult:
+    """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
+
+    Before any branch is computed: a start read from the file this run writes is refused
+    (RunFileError), every start is built (and so validated), and the output is checked and
+    locked for the whole run (`store.Writer`: StoreError if it cannot be written or another
+    run is writing it). Branches switched at this run's own branch points (``switch = N``)
+    follow once their parents are done. The file is rewritten after each branch completes, in
+    plan order, so labels are numbered the same way whatever ``jobs`` is, or whichever Dask
+    cluster computed them (``scheduler``, default the run file's; see `compute`).
+    ``on_start`` is called once these checks have passed, before the first branch.
+
+    A run that ends, with failed branches (MX) or not, leaves its complete file as
+    ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
+    branch computed so far (in process, also the one in progress up to its last point): in
+    ``<run>.h5`` if there was none, else in ``<run>.partial.h5``, leaving the earlier
+    ``<run>.h5`` as it was.
+    ``result.path`` is the file written and ``result.branches`` the branches it holds.
+
+    ``resume``: continue the run's file (``<run>.partial.h5`` if an interrupted rerun left
+    one, else ``<run>.h5``): the cells of the plan already in it (`cell`) are not computed
+    again, the others follow its branches. ``result.kept`` is the number of branches kept.
+    """
+    out = Path(out_dir) / plan.output_name
+    writer = store.Writer(out, plan.name, plan.problem, plan.text)
+    kept = _resumed(plan, writer) if resume else None
+    for spec in plan.branches:
+        # the start is read before the run writes, but the run would destroy its own input
+        own = next((p for p in (writer.target, writer.partial)
+                    if spec.start.file is not None and store.same_file(spec.start.file, p)),
+                   None)
+        if own is not None:
+            key = "switch" if spec.start.kind == "switch" else "start"
+            raise RunFileError(f"{plan.path}: {key}: {spec.start.file} is the file this run "
+                               f"writes ({own}); restart from a copy, or write elsewhere")
+    t_run = time.perf_counter()
+    # an interrupted run's file ends with its interrupted branches: computed again
+    count = len(kept.branches) if kept is not None else 0
+    while count and kept.branches[count - 1].attrs["message"] == INTERRUPTED:
+        count -= 1
+    done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
+    first = [start_job(plan, spec) for spec in plan.branches if cell(spec) not in done]
+    result = RunResult(writer.path, [], 0.0, kept=count)
+    if kept is not None and not first and count == len(kept.branches):  # all there already
+        result.path, result.seconds = kept.path, time.perf_counter() - t_run
+        return result
+    scheduler = scheduler or plan.scheduler
+    client = None
+    if scheduler is not None:  # before the output is opened: an error leaves nothing
+        from .cluster import connect
+        client = connect(scheduler)
+
+    def save():
+        number_labels(result.branches, result.kept + 1, _label_counters(kept, result.kept))
+        writer.save(result.branches)
+
+    try:
+        with writer:
+            if kept is not None:
+                writer.resume(kept, count)
+            if on_start is not None:
+                on_start()
+            try:
+                compute(plan, first, result, save, progress, on_branch, jobs,
+                        on_tasks=on_tasks, client=client, kept=kept, on_landing=on_landing)
+                if not result.interrupted:
+                    writer.save(result.branches, result.snaps, result.maps, result.landings)
+                    writer.finish()
+            except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
+                result.interrupted = True
+                del result.branches[writer.written - result.kept:]
+    finally:
+        if client is not None:
+            client.close()
+    result.path, result.seconds = writer.path, time.perf_counter() - t_run
+    return result
+
+
+def _resumed(plan: Plan, writer) -> store.BranchFile | None:
+    """The file a ``--resume`` continues, opened and checked to be this run's (None if there
+    is none yet). Its branches interrupted by the user (at its end) are computed again."""
+    source = next((p for p in (writer.partial, writer.target) if p.is_file()), None)
+    if source is None:
+        return None
+    if plan.switch_count:
+        raise RunFileError(f"{plan.path}: switch: a run that switches at its branch points "
+                           "cannot be resumed; run it again whole")
+    bf = store.BranchFile(source)
+    bf.maps  # read now: entering the writer may write the file again (`store.Writer`)
+    if bf.run != plan.name or Path(bf.equation).stem != plan.problem.name:
+        raise RunFileError(f"{source}: --resume: written by run {bf.run!r} of {bf.equation!r}, "
+                           f"not {plan.name!r} of {plan.problem.source!r}")
+    return bf
+
+
+def _label_counters(kept, count: int) -> dict[str, int]:
+    """Type -> the last label number on the first ``count`` branches of the kept file (the
+    labels of the branches computed now continue after them)."""
+    out: dict[str, int] = {}
+    for name, (br, _) in (kept.labels.items() if kept is not None else ()):
+        if br <= count:
+            out[name[:2]] = max(out.get(name[:2], 0), int(name[2:]))
+    return out
+
+
+def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
+            progress: Progress | None = None,
+            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
+            scheduler: str | None = None, on_tasks=None, client=None, kept=None,
+            on_landing: Callable[[int, int, dict], None] | None = None):
+    """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
+    for, then the snap-back targets (and, if the plan asks, the stability maps of the
+    fold curves' planes, `elastica_auto.analysis.maps`, and the damped model's landings,
+    `elastica_auto.analysis.landing.damping_sweep`, each reported to ``on_landing``), into
+    ``result`` (labels numbered); ``save()`` after each branch. An interruption ends it
+    with ``result.interrupted`` set.
+
+    The branches are computed as tasks of a Dask cluster (`elastica_auto.execution.cluster`;
+    ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
+    ``scheduler`` address, or else a local one of ``jobs`` worker processes. With ``jobs = 1``
+    (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
+    command's default): in this process from the start, and also, once it is up, on a local
+    cluster of one worker per other core started meanwhile in the background (`_Alongside`);
+    with one branch (and no switching), or one core, in this process only."""
+    branches = result.branches
+    pool = None
+    if jobs == 0 and client is None and scheduler is None:
+        alongside = (os.cpu_count() or 1) - 1 if plan.switch_count or len(first) > 1 else 0
+        if alongside > 0:
+            pool = _alongside(plan, first, result, save, progress, on_branch, alongside)
+            first = None
+        jobs = 1
+    workers = jobs if plan.switch_count else min(jobs, len(first or ()))
+    own = client is None and (scheduler is not None or workers > 1)
+    if own:
+        from . import cluster
+        client = cluster.connect(scheduler) if scheduler is not None else cluster.local(workers)
+
+    if first is None:
+        interrupted = result.interrupted
+    elif client is None:
+        interrupted = _in_process(plan, first, branches, save, progress, on_branch)
+        if not interrupted and plan.switch_count:
+            second = switch_jobs(plan, list(branches), result.warnings)
+            interrupted = _in_process(plan, second, branches, save, progress, on_branch)
+    else:
+        from .cluster import close, run_on_cluster
+        interrupted = True      # until the jobs have run
+        with Interruptions() as signals:   # until the cluster is closed
+            try:
+                interrupted = run_on_cluster(client, plan, first, branches, save, on_branch,
+                                             on_tasks, signals.stop)
+                if not interrupted and plan.switch_count:
+                    second = switch_jobs(plan, list(branches), result.warnings)
+                    interrupted = run_on_cluster(client, plan, second, branches, save,
+                                                 on_branch, on_tasks, signals.stop)
+            finally:
+                if own:
+                    close(client, interrupted)
+    number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
+    result.interrupted = interrupted
+    if not interrupted:
+        _analyse(plan, result, kept, pool.scans if pool is not None else None, on_landing)
+    if pool is not None:
+        pool.background.close(wait=5.0)
+
+
+def _analyse(plan: Plan, result: RunResult, kept, scans_done: dict | None,
+             on_landing: Callable[[int, int, dict], None] | None):
+    """The computed branches' snap-back targets, and as the plan asks, the damped model's
+    landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
+    branches). A failure of the module in any of them is a warning: the branches stand.
+    ``scans_done``: the equilibrium scans computed already (`snap_targets`'s ``cache``)."""
+    branches = result.branches
+    try:
+        result.snaps = snap_targets(plan.problem, branches, result.warnings,
+                                    landing=plan.landing, cache=scans_done)
+        for row in result.snaps:           # numbered after the kept branches
+            row["branch"] += result.kept
+            row["on_branch"] += result.kept if row["on_branch"] else 0
+        if kept is not None:
+            result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
+                            + result.snaps)
+    except Exception as exc:  # the module failing in the scan: keep the branches
+        result.warnings.append(f"snap-back scan failed: {one_line(exc)}")
+    if plan.damping:
+        from ..analysis.landing import damping_sweep
+        try:
+            result.landings = damping_sweep(plan.problem, branches, plan.damping,
+                                            plan.damping_folds, result.warnings, on_landing)
+        except Exception as exc:  # the module failing in the scan: keep the branches
+            result.warnings.append(f"damped landings failed: {one_line(exc)}")
+        for row in result.landings:
+            row["branch"] += result.kept
+        if kept is not None:
+            result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
+                               + result.landings)
+    if plan.maps:
+        every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
+        try:
+            result.maps = stability_maps(plan.base, every, plan.problem.free[0],
+                                         plan.parameter,
+                                         (plan.stops.lower, plan.stops.upper))
+        except Exception as exc:  # as for the snap-back scan
+            result.warnings.append(f"stability map failed: {one_line(exc)}")
+
+
+def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alongside:
+    """The default run: `_Alongside` with a background cluster of ``workers``, for the
+    branches from ``first``, then the switched ones; sets ``result.interrupted``. Returns
+    the pool: its ``scans`` are those its workers computed (`snap_targets`'s ``cache``)."""
+    from .cluster import Background
+    with Interruptions() as signals:
+        pool = _Alongside(plan, workers, Background)
+        try:
+            interrupted = pool.run(first, result.branches, save, progress, on_branch,
+                                   signals.stop)
+            if not interrupted and plan.switch_count:
+                second = switch_jobs(plan, list(result.branches), result.warnings)
+                interrupted = pool.run(second, result.branches, save, progress, on_branch,
+                                       signals.stop)
+            if not interrupted:
+                interrupted = not pool.wait_for_scans(signals.stop)
+        finally:
+            if interrupted:
+                pool.background.close()
+            else:   # its helper ends its cluster while this process goes on
+                pool.background.finish()
+    result.interrupted = interrupted
+    return pool
+
+
+class _Alongside:
+    """Branches computed in this process from the start of the list, and by a local Dask
+    cluster from its end (`elastica_auto.execution.cluster.Background`) once it has started in the
+    background, one task per worker at a time: nothing waits for the cluster, and a run
+    done before it is up never uses it. The branches are saved in the plan's order as they
+    complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
+    As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
+    go to the cluster too, if it is up. If the cluster ends (or never starts), this process
+    computes what it had been given."""
+
+    def __init__(self, plan, workers: int, background):
+        import queue
+        self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
+        self.jobs, self.front, self.back, self.offset = [], 0, -1, 0
+        self.claimed, self.returned = set(), []
+        self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
+        self.pending_params: dict[tuple, dict] = {}
+        self.background = background(workers, self._on_result)
+
+    def _on_result(self, tag, ok, value):
+        """From the background's reading thread: a result, or the cluster up (tag None, ok)
+        or ended (tag None, not ok)."""
+        with self.lock:
+            if tag is None and not ok:
+                self.returned += sorted(self.claimed)
+                self.claimed.clear()
+                self.asked.clear()
+            elif tag is not None:
+                self.results.put((tag, ok, value))
+                if tag[0] == "branch":
+                    self.claimed.discard(tag[1])
+                else:
+                    self.asked.discard(tag[1])
+            self._feed()
+        if tag is None and not ok:
+            self.results.put(None)               # wake the waiting main thread
+
+    def _feed(self):
+        """Under the lock, if the cluster is up: a task for each idle worker, a branch from
+        the end of the list or else a scan."""
+        bg = self.background
+        while bg.ready.is_set() and len(self.claimed) + len(self.asked) < bg.workers:
+            if self.front <= self.back:
+                i = self.back
+                if not bg.submit(("branch", i), compute_branch,
+                                 (self.plan, self.offset + i + 1, self.jobs[i])):
+                    return
+                self.back -= 1
+                self.claimed.add(i)
+            elif self.unsent:
+                key, params = self.unsent[0]
+                if not bg.submit(("scan", key), enumerate_equilibria,
+                                 (self.plan.problem, params)):
+                    return
+                self.unsent.pop(0)
+                self.asked.add(key)
+            else:
+                return
+
+    def _take(self, message, done: dict):
+        """A result from the cluster into ``done`` (a branch) or ``scans``."""
+        if message is None:
+            return
+        (kind, what), ok, value = message
+        if kind == "scan":
+            if ok:
+                self.scans[what] = (self.pending_params[what], value[0])
+            return
+        job = self.jobs[what]
+        if ok:
+            br, worker = value
+            br.worker = worker
+        else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
+            br = new_branch(self.plan, job)
+            br.end, br.message = "MX", f"not computed: {value}"
+            name, _, text = value.partition(": ")
+            br.diagnostics = {"exception": name, "error": text}
+            br.points.append(start_point(br, job.origin))
+        done[what] = br
+
+    def run(self, jobs_list, branches, save, progress, on_branch, stop) -> bool:
+        """Compute ``jobs_list``, appending the branches to ``branches`` in order and calling
+        ``save()`` after each; True if interrupted (``stop`` set, or the branch in progress
+        here interrupted: it is kept up to its last point)."""
+        import queue
+        with self.lock:
+            self.jobs, self.front, self.back = jobs_list, 0, len(jobs_list) - 1
+            self.offset = len(branches)
+            self._feed()
+        done: dict[int, Branch] = {}
+        n, offset = len(jobs_list), len(branches)
+
+        def flush():
+            while True:
+                try:
+                    self._take(self.results.get_nowait(), done)
+                except queue.Empty:
+                    break
+            while len(branches) - offset in done:
+                branches.append(done.pop(len(branches) - offset))
+                save()
+                if on_branch is not None and not branches[-1].interrupted:
+                    on_branch(len(branches), branches[-1])
+                self._scan(branches[-1])
+
+        while not stop.is_set() and len(branches) - offset < n:
+            with self.lock:
+                if self.returned:
+                    i = self.returned.pop(0)
+                elif self.front <= self.back:
+                    i, self.front = self.front, self.front + 1
+                else:
+                    i = None
+            if i is None:                        # the rest is on the cluster: wait for it
+                try:
+                    self._take(self.results.get(timeout=0.05), done)
+                except queue.Empty:
+                    pass
+                flush()
+                continue
+            br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
+            done[i] = br
+            flush()
+            if br.interrupted:
+                stop.set()
+        if stop.is_set():
+            self.background.close()
+            flush()
+            if done:  # finished beyond a gap in the plan's order
+                branches.extend(done[i] for i in sorted(done))
+                save()
+            return True
+        return False
+
+    def _scan(self, br: Branch):
+        """The scans ``br``'s folds need that no earlier branch needed, to the cluster."""
+        for key, params in scans(self.plan.problem, br).items():
+            if key not in self.seen:
+                self.seen.add(key)
+                self.pending_params[key] = params
+                with self.lock:
+                    self.unsent.append((key, params))
+                    self._feed()
+
+    def wait_for_scans(self, stop) -> bool:
+        """The scans not done yet, on the cluster; this process takes those left if the
+        cluster has ended, or if it has imported the integrator already (its import, 0.4 s,
+        would cost more than the few scans the workers have left); False if interrupted
+        meanwhile."""
+        import queue
+        import sys
+        while not stop.is_set():
+            with self.lock:
+                if not self.asked and not self.unsent:
+                    return True
+                self._feed()
+                # not sent, and nothing on the cluster: no worker will ask for them
+                here = (not self.background.ready.is_set() or "scipy.integrate" in sys.modules
+                        or not self.asked)
+                key, params = self.unsent.pop(0) if self.unsent and here else (None, None)
+            if key is not None:
+                self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
+                continue
+            try:
+                self._take(self.results.get(timeout=0.05), {})
+            except queue.Empty:
+                pass
+        return False
+
+
+
+def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
+    """Compute ``jobs_list`` one after the other in this process (appending to ``branches``,
+    ``save()`` after each); True if interrupted (the branch in progress is kept up to its last
+    point). A Ctrl-C while a computed branch is saved and reported waits for them."""
+    for job in jobs_list:
+        k = len(branches) + 1
+        # one context from the branch's start to its save: compute_branch's own raises in the
+        # continuation, and this one records a signal wherever else it lands
+        with Interruptions() as late:
+            br = compute_branch(plan, k, job, progress, late.stop.is_set)
+            branches.append(br)
+            save()
+            if on_branch is not None and not br.interrupted:
+                on_branch(k, br)
+        if br.interrupted or late.stop.is_set():
+            return True
+    return False
+
+
+__all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",
+           "StartError", "RunFileError"]

@@ -1,0 +1,285 @@
+"""Bordered collocation systems, factorised as banded matrices with partial pivoting.
+
+Every linear system the engine solves has the form
+
+    [ F_y  F_p ] [dy]   [r]          F_y: collocation and boundary rows (N = n m, block
+    [ C    D   ] [dp] = [g]          bidiagonal, boundary rows coupling y_0 and y_{m-1}),
+
+with k parameter columns ``F_p`` (dense: a parameter enters every interval) and k border rows
+``C = (c_0, ..., c_{m-1})``, ``D`` (dense: an arclength condition, a normalisation, a test
+function's gradient). F_y alone is singular exactly where the engine works hardest (folds and
+branch points), so the border cannot be split off by block elimination; instead the whole
+system is rewritten, exactly, as a banded one (the same idea as carrying parameters and
+integrals as extra ODE states, here only in the linear algebra):
+
+* each parameter is carried by a copy p_i per node, ``p_{i+1} - p_i = 0``;
+* each border row by a running sum ``sigma_0 = c_0 y_0``, ``sigma_{i+1} = sigma_i +
+  c_{i+1} y_{i+1}``, closed by ``sigma_{m-1} + D p = g``;
+* a boundary condition that couples both ends (g_a and g_b rows both nonzero) likewise, by
+  ``sigma_0 = g_a y_0`` carried unchanged to ``sigma_{m-1} + g_b y_{m-1} + g_p p = r``.
+
+With unknowns ordered by node, ``z_i = (y_i, p_i, sigma_i)``, and rows ordered as the left
+boundary conditions, the intervals, the right boundary conditions, the matrix is banded with
+bandwidths of about twice the node block: LAPACK's ``dgbtrf`` factorises it with partial
+pivoting in O(m) work, stably whether or not F_y is singular. If ``M`` is the bordered
+matrix and ``M'`` the banded one, ``M' T = E M`` (T expands (y, p) into z, E places the rows
+of M among those of M'), so ``M^{-1} = P M'^{-1} E`` and ``M^{-T} = E^T M'^{-T} P^T`` with P
+reading (y, p) out of z; ``det M' = +-det M`` with a sign fixed by the structure alone, so
+sign changes of ``det M'`` along a branch, on one mesh, are sign changes of ``det M``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from functools import lru_cache
+
+import numpy as np
+
+
+def _banded_lapack():
+    """LAPACK's banded LU routines ``dgbtrf`` and ``dgbtrs`` from scipy's Fortran wrappers.
+
+    ``import scipy.linalg.lapack`` first runs scipy.linalg's package initialisation, which
+    imports all of scipy.linalg (about 0.25 s here, more than a small run computes); the
+    wrapper extension itself loads in a few milliseconds, so it is loaded directly from its
+    file. Any failure falls back to the ordinary import."""
+    try:
+        scipy_dir = os.path.dirname(importlib.util.find_spec("scipy").origin)
+        folder = os.path.join(scipy_dir, "linalg")
+        name = next(f for f in os.listdir(folder)
+                    if f.startswith("_flapack.") and f.endswith((".so", ".pyd")))
+        spec = importlib.util.spec_from_file_location("scipy.linalg._flapack",
+                                                      os.path.join(folder, name))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module.dgbtrf, module.dgbtrs
+    except Exception:  # an unusual installation: the documented route
+        from scipy.linalg.lapack import dgbtrf, dgbtrs
+        return dgbtrf, dgbtrs
+
+
+dgbtrf, dgbtrs = _banded_lapack()
+
+
+def split_rows(ga, gb, tol=0.0):
+    """Boundary rows by the end they involve: (left, right, mixed) index tuples. A row with
+    neither (a condition on parameters alone) counts as left."""
+    a = np.any(np.abs(ga) > tol, axis=1)
+    b = np.any(np.abs(gb) > tol, axis=1)
+    rows = np.arange(len(a))
+    return (tuple(rows[~b].tolist()), tuple(rows[b & ~a].tolist()),
+            tuple(rows[a & b].tolist()))
+
+
+class Structure:
+    """Where every entry of the banded form goes, for n states, m nodes, k parameter columns
+    and as many border rows, and a split of the boundary rows."""
+
+    def __init__(self, n: int, m: int, k: int, split):
+        left, right, mixed = (np.asarray(r, dtype=int) for r in split)
+        self.n, self.m, self.k = n, m, k
+        self.left, self.right, self.mixed = left, right, mixed
+        J = k + len(mixed)                      # running sums: border rows, then mixed rows
+        nn = n + k + J                          # unknowns per node
+        na, nb = len(left), len(right)
+        L = na + J                              # rows before the first interval
+        self.nn, self.J, self.L = nn, J, L
+        self.N = m * nn
+        i = np.arange(m - 1)[:, None, None]
+        a = np.arange(n)[None, :, None]
+        b = np.arange(n)[None, None, :]
+        q = np.arange(k)[None, None, :]
+        last = (m - 1) * nn                     # first unknown of the last node
+        right_row = L + (m - 1) * nn            # first row after the intervals
+        # (rows, cols) of each group of variable entries, in the order values are given
+        groups = {
+            "d0": (L + i * nn + a, i * nn + b),
+            "d1": (L + i * nn + a, (i + 1) * nn + b),
+            "pcol": (L + i * nn + a, i * nn + n + q),
+            "acc": (L + i * nn + n + k + np.arange(k)[None, :, None], (i + 1) * nn + b),
+            "left_y": (np.arange(na)[:, None], np.arange(n)[None, :]),
+            "left_p": (np.arange(na)[:, None], n + np.arange(k)[None, :]),
+            "init_y": (na + np.arange(J)[:, None], np.arange(n)[None, :]),
+            "right_y": (right_row + np.arange(nb)[:, None], last + np.arange(n)[None, :]),
+            "right_p": (right_row + np.arange(nb)[:, None], last + n + np.arange(k)[None, :]),
+            "close_y": (right_row + nb + k + np.arange(len(mixed))[:, None],
+                        last + np.arange(n)[None, :]),
+            "close_p": (right_row + nb + np.arange(J)[:, None], last + n + np.arange(k)[None, :]),
+        }
+        groups = {g: np.broadcast_arrays(r, c) for g, (r, c) in groups.items()}
+        # constant entries: +-1 of the parameter copies and the running sums
+        ii = np.arange(m - 1)[:, None]
+        qk, qJ = np.arange(k)[None, :], np.arange(J)[None, :]
+        ones = [
+            (L + ii * nn + n + qk, (ii + 1) * nn + n + qk, 1.0),
+            (L + ii * nn + n + qk, ii * nn + n + qk, -1.0),
+            (L + ii * nn + n + k + qJ, (ii + 1) * nn + n + k + qJ, 1.0),
+            (L + ii * nn + n + k + qJ, ii * nn + n + k + qJ, -1.0),
+            (na + qJ, n + k + qJ, 1.0),
+            (right_row + nb + qJ, last + n + k + qJ, 1.0),
+        ]
+        all_r = np.concatenate([r.ravel() for r, _ in groups.values()]
+                               + [np.broadcast_to(r, np.broadcast(r, c).shape).ravel()
+                                  for r, c, _ in ones])
+        all_c = np.concatenate([c.ravel() for _, c in groups.values()]
+                               + [np.broadcast_to(c, np.broadcast(r, c).shape).ravel()
+                                  for r, c, _ in ones])
+        self.kl = int(max(np.max(all_r - all_c), 0))
+        self.ku = int(max(np.max(all_c - all_r), 0))
+        self.ldab = 2 * self.kl + self.ku + 1
+
+        def flat(r, c):  # position in the (N, ldab) C-order array whose transpose LAPACK takes
+            return (c * self.ldab + self.kl + self.ku + r - c).ravel()
+
+        index = {g: flat(r, c) for g, (r, c) in groups.items()}
+        # all variable entries at once, in the order factor() lists their values
+        self.index_0 = np.concatenate([index[g] for g in (
+            "d0", "d1", "left_y", "right_y", "init_y", "close_y")])
+        self.index_k = np.concatenate([self.index_0] + [index[g] for g in (
+            "pcol", "left_p", "right_p", "acc", "close_p")])
+        const = [(flat(*np.broadcast_arrays(r, c)), v) for r, c, v in ones]
+        self.index_const = np.concatenate([f for f, _ in const])
+        self.value_const = np.concatenate([np.full(len(f), v) for f, v in const])
+        # rows of M' that hold the rows of M, and the unknowns of z that hold (y, p)
+        self.row_col = (L + i[:, :, 0] * nn + a[:, :, 0]).T          # (n, m-1)
+        self.row_left = np.arange(na)
+        self.row_right = right_row + np.arange(nb)
+        self.row_border = right_row + nb + np.arange(k)
+        self.row_mixed = right_row + nb + k + np.arange(len(mixed))
+        self.col_y = (np.arange(m)[None, :] * nn + np.arange(n)[:, None])  # (n, m)
+        self.col_p = n + np.arange(k)
+
+
+@lru_cache(maxsize=128)   # meshes change size as they adapt: keep many, each is small
+def structure(n: int, m: int, k: int, split) -> Structure:
+    return Structure(n, m, k, split)
+
+
+class Factorization:
+    """The LU factors of one bordered system; solves it, its transpose, and variants of it
+    with another border row (Sherman-Morrison)."""
+
+    def __init__(self, st: Structure, lu, piv, border=None):
+        self.st, self.lu, self.piv = st, lu, piv
+        self.border = border                    # [(c (n, m), d (k,))] as factorised
+        self._u = None
+
+    @property
+    def sign(self) -> int:
+        """The sign of the determinant of the banded matrix (+-1, or 0 if singular)."""
+        diag = self.lu[self.st.kl + self.st.ku]
+        if not diag.all():
+            return 0
+        flips = np.count_nonzero(self.piv != np.arange(len(self.piv))) \
+            + np.count_nonzero(diag < 0)
+        return -1 if flips % 2 else 1
+
+    @property
+    def logdet(self) -> float:
+        """log |det| (equal for the banded and the bordered matrix); -inf where a pivot is
+        exactly zero (the matrix is singular: a branch point met exactly)."""
+        with np.errstate(divide="ignore"):
+            return float(np.sum(np.log(np.abs(self.lu[self.st.kl + self.st.ku]))))
+
+    # -- natural-order vectors <-> banded-order vectors ---------------------------------------
+    def _rhs(self, col, bc, border):
+        st = self.st
+        b = np.zeros(st.N)
+        b[st.row_col] = col
+        bc = np.asarray(bc, dtype=float)
+        b[st.row_left] = bc[st.left]
+        b[st.row_right] = bc[st.right]
+        b[st.row_mixed] = bc[st.mixed]
+        b[st.row_border] = border
+        return b
+
+    def solve(self, col, bc, border=()):
+        """(dy (n, m), dp (k,)) solving the system with right-hand side (col, bc, border)."""
+        st = self.st
+        z, info = dgbtrs(self.lu, st.kl, st.ku, self._rhs(col, bc, border), self.piv)
+        return z[st.col_y], z[st.col_p]
+
+    def solve_transpose(self, ey, ep):
+        """The solution w of ``M^T w = (ey, ep)``, as (w_col (n, m-1), w_bc (n,),
+        w_border (k,)): the multipliers of the collocation, boundary and border rows."""
+        st = self.st
+        b = np.zeros(st.N)
+        b[st.col_y] = ey
+        b[st.col_p] = ep
+        w, info = dgbtrs(self.lu, st.kl, st.ku, b, self.piv, trans=1)
+        w_bc = np.empty(st.n)
+        w_bc[st.left] = w[st.row_left]
+        w_bc[st.right] = w[st.row_right]
+        w_bc[st.mixed] = w[st.row_mixed]
+        return w[st.row_col], w_bc, w[st.row_border]
+
+    # -- another last border row ---------------------------------------------------------------
+    def null_direction(self):
+        """``u = M^{-1} e`` for e the last border row's unit vector: with one parameter
+        column and a border row c, the (unnormalised) tangent with ``<c, u> = 1``."""
+        if self._u is None:
+            st = self.st
+            e = np.zeros(st.k)
+            e[-1] = 1.0
+            self._u = self.solve(np.zeros((st.n, st.m - 1)), np.zeros(st.n), e)
+        return self._u
+
+    def solve_with_border(self, c, d, col, bc, border):
+        """Solve the system whose last border row is ``(c, d)`` instead of the factorised one:
+        ``(M + e (delta)^T)^{-1} b = x - u <delta, x> / (1 + <delta, u>)`` with
+        ``x = M^{-1} b``, ``u = M^{-1} e``."""
+        c0, d0 = self.border[-1]
+        x_y, x_p = self.solve(col, bc, border)
+        u_y, u_p = self.null_direction()
+        dc, dd = c - c0, np.asarray(d, dtype=float) - d0
+
+        def delta(vy, vp):
+            return float((dc * vy).sum() + np.dot(dd, vp))
+
+        scale = delta(x_y, x_p) / (1.0 + delta(u_y, u_p))
+        return x_y - scale * u_y, x_p - scale * u_p
+
+
+def factor(blocks, names, border=(), split=None) -> Factorization:
+    """Factorise the bordered Jacobian: ``blocks`` (:class:`~numerics.collocation.Blocks`)
+    with columns for the parameters ``names`` and ``len(names)`` border rows ``border`` =
+    [(c (n, m), d (k,))]. ``split``: the boundary rows' (left, right, mixed), default from
+    the blocks themselves."""
+    d0 = blocks.d0
+    m, n = d0.shape[0] + 1, d0.shape[1]
+    k = len(names)
+    if len(border) != k:
+        raise ValueError(f"{k} parameter columns need {k} border rows, got {len(border)}")
+    if split is None:
+        split = split_rows(blocks.ga, blocks.gb)
+    st = structure(n, m, k, split)
+    ga, gb = blocks.ga, blocks.gb
+    values = [d0.ravel(), blocks.d1.ravel(), ga[st.left].ravel(), gb[st.right].ravel(),
+              *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
+              gb[st.mixed].ravel()]
+    if k == 1:      # the common case, without stacking
+        (name,), ((c, _),) = names, border
+        gp = blocks.dbc[name][:, None]
+        values += [blocks.dcol[name].T.ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
+                   -c[:, 1:].T.ravel(), np.asarray(border[0][1], dtype=float).reshape(1),
+                   *(gp[r] for r in st.mixed)]
+    elif k:
+        pcol = np.stack([blocks.dcol[nm] for nm in names], axis=-1)     # (n, m-1, k)
+        gp = np.stack([blocks.dbc[nm] for nm in names], axis=-1)       # (n, k)
+        values += [pcol.transpose(1, 0, 2).ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
+                   -np.stack([c[:, 1:] for c, _ in border]).transpose(2, 0, 1).ravel(),
+                   *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
+                   *(gp[r] for r in st.mixed)]
+    ab = np.zeros((st.N, st.ldab))
+    flat = ab.reshape(-1)
+    flat[st.index_const] = st.value_const
+    flat[st.index_k if k else st.index_0] = np.concatenate(values)
+    lu, piv, info = dgbtrf(ab.T, st.kl, st.ku, overwrite_ab=True)
+    if info > 0:
+        # exactly singular (a branch point hit exactly): a pivot of the size of rounding
+        # keeps the solves finite, as inverse iteration for the kernel needs
+        diag = lu[st.kl + st.ku]
+        diag[info - 1] = np.finfo(float).eps * max(float(np.max(np.abs(diag))), 1.0)
+    return Factorization(st, lu, piv, [(np.asarray(c), np.asarray(d, dtype=float))
+                                      for c, d in border])

@@ -1,0 +1,582 @@
+"""Stability index: by direct count and by the fold rule (docs/stability.md, "The direct
+count" and "The fold rule").
+
+The index of an equilibrium is the number of negative eigenvalues of the second variation of
+its energy. An equation module provides it through the optional hook ``second_variation(s, y,
+p)``, a `elastica_auto.model.second_variation.SecondVariation`::
+
+    d2E[h] = int_0^1 ( h'.A h' + 2 h'.C h + h.B h ) ds + h(0).E0 h(0) + h(1).E1 h(1)
+
+for h(s) in R^k with essential conditions at the ends and linear constraints (or the scalar
+tuple ``(a, b, c[, constraints])``, the case k = 1, h(0) = 0). :func:`count` counts its
+negative eigenvalues directly at a point (:func:`count_form`: P2 finite elements, a block
+LDL^T by cyclic reduction; the tests check it against conjugate points, a dense Galerkin count
+and analytic spectra). With the constraints C (full row rank r) the index is that of the form
+on ker C: the bordered matrix M = [[K, C^T], [C, 0]] has n_-(M) = n_-(K on ker C) + r, and
+where K is nonsingular In(M) = In(K) + In(-C K^-1 C^T) (Haynsworth), so ::
+
+    index_constrained = n_-(K) - n_-(C K^-1 C^T).
+
+The fold rule (:func:`fold_rule`) propagates a known index along a branch: at a simple fold of
+a parameter xi the critical eigenvalue moves with ``dmu/dtau = -xi'' d(dE/dxi)/dtau``, so the
+index changes by ``+sign(xi'' dB/dtau)`` in the direction of travel for a parameter entering
+the equation or a natural end term (its distinguished ordinate B = dE/dxi; the paper's
+eqn:Distinguished_biff_diagram_free_end), and by ``-sign(xi'' dB/dtau)`` for an essential end
+value, whose ordinate is the reaction ``-dE/dxi``. At a branch point crossed by a branch, the
+index changes by the dimension of the kernel (:func:`kernel_dimension`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.errors import ProblemError
+from ..model.second_variation import as_second_variation
+from ..core.solution import at_fractions
+
+#: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
+#: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
+#: elements are then accurate enough that on the straight rod (eps = 0.25, the first three
+#: critical loads, 20 and 50 intervals) the count is right down to 1e-4 (relative) from each
+#: critical load; at h w = 0.4 it is not.
+MAX_PHASE = 0.2
+
+#: A pivot eigenvalue within this many rounding errors of the largest diagonal block is zero
+#: to working precision: its sign, and so the count, would be a guess.
+SINGULAR_ULPS = 64.0
+
+
+@dataclass(frozen=True)
+class Count:
+    """The direct count at one state: ``index`` (-1 if not counted) and, when it was not,
+    ``reason`` (no hook, values not finite, a zero eigenvalue, the Legendre condition);
+    ``refused`` where the form has no index there (the Legendre condition fails)."""
+
+    index: int
+    reason: str = ""
+    refused: bool = False
+
+
+class LegendreError(ProblemError):
+    """A is not positive definite at some point: the form has no index (one line)."""
+
+
+class _Singular(Exception):
+    """A pivot of the elimination is singular to working precision."""
+
+
+def _points(mesh):
+    """The nodes and element midpoints of ``mesh``, in order: 2 len(mesh) - 1 points."""
+    pts = np.empty(2 * len(mesh) - 1)
+    pts[0::2] = mesh
+    pts[1::2] = 0.5 * (mesh[:-1] + mesh[1:])
+    return pts
+
+
+def _on_state(problem, state):
+    """``evaluate(pts)`` for :func:`count_form`: the module's form at the state, from its
+    interpolant (on the state's own mesh the midpoints come from the Hermite cubic of each
+    interval, the nodes from the solution itself)."""
+    def evaluate(pts):
+        if len(pts) == 2 * len(state.s) - 1 and np.array_equal(pts[0::2], state.s):
+            y = np.empty((state.y.shape[0], len(pts)))
+            y[:, 0::2] = state.y
+            y[:, 1::2] = at_fractions(state.s, state.y, state.yp, (0.5,))[:, 0]
+        else:
+            y = state(pts)
+        return as_second_variation(problem.second_variation(pts, y, state.params),
+                                   _source(problem))
+    return evaluate
+
+
+def _source(problem) -> str:
+    """The module's name for messages."""
+    return getattr(problem, "source", "second_variation")
+
+
+def count(problem, state) -> Count:
+    """The stability index at ``state`` by direct count (:func:`count_form` on the state's
+    own mesh), or -1 with the reason: no ``second_variation`` hook, a state or coefficient that
+    is not finite (NaN compares false with everything, so a count would call it stable), or a
+    zero eigenvalue."""
+    if not problem.has_second_variation:
+        return Count(-1, "no second_variation hook")
+    if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
+            and all(np.isfinite(v) for v in state.params.values())):
+        return Count(-1, "the state is not finite")
+    try:
+        return count_form(_on_state(problem, state), state.s, source=_source(problem))
+    except LegendreError as exc:   # at this state only: the branch goes on, the point says so
+        return Count(-1, str(exc), refused=True)
+
+
+def index(problem, state) -> int:
+    """The number of negative eigenvalues of the second variation at ``state``, or -1 where it
+    is not counted (:func:`count`)."""
+    return count(problem, state).index
+
+
+def _min_eig(a):
+    """The smallest eigenvalue of each symmetric block (p, k, k). (A lower bound would do for
+    the Legendre check, but the refinement's wavenumber divides by it: a bound a factor k - 1
+    low refines meshes that need it not.)"""
+    if a.shape[-1] == 1:
+        return a[:, 0, 0]
+    if a.strides[0] == 0:   # a constant field (a stiffness), broadcast: one block to solve
+        return np.broadcast_to(np.linalg.eigvalsh(a[:1])[:, 0], len(a))
+    return np.linalg.eigvalsh(a)[:, 0]
+
+
+def _norm(a):
+    """The Frobenius norm of each (..., k, k) block."""
+    if a.shape[-1] == 1:
+        return np.abs(a[..., 0, 0])
+    return np.sqrt(np.einsum("...ij,...ij->...", a, a))
+
+
+def _wavenumber(a_min, b, c):
+    """Wavenumber of the form's eigenfunctions near eigenvalue zero, at each point: with
+    h' + A^-1 C h = v the form is v.A v + h.(B - C^T A^-1 C) h, so the solutions turn at the
+    rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A); bounded by norms (for k = 1
+    and C = 0, sqrt(|b| / a))."""
+    if not np.any(c):
+        return np.sqrt(_norm(b) / a_min)
+    c_norm = _norm(c)
+    return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
+
+
+def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_variation"
+               ) -> Count:
+    """The number of negative eigenvalues of the form ``evaluate(pts)`` (a
+    `SecondVariation` with its coefficients on the points ``pts``) less ``shift`` times the
+    L2 inner product, on its admissible space; ``mesh`` the nodes of the elements.
+
+    Quadratic (P2) finite elements with k components per node on ``mesh``, each interval
+    subdivided where the coefficients oscillate faster than it resolves (``MAX_PHASE``); the
+    coefficients at each element's nodes and midpoint (Simpson's rule, which makes the mass
+    matrix diagonal). The count is the inertia of the stiffness matrix K (Sylvester: the mass
+    matrix is positive definite, so K and the generalised eigenproblem have the same number of
+    negative eigenvalues), by a block LDL^T whose pivots are k x k blocks (:func:`_inertia`).
+    Essential end conditions restrict the end nodes to the free directions; constraints count
+    by the bordered inertia n_-(K) - n_-(C K^-1 C^T) (docs/stability.md, "The direct count").
+    A pivot with an eigenvalue zero to working precision (a fold, a branch point, an
+    unconstrained symmetry) gives index -1 and says so: its sign would be a guess.
+    LegendreError (a ProblemError) where A is not positive definite (the Legendre
+    condition); :func:`count` turns it into index -1 with that one-line reason.
+    """
+    s = np.asarray(mesh, dtype=float)
+    form, coeffs = _evaluate(evaluate, s, shift, source)
+    if coeffs is None:
+        return Count(-1, "the second variation is not finite")
+    a, b, c, a_min, _ = coeffs
+    h = np.diff(s)
+    w = _wavenumber(a_min, b, c)
+    w = np.maximum(np.maximum(w[0:-1:2], w[1::2]), w[2::2])
+    parts = np.ceil(h * w / MAX_PHASE).astype(int)
+    if np.any(parts > 1):
+        i = np.repeat(np.arange(len(h)), parts)
+        j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
+        s = np.append(s[i] + j * (h / parts)[i], s[-1])
+        form, coeffs = _evaluate(evaluate, s, shift, source)
+        if coeffs is None:
+            return Count(-1, "the second variation is not finite")
+    try:
+        return Count(_inertia(form, s, *coeffs))
+    except _Singular as exc:
+        return Count(-1, str(exc))
+
+
+def _evaluate(evaluate, s, shift, source):
+    """The form on the nodes and midpoints of ``s`` and its fields (A, B, C, min eig A, g);
+    fields None if any value is not finite. ProblemError where A is not positive definite."""
+    pts = _points(s)
+    form = evaluate(pts)
+    a, b, c, g = form.fields(len(pts))
+    ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
+    # one sum: NaN and inf propagate through it (a finite sum overflows only past 1e300)
+    if not math.isfinite(float(np.sum(a) + np.sum(b) + np.sum(c) + np.sum(g)
+                               + sum(np.sum(v) for v in ends))):
+        return form, None
+    if shift:
+        b = b - shift * np.eye(form.k)
+    a_min = _min_eig(a)
+    if not np.all(a_min > 0):
+        j = int(np.argmin(a_min))
+        raise LegendreError(f"{source}: second_variation: A is not positive definite at s = "
+                           f"{pts[j]:.6g} (smallest eigenvalue {a_min[j]:.3g}): the Legendre "
+                           "condition fails there and the stability index is not defined")
+    return form, (a, b, c, a_min, g)
+
+
+def _element_blocks(s, a, b, c):
+    """The P2 element matrices on the nodes ``s``, from the fields on the nodes and midpoints
+    (P, k, k), as blocks (n_el, k, k): (k00, k02, k22) between the element's two nodes and
+    (k0m, k2m, kmm) with its midpoint.
+
+    With x in [0, 1] on an element of length h and the Lagrange basis phi_0, phi_m, phi_2 at
+    x = 0, 1/2, 1, Simpson's rule (weights 1/6, 4/6, 1/6 at those points, where phi_i =
+    delta_iq and phi' = (-3, -1, 1), (4, 0, -4), (-1, 1, 3)) gives ::
+
+        K_ij = sum_q w_q phi_i'(q) phi_j'(q) A_q / h + T_ij + T_ji^T + delta_ij w_i h B_i,
+        T_ij = w_j phi_i'(x_j) C_j      (the term h'.C h of phi_i' e_a against phi_j e_b)
+    """
+    h = np.diff(s).reshape(-1, *(1,) * (a.ndim - 1))
+    a0, am, a2 = a[0:-1:2], a[1::2], a[2::2]
+    b0, bm, b2 = b[0:-1:2], b[1::2], b[2::2]
+    k00 = (9 * a0 + 4 * am + a2) / (6 * h) + (h / 6) * b0
+    k22 = (a0 + 4 * am + 9 * a2) / (6 * h) + (h / 6) * b2
+    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * bm
+    k02 = (3 * a0 - 4 * am + 3 * a2) / (6 * h)
+    k0m = -(12 * a0 + 4 * a2) / (6 * h)
+    k2m = -(4 * a0 + 12 * a2) / (6 * h)
+    if np.any(c):
+        c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
+        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
+        k00 -= 0.5 * (c0 + c0t)
+        k22 += 0.5 * (c2 + c2t)
+        k02 += (c2 - c0t) / 6
+        k0m += (4 / 6) * (c0t - cm)
+        k2m += (4 / 6) * (cm - c2t)
+    return (k00, k02, k22), (k0m, k2m, kmm)
+
+
+def _inertia(form, s, a, b, c, a_min, g) -> int:
+    """The index of ``form`` by P2 elements on the nodes ``s`` (:func:`count_form`), its
+    fields on the nodes and midpoints. Each midpoint belongs to one element and is eliminated
+    there (Haynsworth: In(K) = In(K_mm) + In(K / K_mm)), leaving a block tridiagonal matrix on
+    the nodes, whose inertia :func:`_reduce` (or, for k = 1 without constraints,
+    :func:`_sturm`) counts."""
+    k, r = form.k, len(form.constraints)
+    if k == 1 and not r:
+        return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
+    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
+    h = np.diff(s)
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
+    x0, x2 = kmm_inv @ k0m.transpose(0, 2, 1), kmm_inv @ k2m.transpose(0, 2, 1)
+    d = np.zeros((len(s), k, k))
+    d[:-1] += k00 - k0m @ x0
+    d[1:] += k22 - k2m @ x2
+    u = k02 - k0m @ x2
+    d[0] += form.E0
+    d[-1] += form.E1
+    f = _constraint_columns(form, h, g, x0, x2)
+    _restrict(d, u, f, 0, form.free0, form.fixed0)
+    _restrict(d, u, f, -1, form.free1, form.fixed1)
+    s_mat = [np.zeros((r, r)), np.zeros((r, r))]
+    if r:
+        _accumulate(g[:, 1::2, :].transpose(1, 2, 0) * ((4 / 6) * h)[:, None, None], kmm_inv,
+                    s_mat)
+    neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
+    negative += neg_k
+    if not r:
+        return negative + _pivots(d_last[None], scale, "the last pivot (a fold or a branch "
+                                  "point)")[1]
+    # The last node and the multipliers: what is left of the bordered matrix [[K, C^T],
+    # [C, 0]] once every other node is eliminated is [[D, F], [F^T, -C K'^-1 C^T]] (K' the
+    # eliminated part). Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but
+    # it is counted as a whole: a constraint that removes a zero mode of K (a symmetry) makes
+    # D singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
+    total, size = s_mat
+    last = np.block([[d_last, f_last], [f_last.T, -total]])
+    w = np.linalg.eigvalsh(0.5 * (last + last.T))
+    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * np.max(size)):
+        raise _Singular("zero eigenvalue: the constrained form is singular to working "
+                        "precision (a fold or a branch point), or the constraints are "
+                        "dependent")
+    return negative + int(np.count_nonzero(w < 0)) - r
+
+
+def _inertia_scalar(form, s, a, b, c) -> int:
+    """:func:`_inertia` for k = 1 without constraints, on (n,) arrays: the node matrix is
+    tridiagonal and its pivots are counted in plain floats (:func:`_sturm`); a third of the
+    cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
+    call dominates."""
+    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    if np.any(np.abs(kmm) <= scale):
+        raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
+                        "precision")
+    negative = int(np.count_nonzero(kmm < 0))
+    diag = np.zeros(len(s))
+    diag[:-1] += k00 - k0m * k0m / kmm
+    diag[1:] += k22 - k2m * k2m / kmm
+    off = k02 - k0m * k2m / kmm
+    diag[0] += form.E0[0, 0]
+    diag[-1] += form.E1[0, 0]
+    # a fixed end's node is no unknown: its row and column are left out
+    lo, hi = (0 if form.free0.shape[1] else 1), (len(diag) - (0 if form.free1.shape[1] else 1))
+    return negative + _sturm(diag[lo:hi].tolist(), (off[lo:hi - 1] ** 2).tolist(), scale)
+
+
+def _accumulate(f, inv, into):
+    """Add to ``into`` = [C K^-1 C^T, its size] the terms f^T D^-1 f of the constraint rows
+    ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k, k), and the same sum of
+    absolute values (the scale of its rounding errors)."""
+    into[0] += np.einsum("pai,pab,pbj->ij", f, inv, f)
+    into[1] += np.einsum("pai,pab,pbj->ij", np.abs(f), np.abs(inv), np.abs(f))
+
+
+def _constraint_columns(form, h, g, x0, x2):
+    """The constraints as columns on the nodes, (n_nodes, k, r): Simpson's rule for int g.h
+    (a node or midpoint value times its weight) plus d0, d1 at the ends, the midpoint parts
+    condensed like the stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
+    r = len(form.constraints)
+    f = np.zeros((len(h) + 1, form.k, r))
+    if not r:
+        return f
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    f[:-1] += (h / 6)[:, None, None] * gt[0:-1:2]
+    f[1:] += (h / 6)[:, None, None] * gt[2::2]
+    f[0] += np.array([con.d0 for con in form.constraints]).T
+    f[-1] += np.array([con.d1 for con in form.constraints]).T
+    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    f[:-1] -= x0.transpose(0, 2, 1) @ cm
+    f[1:] -= x2.transpose(0, 2, 1) @ cm
+    return f
+
+
+def _restrict(d, u, f, end, free, fixed):
+    """Impose the essential conditions at node ``end`` (0 or -1): in the basis [free, fixed]
+    of its directions, the fixed coordinates are decoupled (rows and columns of the block, the
+    coupling and the constraints zeroed) and given a positive pivot, which adds a positive
+    eigenvalue per fixed direction and leaves the negative count that of the restriction."""
+    if not fixed.shape[1]:
+        return
+    if not free.shape[1]:   # all fixed: the node's own block, decoupled
+        fill = max(float(np.max(np.abs(d[end]))), 1.0)
+        d[end] = fill * np.eye(len(fixed))
+        u[0 if end == 0 else -1] = 0.0
+        f[end] = 0.0
+        return
+    q = np.hstack((free, fixed))
+    nf = free.shape[1]
+    block = q.T @ d[end] @ q
+    fill = max(float(np.max(np.abs(block))), 1.0)
+    block[nf:, :] = 0.0
+    block[:, nf:] = 0.0
+    block[nf:, nf:] = fill * np.eye(fixed.shape[1])
+    d[end] = block
+    if end == 0:
+        u[0] = q.T @ u[0]
+        u[0][nf:, :] = 0.0
+    else:
+        u[-1] = u[-1] @ q
+        u[-1][:, nf:] = 0.0
+    f[end] = q.T @ f[end]
+    f[end][nf:, :] = 0.0
+
+
+def _pivots(blocks, scale, what):
+    """(inverses, number of negative eigenvalues) of the symmetric pivot blocks (p, k, k);
+    _Singular if an eigenvalue is within ``scale`` of zero. Blocks of k = 2 and 3 by closed
+    forms (:func:`_small_pivots`), larger ones by their eigendecomposition."""
+    k = blocks.shape[-1]
+    if k == 1:
+        w = blocks[:, 0, 0]
+        if np.any(np.abs(w) <= scale):
+            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+        return 1.0 / blocks, int(np.count_nonzero(w < 0))
+    if k <= 3:
+        inv, negative, singular = _small_pivots(blocks, scale)
+        if singular:
+            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+        return inv, negative
+    w, v = np.linalg.eigh(blocks)
+    if np.any(np.abs(w) <= scale):
+        raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
+    return (v / w[:, None, :]) @ v.transpose(0, 2, 1), int(np.count_nonzero(w < 0))
+
+
+def _small_pivots(m, scale):
+    """Inverses, negative eigenvalues and singularity of symmetric 2 x 2 or 3 x 3 blocks
+    (p, k, k) by closed forms: numpy's batched eigensolver costs ten times as much on them.
+
+    The inverse is the adjugate over the determinant. The negative eigenvalues of M are the
+    positive roots of det(x I + M) = x^k + c_1 x^(k-1) + ... + c_k (c_j the sums of the
+    principal j x j minors), and for a polynomial with only real roots Descartes' rule of
+    signs is exact: their number is the number of sign changes of (1, c_1, ..., c_k). A
+    middle coefficient at rounding level does not matter: where one is zero its neighbours
+    have opposite signs (Newton's inequalities), so either sign gives the same count; the
+    last, det M, is checked against zero: |det M| <= ``scale`` |c_(k-1)| where an eigenvalue
+    is within ``scale`` of zero (c_(k-1) is then about the product of the others). With
+    n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
+    (n_2 xor n_3); a zero coefficient counts as positive."""
+    p, k = len(m), m.shape[-1]
+    rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
+    if k == 2:
+        a, b, d = rows[0], rows[3], rows[1]
+        det = a * b - d * d
+        inv = rows[_ADJ2] * _ADJ2_SIGN[:, None] / det
+        c_last = a + b
+        neg1 = c_last < 0
+        changes = np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ (det < 0))
+    else:
+        e = rows[_SYM3]                                     # a, b, c, d, e, f (_SYM3)
+        cof = e[_COF[0]] * e[_COF[1]] - e[_COF[2]] * e[_COF[3]]
+        det = e[0] * cof[0] + e[3] * cof[3] + e[4] * cof[4]     # a c00 + d c01 + e c02
+        inv = cof[_COF_TO_3X3] / det
+        c_last = cof[0] + cof[1] + cof[2]
+        neg1, neg2 = e[0] + e[1] + e[2] < 0, c_last < 0
+        changes = (np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ neg2)
+                   + np.count_nonzero(neg2 ^ (det < 0)))
+    singular = bool(np.any(np.abs(det) <= scale * np.abs(c_last)))
+    return inv.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+
+
+#: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
+_ADJ2, _ADJ2_SIGN = np.array([3, 1, 2, 0]), np.array([1.0, -1.0, -1.0, 1.0])
+#: A symmetric 3 x 3 block flattened, its entries a, b, c (diagonal), d, e, f (01, 02, 12).
+_SYM3 = np.array([0, 4, 8, 1, 2, 5])
+#: Its cofactors c00, c11, c22, c01, c02, c12 as e[i] e[j] - e[k] e[l]: b c - f f, a c - e e,
+#: a b - d d, e f - d c, d f - b e, d e - a f.
+_COF = np.array([[1, 0, 0, 4, 3, 3], [2, 2, 1, 5, 5, 4], [5, 4, 3, 3, 1, 0], [5, 4, 3, 2, 4, 5]])
+#: The adjugate (the cofactors' symmetric matrix) flattened from them.
+_COF_TO_3X3 = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])
+
+
+def _sturm(diag, off2, scale) -> int:
+    """Negative pivots of the LDL^T of a symmetric tridiagonal matrix (diagonal ``diag``,
+    squared off-diagonal ``off2``): the k = 1 case of :func:`_reduce` without constraints, in
+    plain floats (a tenth of the cost of the array form on a few hundred nodes)."""
+    negative, d = 0, diag[0]
+    for dj, e2 in zip(diag[1:], off2):
+        if -scale <= d <= scale:
+            raise _Singular("zero eigenvalue: a pivot of the node matrix is singular to "
+                            "working precision")
+        if d < 0:
+            negative += 1
+        d = dj - e2 / d
+    if -scale <= d <= scale:
+        raise _Singular("zero eigenvalue: the last pivot is zero to working precision "
+                        "(a fold or a branch point)")
+    return negative + (d < 0)
+
+
+def _reduce(d, u, f, scale, s_mat):
+    """Eliminate all nodes but the last: (the negative eigenvalues of their pivots, the last
+    node's pivot block, its constraint columns), adding C K^-1 C^T of the eliminated part to
+    ``s_mat`` (:func:`_accumulate`), for the block
+    tridiagonal K (diagonal blocks ``d`` (N, k, k), upper blocks ``u`` (N-1, k, k): u[i] =
+    K[i, i+1]) and the constraint columns ``f`` (N, k, r), by odd-even (cyclic) reduction: a
+    block LDL^T of K with the nodes ordered odd ones first, level by level. The odd nodes of a
+    level are coupled only to even ones, so their pivots are the diagonal blocks themselves,
+    inverted all at once; their Schur complement is again block tridiagonal on the even
+    nodes. By Haynsworth's additivity the negative eigenvalues of all the pivots, the last
+    included, are n_-(K) (Sylvester), and the constraint columns, eliminated alongside,
+    accumulate C K^-1 C^T.
+    The first levels' pivots couple neighbours a few elements apart, where the stiffness
+    dominates (MAX_PHASE): they are positive definite and well conditioned."""
+    negative = 0
+    while len(d) > 1:
+        inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
+        negative += neg
+        left, right = u[0::2], u[1::2]             # K[o-1, o] and K[o, o+1], o odd
+        pl = inv @ left.transpose(0, 2, 1)         # D_o^-1 K[o, o-1]
+        pr = inv[: len(right)] @ right             # D_o^-1 K[o, o+1]
+        de = d[0::2].copy()
+        de[: len(left)] -= left @ pl
+        de[1: len(right) + 1] -= right.transpose(0, 2, 1) @ pr
+        if f.shape[2]:
+            fo = f[1::2]
+            fe = f[0::2].copy()
+            fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
+            fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
+            _accumulate(fo, inv, s_mat)
+            f = fe
+        else:
+            f = f[0::2]
+        u = -pl[: len(right)].transpose(0, 2, 1) @ right
+        d = de
+    return negative, d[0], f[0]
+
+
+def kernel_dimension(problem, state, delta: float | None = None) -> int:
+    """The number of eigenvalues of the second variation at ``state`` within ``delta`` of
+    zero: n_-(form - delta) - n_-(form + delta) (shifts by the L2 inner product), -1 if
+    either count fails. ``delta`` defaults to 1e-3 times the mean of the smallest eigenvalue
+    of A, far above the P2 error of an eigenvalue near zero and far below the spacing of the
+    eigenvalues of the examples (of order pi^2 A)."""
+    if not problem.has_second_variation:
+        return -1
+    evaluate = _on_state(problem, state)
+    if delta is None:
+        a = evaluate(_points(state.s)).fields(2 * len(state.s) - 1)[0]
+        delta = 1e-3 * float(np.mean(_min_eig(a)))
+    above = count_form(evaluate, state.s, shift=delta, source=_source(problem)).index
+    below = count_form(evaluate, state.s, shift=-delta, source=_source(problem)).index
+    return above - below if min(above, below) >= 0 else -1
+
+
+def index_change(enters: str, curvature: float, slope: float) -> int:
+    """Index change across a simple fold in the direction of travel, from the signs of the
+    parameter's curvature xi'' and of the ordinate's slope dB/dtau there:
+    ``+sign(xi'' dB/dtau)`` for a parameter entering the free end or the ODE, ``-sign(...)``
+    for one entering the fixed end; 0 if either vanishes (not a simple fold)."""
+    change = int(np.sign(curvature) * np.sign(slope))
+    return -change if enters == "fixed" else change
+
+
+def fold_sign(enters: str, lam: np.ndarray, ordinate: np.ndarray, k: int) -> int:
+    """:func:`index_change` at the fold at point ``k``, the signs read off its neighbours."""
+    if k == 0 or k == len(lam) - 1:
+        return 0
+    return index_change(enters, (lam[k - 1] - lam[k]) + (lam[k + 1] - lam[k]),
+                        ordinate[k + 1] - ordinate[k - 1])
+
+
+def fold_rule(branch, problem, start_index: int) -> list[int]:
+    """Index at every point of ``branch`` from ``start_index`` and the sign rule at each LP.
+
+    The index of a point that is itself an LP is the value on the side it is approached from.
+    The sign needs only the neighbouring points, so it also applies at a fold whose extended
+    system failed. Where the rule cannot apply (a fold of a parameter without a distinguished
+    ordinate, a branch point) it takes the direct count after the special point, if there is
+    one, else -1.
+    """
+    name = branch.parameter
+    ordinate = next((o.name for o in problem.ordinates.values() if o.parameter == name), None)
+    enters = problem.parameters[name].enters
+    lam = branch.column(name)
+    ords = branch.column(ordinate) if ordinate else None
+    out, current = [], start_index
+    for k, p in enumerate(branch.points):
+        out.append(current)
+        if p.type == "LP" and current >= 0:
+            change = fold_sign(enters, lam, ords, k) if ords is not None else 0
+            current = current + change if change else -1
+        elif p.type == "BP":
+            current = -1
+        if current < 0 and k + 1 < len(branch.points):
+            current = branch.points[k + 1].index_direct
+    return out
+
+
+def label_stability(branch, problem) -> None:
+    """Fill ``index_rule`` and ``index`` on every point of ``branch`` (of ``problem``).
+
+    The rule starts from the direct count at the first point (the second after a switch).
+    ``index`` is the common value where rule and direct count agree; at LP and BP points
+    (critical eigenvalue zero, direct count ambiguous) it is the rule's value. Elsewhere a
+    disagreement leaves ``index = -1`` and says so in the point's note: it is never hidden.
+    """
+    if not branch.points or not problem.has_second_variation:
+        return
+    # A branch switched at a branch point starts where the direct count is ambiguous.
+    seed = branch.points[1 if branch.singular_start and len(branch.points) > 1 else 0]
+    rule = fold_rule(branch, problem, seed.index_direct)
+    for k, (p, r) in enumerate(zip(branch.points, rule)):
+        p.index_rule = r
+        if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):
+            p.index = r
+        elif r == p.index_direct:
+            p.index = r
+        elif p.index_direct < 0:   # not counted there (the note says why, where it can)
+            p.index = -1
+        else:
+            p.index = -1
+            msg = f"index disagreement: rule {r}, direct {p.index_direct}"
+            p.note = "; ".join(filter(None, (p.note, msg)))

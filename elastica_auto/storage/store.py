@@ -1,0 +1,933 @@
+"""HDF5 branch files (docs/hdf5.md): atomic writes, validated reads, CSV export.
+
+Layout of ``out/<run>.h5``::
+
+    /                       attrs: format, format_version, run, equation, created, version,
+                            run_file (the TOML text), states, parameters, ordinates (JSON
+                            lists), tex (JSON: name -> TeX label), periods (JSON: periodic
+                            parameter -> period), labels (JSON: label -> [branch, pt])
+    /profile_grid           the fixed s grid of the stored profiles
+    /branches/<NNN>/        attrs: parameter, ordinate, direction, start, options, end,
+                            message, diagnostics, warnings, seconds
+        columns/<name>      one row per point: every parameter and ordinate, arclength, ds,
+                            niter, nodes, fold_residual, type, label, note, index,
+                            index_rule, index_direct, transition ("1 -> 0" at LP and BP)
+        profiles            (points, states, grid): every state on /profile_grid
+        solutions/          the exact collocation solutions of the labelled points, packed
+                            (`_write_solutions`): label, pt, params, nodes, s, y, yp,
+                            tangent_nodes, tangent_s, tangent_y, tangent_yp, tangent_lam;
+                            attr tangent_parameter (format 1: a group per label)
+
+    /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
+                            parameters): lp, branch, parameter, value, stable_side, k,
+                            index, target_<ordinate>..., on_branch (0: no computed branch);
+                            with landings: landed, energy_released, transit_time;
+                            profiles (targets, states, grid): each target on /profile_grid
+    /landings/              the damped model's landings, one row per (LP, damping): lp,
+                            branch, parameter, value, damping, landed, k,
+                            target_<ordinate>..., energy_released, transit_time
+
+Files are written to a temporary name in the same folder, then renamed over the target, so a
+reader never sees a half-written file; while a run writes it, the file's branches are links to
+small files of their own, and the file is written whole at the run's end. A run holds an
+exclusive lock on its output for as long as it runs, and replaces an existing ``<run>.h5``
+only once it has finished (see `Writer`).
+New files get the mode ``open`` would give them (0666 less the umask).
+
+Reading validates the layout on opening, from the datasets' shapes and the label columns: a
+damaged file raises one `StoreError` naming the file and what is wrong. Branch columns,
+profiles and labelled solutions are read when first used, each read opening and closing the
+file (see `BranchFile`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import fcntl
+import json
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Mapping
+from datetime import datetime, timezone
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .. import FORMAT_VERSION, __version__
+from ..branches.branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
+                     column_names, export_names)
+from ..core.errors import StoreError, error_text
+from ..core.solution import State, Tangent
+
+FORMAT = "elastica-auto"
+
+
+def _ordinate_for(problem, parameter):
+    return next((o.name for o in problem.ordinates.values() if o.parameter == parameter), "")
+
+
+def _tex_labels(problem) -> dict[str, str]:
+    """Math-mode TeX label of every parameter and ordinate, for plots."""
+    out = {}
+    for name, obj in [*problem.parameters.items(), *problem.ordinates.items()]:
+        out[name] = obj.tex if obj.tex.startswith("$") else f"${obj.tex}$"
+    return out
+
+
+def _new_file_mode() -> int:
+    """The mode ``open`` gives a new file: 0666 less the umask (``mkstemp`` gives 0600)."""
+    umask = os.umask(0)  # the umask can only be read by setting it
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def _temporary(path: Path) -> str:
+    """A new empty file beside ``path`` named ``.<name>.XXXXXXXX.tmp``, with the mode of a new
+    file; `_temporaries` recognises the name."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # file systems without Unix modes refuse chmod; the file is no less usable
+        with contextlib.suppress(OSError):
+            os.fchmod(fd, _new_file_mode())
+    finally:
+        os.close(fd)
+    return tmp
+
+
+def _temporaries(*paths: Path) -> re.Pattern:
+    """The names `_temporary` gives for ``paths``: tempfile's 8 characters [a-z0-9_]."""
+    names = "|".join(re.escape(p.name) for p in paths)
+    return re.compile(rf"\.(?:{names})\.[a-z0-9_]{{8}}\.tmp")
+
+
+def _lock(lock: Path, target: Path) -> int:
+    """Take the exclusive lock ``lock`` (created if need be) for writing ``target``: its fd.
+
+    Never waits: if another process holds it, StoreError. The holder removes the lock file on
+    release (`_unlock`); a process that opened it just before then holds a lock on a removed
+    file, so the lock counts only if the locked file is still the one at ``lock``.
+    """
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            current = os.stat(lock)
+        except BlockingIOError:
+            os.close(fd)
+            raise StoreError(f"{target}: another run is writing it (lock {lock} is held); "
+                             "wait for it to end or write elsewhere") from None
+        except FileNotFoundError:
+            current = None  # removed by the holder as it ended: lock the next one
+        except OSError:
+            os.close(fd)
+            raise
+        if current is not None and os.path.samestat(os.fstat(fd), current):
+            return fd
+        os.close(fd)
+
+
+def _unlock(fd: int, lock: Path):
+    # Removed while still held, so that nobody locks this file after us (see _lock). A lock
+    # file that cannot be removed does no harm: the next run locks it again.
+    with contextlib.suppress(OSError):
+        os.unlink(lock)
+    os.close(fd)
+
+
+class Writer:
+    """Writes a run's branch file after each branch, atomically; use it as a context manager.
+
+    Entering checks, before anything is computed, that the output can be written (a folder that
+    cannot be created or written, a name too long for the file system, ``<run>.h5`` a directory:
+    StoreError); takes an exclusive lock on the output for the whole run, on the hidden file
+    ``.<run>.h5.lock`` beside it (a second run writing the same file gets StoreError at once;
+    the lock file is removed on exit); and removes the temporary files a killed run left for
+    this output.
+
+    Each save writes the branches not written yet, each to a small file of its own in the
+    hidden folder ``.<name>.branches`` beside the file (``001.h5``, ...), then the file itself
+    anew: its attributes, tables and, for each branch, an HDF5 external link to its file. The
+    run's end (`finish`, or leaving the context after an interruption) writes the file once
+    more, whole, with the branches' groups copied in, and removes the folder. Every one of
+    these writes goes to a temporary name and is renamed over its target, so a reader (or a
+    run killed at any moment) never sees a half-written file: the file is there whole, as of
+    its last save (with its branches linked, as long as the folder is beside it; a run that
+    writes it again first makes it whole), or it is not there yet. No save copies what earlier
+    saves wrote. ``path`` is the target ``<run>.h5`` if no such file exists when the run
+    starts. Otherwise the saves go to ``<run>.partial.h5`` beside it and `finish` renames that
+    over the target once the run has ended, failed branches (MX) or not: an earlier result is
+    replaced by a complete one only, and an interrupted or killed rerun leaves it as it was,
+    the rerun's branches in the partial file.
+    """
+
+    def __init__(self, path: Path, run: str, problem, run_file_text: str = ""):
+        self.target = Path(path)
+        self.partial = self.target.with_name(f"{self.target.stem}.partial.h5")
+        self.path = self.target
+        self.run, self.problem, self.text = run, problem, run_file_text
+        self.written = 0
+        self.kept = 0
+        self.labels: dict[str, list[int]] = {}
+        self._lock = self.target.with_name(f".{self.target.name}.lock")
+        self._fd = -1
+        self._created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        self._tables: dict = {"snaps": None, "landings": None, "maps": None}
+
+    def __enter__(self) -> Writer:
+        folder = self.target.parent
+        if self.target.is_dir():
+            raise StoreError(f"{self.target}: is a directory, not a branch file")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            self._fd = _lock(self._lock, self.target)
+        except OSError as exc:
+            raise StoreError(f"{self.target}: cannot write in {folder} "
+                             f"({exc.strerror or exc})") from None
+        try:
+            stale = _temporaries(self.target, self.partial)
+            for entry in os.scandir(folder):
+                if stale.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
+                    os.unlink(entry.path)
+            for path in (self.target, self.partial):   # what a killed run left
+                _whole(path)
+            if self.target.exists():
+                self.path = self.partial
+            os.unlink(_temporary(self.path))  # the longest name a save needs
+        except OSError as exc:
+            _unlock(self._fd, self._lock)
+            raise StoreError(f"{self.target}: cannot write in {folder} "
+                             f"({exc.strerror or exc})") from None
+        return self
+
+    def __exit__(self, *exc_info):
+        from ..core.interrupts import Interruptions
+        try:
+            if self.written:
+                with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
+                    _whole(self.path)
+        except (OSError, StoreError):  # the file stays as saved, its branches linked: the
+            pass                         # next run writing it makes it whole
+        finally:
+            _unlock(self._fd, self._lock)
+
+    def resume(self, kept: BranchFile, count: int):
+        """Continue the branch file ``kept`` (opened) with its first ``count`` branches (the
+        others, interrupted, are dropped): they stay as they are, and the branches saved from
+        now on follow them, numbered from there."""
+        self.labels = {name: list(where) for name, where in kept.labels.items()
+                       if where[0] <= count}
+        self._tables = {"snaps": kept.snaps, "landings": kept.landings, "maps": kept.maps}
+        folder = _branch_folder(self.path)
+        try:
+            folder.mkdir(exist_ok=True)
+            with h5py.File(kept.path, "r") as f:
+                for b in kept.branches[:count]:
+                    key = f"{b.number:03d}"
+
+                    def write(tmp, key=key):
+                        with h5py.File(tmp, "w") as g:
+                            f.copy(f[f"branches/{key}"], g, "branch")
+
+                    write_atomically(folder / f"{key}.h5", write, "branch")
+        except OSError as exc:
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
+        self.written = self.kept = count
+        self._write_index()
+
+    def save(self, branches: list[Branch], snaps: list[dict] | None = None, maps=None,
+             landings: list[dict] | None = None):
+        """Write ``branches`` (labels already numbered); earlier ones are kept as written.
+        ``snaps``: the snap-back target table, ``maps``: the stability maps, ``landings``:
+        the damped model's landings (each replaces any stored one)."""
+        folder = _branch_folder(self.path)
+        count, labels = self.written, dict(self.labels)
+        try:
+            folder.mkdir(exist_ok=True)
+            for k in range(self.written + 1, self.kept + len(branches) + 1):
+                br = branches[k - self.kept - 1]
+
+                def write(tmp, br=br):
+                    with h5py.File(tmp, "w") as f:
+                        _write_branch(f.create_group("branch"), self.problem, br)
+
+                write_atomically(folder / f"{k:03d}.h5", write, "branch")
+                for pt, p in enumerate(br.points, start=1):
+                    if p.type:
+                        labels[p.name] = [k, pt]
+                count = k
+        except OSError as exc:
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
+        if snaps is not None:
+            self._tables["snaps"] = snaps
+        if landings:
+            self._tables["landings"] = landings
+        if maps:
+            self._tables["maps"] = maps
+        self._write_index(count, labels)
+        # saved once the file links them (an interruption before leaves them unsaved)
+        self.written, self.labels = count, labels
+
+    def _write_index(self, count: int | None = None, labels: dict | None = None):
+        """The file: header, labels, tables, and a link to each of the first ``count``
+        branches' files (default: those saved)."""
+        folder = _branch_folder(self.path)
+        count = self.written if count is None else count
+        labels = self.labels if labels is None else labels
+
+        def write(tmp):
+            with h5py.File(tmp, "w") as f:
+                self._write_header(f)
+                f.attrs["labels"] = json.dumps(labels)
+                g = f.create_group("branches")
+                for k in range(1, count + 1):
+                    g[f"{k:03d}"] = h5py.ExternalLink(f"{folder.name}/{k:03d}.h5", "/branch")
+                if self._tables["snaps"] is not None:
+                    _write_table(f, "snaps", self._tables["snaps"])
+                if self._tables["landings"]:
+                    _write_table(f, "landings", self._tables["landings"])
+                if self._tables["maps"]:
+                    _write_maps(f, self._tables["maps"])
+
+        write_atomically(self.path, write, "index")
+
+    def finish(self):
+        """The run has ended (not interrupted): its file becomes ``<run>.h5`` (see the class).
+        A Ctrl-C meanwhile is too late to stop anything: it waits for the file."""
+        from ..core.interrupts import Interruptions
+        try:
+            with Interruptions():
+                _whole(self.path)
+        except OSError as exc:
+            raise StoreError(f"{self.path}: cannot write ({exc.strerror or exc})") from exc
+        if self.path != self.target:
+            try:
+                os.replace(self.path, self.target)
+            except OSError as exc:
+                raise StoreError(f"{self.target}: cannot replace it with {self.path} "
+                                 f"({exc.strerror or exc})") from exc
+            self.path = self.target
+
+    def _write_header(self, f):
+        problem = self.problem
+        f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, run=self.run,
+                       equation=problem.source, version=__version__, created=self._created,
+                       run_file=self.text, states=json.dumps(problem.states),
+                       parameters=json.dumps(problem.parameter_names),
+                       ordinates=json.dumps(problem.ordinate_names),
+                       tex=json.dumps(_tex_labels(problem)),
+                       periods=json.dumps({k: q.period for k, q in problem.parameters.items()
+                                           if q.period is not None}))
+        f["profile_grid"] = PROFILE_GRID
+
+
+def _stage(name: str):
+    """Where a save is (``"branch written"``, ``"index renamed"``, ...): nothing; the tests
+    replace it to stop a run there (tests/test_robustness_files.py)."""
+
+
+def _branch_folder(path: Path) -> Path:
+    """The hidden folder of the branch files that ``path``'s links point to while a run
+    writes it (`Writer`)."""
+    return path.with_name(f".{path.name}.branches")
+
+
+def _whole(path: Path):
+    """Make the branch file ``path`` whole, if a run left it with its branches linked to the
+    files of its folder: write it again with their groups copied in (to a temporary name,
+    renamed over it), then remove the folder; a folder without its file goes too."""
+    folder = _branch_folder(path)
+    if not folder.is_dir():
+        return
+    if path.is_file():
+        with h5py.File(path, "r") as f:
+            g = f.get("branches", {})
+            linked = any(isinstance(g.get(key, getlink=True), h5py.ExternalLink) for key in g)
+        if linked:
+            def write(tmp):
+                with h5py.File(path, "r") as src, h5py.File(tmp, "w") as dst:
+                    dst.attrs.update(src.attrs)
+                    for name in src:
+                        if name != "branches":
+                            src.copy(src[name], dst, name)
+                    g = dst.create_group("branches")
+                    for key in src["branches"]:
+                        src.copy(src["branches"][key], g, key)
+
+            write_atomically(path, write, "whole")
+    shutil.rmtree(folder)
+
+
+def _write_table(f, name: str, rows: list[dict]):
+    """/``name``: a table of ``rows`` (/snaps, /landings); numbers as float columns, names
+    as strings, and the rows' ``profile`` (if any) as ``profiles``."""
+    if name in f:
+        del f[name]
+    g = f.create_group(name)
+    keys = [k for k in rows[0] if k != "profile"] if rows else []
+    g.attrs["columns"] = json.dumps(keys)
+    if rows and "profile" in rows[0]:
+        g["profiles"] = np.array([row["profile"] for row in rows])
+    for k in keys:
+        values = [row[k] for row in rows]
+        if isinstance(values[0], str):
+            g.create_dataset(k, data=values, dtype=h5py.string_dtype())
+        else:
+            g[k] = np.asarray(values, dtype=float)
+
+
+def _read_table(f, name: str) -> list[dict]:
+    """The rows of the table /``name`` (`_write_table`), [] if there is none."""
+    if name not in f:
+        return []
+    keys = json.loads(f[name].attrs["columns"])
+    cols = {k: [x.decode() if isinstance(x, bytes) else x for x in f[name][k][()]]
+            for k in keys}
+    rows = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
+    if "profiles" in f[name]:
+        for row, prof in zip(rows, f[f"{name}/profiles"][()]):
+            row["profile"] = prof
+    return rows
+
+
+def _write_maps(f, maps):
+    """/maps/NNN: one stability map per plane (`analysis.maps.StabilityMap`): attributes
+    x, y, fixed (JSON) and extent; datasets cells and the region table."""
+    if "maps" in f:
+        del f["maps"]
+    for k, m in enumerate(maps, 1):
+        g = f.create_group(f"maps/{k:03d}")
+        g.attrs.update(x=m.x, y=m.y, fixed=json.dumps(m.fixed), extent=np.asarray(m.extent))
+        g.create_dataset("cells", data=m.cells.astype(np.int32), compression="gzip")
+        for name in ("region_x", "region_y", "stable", "equilibria"):
+            g[name] = getattr(m, name)
+
+
+def _read_maps(f) -> list:
+    from ..analysis.maps import StabilityMap
+    out = []
+    for key in sorted(f.get("maps", {})):
+        g = f["maps"][key]
+        out.append(StabilityMap(str(g.attrs["x"]), str(g.attrs["y"]),
+                                json.loads(g.attrs["fixed"]), tuple(map(float, g.attrs["extent"])),
+                                g["cells"][()], g["region_x"][()], g["region_y"][()],
+                                g["stable"][()], g["equilibria"][()]))
+    return out
+
+
+# The columns of every branch besides its parameters and ordinates.
+_FLOAT_COLUMNS = ("arclength", "ds", "fold_residual")
+_INT_COLUMNS = ("niter", "nodes", "label", "index", "index_rule", "index_direct")
+_STR_COLUMNS = ("type", "note", "transition")
+
+
+def _write_branch(g, problem, br: Branch):
+    g.attrs.update(parameter=br.parameter, ordinate=_ordinate_for(problem, br.parameter),
+                   direction=br.direction, start=br.start, options=json.dumps(br.options),
+                   end=br.end, message=br.message, diagnostics=json.dumps(br.diagnostics),
+                   warnings=json.dumps(br.warnings), seconds=br.seconds, worker=br.worker,
+                   cell=br.cell)
+    cols = g.create_group("columns")
+    for name in problem.parameter_names + problem.ordinate_names + list(_FLOAT_COLUMNS):
+        cols[name] = br.column(name).astype(float)
+    for name in _INT_COLUMNS:  # the label's number: its name is type and number
+        cols[name] = np.array([p.label for p in br.points] if name == "label"
+                              else br.column(name), dtype=np.int32)
+    str_dt = h5py.string_dtype()
+    for name in _STR_COLUMNS:
+        cols.create_dataset(name, data=list(br.column(name)), dtype=str_dt)
+    g["profiles"] = np.array([p.profile for p in br.points])
+    _write_solutions(g.create_group("solutions"), br)
+
+
+def _write_solutions(g, br: Branch):
+    """The labelled points' solutions of ``br`` in the group ``g``, packed (format 2): one
+    dataset per quantity, the labels' meshes one after the other.
+
+    ``label`` (names), ``pt``, ``params`` (JSON); ``nodes`` the offsets of each label's mesh
+    in ``s`` (nodes) and ``y``, ``yp`` (states, nodes); ``tangent_nodes``, ``tangent_s``,
+    ``tangent_y``, ``tangent_yp`` alike for the tangents (an empty range where a label has
+    none) and ``tangent_lam`` (NaN there); the attribute ``tangent_parameter``."""
+    labelled = [(pt, p) for pt, p in enumerate(br.points, start=1) if p.type]
+    n = len(br.state_names)
+    str_dt = h5py.string_dtype()
+    g.attrs["tangent_parameter"] = br.parameter
+    g.create_dataset("label", data=[p.name for _, p in labelled], dtype=str_dt)
+    g["pt"] = np.array([pt for pt, _ in labelled], dtype=np.int64)
+    g.create_dataset("params", data=[json.dumps(p.params) for _, p in labelled], dtype=str_dt)
+    tangents = [p.tangent for _, p in labelled]
+    for prefix, parts in (("", [p.state for _, p in labelled]), ("tangent_", tangents)):
+        sizes = [len(x.s) if x is not None else 0 for x in parts]
+        parts = [x for x in parts if x is not None]
+        g[f"{prefix}nodes"] = np.concatenate(([0], np.cumsum(sizes, dtype=np.int64)))
+        g[f"{prefix}s"] = np.concatenate([x.s for x in parts]) if parts else np.zeros(0)
+        for q in ("y", "yp"):
+            g[f"{prefix}{q}"] = (np.concatenate([getattr(x, q) for x in parts], axis=1)
+                                 if parts else np.zeros((n, 0)))
+    g["tangent_lam"] = np.array([x.lam if x is not None else np.nan for x in tangents],
+                                dtype=float)
+
+
+def _read_solution(g, name: str, names: list[str]):
+    """Label ``name``'s solution from the branch's ``solutions`` group ``g``: (params,
+    s, y, yp, tangent or None, tangent parameter); ``names``: its ``label`` dataset, read.
+    Packed (format 2, `_write_solutions`) or, in a file of format 1, a group per label."""
+    if "s" not in g or isinstance(g["s"], h5py.Group):          # format 1
+        h = g[name]
+        state = (json.loads(h.attrs["params"]), h["s"][()], h["y"][()], h["yp"][()])
+        if "tangent_y" not in h:
+            return (*state, None, None)
+        return (*state, Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
+                                float(h.attrs["tangent_lam"])), str(h.attrs["tangent_parameter"]))
+    j = names.index(name)
+    a, b = (int(x) for x in g["nodes"][j:j + 2])
+    params = g["params"][j]
+    state = (json.loads(params.decode() if isinstance(params, bytes) else params),
+             g["s"][a:b], g["y"][:, a:b], g["yp"][:, a:b])
+    ta, tb = (int(x) for x in g["tangent_nodes"][j:j + 2])
+    if ta == tb:
+        return (*state, None, None)
+    return (*state, Tangent(g["tangent_s"][ta:tb], g["tangent_y"][:, ta:tb],
+                            g["tangent_yp"][:, ta:tb], float(g["tangent_lam"][j])),
+            str(g.attrs["tangent_parameter"]))
+
+
+def _solution_names(g) -> list[str] | None:
+    """The labels whose solutions the ``solutions`` group ``g`` holds, if packed (format 2);
+    None for a group per label (format 1)."""
+    if not isinstance(g, h5py.Group) or not isinstance(g.get("label"), h5py.Dataset):
+        return None
+    return [x.decode() if isinstance(x, bytes) else x for x in g["label"][()]]
+
+
+class _Source:
+    """Where a `BranchFile` reads from: its path, and the identity (device, inode, size,
+    modification time) of the file it found there on opening.
+
+    Each read opens the file, checks that it is still that file, reads and closes it: nothing
+    stays open between reads, and a file replaced or rewritten since (by a run, say) is never
+    read as if it were the same file.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.identity: tuple | None = None
+
+    @contextlib.contextmanager
+    def open(self):
+        """The file, open for reading; StoreError if it is no longer the file first opened."""
+        with h5py.File(self.path, "r") as f:
+            st = os.fstat(f.id.get_vfd_handle())
+            identity = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+            if self.identity is None:
+                self.identity = identity
+            elif identity != self.identity:
+                raise StoreError(f"{self.path}: changed since it was opened (rewritten by a run?); "
+                                 "open it again")
+            yield f
+
+    def damaged(self, what: str) -> StoreError:
+        return StoreError(f"{self.path}: damaged branch file: {what}")
+
+    def read(self, what: str, read):
+        """``read(f)`` on the open file; any failure is one StoreError naming ``what``."""
+        try:
+            with self.open() as f:
+                return read(f)
+        except StoreError:
+            raise
+        except FileNotFoundError:
+            raise StoreError(f"{self.path}: no such file (removed since it was opened)") from None
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            raise self.damaged(f"{what} unreadable ({error_text(exc)})") from exc
+
+
+def _dataset(g, name: str, shape: tuple) -> np.ndarray:
+    """The dataset ``g[name]`` as checked on opening (a dataset of ``shape``), read whole;
+    strings decoded. KeyError if it is no longer there, ValueError if it changed."""
+    ds = g[name]
+    if not isinstance(ds, h5py.Dataset) or ds.shape != shape:
+        raise ValueError("no longer the dataset checked on opening")
+    data = ds[()]
+    if ds.dtype.kind == "O":
+        data = np.array([x.decode() if isinstance(x, bytes) else x for x in data], dtype=object)
+    return data
+
+
+def _shapes(g) -> dict[str, tuple | None]:
+    """The shape of each member of the group ``g`` (None: not a dataset), read without reading
+    any data. h5py's low-level objects: its high-level ones cost tens of microseconds each, and
+    opening a file looks at every column of every branch."""
+    out = {}
+    for name in g:
+        obj = h5py.h5o.open(g.id, name.encode())
+        out[name] = obj.shape if isinstance(obj, h5py.h5d.DatasetID) else None
+    return out
+
+
+def _has_solution(solutions, name: str) -> bool:
+    """Whether the group ``solutions`` holds a group ``name`` with members s, y and yp (a
+    label's stored solution); low-level h5py, as in `_shapes`: a file can hold thousands of
+    labels."""
+    if not isinstance(solutions, h5py.Group):
+        return False
+    try:
+        sol = h5py.h5o.open(solutions.id, name.encode())
+    except KeyError:
+        return False
+    return isinstance(sol, h5py.h5g.GroupID) and all(sol.links.exists(k)
+                                                     for k in (b"s", b"y", b"yp"))
+
+
+class _Columns(Mapping):
+    """The columns of one stored branch by name, in the order of `StoredBranch.columns`.
+
+    ``branch`` and ``pt`` are made here; ``label`` (the label's name, made of the stored
+    ``type`` and label number) may be given on opening; every other column is read from the
+    file the first time it is looked up, then kept. ``items()`` and ``values()`` read all
+    columns not read yet at once (one opening of the file, not one per column).
+    """
+
+    def __init__(self, source: _Source, key: str, names: list[str], n: int):
+        self._source, self._key, self._n = source, key, n
+        self._names = dict.fromkeys(names)
+        self._data = {"branch": np.full(n, int(key)), "pt": np.arange(1, n + 1)}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._data:
+            if name not in self._names:
+                raise KeyError(name)
+            self.load([name])
+        return self._data[name]
+
+    def load(self, names=None):
+        """Read the columns ``names`` (default: all) not read yet, in one opening of the file."""
+        names = list(self._names if names is None else names)
+        unknown = [name for name in names if name not in self._names]
+        if unknown:
+            raise KeyError(unknown[0])
+        todo = [name for name in names if name not in self._data]
+        if todo:
+            what = f"column {todo[0]!r}" if len(todo) == 1 else "columns"
+            self._data |= self._source.read(f"branch {self._key}: {what}",
+                                            lambda f: _read_columns(f, self._key, todo, self._n))
+
+    def keep(self, data: dict[str, np.ndarray]):
+        """Columns already read (on opening)."""
+        self._data |= data
+
+    def items(self):
+        self.load()
+        return super().items()
+
+    def values(self):
+        self.load()
+        return super().values()
+
+    def __iter__(self):
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __contains__(self, name) -> bool:
+        return name in self._names
+
+    def __repr__(self) -> str:
+        return f"<columns of branch {self._key} ({self._n} points): {', '.join(self._names)}>"
+
+
+def _read_columns(f, key: str, names: list[str], n: int) -> dict[str, np.ndarray]:
+    """The stored columns ``names`` of branch ``key`` (``n`` points) from the open file.
+    ``label`` is the label's name: the file keeps its type and number, a branch in memory
+    its name, so reading ``label`` reads ``type`` too (and returns both)."""
+    g = f[f"branches/{key}/columns"]
+    out = {}
+    for name in names:
+        if name == "label":
+            types = out.get("type")
+            if types is None:
+                out["type"] = types = _dataset(g, "type", (n,))
+            out["label"] = np.array([f"{t}{k}" if t else "" for t, k in
+                                     zip(types, _dataset(g, "label", (n,)))], dtype=object)
+        elif name not in out:
+            out[name] = _dataset(g, name, (n,))
+    return out
+
+
+class StoredBranch:
+    """A branch read back from a file: its attributes, columns and profiles.
+
+    ``columns`` maps each column name of a branch in memory
+    (`branches.branch.column_names`, in that order, then any other stored column) to one
+    numpy array per column, one row per point; ``label`` holds label names (``LP3``, ``""``
+    elsewhere). ``profiles`` is the array (points, states, grid) of every state on the file's
+    profile grid. Both are read from the file on first access (a column at a time) and kept;
+    ``attrs``, ``number`` and ``len`` are known from opening.
+    """
+
+    def __init__(self, source: _Source, number: int, attrs: dict, columns: _Columns,
+                 profiles_shape: tuple):
+        self.number, self.attrs, self.columns = number, attrs, columns
+        self._source, self._profiles_shape = source, profiles_shape
+        self._profiles: np.ndarray | None = None
+
+    @property
+    def profiles(self) -> np.ndarray:
+        if self._profiles is None:
+            key = f"{self.number:03d}"
+            self._profiles = self._source.read(
+                f"branch {key}: profiles",
+                lambda f: _dataset(f[f"branches/{key}"], "profiles", self._profiles_shape))
+        return self._profiles
+
+    @property
+    def parameter(self) -> str:
+        return self.attrs["parameter"]
+
+    def __len__(self):
+        return self._profiles_shape[0]
+
+    def label_names(self) -> list[str]:
+        return list(self.columns["label"])
+
+    def __repr__(self) -> str:
+        return f"<StoredBranch {self.number} of {self._source.path}: {len(self)} points>"
+
+
+class BranchFile:
+    """A read-only view of an elastica-auto HDF5 file; raises StoreError with one line.
+
+    Opening reads the file's attributes, profile grid, snap-back table and landings (the
+    damped model's: ``landings``), and checks the
+    whole layout from the datasets' shapes: each branch has every column, each a
+    one-dimensional dataset of one length, and a profile per point; the ``labels`` attribute
+    maps each label to a point of that label whose solution is stored (for which the ``type``
+    and ``label`` columns of the branches holding labels are read). A file that fails a check is
+    reported as damaged, naming what is wrong. The other columns and the profiles are read
+    when first used (see `StoredBranch`), and a label's solution by `label`: each read opens
+    the file and closes it again, and raises StoreError if the file was damaged, or replaced
+    or rewritten, since it was opened.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self._source = _Source(self.path)
+        self._maps = None
+        self._solutions: dict[int, list[str] | None] = {}   # labels of packed solutions
+        if not self.path.is_file():
+            raise StoreError(f"{self.path}: no such file")
+        try:
+            with self._source.open() as f:
+                attrs = dict(f.attrs)
+                if attrs.get("format") != FORMAT:
+                    raise StoreError(f"{self.path}: not an elastica-auto branch file")
+                version = int(attrs.get("format_version", -1))
+                if version > FORMAT_VERSION:
+                    raise StoreError(f"{self.path}: file format version {version} is newer than "
+                                     f"this elastica-auto reads ({FORMAT_VERSION}); upgrade")
+                self.attrs = {k: (v.decode() if isinstance(v, bytes) else v)
+                              for k, v in attrs.items()}
+                self.parameters = json.loads(self.attrs["parameters"])
+                self.ordinates = json.loads(self.attrs["ordinates"])
+                self.states = json.loads(self.attrs["states"])
+                self.tex = json.loads(self.attrs["tex"])
+                self.periods = json.loads(self.attrs.get("periods", "{}"))
+                self.labels = self._labels(self.attrs["labels"])
+                self.profile_grid = f["profile_grid"][()]
+                self.snaps, self.landings = _read_table(f, "snaps"), _read_table(f, "landings")
+                self.branches = [self._branch(key, f["branches"][key])
+                                 for key in sorted(f.get("branches", {}))]
+                self._check_labels(f)
+        except StoreError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            raise StoreError(f"{self.path}: unreadable branch file ({error_text(exc)})") from exc
+
+    def _damaged(self, what: str) -> StoreError:
+        return self._source.damaged(what)
+
+
+    def _labels(self, text: str) -> dict[str, tuple[int, int]]:
+        try:
+            labels = json.loads(text)
+        except ValueError as exc:
+            raise self._damaged(f"attribute 'labels' is not JSON ({exc})") from None
+        if not isinstance(labels, dict) or not all(
+                isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v)
+                for v in labels.values()):
+            raise self._damaged("attribute 'labels' is not a map of label -> [branch, point]")
+        return {k: tuple(v) for k, v in labels.items()}
+
+    def _branch(self, key: str, g) -> StoredBranch:
+        """Branch ``key``'s layout checked from the shapes of its datasets; nothing read."""
+        lengths = {}
+        for name, shape in _shapes(g["columns"]).items():
+            if shape is None or len(shape) != 1:
+                raise self._damaged(f"branch {key}: column {name!r} is not a one-dimensional "
+                                    "dataset")
+            lengths[name] = shape[0]
+        missing = [name for name in (*self.parameters, *self.ordinates, *_FLOAT_COLUMNS,
+                                     *_INT_COLUMNS, *_STR_COLUMNS) if name not in lengths]
+        if missing:
+            raise self._damaged(f"branch {key}: no column {', '.join(map(repr, missing))}")
+        counts = list(lengths.values())
+        n = max(counts, key=counts.count)  # the length of most columns: the odd one is wrong
+        odd = next((name for name, m in lengths.items() if m != n), None)
+        if odd is not None:
+            raise self._damaged(f"branch {key}: column {odd!r} has {lengths[odd]} rows, "
+                                f"the others {n}")
+        profiles = g["profiles"]
+        if not isinstance(profiles, h5py.Dataset) or profiles.ndim < 1:
+            raise self._damaged(f"branch {key}: 'profiles' is not a dataset of one profile "
+                                "per point")
+        if profiles.shape[0] != n:
+            raise self._damaged(f"branch {key}: {profiles.shape[0]} profiles for {n} points")
+        names = column_names(self.parameters, self.ordinates)
+        names += [name for name in lengths if name not in names]
+        return StoredBranch(self._source, int(key), dict(g.attrs),
+                            _Columns(self._source, key, names, n), profiles.shape)
+
+    def _check_labels(self, f):
+        """Each label names a point with that label, and its solution is stored: reads the
+        ``type`` and ``label`` columns of each branch that holds a label (and keeps them)."""
+        by_number = {b.number: b for b in self.branches}
+        names, solutions = {}, {}
+        for name, (br, pt) in self.labels.items():
+            b = by_number.get(br)
+            if b is not None and br not in names:
+                key = f"{br:03d}"
+                read = _read_columns(f, key, ["label"], len(b))
+                b.columns.keep(read)
+                names[br] = read["label"]
+            if b is None or not 1 <= pt <= len(b) or names[br][pt - 1] != name:
+                raise self._damaged(f"label {name} is at branch {br} point {pt}, but there is "
+                                    f"no point {name} there")
+            if br not in solutions:
+                g = f.get(f"branches/{br:03d}/solutions")
+                solutions[br] = (g, _solution_names(g))
+                self._solutions[br] = solutions[br][1]
+            g, packed = solutions[br]
+            if not (name in packed if packed is not None else _has_solution(g, name)):
+                raise self._damaged(f"label {name} has no stored solution "
+                                    f"(in branches/{br:03d}/solutions)")
+
+    @property
+    def run(self) -> str:
+        return self.attrs["run"]
+
+    @property
+    def equation(self) -> str:
+        return self.attrs["equation"]
+
+    def label_ranges(self) -> str:
+        """The labels in the file, compactly: ``EP1-EP16, LP1-LP50, UZ1-UZ276``."""
+        counts = {}
+        for lab in self.labels:
+            counts[lab[:2]] = max(counts.get(lab[:2], 0), int(lab[2:]))
+        return ", ".join(f"{t}1-{t}{n}" if n > 1 else f"{t}1"
+                         for t, n in sorted(counts.items())) or "none"
+
+    @property
+    def maps(self) -> list:
+        """The stability maps a fold-curve run stored (`analysis.maps.StabilityMap`, one
+        per plane; none for other runs), read from the file on first use."""
+        if self._maps is None:
+            self._maps = self._source.read("maps", _read_maps)
+        return self._maps
+
+    def label(self, name: str) -> StoredLabel:
+        """The solution stored under a label such as ``UZ3`` (StoreError if there is none),
+        read from the file now."""
+        if name not in self.labels:
+            raise StoreError(f"{self.path}: no label {name!r} (labels: {self.label_ranges()})")
+        br, pt = self.labels[name]
+
+        def read(f):
+            params, s, y, yp, tangent, tpar = _read_solution(
+                f[f"branches/{br:03d}/solutions"], name, self._solutions.get(br) or [])
+            return State(s, y, yp, params), tangent, tpar
+
+        # checked on opening; what is left: a solution's own datasets and attributes
+        state, tangent, tpar = self._source.read(f"solution {name}", read)
+        return StoredLabel(name, br, pt, state, tangent, tpar, self.path, self.equation,
+                           tuple(self.states))
+
+
+def _fmt(v):
+    return "" if v == INDEX_UNKNOWN else str(int(v))
+
+
+def rows(bf: BranchFile, labelled_only=False):
+    """Yield one dict per point, of its export columns (`branches.branch.export_names`):
+    parameters and ordinates as floats, indices as text ('' where unknown)."""
+    names = export_names(bf.parameters, bf.ordinates)
+    for b in bf.branches:
+        c = b.columns
+        c.load(names)
+        for i in range(len(b)):
+            if labelled_only and not c["type"][i]:
+                continue
+            row = {k: c[k][i] for k in names}
+            for k in ("branch", "pt"):
+                row[k] = int(row[k])
+            for k in bf.parameters + bf.ordinates:
+                row[k] = float(row[k])
+            for k in INDEX_COLUMNS:
+                row[k] = _fmt(row[k])
+            yield row
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` are one existing file, however spelled or linked."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist
+        return False
+
+
+def write_atomically(out: Path, write, stage: str = "") -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``out`` and rename it over ``out``, so
+    that a failed write leaves ``out`` as it was. StoreError (one line) if it cannot be
+    written. ``stage`` names the write for `_stage`."""
+    out = Path(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _temporary(out)
+        try:
+            write(tmp)
+            _stage(f"{stage} written")
+            os.replace(tmp, out)
+            _stage(f"{stage} renamed")
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise StoreError(f"{out}: cannot write ({exc.strerror or exc})") from exc
+    return out
+
+
+def export_csv(bf: BranchFile, out: Path):
+    """Every point of every branch, one row each (header: branch,pt,type,label,<parameters>,
+    <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits.
+
+    The CSV is written to a temporary file beside ``out`` and renamed over it, so a failed
+    export leaves ``out`` as it was. StoreError if ``out`` is the branch file itself or
+    cannot be written."""
+    header = export_names(bf.parameters, bf.ordinates)
+    out = Path(out)
+    if same_file(bf.path, out):
+        raise StoreError(f"{out} is the branch file being exported ({bf.path}); "
+                         "choose another name for the CSV")
+    def write(tmp):
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for row in rows(bf):
+                w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
+                            for h in header])
+
+    return write_atomically(out, write)

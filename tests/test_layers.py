@@ -1,0 +1,153 @@
+"""The package's folders are its layers (docs/design.md, "Module layout").
+
+Every import in the package, at the top of a module or inside a function, read with `ast`:
+a module imports only from its own layer or a lower one, the modules import each other in no
+circle, and no module imports a name starting with ``_`` from another module.
+"""
+
+from __future__ import annotations
+
+import ast
+import shutil
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "elastica_auto"
+
+#: The layers, lowest first. At the bottom the package's ``__init__``: the version and the
+#: table of public names, imported on first use (it imports nothing of the package when it is
+#: imported, and every module of the package imports it first). Then a subpackage of
+#: `elastica_auto` each, and on top the public API (`api`, `cli`, `path`), the figures
+#: (`plots`) and the equation modules (`elastica_auto.equations`, the paper's figures read one).
+LAYERS = ["package", "core", "model", "numerics", "branches", "analysis", "storage", "execution",
+          "top"]
+#: Folders of the source tree that are not the engine's (symlinks of a working tree).
+NOT_ENGINE = {"equations", "runs"}
+
+
+def layer(module: str) -> str:
+    """The layer of the dotted ``module`` (``elastica_auto.numerics.newton`` -> numerics)."""
+    parts = module.split(".")
+    if len(parts) == 1:
+        return "package"
+    return parts[1] if parts[1] in LAYERS else "top"
+
+
+def modules(root: Path = PACKAGE) -> dict[str, Path]:
+    """Dotted name -> file, for every module of the package."""
+    found = {}
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        if rel.parts[1] in NOT_ENGINE:
+            continue
+        parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+        found[".".join(parts)] = path
+    return found
+
+
+def imports(name: str, path: Path, known) -> list[tuple[str, str | None, int]]:
+    """(module imported, name taken from it or None, line) for every import of the package's
+    modules in ``path``, wherever it stands."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, None, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[:len(package.split(".")) - node.level + 1]
+                source = ".".join(base + ([node.module] if node.module else []))
+            else:
+                source = node.module
+            for a in node.names:
+                submodule = f"{source}.{a.name}"
+                out.append((submodule, None, node.lineno) if submodule in known
+                           else (source, a.name, node.lineno))
+    return [(m, n, line) for m, n, line in out if m.split(".")[0] == "elastica_auto"]
+
+
+def graph(root: Path = PACKAGE) -> dict[str, list[tuple[str, str | None, int]]]:
+    known = modules(root)
+    return {m: [i for i in imports(m, p, known) if i[0] != m] for m, p in known.items()}
+
+
+def upward(edges) -> list[str]:
+    return [f"{m}:{line} imports {target} ({layer(m)} < {layer(target)})"
+            for m, out in edges.items() for target, _, line in out
+            if LAYERS.index(layer(target)) > LAYERS.index(layer(m))]
+
+
+def private(edges) -> list[str]:
+    """Names starting with ``_`` imported from another module (``__version__`` is public)."""
+    return [f"{m}:{line} imports {target}.{name}" for m, out in edges.items()
+            for target, name, line in out
+            if name is not None and name.startswith("_") and not name.endswith("__")]
+
+
+def cycles(edges) -> list[list[str]]:
+    """The circles of the module graph: its strongly connected components of more than one
+    module (Tarjan)."""
+    succ = {m: sorted({t for t, _, _ in out if t in edges}) for m, out in edges.items()}
+    index, low, stack, on, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in succ[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in succ:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_every_module_is_in_a_layer_folder_or_on_top():
+    top = {m for m in modules() if layer(m) == "top"}
+    assert top == {"elastica_auto.api", "elastica_auto.cli", "elastica_auto.path"} | {
+        m for m in top if m.startswith("elastica_auto.plots.") or m == "elastica_auto.plots"}
+    assert {layer(m) for m in modules()} == set(LAYERS)
+
+
+def test_imports_go_down_only():
+    assert upward(graph()) == []
+
+
+def test_no_circle_of_imports():
+    assert cycles(graph()) == []
+
+
+def test_no_private_name_from_another_module():
+    assert private(graph()) == []
+
+
+@pytest.mark.parametrize("where, line, check", [
+    ("numerics/newton.py", "from ..execution.run import execute", upward),
+    ("numerics/newton.py", "from .stability import _kernel", private),
+    ("numerics/collocation.py", "from .newton import newton", cycles),
+])
+def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
+    """A copy of the package with one bad import, inside a function as the lazy imports are:
+    one from a higher layer, a private name, and a circle (`newton` imports `collocation`)."""
+    copy = tmp_path / "elastica_auto"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
+    assert not check(graph(copy))
+    module = copy / where
+    module.write_text(module.read_text() + f"\n\ndef _bad():\n    {line}\n")
+    assert check(graph(copy))
