@@ -19,7 +19,12 @@ FORMAT_VERSION = 2
 #: Public name -> the module that defines it.
 _PUBLIC = {
     "load_problem": "model.problem", "Problem": "model.problem",
+    # what an equation module builds its declarations and hooks from
+    "Parameter": "model.problem", "Ordinate": "model.problem",
     "SecondVariation": "model.second_variation", "Constraint": "model.second_variation",
+    "Symmetry": "model.symmetry", "Flow": "analysis.landing",
+    "simpson": "core.solution", "hermite": "core.solution",
+    "trapezoid_weights": "core.solution",
     "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
     "Switch": "execution.plan", "ContinuationOptions": "core.options", "snaps_along": "path",
     "BranchFile": "storage.store", "Branch": "branches.branch",

@@ -25,8 +25,7 @@ import math
 
 import numpy as np
 
-from elastica_auto.analysis.landing import Flow
-from elastica_auto.model.problem import Ordinate, Parameter
+from elastica_auto import Flow, Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y")
 
@@ -187,7 +186,7 @@ def gradient_flow(p, nodes):
     Its equilibria are the second-order finite-difference solutions of the BVP."""
     from scipy.sparse import diags
 
-    from elastica_auto.core.solution import trapezoid_weights
+    from elastica_auto import trapezoid_weights
     h = np.diff(nodes)
     w = trapezoid_weights(nodes)[1:]
     big_p, a, eps, t0 = p["P"], p["alpha"], p["eps"], p["theta0"]

@@ -52,7 +52,7 @@ import numpy as np
 
 from elastica_auto.equations.elastica_lever_arm import (ARM_COLOR, CLAMP_COLOR, LINE_WIDTH,
                                                        draw_force, draw_rod)
-from elastica_auto.model.problem import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y", "nx", "ny")
 

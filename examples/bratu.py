@@ -24,8 +24,7 @@ fold. The distinguished ordinate of lam, which the fold rule reads, is dE/dlam =
 """
 
 import numpy as np
-from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
-from elastica_auto.core.solution import hermite, simpson
+from elastica_auto import Ordinate, Parameter, SecondVariation, hermite, simpson
 
 STATES = ("u", "v")
 

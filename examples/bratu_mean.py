@@ -11,7 +11,7 @@ continuation in M passes lam_c without a fold and lam rises, then falls. First-o
 
 import numpy as np
 
-from elastica_auto.model.problem import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter
 
 STATES = ("u", "v")
 

@@ -23,7 +23,7 @@ index is the number of them below P.
 
 import numpy as np
 
-from elastica_auto.model.problem import Constraint, Ordinate, Parameter, SecondVariation
+from elastica_auto import Constraint, Ordinate, Parameter, SecondVariation
 
 STATES = ("theta", "kappa", "x", "y")
 

@@ -10,7 +10,7 @@ module gives a guess, which the engine solves from. First-order state ``[u, v]``
 
 import numpy as np
 
-from elastica_auto.model.problem import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter
 
 STATES = ("u", "v")
 

@@ -21,7 +21,7 @@ Distinguished ordinates: dE/dP = y(1) for P (it enters the equation) and m0 = th
 
 import numpy as np
 
-from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
+from elastica_auto import Ordinate, Parameter, SecondVariation
 
 STATES = ("theta", "kappa", "x", "y")
 

@@ -27,7 +27,7 @@ H(1) + inflow.
 
 import numpy as np
 
-from elastica_auto.model.problem import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter
 
 STATES = ("F", "dF", "G", "dG", "H")
 

@@ -26,8 +26,7 @@ dE/dp = -int (u^2/2 + u^4/4) ds (``dE_dp``).
 
 import numpy as np
 
-from elastica_auto.model.problem import Ordinate, Parameter, SecondVariation
-from elastica_auto.core.solution import simpson
+from elastica_auto import Ordinate, Parameter, SecondVariation, simpson
 
 STATES = ("u", "v")
 

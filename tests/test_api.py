@@ -261,3 +261,14 @@ def test_load_problem_takes_a_path_and_refuses_other_types():
     assert ea.load_problem(BRATU).parameter_names == ["lam"]
     with pytest.raises(ea.ProblemError, match="expected a module name or a path"):
         ea.load_problem(3)
+
+
+def test_every_public_name_is_the_object_of_that_name():
+    """The package's lazy table of public names (``ea.__all__``): each resolves, to the class
+    or function defined under that name (a wrong module in the table raises or gives another
+    object), and the names a module is written from are among them."""
+    for name in ea.__all__:
+        value = getattr(ea, name)
+        assert getattr(value, "__name__", name) == name, name
+    assert {"Parameter", "Ordinate", "SecondVariation", "Constraint", "Symmetry", "Flow",
+            "simpson", "hermite", "trapezoid_weights"} <= set(ea.__all__)
