@@ -369,7 +369,7 @@ def _blocks(s, y, p):
                 return m[:, rows][:, :, rows].transpose(1, 2, 0)
             # the symmetry's zero mode, e - d3, lies in the out-of-plane block (L2-normalised:
             # its in-plane component is rounding)
-            modes = [Constraint(c.g[rows]) for c in f.constraints
+            modes = [Constraint(c.g[rows], kernel=c.kernel) for c in f.constraints
                      if np.max(np.abs(c.g[rows])) > DECOUPLED * np.max(np.abs(c.g))]
             return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
                                    fixed0=list(range(len(rows))), constraints=modes)
@@ -528,7 +528,7 @@ def second_variation(s, y, p):
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
     mode = zero_mode(s, y, p)
     return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2],
-                           constraints=() if mode is None else [Constraint(mode)])
+                           constraints=() if mode is None else [Constraint(mode, kernel=True)])
 
 
 # ---- shooting (the snap-back targets) -------------------------------------------------------
