@@ -351,10 +351,21 @@ def _blocks(s, y, p):
     """The in-plane (e_z) and out-of-plane ((e_x, e_y)) blocks of the second variation at a
     state given on the nodes ``s``, each as ``evaluate(pts)`` for `stability.count_form`
     (the state interpolated by cubic Hermite with the slopes of the ODE, as the engine
-    does), or None where the form does not decouple (a non-planar state)."""
+    does), or None where the form does not decouple (a non-planar state). The spatial form
+    is evaluated once per point set and sliced for both blocks (count_form asks first for
+    the nodes and midpoints, where the decoupling is checked too)."""
     from elastica_auto.core.solution import State
+    from elastica_auto.numerics.stability import nodes_and_midpoints
     state = State(s, y, rhs(s, y, p), p)
-    form = second_variation(s, y, p)
+    forms = {}
+
+    def full(pts):
+        key = pts.tobytes()
+        if key not in forms:
+            forms[key] = second_variation(pts, state(pts), p)
+        return forms[key]
+
+    form = full(nodes_and_midpoints(s))
     scale = max(np.max(np.abs(form.A)), np.max(np.abs(form.B)), np.max(np.abs(form.C)),
                 np.max(np.abs(form.E1)))
     coupling = max(np.max(np.abs(m[:, 2, :2])) + np.max(np.abs(m[:, :2, 2]))
@@ -364,12 +375,13 @@ def _blocks(s, y, p):
 
     def block(rows):
         def evaluate(pts):
-            f = second_variation(pts, state(pts), p)
+            f = full(pts)
+
             def sub(m):
                 return m[:, rows][:, :, rows].transpose(1, 2, 0)
             # the symmetry's zero mode, e - d3, lies in the out-of-plane block (L2-normalised:
             # its in-plane component is rounding)
-            modes = [Constraint(c.g[rows]) for c in f.constraints
+            modes = [Constraint(c.g[rows], kernel=c.kernel) for c in f.constraints
                      if np.max(np.abs(c.g[rows])) > DECOUPLED * np.max(np.abs(c.g))]
             return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
                                    fixed0=list(range(len(rows))), constraints=modes)
@@ -377,13 +389,29 @@ def _blocks(s, y, p):
     return block([2]), block([0, 1])
 
 
+#: (key, counts) of the last state asked for: index_in and index_out are asked for one after
+#: the other at each point and share one evaluation of the form (one tuple, swapped whole,
+#: so that threads computing side by side read a consistent pair).
+_last_split = [None]
+
+
+def _split_counts(s, y, p):
+    """(index_in, index_out) at the state, each -1 at a non-planar state or a zero
+    eigenvalue of its block."""
+    from elastica_auto.numerics.stability import count_form
+    key = (np.asarray(s).tobytes(), np.asarray(y).tobytes(), tuple(sorted(p.items())))
+    entry = _last_split[0]
+    if entry is None or entry[0] != key:
+        blocks = _blocks(s, y, p)
+        counts = ((-1.0, -1.0) if blocks is None else
+                  tuple(float(count_form(b, s).index) for b in blocks))
+        entry = _last_split[0] = (key, counts)
+    return entry[1]
+
+
 def _split_index(which):
     def fn(s, y, p):
-        from elastica_auto.numerics.stability import count_form
-        blocks = _blocks(s, y, p)
-        if blocks is None:
-            return -1.0
-        return float(count_form(blocks[which], s).index)
+        return _split_counts(s, y, p)[which]
     return fn
 
 
@@ -528,7 +556,7 @@ def second_variation(s, y, p):
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
     mode = zero_mode(s, y, p)
     return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2],
-                           constraints=() if mode is None else [Constraint(mode)])
+                           constraints=() if mode is None else [Constraint(mode, kernel=True)])
 
 
 # ---- shooting (the snap-back targets) -------------------------------------------------------

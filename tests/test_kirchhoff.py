@@ -713,3 +713,44 @@ def test_switch_onto_the_lateral_torsional_branch(modules):
         tips.append(st.y[0:3, -1])
     assert tips[0][2] == pytest.approx(-tips[1][2], abs=1e-7)          # mirror images
     assert tips[0][:2] == pytest.approx(tips[1][:2], abs=1e-7)
+
+
+def test_isotropic_rotating_arm_through_the_symmetric_point(modules):
+    """b2 = 1, P = pi^2/4: where the arm lies along the tip tangent (psi = 0) the buckled rod
+    has the rotational zero mode (a circle of equilibria), and one out-of-plane eigenvalue
+    crosses zero there: a branch point, both ways along the arm's rotation. The kernel the
+    engine counts there is that one mode: a dense Legendre-Galerkin spectrum of the whole form
+    (no constraint) at the located point has exactly one eigenvalue within delta of zero, and
+    the direct count changes by one across it. The fold rule agrees with the direct count at
+    every point, the user points placed on the symmetric point (before or after the BP)
+    included, whose index, with the zero mode left out, is the dense count on its complement
+    (the smaller of the two sides)."""
+    from form_reference import Form, dense_count
+    _, rod, mod = modules
+    kw = dict(uz=[0.0], max_points=80)
+    (out,) = ea.continuation(rod, {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 1.0}, "psi",
+                             bounds=(-0.3, 1.0), **kw)
+    back = [br for br in ea.continuation(rod, out.label(out.points[-1].name), "psi",
+                                         bounds=(-0.31, 0.3), directions="both", **kw)
+            if br.points[-1].params["psi"] > 0]
+    assert len(back) == 1
+    for br in (out, back[0]):
+        assert br.end == "EP" and not br.warnings, br.warnings
+        assert not [p.note for p in br.points if "disagreement" in p.note]
+        pts = br.points
+        k = next(k for k, p in enumerate(pts) if p.type == "BP")
+        assert abs(pts[k].params["psi"]) < 1e-9
+        off = [p.index_direct for p in (pts[k - 2], pts[k + 2])]
+        (uz,) = [p for p in pts if p.type == "UZ" and abs(p.params["psi"]) < 1e-9]
+        at = br.label(uz.name).state        # psi = 0 to rounding: the zero mode is left out
+
+        def field(name, at=at):
+            return lambda s: getattr(mod.second_variation(s, at(s), at.params), name)
+        form = dict(k=3, A=field("A"), B=field("B"), C=field("C"), G0=np.eye(3),
+                    E1=mod.second_variation(at.s, at.y, at.params).E1)
+        spectrum = dense_count(Form(**form))[2]
+        assert np.sum(np.abs(spectrum) < 1e-3 * 0.5) == 1, np.sort(np.abs(spectrum))[:3]
+        assert abs(off[1] - off[0]) == 1 == stability.kernel_dimension(rod, at), off
+        cons = [(lambda s: mod.zero_mode(s, at(s), at.params).T, np.zeros(3), np.zeros(3))]
+        want = dense_count(Form(**{**form, "constraints": cons}))[0]
+        assert uz.index == uz.index_direct == want == min(off)

@@ -49,6 +49,10 @@ from ..numerics.stability import Count, count, index_change, kernel_dimension
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
 RETRY_HALVINGS = 6
+#: A fold and a branch point located in one step are one point (a pitchfork met along its
+#: bifurcating branch) where their secant coordinates differ by at most this fraction of
+#: the step: both are located to rounding there.
+SAME_EVENT = 1e-3
 #: A fold's translate is looked for where the branch passes it with ordinates within
 #: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
 TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
@@ -473,7 +477,7 @@ class _Walk:
         located = self._branch_point(step, can_retry) if bp else None
         if fold:
             try:
-                found.append(self._fold_event(step, bp))
+                found.extend(self._fold_events(step, bp, located))
             except CorrectorFailure as exc:
                 if can_retry:
                     self.event_retries += 1
@@ -694,17 +698,28 @@ class _Walk:
                 return
             u = nxt
 
-    def _fold_event(self, step: Step, bp: bool) -> _Event:
+    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[_Event]:
+        """The fold in the step, located: an LP, or where the determinant changed sign too, a
+        BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
+        branch), unless the branch point ``located`` lies apart from the fold (more than
+        SAME_EVENT of the step): then both, the fold and a branch point of its own (the
+        isotropic rod's symmetric points lie 0.02 in psi from folds, and a step can pass
+        both; as one BP the fold was missing, and the walk for its translates went on for
+        thousands of points)."""
         before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
         fp = locate_fold(self.corr, step, before[0] if before else None)
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
             phi = phi.scaled(-1.0)
         sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
-        if bp:  # the parameter turns where the determinant changes sign: a branch point
-            return _Event(sigma, "BP", fp.state, step.secant, fp.residual,
-                          note="turning point without index change")
-        return _Event(sigma, "LP", fp.state, phi, fp.residual)
+        fold = _Event(sigma, "LP", fp.state, phi, fp.residual)
+        if not bp:
+            return [fold]
+        if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
+            return [fold, _Event(located.sigma, "BP", located.solution.state, step.secant,
+                                 abs(located.value))]
+        return [_Event(sigma, "BP", fp.state, step.secant, fp.residual,
+                       note="turning point without index change")]
 
     def _branch_point(self, step: Step, can_retry: bool) -> Located | None:
         """The branch point where the determinant changed sign in the step, located, or

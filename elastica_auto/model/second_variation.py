@@ -28,6 +28,7 @@ The scalar tuple ``(a, b, c)`` of the first version of the hook, with an optiona
 
 from __future__ import annotations
 
+import copy
 import functools
 from typing import NamedTuple
 
@@ -43,11 +44,15 @@ SYMMETRY_TOL = 1e-10
 class Constraint(NamedTuple):
     """The linear constraint ``int_0^1 g.h ds + d0.h(0) + d1.h(1) = 0``: ``g`` of shape (k, m)
     on the points (or (k,) constant; for k = 1 also a scalar or (m,)), ``d0``, ``d1`` of shape
-    (k,) (a scalar: that value in every component)."""
+    (k,) (a scalar: that value in every component). ``kernel``: g is a zero mode of the form
+    (a symmetry's generator), removed from the count, not a Lagrange constraint; the kernel's
+    dimension (`stability.kernel_dimension`) is counted without it, since the zero eigenvalue
+    it removes is one that the branch's eigenvalues cross where the symmetry holds."""
 
     g: object
     d1: object = 0.0
     d0: object = 0.0
+    kernel: bool = False
 
 
 def _fail(msg: str):
@@ -195,8 +200,16 @@ class SecondVariation:
                   f"d0]), got {constraints!r:.80}")
         self.constraints = [Constraint(_vector(f"constraints[{i}].g", c.g, k, True),
                                        _vector(f"constraints[{i}].d1", c.d1, k, False),
-                                       _vector(f"constraints[{i}].d0", c.d0, k, False))
+                                       _vector(f"constraints[{i}].d0", c.d0, k, False),
+                                       bool(c.kernel))
                             for i, c in enumerate(items)]
+
+    def without_kernel_modes(self) -> SecondVariation:
+        """The same form with the constraints that remove a zero mode (``kernel``) left out:
+        on the whole space, where that mode is an eigenvector of eigenvalue zero."""
+        out = copy.copy(self)
+        out.constraints = [c for c in self.constraints if not c.kernel]
+        return out
 
     def fields(self, m: int):
         """A, B, C as (m, k, k) arrays on the m points and the constraints' g as (r, m, k);

@@ -68,8 +68,9 @@ class _Singular(Exception):
     """A pivot of the elimination is singular to working precision."""
 
 
-def _points(mesh):
-    """The nodes and element midpoints of ``mesh``, in order: 2 len(mesh) - 1 points."""
+def nodes_and_midpoints(mesh):
+    """The nodes and element midpoints of ``mesh``, in order: 2 len(mesh) - 1 points (where
+    :func:`count_form` first evaluates the form)."""
     pts = np.empty(2 * len(mesh) - 1)
     pts[0::2] = mesh
     pts[1::2] = 0.5 * (mesh[:-1] + mesh[1:])
@@ -192,7 +193,7 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
 def _evaluate(evaluate, s, shift, source):
     """The form on the nodes and midpoints of ``s`` and its fields (A, B, C, min eig A, g);
     fields None if any value is not finite. ProblemError where A is not positive definite."""
-    pts = _points(s)
+    pts = nodes_and_midpoints(s)
     form = evaluate(pts)
     a, b, c, g = form.fields(len(pts))
     ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
@@ -497,14 +498,21 @@ def _reduce(d, u, f, scale, s_mat):
 def kernel_dimension(problem, state, delta: float | None = None) -> int:
     """The number of eigenvalues of the second variation at ``state`` within ``delta`` of
     zero: n_-(form - delta) - n_-(form + delta) (shifts by the L2 inner product), -1 if
-    either count fails. ``delta`` defaults to 1e-3 times the mean of the smallest eigenvalue
-    of A, far above the P2 error of an eigenvalue near zero and far below the spacing of the
-    eigenvalues of the examples (of order pi^2 A)."""
+    either count fails. Constraints that remove a symmetry's zero mode (``Constraint.kernel``)
+    are left out: that mode is one of the eigenvalues that cross zero there (the index on
+    either side of a symmetric point is counted without it), so it belongs to the kernel.
+    ``delta`` defaults to 1e-3 times the mean of the smallest eigenvalue of A, far above the
+    P2 error of an eigenvalue near zero and far below the spacing of the eigenvalues of the
+    examples (of order pi^2 A)."""
     if not problem.has_second_variation:
         return -1
-    evaluate = _on_state(problem, state)
+    on_state = _on_state(problem, state)
+
+    def evaluate(pts):
+        return on_state(pts).without_kernel_modes()
+
     if delta is None:
-        a = evaluate(_points(state.s)).fields(2 * len(state.s) - 1)[0]
+        a = evaluate(nodes_and_midpoints(state.s)).fields(2 * len(state.s) - 1)[0]
         delta = 1e-3 * float(np.mean(_min_eig(a)))
     above = count_form(evaluate, state.s, shift=delta, source=_source(problem)).index
     below = count_form(evaluate, state.s, shift=-delta, source=_source(problem)).index
@@ -535,24 +543,63 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
     The sign needs only the neighbouring points, so it also applies at a fold whose extended
     system failed. Where the rule cannot apply (a fold of a parameter without a distinguished
     ordinate, a branch point) it takes the direct count after the special point, if there is
-    one, else -1.
+    one, else -1. Points at a branch point itself (the same parameter value: a user point
+    placed on it, before or after it) are not past it: the count there leaves out the
+    eigenvalues that cross zero (a symmetry's zero mode is constrained away, or the count
+    fails), so the rule takes the first point off it, and gives the points on it the smaller
+    of the values on either side, the negative eigenvalues that both sides share (the
+    kernel's eigenvalues cross zero, each negative on one side only); the BP itself, as an
+    LP, the value it is approached with.
     """
     name = branch.parameter
     ordinate = next((o.name for o in problem.ordinates.values() if o.parameter == name), None)
     enters = problem.parameters[name].enters
     lam = branch.column(name)
     ords = branch.column(ordinate) if ordinate else None
-    out, current = [], start_index
-    for k, p in enumerate(branch.points):
+    pts = branch.points
+    spans = _on_branch_points(pts, lam)
+    out, current, k = [], start_index, 0
+    while k < len(pts):
+        if k in spans:
+            last = spans[k]
+            after = pts[last + 1].index_direct if last + 1 < len(pts) else -1
+            for j in range(k, last + 1):
+                if pts[j].type == "BP":
+                    out.append(current)
+                elif current >= 0 and after >= 0:
+                    out.append(min(current, after))
+                else:
+                    out.append(pts[j].index_direct)
+            current, k = after, last + 1
+            continue
         out.append(current)
-        if p.type == "LP" and current >= 0:
+        if pts[k].type == "LP" and current >= 0:
             change = fold_sign(enters, lam, ords, k) if ords is not None else 0
             current = current + change if change else -1
-        elif p.type == "BP":
-            current = -1
-        if current < 0 and k + 1 < len(branch.points):
-            current = branch.points[k + 1].index_direct
+        if current < 0 and k + 1 < len(pts):
+            current = pts[k + 1].index_direct
+        k += 1
     return out
+
+
+def _on_branch_points(pts, lam) -> dict[int, int]:
+    """{first: last} of each run of consecutive points at a branch point: the BP and its
+    neighbours at the same parameter value (user points placed on it)."""
+    spans = {}
+    for k, p in enumerate(pts):
+        if p.type != "BP":
+            continue
+        lo = hi = k
+        while lo > 0 and abs(lam[lo - 1] - lam[k]) <= 1e-9 * (1.0 + abs(lam[k])):
+            lo -= 1
+        while hi + 1 < len(pts) and abs(lam[hi + 1] - lam[k]) <= 1e-9 * (1.0 + abs(lam[k])):
+            hi += 1
+        first = next((f for f, last in spans.items() if f <= lo <= last + 1), None)
+        if first is None:
+            spans[lo] = hi
+        else:
+            spans[first] = max(spans[first], hi)
+    return spans
 
 
 def label_stability(branch, problem) -> None:
