@@ -25,7 +25,7 @@ from .storage import store
 from .branches.branch import Branch
 from .core.errors import PlanError, StoreError
 from .core.options import ContinuationOptions
-from .execution.plan import StartLike, make_plan
+from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
 from .execution.run import Progress, RunResult, compute, number_labels, start_job
 from .storage.store import StoredLabel
@@ -173,10 +173,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
-    plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
-                     directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, free=free, options=options, maps=map, landing=landing,
-                     damping=damping, damping_folds=damping_folds)
+    request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
+                      uz_period=uz_period, stop=stop, switch=switch, free=free, map=map,
+                      landing=landing, damping=damping, damping_folds=damping_folds)
+    plan = make_plan(problem, start, parameter, request, options)
     t0 = time.perf_counter()
     try:
         first = [start_job(plan, spec) for spec in plan.branches]
