@@ -107,6 +107,7 @@ def step_cost(intervals=(100, 400, 1600), steps=40):
 
 
 def in_process(corrector):
+    from elastica_auto.execution.jobs import Callbacks
     from elastica_auto.execution.run import execute
     from elastica_auto.execution.runfile import load
     import dataclasses
@@ -120,7 +121,7 @@ def in_process(corrector):
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        result = execute(plan, Path(tmp), progress, jobs=1)
+        result = execute(plan, Path(tmp), Callbacks(progress=progress), jobs=1)
         seconds = time.perf_counter() - t0
     steps = [1e3 * (b - a) for t in stamps.values() for a, b in zip(t, t[1:])]
     folds = [p for b in result.branches for p in b.folds]

@@ -27,7 +27,8 @@ from .core.errors import PlanError, StoreError
 from .core.options import ContinuationOptions
 from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
-from .execution.run import Progress, RunResult, compute, number_labels, start_job
+from .execution.jobs import Callbacks, Progress
+from .execution.run import RunResult, Workers, compute, number_labels, start_job
 from .storage.store import StoredLabel
 
 
@@ -185,7 +186,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                                    [])) from None
     result = RunResult(None, [], 0.0)
     try:
-        compute(plan, first, result, lambda: None, progress, jobs=jobs, scheduler=scheduler)
+        compute(plan, first, result, lambda: None, Callbacks(progress=progress),
+                Workers(jobs, scheduler))
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
     number_labels(result.branches)
