@@ -71,10 +71,9 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     free = problem.free if isinstance(problem, Augmented) else ()
     targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
-        state = restart.move(problem, state, targets, opt, tangent=tangent,
-                             tangent_parameter=stored.tangent_parameter,
-                             singular=spec.start.label[:2] in ("LP", "BP", "CP"),
-                             where=str(spec.start))
+        kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
+        state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
+                             tangent_parameter=stored.tangent_parameter, where=str(spec.start))
     if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
     singular = spec.start.label[:2] in ("LP", "BP") and not targets
