@@ -107,6 +107,7 @@ def step_cost(intervals=(100, 400, 1600), steps=40):
 
 
 def in_process(corrector):
+    from elastica_auto.execution.jobs import Callbacks
     from elastica_auto.execution.run import execute
     from elastica_auto.execution.runfile import load
     import dataclasses
@@ -120,7 +121,7 @@ def in_process(corrector):
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        result = execute(plan, Path(tmp), progress, jobs=1)
+        result = execute(plan, Path(tmp), Callbacks(progress=progress), jobs=1)
         seconds = time.perf_counter() - t0
     steps = [1e3 * (b - a) for t in stamps.values() for a, b in zip(t, t[1:])]
     folds = [p for b in result.branches for p in b.folds]
@@ -261,12 +262,12 @@ def sweep(branches=64):
     their scheduling are timed; no snap-back scan)."""
     import elastica_auto as ea
     from elastica_auto.execution import cluster
-    from elastica_auto.execution.plan import make_plan
+    from elastica_auto.execution.plan import Request, make_plan
     from elastica_auto.execution.run import start_job, _in_process
     problem = ea.load_problem("elastica_lever_arm")
     eps = [0.2 + 0.3 * k / (branches // 2 - 1) for k in range(branches // 2)]
     plan = make_plan(problem, {"P": math.pi ** 2 / 4, "psi": 0.0}, "psi",
-                     params={"eps": eps}, bounds=(-math.pi, math.pi), directions="both")
+                     Request(params={"eps": eps}, bounds=(-math.pi, math.pi), directions="both"))
     first = [start_job(plan, spec) for spec in plan.branches]
     print(f"sweep of {len(first)} branches (psi in [-pi, pi], 32 arm lengths):")
     for workers in (0, 1, 2):

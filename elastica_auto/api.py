@@ -25,9 +25,10 @@ from .storage import store
 from .branches.branch import Branch
 from .core.errors import PlanError, StoreError
 from .core.options import ContinuationOptions
-from .execution.plan import StartLike, make_plan
+from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
-from .execution.run import Progress, RunResult, compute, number_labels, start_job
+from .execution.jobs import Callbacks, Progress
+from .execution.run import RunResult, Workers, compute, number_labels, start_job
 from .storage.store import StoredLabel
 
 
@@ -173,10 +174,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
-    plan = make_plan(problem, start, parameter, params=params, bounds=bounds,
-                     directions=directions, uz=uz, uz_period=uz_period, stop=stop,
-                     switch=switch, free=free, options=options, maps=map, landing=landing,
-                     damping=damping, damping_folds=damping_folds)
+    request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
+                      uz_period=uz_period, stop=stop, switch=switch, free=free, map=map,
+                      landing=landing, damping=damping, damping_folds=damping_folds)
+    plan = make_plan(problem, start, parameter, request, options)
     t0 = time.perf_counter()
     try:
         first = [start_job(plan, spec) for spec in plan.branches]
@@ -185,7 +186,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                                    [])) from None
     result = RunResult(None, [], 0.0)
     try:
-        compute(plan, first, result, lambda: None, progress, jobs=jobs, scheduler=scheduler)
+        compute(plan, first, result, lambda: None, Callbacks(progress=progress),
+                Workers(jobs, scheduler))
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
     number_labels(result.branches)

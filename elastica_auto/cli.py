@@ -101,6 +101,7 @@ def _fmt_params(params: dict, names) -> str:
                    "direction) not in it yet.")
 def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resume):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
+    from .execution.jobs import Callbacks
     from .execution.run import StartError, execute
     from .execution.runfile import load
     out_dir = Path(out_dir)
@@ -148,9 +149,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
 
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        result = execute(plan, out_dir, progress, on_branch, jobs=jobs,
-                         on_start=header, scheduler=scheduler, on_tasks=on_tasks,
-                         resume=resume, on_landing=on_landing)
+        callbacks = Callbacks(progress, on_branch, header, on_tasks, on_landing)
+        result = execute(plan, out_dir, callbacks, jobs, scheduler, resume)
     except StartError as exc:
         _fail(str(exc))
     except USER_ERRORS as exc:

@@ -189,6 +189,19 @@ def test_bad_arguments_name_themselves(bratu, kwargs, key, words):
     assert info.value.key == key and words in str(info.value), str(info.value)
 
 
+def test_a_request_reads_each_iterable_once_into_tuples():
+    """Request keeps what it checked: one-shot iterators are read once (the check does not
+    empty them), and the values are tuples of floats and names, frozen."""
+    from elastica_auto.execution.plan import Request
+    r = Request(uz=(x for x in [1, 2]), uz_period=3, free=iter(["p"]), stop=iter(["LP2"]),
+                bounds=[0, 1], landing=True, damping=iter([0.5]), damping_folds=iter(["LP1"]))
+    assert (r.uz, r.uz_period, r.free, r.stop) == ((1.0, 2.0), 3.0, ("p",), ("LP2",))
+    assert (r.bounds, r.damping, r.damping_folds) == ((0.0, 1.0), (0.5,), ("LP1",))
+    assert Request().limits == (-math.inf, math.inf)
+    with pytest.raises(AttributeError):
+        r.switch = 1
+
+
 def test_a_label_of_another_module_is_refused(bratu, bratu_branches):
     problem = ea.load_problem(str(EXAMPLES / "nonlinear_eigenvalue.py"))
     with pytest.raises(ea.PlanError, match="computed with"):

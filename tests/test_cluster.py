@@ -117,11 +117,13 @@ def test_both_workers_computed_branches_and_are_named(on_cluster, in_one_process
 def test_a_cluster_run_reports_its_tasks(tmp_path):
     """on_tasks: tasks done of all, points so far, workers; the last call has every task."""
     from elastica_auto.execution import runfile
+    from elastica_auto.execution.jobs import Callbacks
     from elastica_auto.execution.run import execute
     from helpers import elastica_run_file
     calls = []
     plan = runfile.load(elastica_run_file(tmp_path / "small.toml", uz=[0]))
-    result = execute(plan, tmp_path / "out", jobs=2, on_tasks=lambda *a: calls.append(a))
+    result = execute(plan, tmp_path / "out", Callbacks(on_tasks=lambda *a: calls.append(a)),
+                     jobs=2)
     total = len(plan.branches)
     assert calls[-1] == (total, total, sum(len(b.points) for b in result.branches), 2)
     assert all(c[1] == total and c[3] == 2 for c in calls)

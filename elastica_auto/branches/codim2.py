@@ -126,7 +126,7 @@ def fold_problem(base: Problem, lam: str) -> Problem:
                                 - base.bc_dp(ya - t * va, yb - t * vb, p, name)) / (2 * t)))
 
     module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
-                     lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp,
+                     lam, _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp),
                      [_on_y(o, n) for o in base.ordinates.values()], first=n)
     return Problem(module, base.source).with_free((lam,))
 
@@ -180,18 +180,24 @@ def branch_point_problem(base: Problem, lam: str) -> Problem:
     ordinates = [Ordinate(o.name, o.tex, (lambda fn: lambda s, v, p: fn(s, y0(s, p), p))(o.fn),
                           o.parameter, o.doc) for o in base.ordinates.values()]
     module = _module(base, f"Branch points of the exact family of {base.source} in {lam}.",
-                     _null_states(base), lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp,
+                     _null_states(base), lam, _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp),
                      ordinates, first=0)
     return Problem(module, base.source).with_free((lam,))
+
+
+def _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp) -> dict:
+    """The extended system's functions, by the names of the module hooks they are."""
+    return dict(rhs=rhs, rhs_jac=rhs_jac, rhs_dp=rhs_dp, bc=bc, bc_jac=bc_jac, bc_dp=bc_dp)
 
 
 def _on_y(o: Ordinate, n: int) -> Ordinate:
     return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n], p), o.parameter, o.doc)
 
 
-def _module(base, doc, states, lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp, ordinates, first):
-    """A module namespace for `Problem`: the given functions, the null vector's
-    normalisation (states ``first`` on) as the integral condition, ``lam`` free."""
+def _module(base, doc, states, lam, hooks: dict, ordinates, first):
+    """A module namespace for `Problem`: the ``hooks`` (``rhs``, ``rhs_jac``, ``rhs_dp``,
+    ``bc``, ``bc_jac``, ``bc_dp``: the extended system), the null vector's normalisation
+    (states ``first`` on) as the integral condition, ``lam`` free."""
 
     def integrals(s, Y, p):
         return (np.sum(Y[first:] ** 2, axis=0) - 1.0)[None, :]
@@ -206,9 +212,8 @@ def _module(base, doc, states, lam, rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp, ord
 
     return types.SimpleNamespace(
         __doc__=doc, STATES=states, PARAMETERS=list(base.parameters.values()),
-        ORDINATES=ordinates, rhs=rhs, rhs_jac=rhs_jac, rhs_dp=rhs_dp, bc=bc, bc_jac=bc_jac,
-        bc_dp=bc_dp, INTEGRALS=(NORM,), integrals=integrals, integrals_jac=integrals_jac,
-        integrals_dp=integrals_dp, FREE=(lam,))
+        ORDINATES=ordinates, **hooks, INTEGRALS=(NORM,), integrals=integrals,
+        integrals_jac=integrals_jac, integrals_dp=integrals_dp, FREE=(lam,))
 
 
 def _normalised(s, v):

@@ -21,14 +21,13 @@ from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..core.errors import StartError
 from ..core.options import ContinuationOptions
-from ..core.solution import State, Tangent
+from ..core.solution import State
 from .stepper import STATIONARY, Course, Origin, Stops, continue_branch
 
-def move(problem, start: State, targets: dict[str, float], options: ContinuationOptions, *,
-         tangent: Tangent | None = None, tangent_parameter: str | None = None,
-         singular: bool = False, where: str = "") -> State:
+def move(problem, origin: Origin, targets: dict[str, float], options: ContinuationOptions, *,
+         tangent_parameter: str | None = None, where: str = "") -> State:
     """The solution of ``problem`` at the parameter values ``targets``, continued from
-    ``start``.
+    ``origin``.
 
     Each parameter of ``targets`` (in their order) is continued from its current value to
     its target, the others held fixed, and the branch that ends exactly at the target gives
@@ -37,21 +36,21 @@ def move(problem, start: State, targets: dict[str, float], options: Continuation
     Parameters
     ----------
     problem
-        The problem ``start`` solves (the plan's, free parameters included).
-    start : State
-        The labelled solution.
+        The problem the start solves (the plan's, free parameters included).
+    origin : Origin
+        The labelled solution, its stored tangent (or None), and its kind: ``"singular"``
+        if it is a fold, branch point or cusp (an LP, BP or CP label), where the first
+        continuation does not look for its own singularity in its first step; else
+        ``"regular"``.
     targets : dict
         The new values, by parameter (not free ones: those are solved for).
     options : ContinuationOptions
         Step control and accuracy of the continuations (the run's own; ``max_points``, the
-        size of the branch to compute, at least its default; from a ``singular`` start, no
+        size of the branch to compute, at least its default; from a singular start, no
         mesh coarser than the start's).
-    tangent, tangent_parameter
-        The label's stored tangent and the parameter it belongs to: it orients the first
-        continuation if that is in the same parameter.
-    singular : bool
-        ``start`` is a fold, branch point or cusp (an LP, BP or CP label): the first
-        continuation does not look for its own singularity in its first step.
+    tangent_parameter
+        The parameter the stored tangent belongs to: it orients the first continuation if
+        that is in the same parameter.
     where : str
         The start, as error messages name it.
 
@@ -82,6 +81,27 @@ def move(problem, start: State, targets: dict[str, float], options: Continuation
     themselves is then solved for by Newton from the one continued to their translates (its
     translate: the same solution where the parameter enters periodically).
     """
+    start, singular = origin.state, origin.kind == "singular"
+    options = _move_options(options, start, singular)
+    near = {q: _nearest_translate(problem, q, v, start.params[q]) for q, v in targets.items()}
+    state, moved = start, []
+    for q, value in near.items():
+        if value == state.params[q]:
+            continue
+        first = not moved
+        start_here = Origin(state, origin.tangent if first and q == tangent_parameter else None,
+                            "singular" if singular and first else "regular")
+        state = _reached(problem, start_here, q, value, targets[q], options, where, moved)
+        moved.append((q, value))
+    if near == targets:
+        return state
+    return _from_translate(problem, state, targets, near, options, where)
+
+
+def _move_options(options: ContinuationOptions, start: State,
+                  singular: bool) -> ContinuationOptions:
+    """The options of `move`'s continuations: ``max_points`` at least its default, and from
+    a singular start, no mesh coarser than the start's."""
     # a short max_points asks for a short branch, not for a start that cannot be reached
     options = dataclasses.replace(
         options, max_points=max(options.max_points, ContinuationOptions.max_points))
@@ -92,18 +112,14 @@ def move(problem, start: State, targets: dict[str, float], options: Continuation
         # near a cusp allows)
         options = dataclasses.replace(options, ntst=min(max(options.ntst, len(start.s) - 1),
                                                         options.max_nodes - 1))
-    near = {q: _nearest_translate(problem, q, v, start.params[q]) for q, v in targets.items()}
-    state, moved = start, []
-    for q, value in near.items():
-        if value == state.params[q]:
-            continue
-        first = not moved
-        origin = Origin(state, tangent if first and q == tangent_parameter else None,
-                        "singular" if singular and first else "regular")
-        state = _reached(problem, origin, q, value, targets[q], options, where, moved)
-        moved.append((q, value))
-    if near == targets:
-        return state
+    return options
+
+
+def _from_translate(problem, state: State, targets: dict[str, float], near: dict[str, float],
+                    options: ContinuationOptions, where: str) -> State:
+    """The solution at ``targets`` from ``state``, the one `move` continued to their
+    translates ``near`` (by whole periods): the same solution where the parameters enter
+    periodically, so one Newton solve (or none, if ``state`` already solves there)."""
     # whole periods commute with the moves: one solve at the end, from a moved (regular) state
     params = {**state.params, **targets}
     if _solves(problem, state, params):  # Newton would not start at a fold's own translate

@@ -32,6 +32,23 @@ class Job:
 Progress = Callable[[int, int, int, float], None]
 
 
+@dataclass(frozen=True)
+class Callbacks:
+    """How a run reports as it goes; each is called only if given.
+
+    ``progress(branch, points, folds, value)`` during a branch computed in this process;
+    ``on_branch(number, branch)`` as each branch is done, in plan order; ``on_start()`` once
+    a run's checks have passed, before its first branch; ``on_tasks(finished, tasks,
+    points, workers)`` while a Dask cluster computes; ``on_landing(done, total, row)`` after
+    each of the damped model's landings."""
+
+    progress: Progress | None = None
+    on_branch: Callable[[int, Branch], None] | None = None
+    on_start: Callable[[], None] | None = None
+    on_tasks: Callable[[int, int, int, int], None] | None = None
+    on_landing: Callable[[int, int, dict], None] | None = None
+
+
 
 def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = None,
                    should_stop: Callable[[], bool] | None = None) -> Branch:

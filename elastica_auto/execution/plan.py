@@ -113,77 +113,119 @@ class Plan:
                       all_folds=self.curve == "fold")
 
 
-def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
-              params: Mapping[str, float | Iterable[float]] | None = None,
-              bounds: tuple[float, float] | None = None, directions: str = "+",
-              uz: Iterable[float] = (), uz_period: float | None = None,
-              stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
-              options: Mapping[str, object] | ContinuationOptions | None = None,
-              maps: bool = False, landing: bool = False,
-              damping: Iterable[float] = (), damping_folds: Iterable[str] | None = None,
+@dataclass(frozen=True)
+class Request:
+    """What one continuation is asked to compute, beyond where it starts and in what: the
+    keywords of :func:`elastica_auto.continuation` from ``params`` to ``damping_folds``
+    (same names, same meanings), checked on construction.
+
+    What can be checked without the problem is checked here, raising the :class:`PlanError`
+    a call with that keyword gets (``key`` names it); the values are kept in one form
+    (tuples of floats, ``None`` for "not given"). What needs the problem (parameter names,
+    ordinates, hooks) :func:`make_plan` checks. One object is built by each front end
+    (``continuation()``, a run file, a benchmark) and passed on whole.
+    """
+
+    params: Mapping[str, float | Iterable[float]] | None = None
+    bounds: tuple[float, float] | None = None
+    directions: str = "+"
+    uz: tuple[float, ...] = ()
+    uz_period: float | None = None
+    stop: tuple[str, ...] = ()
+    switch: int = 0
+    free: tuple[str, ...] | None = None
+    map: bool = False
+    landing: bool = False
+    damping: tuple[float, ...] = ()
+    damping_folds: tuple[str, ...] | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.map, bool):
+            raise PlanError("map", f"expected true or false, got {self.map!r}")
+        if not isinstance(self.landing, bool):
+            raise PlanError("landing", f"expected true or false, got {self.landing!r}")
+        damping, folds = _damping(self.damping, self.damping_folds, self.landing)
+        free = self.free
+        if free is not None:
+            if isinstance(free, (str, bytes)) or not isinstance(free, Iterable):
+                raise PlanError("free", f"expected a list of parameter names, got {free!r}")
+            free = tuple(free)
+            if not all(isinstance(q, str) for q in free):
+                raise PlanError("free", f"expected a list of parameter names, got {self.free!r}")
+        if not isinstance(self.directions, str) or self.directions not in DIRECTIONS:
+            raise PlanError("directions", f"expected one of {', '.join(map(repr, DIRECTIONS))}, "
+                            f"got {self.directions!r}")
+        bounds = None if self.bounds is None else _bounds(self.bounds)
+        uz, uz_period = _uz(self.uz, self.uz_period)
+        if isinstance(self.switch, bool) or not isinstance(self.switch, int) or self.switch < 0:
+            raise PlanError("switch", f"expected a count >= 0 of branch points to switch at, "
+                            f"got {self.switch!r}")
+        if isinstance(self.stop, (str, bytes)) or not isinstance(self.stop, Iterable):
+            raise PlanError("stop", f"expected a list such as [\"LP4\"], got {self.stop!r}")
+        for name, value in (("damping", damping), ("damping_folds", folds), ("free", free),
+                            ("bounds", bounds), ("uz", uz), ("uz_period", uz_period),
+                            ("stop", tuple(self.stop))):
+            object.__setattr__(self, name, value)  # frozen: the checked form, set once
+
+    @property
+    def limits(self) -> tuple[float, float]:
+        """``bounds``, or no bounds: (-inf, inf)."""
+        return self.bounds if self.bounds is not None else (-math.inf, math.inf)
+
+    @property
+    def user_values(self) -> list[UserValues]:
+        return [UserValues(self.uz, self.uz_period)] if self.uz else []
+
+
+def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str,
+              request: Request,
+              options: Mapping[str, object] | ContinuationOptions | None = None, *,
               _starts: list | None = None) -> Plan:
     """Check the arguments of :func:`elastica_auto.continuation` and list its branches.
 
-    The branches are, for each combination of the ``params`` values (a list gives one set of
-    branches per value; the first parameter varies slowest), each start in order, each
-    direction. ``free`` names the parameters solved for where the module has more conditions
-    than states (default: its ``FREE``); the plan's problem then carries them
-    (`elastica_auto.model.augmented`). ``maps``: for fold curves, also the stability maps of their
-    planes (`elastica_auto.analysis.maps`). ``landing``: where each snap lands, by the module's
-    dynamics (`elastica_auto.analysis.landing`); ``damping``: also the damped model's landing for
-    each of these ``c``, from the folds labelled ``damping_folds`` (default every fold
-    ending a stable branch). Raises :class:`PlanError` naming the argument at
-    fault.
+    ``request`` holds the checked keywords (:class:`Request`); here they are checked against
+    the problem. The branches are, for each combination of the ``params`` values (a list
+    gives one set of branches per value; the first parameter varies slowest), each start in
+    order, each direction. ``free`` names the parameters solved for where the module has
+    more conditions than states (default: its ``FREE``); the plan's problem then carries
+    them (`elastica_auto.model.augmented`). ``map``: for fold curves, also the stability
+    maps of their planes (`elastica_auto.analysis.maps`). ``landing``: where each snap
+    lands, by the module's dynamics (`elastica_auto.analysis.landing`); ``damping``: also
+    the damped model's landing for each of these ``c``, from the folds labelled
+    ``damping_folds`` (default every fold ending a stable branch). Raises
+    :class:`PlanError` naming the argument at fault.
     """
-    if not isinstance(maps, bool):
-        raise PlanError("map", f"expected true or false, got {maps!r}")
-    if not isinstance(landing, bool):
-        raise PlanError("landing", f"expected true or false, got {landing!r}")
     if not isinstance(problem, (Problem, Augmented)):
         raise PlanError("problem", f"expected a problem from load_problem(), got "
                         f"{type(problem).__name__}")
-    if landing and (isinstance(parameter, (list, tuple)) or not (
+    if request.landing and (isinstance(parameter, (list, tuple)) or not (
             problem.has_gradient_flow and problem.has_shooting and problem.has_second_variation)):
         raise PlanError("landing", "where a snap lands needs one continued parameter and the "
                         "module's gradient_flow, shooting and second_variation hooks")
-    damping, damping_folds = _damping(damping, damping_folds, landing)
-    if free is not None and (isinstance(free, (str, bytes)) or not isinstance(free, Iterable)
-                             or not all(isinstance(q, str) for q in free)):
-        raise PlanError("free", f"expected a list of parameter names, got {free!r}")
     if isinstance(parameter, (list, tuple)):
-        return _two_parameter_plan(problem, start, parameter, params=params, bounds=bounds,
-                                   directions=directions, uz=uz, uz_period=uz_period,
-                                   stop=stop, switch=switch, free=free, options=options,
-                                   maps=maps)
+        return _two_parameter_plan(problem, start, parameter, request, options)
     try:
-        problem = problem.with_free(None if free is None else tuple(free))
+        problem = problem.with_free(request.free)
     except ProblemError as exc:
         raise PlanError("free", str(exc)) from None
     if not isinstance(parameter, str) or parameter not in problem.parameters:
         raise PlanError("parameter", f"unknown parameter {parameter!r}; {problem.source} "
                         f"declares {', '.join(problem.parameter_names)}")
-    if maps and _starts is None:
+    if request.map and _starts is None:
         raise PlanError("map", "stability maps are drawn from fold curves: give two parameters "
                         "and LP starts")
     if parameter in getattr(problem, "free", ()) and isinstance(problem, Augmented):
         raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
                         "continue in another one")
-    if not isinstance(directions, str) or directions not in DIRECTIONS:
-        raise PlanError("directions", f"expected one of {', '.join(map(repr, DIRECTIONS))}, "
-                        f"got {directions!r}")
-    lower, upper = _bounds(bounds)
-    user_values = _user_values(uz, uz_period)
-    if isinstance(switch, bool) or not isinstance(switch, int) or switch < 0:
-        raise PlanError("switch", f"expected a count >= 0 of branch points to switch at, "
-                        f"got {switch!r}")
     opts = _options(options)
-    grid = _grid(problem, params)
+    grid = _grid(problem, request.params)
     starts = _starts if _starts is not None else _parse_starts(problem, start)
-    specs = _specs(starts, grid, directions)
-    at_fold, limits = _stops(problem, stop)
-    return Plan(problem, parameter, opts, Stops(lower, upper, at_fold, limits), user_values,
-                specs, varying=[k for k, v in grid.items() if len(v) > 1], switch_count=switch,
-                landing=landing, damping=damping, damping_folds=damping_folds)
+    specs = _specs(starts, grid, request.directions)
+    at_fold, limits = _stops(problem, request.stop)
+    return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
+                request.user_values, specs, varying=[k for k, v in grid.items() if len(v) > 1],
+                switch_count=request.switch, landing=request.landing, damping=request.damping,
+                damping_folds=request.damping_folds)
 
 
 def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:
@@ -233,8 +275,7 @@ def _damping(damping, folds, landing: bool):
     return damping, folds
 
 
-def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
-                        **rest) -> Plan:
+def _two_parameter_plan(base: Problem, start, parameter, request: Request, options) -> Plan:
     """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
     of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
     is solved for, ``mu`` continued (`elastica_auto.branches.codim2`)."""
@@ -248,9 +289,9 @@ def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
         if q not in base.parameters:
             raise PlanError("parameter", f"unknown parameter {q!r}; {base.source} declares "
                             f"{', '.join(base.parameter_names)}")
-    if free is not None:
+    if request.free is not None:
         raise PlanError("free", f"a two-parameter continuation solves for {lam!r}; give no free")
-    if switch:
+    if request.switch:
         raise PlanError("switch", "no switching on a two-parameter continuation")
     items = list(start) if isinstance(start, (list, tuple)) else [start]
     if not items or not all(isinstance(x, StoredLabel) for x in items):
@@ -274,12 +315,12 @@ def _two_parameter_plan(base: Problem, start, parameter, *, free, switch, maps,
     if curve == "bp" and base.exact_start(np.linspace(0, 1, 3), items[0].state.params) is None:
         raise PlanError("start", f"{base.source} has no exact family (exact_start) at "
                         f"{items[0].name}: branch-point curves follow its branch points")
-    plan = make_plan(problem, [], mu,
-                     _starts=[(Start(curve, x.path, x.name, x), {}) for x in items], **rest)
-    if maps and (curve != "fold" or not (base.has_shooting and base.has_second_variation)):
+    plan = make_plan(problem, [], mu, dataclasses.replace(request, map=False), options,
+                     _starts=[(Start(curve, x.path, x.name, x), {}) for x in items])
+    if request.map and (curve != "fold" or not (base.has_shooting and base.has_second_variation)):
         raise PlanError("map", "stability maps need fold curves (LP starts) of a module with "
                         "the shooting and second_variation hooks")
-    plan.curve, plan.base, plan.maps = curve, base, maps
+    plan.curve, plan.base, plan.maps = curve, base, request.map
     return plan
 
 
@@ -300,7 +341,7 @@ def _bounds(bounds) -> tuple[float, float]:
     return lower, upper
 
 
-def _user_values(uz, uz_period) -> list[UserValues]:
+def _uz(uz, uz_period) -> tuple[tuple[float, ...], float | None]:
     if isinstance(uz, (str, bytes)) or not isinstance(uz, Iterable):
         raise PlanError("uz", f"expected a list of values, got {uz!r}")
     values = tuple(_finite("uz", v) for v in uz)
@@ -309,14 +350,12 @@ def _user_values(uz, uz_period) -> list[UserValues]:
             raise PlanError("uz_period", "given without uz")
         if not _finite("uz_period", uz_period) > 0:
             raise PlanError("uz_period", f"must be positive, got {uz_period:g}")
-    return [UserValues(values, uz_period and float(uz_period))] if values else []
+    return values, uz_period and float(uz_period)
 
 
 def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
     """``stop = ["LP4", "u_max > 100"]``: the fold count at which a branch ends (the
     smallest given), and the limits on ordinates or free parameters."""
-    if isinstance(stop, (str, bytes)) or not isinstance(stop, Iterable):
-        raise PlanError("stop", f"expected a list such as [\"LP4\"], got {stop!r}")
     at, limits = None, []
     names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
     for item in stop:

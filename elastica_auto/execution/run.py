@@ -30,7 +30,7 @@ from ..core.solution import State, Tangent
 from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
-from .jobs import Job, Progress, cell, compute_branch, new_branch
+from .jobs import Callbacks, Job, cell, compute_branch, new_branch
 from .plan import BranchSpec, Plan, Start
 
 
@@ -71,10 +71,9 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     free = problem.free if isinstance(problem, Augmented) else ()
     targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
-        state = restart.move(problem, state, targets, opt, tangent=tangent,
-                             tangent_parameter=stored.tangent_parameter,
-                             singular=spec.start.label[:2] in ("LP", "BP", "CP"),
-                             where=str(spec.start))
+        kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
+        state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
+                             tangent_parameter=stored.tangent_parameter, where=str(spec.start))
     if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
     singular = spec.start.label[:2] in ("LP", "BP") and not targets
@@ -202,11 +201,8 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
     return jobs
 
 
-def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
-            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
-            on_start: Callable[[], None] | None = None, scheduler: str | None = None,
-            on_tasks=None, resume: bool = False,
-            on_landing: Callable[[int, int, dict], None] | None = None) -> RunResult:
+def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs: int = 1,
+            scheduler: str | None = None, resume: bool = False) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
     Before any branch is computed: a start read from the file this run writes is refused
@@ -216,7 +212,8 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
     follow once their parents are done. The file is rewritten after each branch completes, in
     plan order, so labels are numbered the same way whatever ``jobs`` is, or whichever Dask
     cluster computed them (``scheduler``, default the run file's; see `compute`).
-    ``on_start`` is called once these checks have passed, before the first branch.
+    ``callbacks.on_start`` is called once these checks have passed, before the first
+    branch; the others report as `compute` says.
 
     A run that ends, with failed branches (MX) or not, leaves its complete file as
     ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
@@ -266,11 +263,11 @@ def execute(plan: Plan, out_dir: Path, progress: Progress | None = None,
         with writer:
             if kept is not None:
                 writer.resume(kept, count)
-            if on_start is not None:
-                on_start()
+            if callbacks.on_start is not None:
+                callbacks.on_start()
             try:
-                compute(plan, first, result, save, progress, on_branch, jobs,
-                        on_tasks=on_tasks, client=client, kept=kept, on_landing=on_landing)
+                compute(plan, first, result, save, callbacks, Workers(jobs, client=client),
+                        kept)
                 if not result.interrupted:
                     writer.save(result.branches, result.snaps, result.maps, result.landings)
                     writer.finish()
@@ -311,26 +308,37 @@ def _label_counters(kept, count: int) -> dict[str, int]:
     return out
 
 
+@dataclass(frozen=True)
+class Workers:
+    """Where `compute` computes the branches: the Dask cluster of ``client`` (open, and left
+    open), else the one at the ``scheduler`` address, else ``jobs`` local worker processes
+    (1: this process; 0: this process, joined by a local cluster started alongside)."""
+
+    jobs: int = 1
+    scheduler: str | None = None
+    client: object = None
+
+
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
-            progress: Progress | None = None,
-            on_branch: Callable[[int, Branch], None] | None = None, jobs: int = 1,
-            scheduler: str | None = None, on_tasks=None, client=None, kept=None,
-            on_landing: Callable[[int, int, dict], None] | None = None):
+            callbacks: Callbacks = Callbacks(), workers: Workers = Workers(), kept=None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
     fold curves' planes, `elastica_auto.analysis.maps`, and the damped model's landings,
-    `elastica_auto.analysis.landing.damping_sweep`, each reported to ``on_landing``), into
-    ``result`` (labels numbered); ``save()`` after each branch. An interruption ends it
-    with ``result.interrupted`` set.
+    `elastica_auto.analysis.landing.damping_sweep`, each reported to
+    ``callbacks.on_landing``), into ``result`` (labels numbered); ``save()`` after each
+    branch. An interruption ends it with ``result.interrupted`` set.
 
     The branches are computed as tasks of a Dask cluster (`elastica_auto.execution.cluster`;
-    ``on_tasks`` reports their progress): the one of ``client`` (left open), or of the
-    ``scheduler`` address, or else a local one of ``jobs`` worker processes. With ``jobs = 1``
+    ``callbacks.on_tasks`` reports their progress), as ``workers`` says: the one of its
+    ``client`` (left open), or of its ``scheduler`` address, or else a local one of ``jobs``
+    worker processes. With ``jobs = 1``
     (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
     command's default): in this process from the start, and also, once it is up, on a local
     cluster of one worker per other core started meanwhile in the background (`_Alongside`);
     with one branch (and no switching), or one core, in this process only."""
     branches = result.branches
+    progress, on_branch, on_tasks = callbacks.progress, callbacks.on_branch, callbacks.on_tasks
+    jobs, scheduler, client = workers.jobs, workers.scheduler, workers.client
     pool = None
     if jobs == 0 and client is None and scheduler is None:
         alongside = (os.cpu_count() or 1) - 1 if plan.switch_count or len(first) > 1 else 0
@@ -338,11 +346,11 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             pool = _alongside(plan, first, result, save, progress, on_branch, alongside)
             first = None
         jobs = 1
-    workers = jobs if plan.switch_count else min(jobs, len(first or ()))
-    own = client is None and (scheduler is not None or workers > 1)
+    count = jobs if plan.switch_count else min(jobs, len(first or ()))
+    own = client is None and (scheduler is not None or count > 1)
     if own:
         from . import cluster
-        client = cluster.connect(scheduler) if scheduler is not None else cluster.local(workers)
+        client = cluster.connect(scheduler) if scheduler is not None else cluster.local(count)
 
     if first is None:
         interrupted = result.interrupted
@@ -368,7 +376,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
     result.interrupted = interrupted
     if not interrupted:
-        _analyse(plan, result, kept, pool.scans if pool is not None else None, on_landing)
+        _analyse(plan, result, kept, pool.scans if pool is not None else None,
+                 callbacks.on_landing)
     if pool is not None:
         pool.background.close(wait=5.0)
 

@@ -48,7 +48,7 @@ from typing import Sequence
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions
-from .plan import BranchSpec, Plan, Start, Switch, make_plan
+from .plan import BranchSpec, Plan, Request, Start, Switch, make_plan
 from ..model.problem import Problem, ProblemError, load_problem
 from ..storage.store import BranchFile, StoredLabel
 
@@ -82,13 +82,13 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     doc = _Document(path, out_dir)
     apply_overrides(doc, overrides, restart)
     problem = doc.equation()
-    cont = doc.continuation(problem)
+    parameter, cont = doc.continuation(problem)
     options = doc.options()
     params = doc.parameters()
     starts, switch = doc.starts(problem)
     try:
-        plan = make_plan(problem, starts, params=params, switch=switch, options=options,
-                         **cont)
+        plan = make_plan(problem, starts, parameter,
+                         Request(params=params, switch=switch, **cont), options)
     except PlanError as exc:
         raise RunFileError(f"{path}: {_toml_key(exc.key)}: {exc.detail}") from None
     plan.name, plan.path, plan.text = path.stem, path, doc.text
@@ -224,9 +224,9 @@ class _Document:
                 self.fail("equation", str(exc))
         return self._problem
 
-    def continuation(self, problem: Problem) -> dict:
-        """``[continuation]`` as keyword arguments: parameter, directions, bounds, stop, uz,
-        uz_period."""
+    def continuation(self, problem: Problem) -> tuple[str | list[str], dict]:
+        """``[continuation]``: the parameter, and the rest as keyword arguments of
+        :class:`~elastica_auto.execution.plan.Request` (directions, bounds, stop, uz, ...)."""
         cont = self.table("continuation")
         for key in cont:
             if key not in _CONT:
@@ -238,7 +238,7 @@ class _Document:
             parameter = [self.string("[continuation] parameter", q) for q in parameter]
         else:
             parameter = self.string("[continuation] parameter", parameter)
-        out = {"parameter": parameter, "directions": cont.get("directions", "both")}
+        out = {"directions": cont.get("directions", "both")}
         if "bounds" in cont:
             b = cont["bounds"]
             if not isinstance(b, list) or len(b) != 2:
@@ -258,7 +258,7 @@ class _Document:
         if "map" in cont:
             if not isinstance(cont["map"], bool):
                 self.fail("[continuation] map", f"expected true or false, got {cont['map']!r}")
-            out["maps"] = cont["map"]
+            out["map"] = cont["map"]
         if "landing" in cont:
             if not isinstance(cont["landing"], bool):
                 self.fail("[continuation] landing",
@@ -275,7 +275,7 @@ class _Document:
                 self.fail("[continuation] damping_folds",
                           f"expected a list of fold labels such as [\"LP3\"], got {folds!r}")
             out["damping_folds"] = [self.string("[continuation] damping_folds", f) for f in folds]
-        return out
+        return parameter, out
 
     def execution(self) -> str | None:
         """``[execution] scheduler``: the address of a Dask scheduler to compute on."""

@@ -152,6 +152,45 @@ def rounding_floor(ev, row: Row, Y, lam) -> tuple[float, float]:
             ulp * (1.0 + border))
 
 
+class _Corrections:
+    """`newton`'s correction at an iterate (Y, K, lam): the residuals F of the discretisation
+    and g of the border row there, and (dY, dlam, dK) = J^-1 (F, g) by the factorisation
+    ``lin`` (at the iterate, or elsewhere: a chord step), with its size, the largest scaled
+    correction (inf if a residual is not finite: a failed step). Keeps the last residuals
+    for `at_rounding`."""
+
+    def __init__(self, disc: Discretisation, name: str, params: dict, row: Row,
+                 interior: bool):
+        self.disc, self.name, self.params, self.row = disc, name, params, row
+        self.interior = interior    # the discretisation has stage values K
+        self.last = None            # the last (evaluation, border residual)
+        self.floor = None           # rounding_floor, once a correction is above the tolerance
+
+    def __call__(self, lin, Y, K, lam):
+        p = {**self.params, self.name: lam}
+        with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
+            ev = self.disc.evaluate(Y, p, K)
+        g = self.row.residual(Y, lam)
+        if not (np.isfinite(ev.col).all() and np.isfinite(ev.bc).all() and np.isfinite(g)
+                and (K is None or np.isfinite(ev.stage).all())):
+            return None, None, None, np.inf
+        self.last = ev, g
+        dY, dlam, dK = lin.correct(self.row, ev, g)
+        size = scaled_norm(dY, dlam, Y, lam)
+        if dK is not None:
+            size = max(size, float((np.abs(dK) / (1 + np.abs(K))).max()))
+        return dY, dlam, dK, size
+
+    def at_rounding(self, Y, lam) -> bool:
+        """The last residuals are zero to working precision (`rounding_floor`)."""
+        ev, g = self.last
+        if self.floor is None:  # once per solve: the size of the terms changes little
+            self.floor = rounding_floor(ev, self.row, Y, lam)
+        return (np.abs(ev.col).max() <= self.floor[0] and np.abs(ev.bc).max() <= self.floor[0]
+                and (not self.interior or np.abs(ev.stage).max() <= self.floor[0])
+                and abs(g) <= self.floor[1])
+
+
 @dataclass
 class NewtonResult:
     converged: bool
@@ -176,31 +215,7 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     Y = np.array(Y, dtype=float)
     lam = float(lam)
     K = disc.stages(Y, {**params, name: lam})
-
-    last = [None]       # the last (evaluation, border residual)
-    floor = []          # rounding_floor, once a correction is above the tolerance
-
-    def at_rounding(Y, lam):
-        ev, g = last[0]
-        if not floor:   # once per solve: the size of the terms changes little between iterates
-            floor.extend(rounding_floor(ev, row, Y, lam))
-        return (np.abs(ev.col).max() <= floor[0] and np.abs(ev.bc).max() <= floor[0]
-                and (K is None or np.abs(ev.stage).max() <= floor[0]) and abs(g) <= floor[1])
-
-    def correction(lin, Y, K, lam):
-        p = {**params, name: lam}
-        with np.errstate(over="ignore", invalid="ignore"):  # non-finite: a failed step
-            ev = disc.evaluate(Y, p, K)
-        g = row.residual(Y, lam)
-        if not (np.isfinite(ev.col).all() and np.isfinite(ev.bc).all() and np.isfinite(g)
-                and (K is None or np.isfinite(ev.stage).all())):
-            return None, None, None, np.inf
-        last[0] = ev, g
-        dY, dlam, dK = lin.correct(row, ev, g)
-        size = scaled_norm(dY, dlam, Y, lam)
-        if dK is not None:
-            size = max(size, float((np.abs(dK) / (1 + np.abs(K))).max()))
-        return dY, dlam, dK, size
+    correction = _Corrections(disc, name, params, row, K is not None)
 
     def moved(K, dK, alpha):
         return None if K is None else K - alpha * dK
@@ -217,7 +232,7 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         if size <= tol:
             return NewtonResult(True, Y - dY, lam - dlam, it, contraction=first or 0.0,
                                 interior=moved(K, dK, 1.0))
-        if at_rounding(Y, lam):     # the correction is amplified rounding
+        if correction.at_rounding(Y, lam):     # the correction is amplified rounding
             return NewtonResult(True, Y, lam, it, contraction=first or 0.0, interior=K)
         alpha = 1.0
         while True:

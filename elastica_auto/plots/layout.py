@@ -315,16 +315,20 @@ def _smooth(x, y, sx, sy, per_segment=8):
     return PchipInterpolator(t, x)(u), PchipInterpolator(t, y)(u)
 
 
-def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
-                  zorder=2, xlim=None, dedupe=True, tol=5e-3, smooth=True) -> set:
+#: How close (relative to the diagram's extent in each coordinate) a stretch of a branch
+#: must follow one drawn before to count as retracing it (`draw_branches`).
+RETRACE_TOL = 5e-3
+
+
+def draw_branches(ax, items, xname, yname, period=None, xlim=None) -> set:
     """Every branch of ``items`` [(file, branch)], styled by index; returns the indices drawn.
 
-    With ``period``, x is folded into [0, period) and lines break where it wraps. With
-    ``dedupe``, a stretch of a branch that retraces one drawn before (the same equilibria
-    reached from another start, or a periodic copy in a folded diagram) is not drawn again:
-    two dashed copies out of phase would look like a solid line. With ``smooth``, the line
-    through the points is a monotone (PCHIP) cubic in each coordinate against the chord length,
-    not a polygon: it passes through every point and adds no turning point between two."""
+    With ``period``, x is folded into [0, period) and lines break where it wraps. A stretch
+    of a branch that retraces one drawn before (the same equilibria reached from another
+    start, or a periodic copy in a folded diagram) is not drawn again: two dashed copies out
+    of phase would look like a solid line. The line through the points is a monotone (PCHIP)
+    cubic in each coordinate against the chord length, not a polygon: it passes through
+    every point and adds no turning point between two."""
     data = _branch_data(items, xname, yname, period)
     if not data:
         return set()
@@ -343,8 +347,7 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
         if n < 2:
             continue
         P = np.column_stack((x / sx, (F / sF[:, None]).T))
-        hidden = (_retraced(P, wrap, np.vstack(drawn_a), np.vstack(drawn_b), tol) if dedupe
-                  else np.zeros(n - 1, bool))
+        hidden = _retraced(P, wrap, np.vstack(drawn_a), np.vstack(drawn_b), RETRACE_TOL)
         visible = ~hidden & ~wrap
         i = 0
         while i < n - 1:
@@ -356,10 +359,9 @@ def draw_branches(ax, items, xname, yname, period=None, lw_scale=1.0, alpha=1.0,
             while j < n - 1 and visible[j] and index[j] == k:
                 j += 1
             color, dash, lw = index_style(k)
-            xs, ys = _smooth(x[i:j + 1], y[i:j + 1], sx, sy) if smooth else (x[i:j + 1],
-                                                                             y[i:j + 1])
-            ax.plot(xs, ys, color=color, ls=dash, lw=lw * lw_scale,
-                    alpha=alpha, zorder=zorder + (1 if k == 0 else 0) - (1 if k < 0 else 0),
+            xs, ys = _smooth(x[i:j + 1], y[i:j + 1], sx, sy)
+            ax.plot(xs, ys, color=color, ls=dash, lw=lw,
+                    zorder=2 + (1 if k == 0 else 0) - (1 if k < 0 else 0),
                     solid_capstyle="round", dash_capstyle="butt")
             seen.add(k if k >= 0 else -1)
             i = j

@@ -152,8 +152,8 @@ def family_insets(bf, br, xname, yname, window, n, index=0, numbering=1):
     return out
 
 
-def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_arrows=None,
-                 trace_span=PI / 2, exclude=()):
+def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", trace_span=PI / 2,
+                 exclude=()):
     """Snap-back arrows for the folds of ``br`` inside ``window`` that end a stable segment
     (the file's /snaps table), one to every stable target. The first ``len(tags)`` distinct
     folds (``exclude``: fold keys tagged elsewhere) also get before/after configurations: the
@@ -187,8 +187,6 @@ def family_snaps(bf, br, xname, yname, window, sources, fixed, tags="AB", max_ar
                     s.before = lp.configuration(traced(trace))
                     s.after = hit
             snaps.append(s)
-        if max_arrows and len(snaps) >= max_arrows:
-            break
     return snaps
 
 
