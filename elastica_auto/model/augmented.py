@@ -137,7 +137,7 @@ class Augmented(NamesOfBase):
         iterate (``mu' = 0`` is solved exactly), so a condition's derivative in mu may sit
         in either end's column: in the column of the end the module's condition involves
         (s = 0 if it involves y(0)). A condition at s = 1 alone then stays one-sided, and
-        the banded system needs no running sum for it (:mod:`elastica_auto.bordered`)."""
+        the banded system needs no running sum for it (:mod:`elastica_auto.numerics.bordered`)."""
         pm = self._p(p, ya)
         n0, q, nbc = self.n0, self.q, self.base.nbc
         da, db = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
