@@ -685,22 +685,12 @@ def main():
     saves()
 
 
+#: The sections a flag runs alone; without one, `main`.
+SECTIONS = {"--memory": "memory", "--sweep": "sweep", "--landing": "landing",
+            "--index": "index_cost", "--size": "size_cost", "--fold-curve": "fold_curve",
+            "--disk": "disk_unknowns", "--saves": "saves"}
+
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--memory"]:
-        memory()
-    elif sys.argv[1:] == ["--sweep"]:
-        sweep()
-    elif sys.argv[1:] == ["--landing"]:
-        landing()
-    elif sys.argv[1:] == ["--index"]:
-        index_cost()
-    elif sys.argv[1:] == ["--size"]:
-        size_cost()
-    elif sys.argv[1:] == ["--fold-curve"]:
-        fold_curve()
-    elif sys.argv[1:] == ["--disk"]:
-        disk_unknowns()
-    elif sys.argv[1:] == ["--saves"]:
-        saves()
-    else:
-        main()
+    if sys.argv[1:] and (len(sys.argv) > 2 or sys.argv[1] not in SECTIONS):
+        sys.exit(f"usage: bench.py [{' | '.join(SECTIONS)}]")
+    globals()[SECTIONS[sys.argv[1]] if sys.argv[1:] else "main"]()
