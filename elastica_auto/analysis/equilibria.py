@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.solution import State
+from ..numerics.ode import dop853
 from ..numerics.stability import index
 
 SCAN_POINTS = 1201
@@ -53,22 +54,12 @@ class Equilibrium:
     ordinates: dict
 
 
-def _integrate(problem, params, y0, s_eval=None):
-    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together; y at s = 1 (or at
-    ``s_eval``), shape (n, m) (or (n, m, len(s_eval)))."""
-    from scipy.integrate import solve_ivp
-    n, m = y0.shape
-
-    def f(s, z):
-        return problem.rhs(np.full(m, s), z.reshape(n, m), params).ravel()
-
-    sol = solve_ivp(f, (0.0, 1.0), y0.ravel(), method="DOP853", rtol=IVP_TOL, atol=IVP_TOL,
-                    t_eval=s_eval)
-    if not sol.success:
-        raise RuntimeError(f"shooting integration failed: {sol.message}")
-    if s_eval is None:
-        return sol.y[:, -1].reshape(n, m)
-    return sol.y.reshape(n, m, len(s_eval))
+def _integrate(problem, params, y0, s_eval=None, tol: float = IVP_TOL):
+    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together (`dop853`, relative
+    and absolute tolerance ``tol`` in every column); y at s = 1 (or at ``s_eval``), shape
+    (n, m) (or (n, m, len(s_eval)))."""
+    return dop853(lambda s, y: problem.rhs(s, y, params), y0, rtol=tol, atol=tol,
+                  s_eval=s_eval)
 
 
 def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
