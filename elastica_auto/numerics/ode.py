@@ -118,15 +118,18 @@ def _error(k, h, y0, y1, rtol, atol):
 
 def _first_step(f, s0, y0, f0, span, rtol, atol):
     """An initial step (Hairer, Norsett and Wanner, II.4): h0 from the sizes of y0 and f0, and
-    h1 with h1^8 max(|f0|, |f'|) = 0.01; the smaller of 100 h0 and h1 (one f call)."""
+    h1 with h1^8 max(|f0|, |f'|) = 0.01 (in the worst column); the smaller of 100 h0 and h1
+    (one f call)."""
     scale = atol + rtol * np.abs(y0)
 
     def rms(v):
         return float(np.max(np.sqrt(np.mean((v / scale) ** 2, axis=0))))
 
     d0, d1 = rms(y0), rms(f0)
+    # (at least 1e-6 of the span: y0 near 0 but not 0, against the tolerance, would give a
+    # step of the order of rounding and 10 more steps to grow to size)
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = min(h0, span)
+    h0 = min(max(h0, 1e-6 * span), span)
     d2 = rms(f(s0 + h0, y0 + h0 * f0) - f0) / h0
     h1 = (max(1e-6, h0 * 1e-3) if max(d1, d2) <= 1e-15
           else (0.01 / max(d1, d2)) ** (1 / 8))
@@ -147,7 +150,7 @@ def dop853(f, y0, s0: float = 0.0, s1: float = 1.0, rtol: float = 1e-11, atol: f
     steps = [(s, y)]
     rejected = False
     while s < s1:
-        if h < 10 * np.spacing(max(abs(s), abs(s1))):
+        if h < 10 * np.spacing(abs(s)):
             raise IntegrationError(f"step size {h:.3g} below rounding at s = {s:.6g}")
         h = min(h, s1 - s)
         y_new = _stages(f, np.full(m, s), y, h, k)
