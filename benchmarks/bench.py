@@ -292,8 +292,9 @@ def sweep(branches=64):
 
 
 def landing(damped=3, damping=(0.5, 2.0)):
-    """Seconds of the overdamped landing of every fold ending a stable branch, and of the
-    damped model's from the first ``damped`` of them for each ``damping``."""
+    """CPU seconds of the snap-back scans at every fold ending a stable branch; seconds of
+    the overdamped landing from each, and of the damped model's from the first ``damped`` of
+    them for each ``damping``."""
     import numpy as np
 
     import elastica_auto as ea
@@ -303,12 +304,16 @@ def landing(damped=3, damping=(0.5, 2.0)):
     branches = ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi ** 2 / 4}, "psi",
                                directions="both", bounds=(-6 * math.pi, 6 * math.pi))
     folds = []
+    scan = time.process_time()
     for br in branches:
         for p, side in snap_lps(br):
             k = br.points.index(p)
             other = br.points[k - 1 if side == "before" else k + 1]
             folds.append((p, int(np.sign(p.params["psi"] - other.params["psi"])),
                           enumerate_equilibria(problem, p.params)))
+    scan = time.process_time() - scan
+    print(f"the snap-back scans there: {len(folds)} folds {scan:.2f} s CPU "
+          f"({1000 * scan / len(folds):.0f} ms a scan)")
     t0 = time.perf_counter()
     for p, beyond, eqs in folds:
         land(problem, p.state, p.tangent, eqs, "psi", beyond)

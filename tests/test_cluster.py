@@ -384,12 +384,10 @@ class _FakeBackground:
 
 
 @pytest.mark.parametrize("workers, ends", [(0, False), (1, True)])
-def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monkeypatch,
-                                                                  workers, ends):
+def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, workers, ends):
     """A cluster that tells of no worker, or that ends with a branch and then never takes
-    anything: this process computes every branch and every snap-back scan (its integrator
-    not imported yet, as in a command's process), and the run ends with the branches that
-    jobs = 1 computes."""
+    anything: this process computes every branch and every snap-back scan, and the run ends
+    with the branches that jobs = 1 computes."""
     from elastica_auto.execution import runfile
     from elastica_auto.core.interrupts import Interruptions
     from elastica_auto.execution.run import RunResult, _Alongside, start_job, execute
@@ -401,7 +399,6 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, monke
     pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
     first = [start_job(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
-    monkeypatch.delitem(sys.modules, "scipy.integrate")
     with Interruptions() as signals:
         assert not pool.run(first, result.branches, lambda: None, None, None, signals.stop)
         assert pool.wait_for_scans(signals.stop)

@@ -16,9 +16,11 @@ equation-module hook
     ``residual`` returns (d, m) (for the spatial rod, d = 2: the clamp moment across the
     load; its component along the load is conserved and zero).
 
-The scan integrates all grid values of k at once, brackets every sign change, refines all
-brackets together (Illinois regula falsi), and computes each root's index by the direct
-count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
+The scan integrates all grid values of k at once (`elastica_auto.numerics.ode.dop853`, at a
+loose tolerance, the values near zero again at the tight one), brackets every sign change,
+refines all brackets together (Illinois regula falsi at the loose tolerance, then narrower
+brackets checked at the tight one: `_scan_line`), and computes each root's index by the
+direct count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
 solve (difference Jacobian, all candidates at once) from every grid cell whose
 neighbourhood holds both signs of every residual component or where |r| has a local minimum,
 and the distinct converged roots;
@@ -33,12 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.solution import State
+from ..numerics.ode import dop853
 from ..numerics.stability import index
 
 SCAN_POINTS = 1201
 #: Grid points of the box scan (d >= 2 unknowns), about: BOX_POINTS ** (1/d) per axis.
 BOX_POINTS = 10201
 IVP_TOL = 1e-11
+#: The grid's integration tolerance, and the thresholds that keep its signs and roots those
+#: of IVP_TOL (`_scan_line`).
+SCAN_TOL, NEAR, DELTA, EPS = 1e-8, 1e-5, 1e-6, 1e-10
 PROFILE_NODES = 201
 
 
@@ -53,29 +59,19 @@ class Equilibrium:
     ordinates: dict
 
 
-def _integrate(problem, params, y0, s_eval=None):
-    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together; y at s = 1 (or at
-    ``s_eval``), shape (n, m) (or (n, m, len(s_eval)))."""
-    from scipy.integrate import solve_ivp
-    n, m = y0.shape
-
-    def f(s, z):
-        return problem.rhs(np.full(m, s), z.reshape(n, m), params).ravel()
-
-    sol = solve_ivp(f, (0.0, 1.0), y0.ravel(), method="DOP853", rtol=IVP_TOL, atol=IVP_TOL,
-                    t_eval=s_eval)
-    if not sol.success:
-        raise RuntimeError(f"shooting integration failed: {sol.message}")
-    if s_eval is None:
-        return sol.y[:, -1].reshape(n, m)
-    return sol.y.reshape(n, m, len(s_eval))
+def _integrate(problem, params, y0, s_eval=None, tol: float = IVP_TOL):
+    """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together (`dop853`, relative
+    and absolute tolerance ``tol`` in every column); y at s = 1 (or at ``s_eval``), shape
+    (n, m) (or (n, m, len(s_eval)))."""
+    return dop853(lambda s, y: problem.rhs(s, y, params), y0, rtol=tol, atol=tol,
+                  s_eval=s_eval)
 
 
-def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
+def refine_brackets(r, a, b, fa, fb, max_iter: int = 60, xtol: float = 1e-13) -> np.ndarray:
     """The root in each bracket [a, b] of ``r`` (vectorised; ``fa fb < 0``), all refined
     together by Illinois regula falsi.
 
-    A bracket is done once it is shorter than 1e-13 (relative) or ``r`` is exactly 0 at its
+    A bracket is done once it is shorter than ``xtol`` (relative) or ``r`` is exactly 0 at its
     newest end, which is then the root; only the others are evaluated again. (Iterating a done
     bracket would meet ``fa = fb = 0`` after an exact zero, and 0 / 0 would make its root NaN.)
     """
@@ -83,7 +79,7 @@ def refine_brackets(r, a, b, fa, fb, max_iter: int = 60) -> np.ndarray:
     for _ in range(max_iter):
         # fa and fb have opposite signs in a live bracket (fa is only ever halved or set to
         # a nonzero fb), so fb - fa cannot vanish
-        live = np.flatnonzero((np.abs(b - a) >= 1e-13 * (1 + np.abs(a))) & (fb != 0.0))
+        live = np.flatnonzero((np.abs(b - a) >= xtol * (1 + np.abs(a))) & (fb != 0.0))
         if len(live) == 0:
             break
         c = b[live] - fb[live] * (b[live] - a[live]) / (fb[live] - fa[live])
@@ -101,18 +97,13 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     module hooks ``shooting`` and (for the index) ``second_variation``."""
     lo, hi, initial, residual = problem.shooting(params)
 
-    def r(k):
+    def r(k, tol=IVP_TOL):
         k = np.asarray(k, dtype=float)
         y0 = initial(k)
-        return residual(y0, _integrate(problem, params, y0))
+        return residual(y0, _integrate(problem, params, y0, tol=tol))
 
     if np.ndim(lo) == 0:
-        ks = np.linspace(lo, hi, SCAN_POINTS)
-        rs = r(ks)
-        exact = ks[rs == 0.0]
-        idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
-        roots = np.sort(np.concatenate((exact, refine_brackets(r, ks[idx], ks[idx + 1],
-                                                               rs[idx], rs[idx + 1]))))
+        roots = _scan_line(r, lo, hi)
         keys = [float(k) for k in roots]
     else:
         roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
@@ -127,6 +118,47 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
         out.append(Equilibrium(k, state, index(problem, state),
                                problem.ordinate_values(s, state.y, params)))
     return out
+
+
+def _scan_line(r, lo: float, hi: float) -> np.ndarray:
+    """The sorted roots in [lo, hi] of ``r(k, tol)`` (vectorised over k; ``tol`` the
+    integration's): a grid integrated at ``SCAN_TOL`` whose signs are made those of
+    ``IVP_TOL``; each bracket refined at ``SCAN_TOL``, then narrowed at ``IVP_TOL``.
+
+    On the shipped runs' grids the loose integration differs from the tight one by less
+    than 2e-8 (1 + max |r|), and its roots by 7e-9 (1 + |k|) (docs/benchmarks.md). Grid values
+    below ``NEAR`` (1 + max |r|) are integrated again at ``IVP_TOL``, so that every sign,
+    hence every bracket, is the tight integration's. Around the loose root g, the bracket
+    g -+ ``DELTA`` (1 + |g|) (cut to its grid cell) and, around that bracket's secant root x,
+    x -+ ``EPS`` (1 + |x|) are each kept if their tight values differ in sign; the root is the
+    secant root of the last (its width bounds the error, and the secant's is of the order of
+    the width squared). A bracket that fails either check (roots closer than its width, as
+    at a fold) is refined from the last one kept by Illinois at ``IVP_TOL`` (`refine_brackets`).
+    """
+    ks = np.linspace(lo, hi, SCAN_POINTS)
+    rs = r(ks, SCAN_TOL)
+    near = np.flatnonzero(np.abs(rs) < NEAR * (1 + np.max(np.abs(rs))))
+    if len(near):
+        rs[near] = r(ks[near])
+    exact = ks[rs == 0.0]
+    idx = np.flatnonzero(rs[:-1] * rs[1:] < 0)
+    # a, b bracket each root with values of the tight integration's signs
+    a, b, fa, fb = ks[idx], ks[idx + 1], rs[idx], rs[idx + 1]
+    x = refine_brackets(lambda k: r(k, SCAN_TOL), a, b, fa, fb, xtol=1e-7)
+    ok = np.ones(len(idx), bool)
+    for width in (DELTA, EPS):
+        sub = np.flatnonzero(ok)
+        half = width * (1 + np.abs(x[sub]))
+        left, right = np.maximum(a[sub], x[sub] - half), np.minimum(b[sub], x[sub] + half)
+        f = r(np.concatenate((left, right))) if len(sub) else np.zeros(0)
+        fl, fr = f[:len(sub)], f[len(sub):]
+        kept = (fl * fr <= 0) & (fl != fr)
+        ok[sub[~kept]] = False
+        sub, left, right, fl, fr = sub[kept], left[kept], right[kept], fl[kept], fr[kept]
+        a[sub], b[sub], fa[sub], fb[sub] = left, right, fl, fr
+        x[sub] = left - fl * (right - left) / (fr - fl)
+    x[~ok] = refine_brackets(r, a[~ok], b[~ok], fa[~ok], fb[~ok])
+    return np.sort(np.concatenate((exact, x)))
 
 
 def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndarray:

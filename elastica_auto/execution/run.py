@@ -592,21 +592,16 @@ class _Alongside:
                     self._feed()
 
     def wait_for_scans(self, stop) -> bool:
-        """The scans not done yet, on the cluster; this process takes those left if the
-        cluster has ended, or if it has imported the integrator already (its import, 0.4 s,
-        would cost more than the few scans the workers have left); False if interrupted
+        """The scans not done yet: this process takes those not sent to the cluster (a scan
+        costs it tens of ms and no import) and waits for those sent; False if interrupted
         meanwhile."""
         import queue
-        import sys
         while not stop.is_set():
             with self.lock:
                 if not self.asked and not self.unsent:
                     return True
                 self._feed()
-                # not sent, and nothing on the cluster: no worker will ask for them
-                here = (not self.background.ready.is_set() or "scipy.integrate" in sys.modules
-                        or not self.asked)
-                key, params = self.unsent.pop(0) if self.unsent and here else (None, None)
+                key, params = self.unsent.pop(0) if self.unsent else (None, None)
             if key is not None:
                 self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
                 continue
