@@ -143,7 +143,7 @@ def _wavenumber(a_min, b, c):
     h' + A^-1 C h = v the form is v.A v + h.(B - C^T A^-1 C) h, so the solutions turn at the
     rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A); bounded by norms (for k = 1
     and C = 0, sqrt(|b| / a))."""
-    if not np.any(c):
+    if not np.count_nonzero(c):
         return np.sqrt(_norm(b) / a_min)
     c_norm = _norm(c)
     return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
@@ -177,7 +177,7 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
     w = _wavenumber(a_min, b, c)
     w = np.maximum(np.maximum(w[0:-1:2], w[1::2]), w[2::2])
     parts = np.ceil(h * w / MAX_PHASE).astype(int)
-    if np.any(parts > 1):
+    if np.count_nonzero(parts > 1):
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
@@ -198,8 +198,8 @@ def _evaluate(evaluate, s, shift, source):
     a, b, c, g = form.fields(len(pts))
     ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
     # one sum: NaN and inf propagate through it (a finite sum overflows only past 1e300)
-    if not math.isfinite(float(np.sum(a) + np.sum(b) + np.sum(c) + np.sum(g)
-                               + sum(np.sum(v) for v in ends))):
+    if not math.isfinite(float(a.sum() + b.sum() + c.sum() + g.sum()
+                               + sum(v.sum() for v in ends))):
         return form, None
     if shift:
         b = b - shift * np.eye(form.k)
@@ -225,23 +225,33 @@ def _element_blocks(s, a, b, c):
         T_ij = w_j phi_i'(x_j) C_j      (the term h'.C h of phi_i' e_a against phi_j e_b)
     """
     h = np.diff(s).reshape(-1, *(1,) * (a.ndim - 1))
-    a0, am, a2 = a[0:-1:2], a[1::2], a[2::2]
-    b0, bm, b2 = b[0:-1:2], b[1::2], b[2::2]
-    k00 = (9 * a0 + 4 * am + a2) / (6 * h) + (h / 6) * b0
-    k22 = (a0 + 4 * am + 9 * a2) / (6 * h) + (h / 6) * b2
-    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * bm
-    k02 = (3 * a0 - 4 * am + 3 * a2) / (6 * h)
-    k0m = -(12 * a0 + 4 * a2) / (6 * h)
-    k2m = -(4 * a0 + 12 * a2) / (6 * h)
-    if np.any(c):
-        c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
-        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
-        k00 -= 0.5 * (c0 + c0t)
-        k22 += 0.5 * (c2 + c2t)
-        k02 += (c2 - c0t) / 6
-        k0m += (4 / 6) * (c0t - cm)
-        k2m += (4 / 6) * (cm - c2t)
+    # each block is a combination of the element's three values (first node, midpoint, last
+    # node) of A / h, B h, C and C^T: the values stacked, one product with _P2_WEIGHTS
+    coupled = np.count_nonzero(c) > 0
+    values = np.empty((12 if coupled else 6, len(h), *a.shape[1:]))
+    values[0], values[1], values[2] = a[0:-1:2], a[1::2], a[2::2]
+    values[0:3] /= h
+    values[3], values[4], values[5] = b[0:-1:2], b[1::2], b[2::2]
+    values[3:6] *= h
+    if coupled:
+        values[6], values[7], values[8] = c[0:-1:2], c[1::2], c[2::2]
+        ct = c if c.ndim == 1 else c.transpose(0, 2, 1)
+        values[9], values[10], values[11] = ct[0:-1:2], ct[1::2], ct[2::2]
+    weights = _P2_WEIGHTS[:, :len(values)]
+    k00, k02, k22, k0m, k2m, kmm = (weights @ values.reshape(len(values), -1)).reshape(
+        6, *values.shape[1:])
     return (k00, k02, k22), (k0m, k2m, kmm)
+
+
+#: The blocks (k00, k02, k22, k0m, k2m, kmm) of :func:`_element_blocks` as weights of the
+#: element's values (first node, midpoint, last node) of A / h (sum_q w_q phi_i'(q)
+#: phi_j'(q)), B h (delta_ij w_i), C and C^T (w_j phi_i'(x_j): T_ij + T_ji^T).
+_P2_WEIGHTS = np.array([[9, 4, 1, 1, 0, 0, -3, 0, 0, -3, 0, 0],
+                        [3, -4, 3, 0, 0, 0, 0, 0, 1, -1, 0, 0],
+                        [1, 4, 9, 0, 0, 1, 0, 0, 3, 0, 0, 3],
+                        [-12, 0, -4, 0, 0, 0, 0, -4, 0, 4, 0, 0],
+                        [-4, 0, -12, 0, 0, 0, 0, 4, 0, 0, 0, -4],
+                        [16, 0, 16, 0, 4, 0, 0, 0, 0, 0, 0, 0]]) / 6
 
 
 def _inertia(form, s, a, b, c, a_min, g) -> int:
@@ -255,7 +265,7 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
         return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
     h = np.diff(s)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
     x0, x2 = kmm_inv @ k0m.transpose(0, 2, 1), kmm_inv @ k2m.transpose(0, 2, 1)
     d = np.zeros((len(s), k, k))
@@ -297,7 +307,7 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
     call dominates."""
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     if np.any(np.abs(kmm) <= scale):
         raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
                         "precision")
@@ -378,7 +388,7 @@ def _pivots(blocks, scale, what):
     k = blocks.shape[-1]
     if k == 1:
         w = blocks[:, 0, 0]
-        if np.any(np.abs(w) <= scale):
+        if np.count_nonzero(np.abs(w) <= scale):
             raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
         return 1.0 / blocks, int(np.count_nonzero(w < 0))
     if k <= 3:
@@ -408,33 +418,41 @@ def _small_pivots(m, scale):
     (n_2 xor n_3); a zero coefficient counts as positive."""
     p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
+    coefficients = np.empty((k, p))                # c_1, ..., c_k
+    c_last, det = coefficients[-2], coefficients[-1]
     if k == 2:
         a, b, d = rows[0], rows[3], rows[1]
-        det = a * b - d * d
-        inv = rows[_ADJ2] * _ADJ2_SIGN[:, None] / det
-        c_last = a + b
-        neg1 = c_last < 0
-        changes = np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ (det < 0))
+        np.multiply(a, b, out=det)
+        det -= d * d
+        adj = rows[_ADJ2] * _ADJ2_SIGN[:, None]
+        np.add(a, b, out=c_last)
     else:
-        e = rows[_SYM3]                                     # a, b, c, d, e, f (_SYM3)
-        cof = e[_COF[0]] * e[_COF[1]] - e[_COF[2]] * e[_COF[3]]
-        det = e[0] * cof[0] + e[3] * cof[3] + e[4] * cof[4]     # a c00 + d c01 + e c02
-        inv = cof[_COF_TO_3X3] / det
-        c_last = cof[0] + cof[1] + cof[2]
-        neg1, neg2 = e[0] + e[1] + e[2] < 0, c_last < 0
-        changes = (np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ neg2)
-                   + np.count_nonzero(neg2 ^ (det < 0)))
-    singular = bool(np.any(np.abs(det) <= scale * np.abs(c_last)))
-    return inv.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+        e = rows[_COF_FACTORS]                      # the factors of the cofactors (4, 6, p)
+        cof = e[0] * e[1]
+        cof -= e[2] * e[3]                          # c00, c11, c22, c01, c02, c12
+        adj = cof[_COF_TO_3X3]
+        np.sum(rows[0:3] * adj[0:3], axis=0, out=det)  # a c00 + d c01 + e c02
+        np.sum(cof[0:3], axis=0, out=c_last)
+        np.sum(rows[_DIAG3], axis=0, out=coefficients[0])
+    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
+    negative = coefficients < 0
+    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
+    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
+    adj /= det
+    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
 _ADJ2, _ADJ2_SIGN = np.array([3, 1, 2, 0]), np.array([1.0, -1.0, -1.0, 1.0])
+#: The diagonal of a 3 x 3 block flattened.
+_DIAG3 = np.array([0, 4, 8])
 #: A symmetric 3 x 3 block flattened, its entries a, b, c (diagonal), d, e, f (01, 02, 12).
 _SYM3 = np.array([0, 4, 8, 1, 2, 5])
 #: Its cofactors c00, c11, c22, c01, c02, c12 as e[i] e[j] - e[k] e[l]: b c - f f, a c - e e,
 #: a b - d d, e f - d c, d f - b e, d e - a f.
 _COF = np.array([[1, 0, 0, 4, 3, 3], [2, 2, 1, 5, 5, 4], [5, 4, 3, 3, 1, 0], [5, 4, 3, 2, 4, 5]])
+#: The same factors as entries of the flattened block.
+_COF_FACTORS = _SYM3[_COF]
 #: The adjugate (the cofactors' symmetric matrix) flattened from them.
 _COF_TO_3X3 = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])
 
