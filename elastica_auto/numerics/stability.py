@@ -520,29 +520,37 @@ def _reduce(d, u, f, scale, s_mat):
     inverted all at once; their Schur complement is again block tridiagonal on the even
     nodes. By Haynsworth's additivity the negative eigenvalues of all the pivots, the last
     included, are n_-(K) (Sylvester), and the constraint columns, eliminated alongside,
-    accumulate C K^-1 C^T.
+    accumulate C K^-1 C^T (and, for the scale of its rounding, |C| |K^-1| |C|^T).
     The first levels' pivots couple neighbours a few elements apart, where the stiffness
     dominates (MAX_PHASE): they are positive definite and well conditioned."""
-    negative = 0
+    negative, k, r = 0, d.shape[-1], f.shape[2]
     while len(d) > 1:
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
-        left, right = u[0::2], u[1::2]             # K[o-1, o] and K[o, o+1], o odd
-        pl = inv @ left.transpose(0, 2, 1)         # D_o^-1 K[o, o-1]
-        pr = inv[: len(right)] @ right             # D_o^-1 K[o, o+1]
+        p, n_right = len(inv), len(u) // 2
+        # x = [K[o, o-1], K[o, o+1], the constraint rows] for each odd node o (the last may
+        # have no right neighbour: zero), and all the products the level needs at once:
+        # x^T D_o^-1 x = [[K[o-1, o] D^-1 K[o, o-1], K[o-1, o] D^-1 K[o, o+1], ...], ...]
+        x = np.empty((p, k, 2 * k + r))
+        x[:, :, :k] = u[0::2].transpose(0, 2, 1)
+        x[:n_right, :, k:2 * k] = u[1::2]
+        x[n_right:, :, k:2 * k] = 0.0
+        x[:, :, 2 * k:] = f[1::2]
+        z = x.transpose(0, 2, 1) @ (inv @ x)
         de = d[0::2].copy()
-        de[: len(left)] -= left @ pl
-        de[1: len(right) + 1] -= right.transpose(0, 2, 1) @ pr
-        if f.shape[2]:
-            fo = f[1::2]
+        de[:p] -= z[:, :k, :k]
+        de[1:n_right + 1] -= z[:n_right, k:2 * k, k:2 * k]
+        u = -z[:n_right, :k, k:2 * k]
+        if r:
             fe = f[0::2].copy()
-            fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
-            fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
-            _accumulate(fo, inv, s_mat)
+            fe[:p] -= z[:, :k, 2 * k:]
+            fe[1:n_right + 1] -= z[:n_right, k:2 * k, 2 * k:]
+            s_mat[0] += z[:, 2 * k:, 2 * k:].sum(axis=0)
+            fo = np.abs(f[1::2])
+            s_mat[1] += np.einsum("pai,pab,pbj->ij", fo, np.abs(inv), fo)
             f = fe
         else:
             f = f[0::2]
-        u = -pl[: len(right)].transpose(0, 2, 1) @ right
         d = de
     return negative, d[0], f[0]
 
