@@ -301,20 +301,26 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     h = np.diff(s)
     scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
-    x0, x2 = kmm_inv @ k0m.transpose(0, 2, 1), kmm_inv @ k2m.transpose(0, 2, 1)
+    # x = [K_m0, K_m2, C_m] for each midpoint: x^T K_mm^-1 x holds every product of its
+    # elimination (as in _reduce)
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    x = np.empty((len(h), k, 2 * k + r))
+    x[:, :, :k] = k0m.transpose(0, 2, 1)
+    x[:, :, k:2 * k] = k2m.transpose(0, 2, 1)
+    x[:, :, 2 * k:] = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    z = x.transpose(0, 2, 1) @ (kmm_inv @ x)
     d = np.zeros((len(s), k, k))
-    d[:-1] += k00 - k0m @ x0
-    d[1:] += k22 - k2m @ x2
-    u = k02 - k0m @ x2
+    d[:-1] += k00 - z[:, :k, :k]
+    d[1:] += k22 - z[:, k:2 * k, k:2 * k]
+    u = k02 - z[:, :k, k:2 * k]
     d[0] += form.E0
     d[-1] += form.E1
-    f = _constraint_columns(form, h, g, x0, x2)
+    f = _constraint_columns(form, h, gt, z[:, :2 * k, 2 * k:])
     _restrict(d, u, f, 0, form.free0, form.fixed0)
     _restrict(d, u, f, -1, form.free1, form.fixed1)
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
-        _accumulate(g[:, 1::2, :].transpose(1, 2, 0) * ((4 / 6) * h)[:, None, None], kmm_inv,
-                    s_mat)
+        _accumulate(z[:, 2 * k:, 2 * k:], x[:, :, 2 * k:], kmm_inv, s_mat)
     neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
     negative += neg_k
     if not r:
@@ -357,30 +363,30 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     return negative + _sturm(diag[lo:hi].tolist(), (off[lo:hi - 1] ** 2).tolist(), scale)
 
 
-def _accumulate(f, inv, into):
-    """Add to ``into`` = [C K^-1 C^T, its size] the terms f^T D^-1 f of the constraint rows
-    ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k, k), and the same sum of
-    absolute values (the scale of its rounding errors)."""
-    into[0] += np.einsum("pai,pab,pbj->ij", f, inv, f)
-    into[1] += np.einsum("pai,pab,pbj->ij", np.abs(f), np.abs(inv), np.abs(f))
+def _accumulate(products, f, inv, into):
+    """Add to ``into`` = [C K^-1 C^T, its size] the terms ``products`` = f^T D^-1 f (p, r, r)
+    of the constraint rows ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k,
+    k), and the same sum of absolute values (the scale of its rounding errors)."""
+    into[0] += products.sum(axis=0)
+    f = np.abs(f)
+    into[1] += np.einsum("pai,pab,pbj->ij", f, np.abs(inv), f)
 
 
-def _constraint_columns(form, h, g, x0, x2):
+def _constraint_columns(form, h, gt, condensed):
     """The constraints as columns on the nodes, (n_nodes, k, r): Simpson's rule for int g.h
-    (a node or midpoint value times its weight) plus d0, d1 at the ends, the midpoint parts
-    condensed like the stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
-    r = len(form.constraints)
-    f = np.zeros((len(h) + 1, form.k, r))
+    (a node or midpoint value times its weight; ``gt`` the values (points, k, r)) plus d0, d1
+    at the ends, less the midpoint parts condensed like the stiffness, K_nm K_mm^-1 C_m
+    (``condensed``, (n_el, 2k, r): the element's first node's rows, then its last's)."""
+    r, k = len(form.constraints), form.k
+    f = np.zeros((len(h) + 1, k, r))
     if not r:
         return f
-    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
     f[:-1] += (h / 6)[:, None, None] * gt[0:-1:2]
     f[1:] += (h / 6)[:, None, None] * gt[2::2]
     f[0] += np.array([con.d0 for con in form.constraints]).T
     f[-1] += np.array([con.d1 for con in form.constraints]).T
-    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
-    f[:-1] -= x0.transpose(0, 2, 1) @ cm
-    f[1:] -= x2.transpose(0, 2, 1) @ cm
+    f[:-1] -= condensed[:, :k]
+    f[1:] -= condensed[:, k:]
     return f
 
 
@@ -465,9 +471,14 @@ def _small_pivots(m, scale):
         cof = e[0] * e[1]
         cof -= e[2] * e[3]                          # c00, c11, c22, c01, c02, c12
         adj = cof[_COF_TO_3X3]
-        np.sum(rows[0:3] * adj[0:3], axis=0, out=det)  # a c00 + d c01 + e c02
-        np.sum(cof[0:3], axis=0, out=c_last)
-        np.sum(rows[_DIAG3], axis=0, out=coefficients[0])
+        # (sums written out: np.sum costs more than the additions on these rows)
+        np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
+        det += rows[1] * adj[1]
+        det += rows[2] * adj[2]
+        np.add(cof[0], cof[1], out=c_last)
+        c_last += cof[2]
+        np.add(rows[0], rows[4], out=coefficients[0])
+        coefficients[0] += rows[8]
     # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
     negative = coefficients < 0
     changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
@@ -545,9 +556,7 @@ def _reduce(d, u, f, scale, s_mat):
             fe = f[0::2].copy()
             fe[:p] -= z[:, :k, 2 * k:]
             fe[1:n_right + 1] -= z[:n_right, k:2 * k, 2 * k:]
-            s_mat[0] += z[:, 2 * k:, 2 * k:].sum(axis=0)
-            fo = np.abs(f[1::2])
-            s_mat[1] += np.einsum("pai,pab,pbj->ij", fo, np.abs(inv), fo)
+            _accumulate(z[:, 2 * k:, 2 * k:], f[1::2], inv, s_mat)
             f = fe
         else:
             f = f[0::2]
