@@ -275,12 +275,17 @@ def rhs(s, y, p):
     d3 = rot[2::3]
     u = _curvature(_body_moment(rot, y[7:10]), p)
     dq = _W_QDOT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
-    return np.concatenate((d3, dq, _cross_matrix(load(p)) @ d3))
+    return np.concatenate((d3, dq, _load_cross(p) @ d3))
 
 
 def tip_arm(yb, p):
     """The arm's spatial vector eps R(q(1)) a_b."""
-    return p["eps"] * rotation(yb[3:7]) @ arm_body(p)
+    return p["eps"] * _rotation_at(yb[3:7]) @ arm_body(p)
+
+
+def _rotation_at(q):
+    """R(q) (3, 3) at one quaternion (4,) (``rotation``'s Q(q) / |q|^2 by the tensor)."""
+    return (_W_QUAD @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
 
 
 def bc(ya, yb, p):
@@ -290,15 +295,6 @@ def bc(ya, yb, p):
 
 
 # ---- Jacobians (the derivatives of rhs and bc; derivation in docs/kirchhoff.md) -----------
-
-def rotation_derivative(q):
-    """dR/dq_j, (3, 3, 4, ...): R = Q(q) / |q|^2 with Q the quadratic form of ``rotation``,
-    so dR/dq_j = (dQ/dq_j - 2 q_j R) / |q|^2 = 2 (D_j - q_j R) / |q|^2 (``_dq``)."""
-    w, x, y, z = q
-    n2 = w * w + x * x + y * y + z * z
-    out = 2 * (_dq(q) - q[:, None, None] * rotation(q)[None]) / n2
-    return np.moveaxis(out, 0, 2)
-
 
 def rhs_jac(s, y, p):
     """df/dy, (10, 10, m), of ``rhs``: with dR_j = dR/dq_j = 2 (D_j - q_j R) / |q|^2,
@@ -328,7 +324,7 @@ def rhs_jac(s, y, p):
         48, npts)).reshape(4, 4, npts)
     jac[3:7, 7:10] = ((_W_LEFT_DM * kinv).reshape(12, 36) @ (q[:, None, :] * rot[None]).reshape(
         36, npts)).reshape(4, 3, npts)
-    jac[7:10, 3:7] = (_cross_matrix(load(p)) @ dd3.reshape(3, 4 * npts)).reshape(3, 4, npts)
+    jac[7:10, 3:7] = (_load_cross(p) @ dd3.reshape(3, 4 * npts)).reshape(3, 4, npts)
     return jac
 
 
@@ -336,13 +332,32 @@ def bc_jac(ya, yb, p):
     """(dbc/dya, dbc/dyb) of ``bc``: the clamp's 7 rows are the identity on (r, q)(0); the
     tip's m(1) - (eps R(q(1)) a_b) x F = m(1) + [F]_x eps R(q(1)) a_b has d/dm = I and
     d/dq_j = [F]_x eps dR/dq_j a_b."""
+    q = yb[3:7]
+    n2 = q @ q
+    # dR/dq_j a_b = 2 (D_j - q_j R) a_b / |q|^2, rows j
+    darm = (_T @ q) @ arm_body(p) - np.outer(q, _rotation_at(q) @ arm_body(p))
+    darm *= 2 * p["eps"] / n2
     da = np.zeros((10, 10))
     db = np.zeros((10, 10))
-    da[0:7, 0:7] = np.eye(7)
-    db[7:10, 7:10] = np.eye(3)
-    darm = p["eps"] * np.einsum("ikj,k->ij", rotation_derivative(yb[3:7]), arm_body(p))
-    db[7:10, 3:7] = _cross_matrix(load(p)) @ darm
+    da[0:7, 0:7] = _EYE7
+    db[7:10, 7:10] = _EYE7[:3, :3]
+    db[7:10, 3:7] = _load_cross(p) @ darm.T
     return da, db
+
+
+_EYE7 = np.eye(7)
+
+
+def _load_cross(p):
+    """[F]_x (3, 3), read-only (cached per P, alpha, beta: asked for at every call)."""
+    return _load_cross_of(float(p["P"]), float(p["alpha"]), float(p["beta"]))
+
+
+@functools.lru_cache(maxsize=64)
+def _load_cross_of(P, alpha, beta):
+    out = _cross_matrix(load({"P": P, "alpha": alpha, "beta": beta}))
+    out.flags.writeable = False
+    return out
 
 
 # ---- ordinates ---------------------------------------------------------------------------
@@ -466,24 +481,25 @@ def _blocks(s, y, p):
     return block([2]), block([0, 1])
 
 
-#: (key, counts) of the last state asked for: index_in and index_out are asked for one after
-#: the other at each point and share one evaluation of the form (one tuple, swapped whole,
-#: so that threads computing side by side read a consistent pair).
-_last_split = [None]
-
-
 def _split_counts(s, y, p):
     """(index_in, index_out) at the state, each -1 at a non-planar state or a zero
-    eigenvalue of its block."""
+    eigenvalue of its block (:func:`_split_counts_of`, keyed by value)."""
+    s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+    return _split_counts_of(s.tobytes(), y.tobytes(), len(y), tuple(sorted(p.items())))
+
+
+@functools.lru_cache(maxsize=4)
+def _split_counts_of(s_bytes, y_bytes, n, items):
+    """:func:`_split_counts` of the state given by value: index_in and index_out are asked
+    for one after the other at each point and share one evaluation of the form (the cache
+    is safe across threads computing side by side)."""
     from elastica_auto.numerics.stability import count_form
-    key = (np.asarray(s).tobytes(), np.asarray(y).tobytes(), tuple(sorted(p.items())))
-    entry = _last_split[0]
-    if entry is None or entry[0] != key:
-        blocks = _blocks(s, y, p)
-        counts = ((-1.0, -1.0) if blocks is None else
-                  tuple(float(count_form(b, s).index) for b in blocks))
-        entry = _last_split[0] = (key, counts)
-    return entry[1]
+    s = np.frombuffer(s_bytes).copy()
+    y = np.frombuffer(y_bytes).reshape(n, -1).copy()
+    blocks = _blocks(s, y, dict(items))
+    if blocks is None:
+        return -1.0, -1.0
+    return tuple(float(count_form(b, s).index) for b in blocks)
 
 
 def _split_index(which):
@@ -632,7 +648,7 @@ def second_variation(s, y, p):
     fd = f[:, None, None] * d3[None]
     b = fd + fd.transpose(1, 0, 2)
     b *= -0.5
-    b[_DIAGONAL, _DIAGONAL] += f @ d3
+    b.reshape(9, npts)[::4] += f @ d3                                      # the diagonal
     c = (_W_HALF_CROSS @ y[7:10]).reshape(3, 3, npts)
     arm = tip_arm(y[:, -1], p)
     fa = np.outer(f, arm)
@@ -641,8 +657,6 @@ def second_variation(s, y, p):
     return SecondVariation(a, b, c, E1=e1, fixed0=[0, 1, 2],
                            constraints=() if mode is None else [Constraint(mode, kernel=True)])
 
-
-_DIAGONAL = np.arange(3)
 
 
 # ---- shooting (the snap-back targets) -------------------------------------------------------

@@ -259,33 +259,31 @@ def _element_blocks(s, a, b, c):
         T_ij = w_j phi_i'(x_j) C_j      (the term h'.C h of phi_i' e_a against phi_j e_b)
     """
     h = np.diff(s).reshape(-1, *(1,) * (a.ndim - 1))
-    # each block is a combination of the element's three values (first node, midpoint, last
-    # node) of A / h, B h, C and C^T: the values stacked, one product with _P2_WEIGHTS
-    coupled = np.count_nonzero(c) > 0
-    values = np.empty((12 if coupled else 6, len(h), *a.shape[1:]))
-    values[0], values[1], values[2] = a[0:-1:2], a[1::2], a[2::2]
-    values[0:3] /= h
-    values[3], values[4], values[5] = b[0:-1:2], b[1::2], b[2::2]
-    values[3:6] *= h
-    if coupled:
-        values[6], values[7], values[8] = c[0:-1:2], c[1::2], c[2::2]
-        ct = c if c.ndim == 1 else c.transpose(0, 2, 1)
-        values[9], values[10], values[11] = ct[0:-1:2], ct[1::2], ct[2::2]
-    weights = _P2_WEIGHTS[:, :len(values)]
-    k00, k02, k22, k0m, k2m, kmm = (weights @ values.reshape(len(values), -1)).reshape(
-        6, *values.shape[1:])
+    a0, am, a2 = a[0:-1:2], a[1::2], a[2::2]
+    # k00, k22, k02, k0m, k2m as (w0 a0 + wm am + w2 a2) / (6 h), all five at once (the
+    # weights of each as written above: -(12 a0 + 4 a2) is -12 a0 + 0 am - 4 a2 exactly)
+    w = _P2_A.reshape(3, 5, *(1,) * a.ndim)
+    blocks = w[0] * a0
+    blocks += w[1] * am
+    blocks += w[2] * a2
+    blocks /= 6 * h
+    k00, k22, k02, k0m, k2m = blocks
+    k00 += (h / 6) * b[0:-1:2]
+    k22 += (h / 6) * b[2::2]
+    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * b[1::2]
+    if np.count_nonzero(c):
+        c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
+        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
+        k00 -= 0.5 * (c0 + c0t)
+        k22 += 0.5 * (c2 + c2t)
+        k02 += (c2 - c0t) / 6
+        k0m += (4 / 6) * (c0t - cm)
+        k2m += (4 / 6) * (cm - c2t)
     return (k00, k02, k22), (k0m, k2m, kmm)
 
 
-#: The blocks (k00, k02, k22, k0m, k2m, kmm) of :func:`_element_blocks` as weights of the
-#: element's values (first node, midpoint, last node) of A / h (sum_q w_q phi_i'(q)
-#: phi_j'(q)), B h (delta_ij w_i), C and C^T (w_j phi_i'(x_j): T_ij + T_ji^T).
-_P2_WEIGHTS = np.array([[9, 4, 1, 1, 0, 0, -3, 0, 0, -3, 0, 0],
-                        [3, -4, 3, 0, 0, 0, 0, 0, 1, -1, 0, 0],
-                        [1, 4, 9, 0, 0, 1, 0, 0, 3, 0, 0, 3],
-                        [-12, 0, -4, 0, 0, 0, 0, -4, 0, 4, 0, 0],
-                        [-4, 0, -12, 0, 0, 0, 0, 4, 0, 0, 0, -4],
-                        [16, 0, 16, 0, 4, 0, 0, 0, 0, 0, 0, 0]]) / 6
+#: The weights of a0, am, a2 in k00, k22, k02, k0m, k2m (times 6 h).
+_P2_A = np.array([[9, 1, 3, -12, -4], [4, 4, -4, 0, 0], [1, 9, 3, -4, -12]], dtype=float)
 
 
 def _inertia(form, s, a, b, c, a_min, g) -> int:
@@ -301,26 +299,27 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     h = np.diff(s)
     scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
-    # x = [K_m0, K_m2, C_m] for each midpoint: x^T K_mm^-1 x holds every product of its
-    # elimination (as in _reduce)
-    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
-    x = np.empty((len(h), k, 2 * k + r))
+    # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
+    # products (as in _reduce)
+    x = np.empty((len(h), k, 2 * k))
     x[:, :, :k] = k0m.transpose(0, 2, 1)
-    x[:, :, k:2 * k] = k2m.transpose(0, 2, 1)
-    x[:, :, 2 * k:] = ((4 / 6) * h)[:, None, None] * gt[1::2]
-    z = x.transpose(0, 2, 1) @ (kmm_inv @ x)
+    x[:, :, k:] = k2m.transpose(0, 2, 1)
+    y = kmm_inv @ x
+    z = x.transpose(0, 2, 1) @ y
     d = np.zeros((len(s), k, k))
     d[:-1] += k00 - z[:, :k, :k]
     d[1:] += k22 - z[:, k:2 * k, k:2 * k]
     u = k02 - z[:, :k, k:2 * k]
     d[0] += form.E0
     d[-1] += form.E1
-    f = _constraint_columns(form, h, gt, z[:, :2 * k, 2 * k:])
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    f = _constraint_columns(form, h, gt, y[:, :, :k], y[:, :, k:], cm)
     _restrict(d, u, f, 0, form.free0, form.fixed0)
     _restrict(d, u, f, -1, form.free1, form.fixed1)
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
-        _accumulate(z[:, 2 * k:, 2 * k:], x[:, :, 2 * k:], kmm_inv, s_mat)
+        _accumulate(cm, kmm_inv, s_mat)
     neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
     negative += neg_k
     if not r:
@@ -363,30 +362,29 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     return negative + _sturm(diag[lo:hi].tolist(), (off[lo:hi - 1] ** 2).tolist(), scale)
 
 
-def _accumulate(products, f, inv, into):
-    """Add to ``into`` = [C K^-1 C^T, its size] the terms ``products`` = f^T D^-1 f (p, r, r)
-    of the constraint rows ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k,
-    k), and the same sum of absolute values (the scale of its rounding errors)."""
-    into[0] += products.sum(axis=0)
-    f = np.abs(f)
-    into[1] += np.einsum("pai,pab,pbj->ij", f, np.abs(inv), f)
+def _accumulate(f, inv, into):
+    """Add to ``into`` = [C K^-1 C^T, its size] the terms f^T D^-1 f of the constraint rows
+    ``f`` (p, k, r) of eliminated pivots with inverses ``inv`` (p, k, k), and the same sum of
+    absolute values (the scale of its rounding errors)."""
+    into[0] += np.einsum("pai,pab,pbj->ij", f, inv, f)
+    into[1] += np.einsum("pai,pab,pbj->ij", np.abs(f), np.abs(inv), np.abs(f))
 
 
-def _constraint_columns(form, h, gt, condensed):
+def _constraint_columns(form, h, gt, x0, x2, cm):
     """The constraints as columns on the nodes, (n_nodes, k, r): Simpson's rule for int g.h
-    (a node or midpoint value times its weight; ``gt`` the values (points, k, r)) plus d0, d1
-    at the ends, less the midpoint parts condensed like the stiffness, K_nm K_mm^-1 C_m
-    (``condensed``, (n_el, 2k, r): the element's first node's rows, then its last's)."""
-    r, k = len(form.constraints), form.k
-    f = np.zeros((len(h) + 1, k, r))
+    (a node or midpoint value times its weight; ``gt`` the values (points, k, r), ``cm`` the
+    midpoints' weighted) plus d0, d1 at the ends, the midpoint parts condensed like the
+    stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
+    r = len(form.constraints)
+    f = np.zeros((len(h) + 1, form.k, r))
     if not r:
         return f
     f[:-1] += (h / 6)[:, None, None] * gt[0:-1:2]
     f[1:] += (h / 6)[:, None, None] * gt[2::2]
     f[0] += np.array([con.d0 for con in form.constraints]).T
     f[-1] += np.array([con.d1 for con in form.constraints]).T
-    f[:-1] -= condensed[:, :k]
-    f[1:] -= condensed[:, k:]
+    f[:-1] -= x0.transpose(0, 2, 1) @ cm
+    f[1:] -= x2.transpose(0, 2, 1) @ cm
     return f
 
 
@@ -539,24 +537,26 @@ def _reduce(d, u, f, scale, s_mat):
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
         p, n_right = len(inv), len(u) // 2
-        # x = [K[o, o-1], K[o, o+1], the constraint rows] for each odd node o (the last may
-        # have no right neighbour: zero), and all the products the level needs at once:
-        # x^T D_o^-1 x = [[K[o-1, o] D^-1 K[o, o-1], K[o-1, o] D^-1 K[o, o+1], ...], ...]
-        x = np.empty((p, k, 2 * k + r))
+        # x = [K[o, o-1], K[o, o+1]] for each odd node o (the last may have no right
+        # neighbour: zero), y = D_o^-1 x: x^T y holds the even nodes' new blocks, y^T K[o,
+        # o+1] their coupling (each product associated as K D^-1 K' was before, to the last
+        # bit: a count next to a zero eigenvalue turns on it)
+        x = np.empty((p, k, 2 * k))
         x[:, :, :k] = u[0::2].transpose(0, 2, 1)
-        x[:n_right, :, k:2 * k] = u[1::2]
-        x[n_right:, :, k:2 * k] = 0.0
-        x[:, :, 2 * k:] = f[1::2]
-        z = x.transpose(0, 2, 1) @ (inv @ x)
+        x[:n_right, :, k:] = u[1::2]
+        x[n_right:, :, k:] = 0.0
+        y = inv @ x
+        z = x.transpose(0, 2, 1) @ y
         de = d[0::2].copy()
         de[:p] -= z[:, :k, :k]
-        de[1:n_right + 1] -= z[:n_right, k:2 * k, k:2 * k]
-        u = -z[:n_right, :k, k:2 * k]
+        de[1:n_right + 1] -= z[:n_right, k:, k:]
+        u = -(y[:n_right, :, :k].transpose(0, 2, 1) @ x[:n_right, :, k:])
         if r:
+            fo = f[1::2]
             fe = f[0::2].copy()
-            fe[:p] -= z[:, :k, 2 * k:]
-            fe[1:n_right + 1] -= z[:n_right, k:2 * k, 2 * k:]
-            _accumulate(z[:, 2 * k:, 2 * k:], f[1::2], inv, s_mat)
+            fe[:p] -= y[:, :, :k].transpose(0, 2, 1) @ fo
+            fe[1:n_right + 1] -= y[:n_right, :, k:].transpose(0, 2, 1) @ fo[:n_right]
+            _accumulate(fo, inv, s_mat)
             f = fe
         else:
             f = f[0::2]
