@@ -236,14 +236,11 @@ _W_QUAD = _T.transpose(1, 2, 0, 3).reshape(9, 16)
 _W_GRAD = _T.transpose(2, 0, 1, 3).reshape(12, 12)
 #: _W_COL3 @ q = D_j e3, rows (a, j).
 _W_COL3 = _T[:, :, 2, :].transpose(1, 0, 2).reshape(12, 4)
-#: _W_QDOT @ (u (x) q) = L(q)[:, 1:] u / 2, columns (k, c).
+#: _W_QDOT @ (u (x) q) = L(q)[:, 1:] u / 2, columns (k, c); for X (3, n) the same product
+#: with X (x) q (rows (k, c), columns (j, m)) is L(q)[:, 1:] X / 2.
 _W_QDOT = _HL.reshape(4, 12)
 #: _W_RIGHT @ u = M((0, u)) / 2, rows (r, s).
 _W_RIGHT = 0.5 * _right(np.eye(3)).reshape(16, 3)
-#: _W_LEFT_DQ @ (q (x) X) = L(q)[:, 1:] X / 2 for X (3, 4): rows (r, j), columns (c, k, j).
-_W_LEFT_DQ = np.einsum("rkc,jJ->rjckJ", _HL, np.eye(4)).reshape(16, 48)
-#: (_W_LEFT_DM * K^-1) @ (q (x) R) = L(q)[:, 1:] K^-1 R^T / 2: rows (r, j), columns (c, j, k).
-_W_LEFT_DM = np.einsum("rkc,jJ->rjcJk", _HL, np.eye(3))
 #: _W_HALF_CROSS @ m = -[m]_x / 2, rows (i, j).
 _W_HALF_CROSS = -0.5 * _cross_matrix(np.eye(3)).reshape(9, 3)
 
@@ -254,7 +251,7 @@ def _frame(y):
     npts = q.shape[1]
     n2 = np.einsum("ij,ij->j", q, q)
     qq = (q[:, None, :] * q[None, :, :]).reshape(16, npts)
-    rot = _W_QUAD @ qq
+    rot = _times(_W_QUAD, qq)
     rot /= n2
     return q, qq, n2, rot
 
@@ -274,8 +271,22 @@ def rhs(s, y, p):
     q, _, _, rot = _frame(y)
     d3 = rot[2::3]
     u = _curvature(_body_moment(rot, y[7:10]), p)
-    dq = _W_QDOT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
+    dq = _times(_W_QDOT, (u[:, None, :] * q[None, :, :]).reshape(12, -1))
     return np.concatenate((d3, dq, _load_cross(p) @ d3))
+
+
+#: OpenBLAS runs a product of more than 65536 x 4 multiply-adds on several threads: at these
+#: sizes that costs several times as much CPU (far more while the machine is busy).
+_SINGLE_THREAD = 65536 * 4
+
+
+def _times(w, x):
+    """w @ x for a constant w (r, c) and x (c, n), in blocks of columns that BLAS multiplies
+    on one thread (_SINGLE_THREAD)."""
+    step = max(1, _SINGLE_THREAD // w.size)
+    if x.shape[1] <= step:
+        return w @ x
+    return np.concatenate([w @ x[:, i:i + step] for i in range(0, x.shape[1], step)], axis=1)
 
 
 def tip_arm(yb, p):
@@ -312,7 +323,7 @@ def rhs_jac(s, y, p):
     d3 = rot[2::3]
     mb = _body_moment(rot, m)
     u = _curvature(mb, p)
-    du_dq = (_W_GRAD @ (m[:, None, :] * q[None, :, :]).reshape(12, npts)).reshape(3, 4, npts)
+    du_dq = _times(_W_GRAD, (m[:, None, :] * q[None, :, :]).reshape(12, npts)).reshape(3, 4, npts)
     du_dq -= mb[:, None, :] * q[None, :, :]
     du_dq *= kinv[:, None, None] * scale                                  # (3, 4, m)
     dd3 = (_W_COL3 @ q).reshape(3, 4, npts)
@@ -320,10 +331,12 @@ def rhs_jac(s, y, p):
     dd3 *= scale                                                          # (3, 4, m)
     jac = np.zeros((10, 10, npts))
     jac[0:3, 3:7] = dd3
-    jac[3:7, 3:7] = (_W_RIGHT @ u + _W_LEFT_DQ @ (q[:, None, None, :] * du_dq[None]).reshape(
-        48, npts)).reshape(4, 4, npts)
-    jac[3:7, 7:10] = ((_W_LEFT_DM * kinv).reshape(12, 36) @ (q[:, None, :] * rot[None]).reshape(
-        36, npts)).reshape(4, 3, npts)
+    jac[3:7, 3:7] = (_W_RIGHT @ u).reshape(4, 4, npts)
+    jac[3:7, 3:7] += _times(_W_QDOT, (du_dq[:, None] * q[None, :, None]).reshape(
+        12, 4 * npts)).reshape(4, 4, npts)
+    du_dm = rot.reshape(3, 3, npts).transpose(1, 0, 2) * kinv[:, None, None]   # K^-1 R^T
+    jac[3:7, 7:10] = _times(_W_QDOT, (du_dm[:, None] * q[None, :, None]).reshape(
+        12, 3 * npts)).reshape(4, 3, npts)
     jac[7:10, 3:7] = (_load_cross(p) @ dd3.reshape(3, 4 * npts)).reshape(3, 4, npts)
     return jac
 
@@ -639,18 +652,16 @@ def second_variation(s, y, p):
     """The second variation in spatial rotation perturbations omega (docs/kirchhoff.md):
     A = R K R^T, C = -[m]_x / 2, B = (F.d3) I - sym(F d3^T), E1 = (F.a) I - sym(F a^T) with
     a = eps R(1) a_b, omega(0) = 0 (the clamp), natural at s = 1."""
-    _, _, _, rot = _frame(y)
-    npts = rot.shape[1]
-    rot3 = rot.reshape(3, 3, npts)
-    a = ((rot3 * stiffness(p)[:, None])[:, None] * rot3[None]).sum(axis=2)   # R K R^T
+    # A and B to the last bit as they were (R by ``rotation``): a count at a located branch
+    # point, whose pivot is at the zero threshold, turns on their rounding
+    rot = rotation(y[3:7])                                    # (3, 3, m)
+    a = np.einsum("ik...,k,jk...->ij...", rot, stiffness(p), rot)
     f = load(p)
-    d3 = rot[2::3]
-    fd = f[:, None, None] * d3[None]
-    b = fd + fd.transpose(1, 0, 2)
-    b *= -0.5
-    b.reshape(9, npts)[::4] += f @ d3                                      # the diagonal
-    c = (_W_HALF_CROSS @ y[7:10]).reshape(3, 3, npts)
-    arm = tip_arm(y[:, -1], p)
+    d3 = rot[:, 2]
+    fd = np.einsum("i,j...->ij...", f, d3)
+    b = (f @ d3) * _EYE7[:3, :3, None] - 0.5 * (fd + fd.transpose(1, 0, 2))
+    c = (_W_HALF_CROSS @ y[7:10]).reshape(3, 3, -1)                      # -[m]_x / 2 exactly
+    arm = (p["eps"] * rot[:, :, -1]) @ arm_body(p)
     fa = np.outer(f, arm)
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
     mode = _zero_mode_of(s, d3, p) if is_symmetric(p) else None

@@ -396,7 +396,7 @@ def _restrict(d, u, f, end, free, fixed):
     if not fixed.shape[1]:
         return
     if not free.shape[1]:   # all fixed: the node's own block, decoupled
-        fill = max(float(np.max(np.abs(d[end]))), 1.0)
+        fill = max(float(np.abs(d[end]).max()), 1.0)
         d[end] = fill * np.eye(len(fixed))
         u[0 if end == 0 else -1] = 0.0
         f[end] = 0.0
@@ -544,7 +544,8 @@ def _reduce(d, u, f, scale, s_mat):
         x = np.empty((p, k, 2 * k))
         x[:, :, :k] = u[0::2].transpose(0, 2, 1)
         x[:n_right, :, k:] = u[1::2]
-        x[n_right:, :, k:] = 0.0
+        if n_right < p:
+            x[n_right:, :, k:] = 0.0
         y = inv @ x
         z = x.transpose(0, 2, 1) @ y
         de = d[0::2].copy()
