@@ -74,6 +74,7 @@ through the Hamiltonian (`moment_bound`; docs/three-d.md, "Snap-back targets in 
 engine gives it 3D axes); on 2D axes it projects it on the x-y plane, like the planar module.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -151,7 +152,17 @@ Q_REF = np.array((0.5, -0.5, -0.5, -0.5))
 
 def clamp_quaternion(p):
     """q(0) = Rz(theta0) R_REF Rb3(phi0) as a quaternion."""
-    return qmul(qmul(qaxis((0, 0, 1), p["theta0"]), Q_REF), qaxis((0, 0, 1), p["phi0"]))
+    return _clamp(float(p["theta0"]), float(p["phi0"]))[0].copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _clamp(theta0, phi0):
+    """(q(0), d3(0)) of the clamp, read-only: the boundary conditions and the second variation
+    ask for them at every call, with the same two parameters along a branch."""
+    q = qmul(qmul(qaxis((0, 0, 1), theta0), Q_REF), qaxis((0, 0, 1), phi0))
+    axis = rotation(q)[:, 2]
+    q.flags.writeable = axis.flags.writeable = False
+    return q, axis
 
 
 def load(p):
@@ -179,43 +190,36 @@ def curvature(y, p, rot=None):
     return mb / stiffness(p)[:, None] + np.array((p["u1"], p["u2"], p["u3"]))[:, None]
 
 
-def rhs(s, y, p):
-    rot = rotation(y[3:7])
-    u = curvature(y, p, rot)
-    d3 = rot[:, 2]
-    q0, q1, q2, q3 = y[3:7]
-    u1, u2, u3 = u
-    # (1/2) q (x) (0, u)
-    dq = 0.5 * np.array((-q1 * u1 - q2 * u2 - q3 * u3, q0 * u1 + q2 * u3 - q3 * u2,
-                         q0 * u2 + q3 * u1 - q1 * u3, q0 * u3 + q1 * u2 - q2 * u1))
-    dm = cross(load(p)[:, None], d3)
-    return np.concatenate((d3, dq, dm))
+# ---- the right-hand side and its Jacobian, by constant tensors ----------------------------
+#
+# R(q) = Q(q) / |q|^2 with Q quadratic in q, and dQ/dq_j = 2 D_j(q) with D_j linear in q (the
+# table of ``_dq``); by Euler's relation for a homogeneous quadratic, Q = sum_j q_j D_j. So
+# every q-dependent factor of rhs and rhs_jac is a constant tensor T (T[j, a, b, c] =
+# dD_j[a, b]/dq_c, and the Hamilton product's L(q), M(u)) times q (x) q, m (x) q or the like:
+# one matrix product (W @ X, X with a row per component pair and a column per point) for all
+# points. numpy's cost per call, not the arithmetic, dominates at a few hundred points.
 
-
-def tip_arm(yb, p):
-    """The arm's spatial vector eps R(q(1)) a_b."""
-    return p["eps"] * rotation(yb[3:7]) @ arm_body(p)
-
-
-def bc(ya, yb, p):
-    return np.concatenate((ya[0:3], ya[3:7] - clamp_quaternion(p),
-                           yb[7:10] - cross(tip_arm(yb, p), load(p))))
-
-
-
-# ---- Jacobians (the derivatives of rhs and bc; derivation in docs/kirchhoff.md) -----------
-
-def rotation_derivative(q):
-    """dR/dq_j, (3, 3, 4, ...): R = Q(q) / |q|^2 with Q the quadratic form of ``rotation``,
-    so dR/dq_j = (dQ/dq_j - 2 q_j R) / |q|^2; dQ/dq_j is linear in q."""
+def _dq(q):
+    """D_j(q) = (1/2) dQ/dq_j, (4, 3, 3, ...): each linear in q."""
     w, x, y, z = q
-    dq = np.array((((w, -z, y), (z, w, -x), (-y, x, w)),        # d/dw
-                   ((x, y, z), (y, -x, -w), (z, w, -x)),        # d/dx
-                   ((-y, x, w), (x, y, z), (-w, z, -y)),        # d/dy
-                   ((-z, -w, x), (w, -z, y), (x, y, z))))       # d/dz, each (3, 3, ...)
-    n2 = w * w + x * x + y * y + z * z
-    out = 2 * (dq - q[:, None, None] * rotation(q)[None]) / n2
-    return np.moveaxis(out, 0, 2)
+    return np.array((((w, -z, y), (z, w, -x), (-y, x, w)),        # d/dw
+                     ((x, y, z), (y, -x, -w), (z, w, -x)),        # d/dx
+                     ((-y, x, w), (x, y, z), (-w, z, -y)),        # d/dy
+                     ((-z, -w, x), (w, -z, y), (x, y, z))))       # d/dz, each (3, 3, ...)
+
+
+def _left(q):
+    """L(q)[:, 1:], (4, 3, ...): q (x) (0, v) = L(q)[:, 1:] v."""
+    q0, q1, q2, q3 = q
+    return np.array(((-q1, -q2, -q3), (q0, -q3, q2), (q3, q0, -q1), (-q2, q1, q0)))
+
+
+def _right(u):
+    """M((0, u)), (4, 4, ...): q (x) (0, u) = M((0, u)) q."""
+    u1, u2, u3 = u
+    zero = 0.0 * u1
+    return np.array(((zero, -u1, -u2, -u3), (u1, zero, u3, -u2), (u2, -u3, zero, u1),
+                     (u3, u2, -u1, zero)))
 
 
 def _cross_matrix(v):
@@ -224,34 +228,116 @@ def _cross_matrix(v):
     return np.array(((zero, -v[2], v[1]), (v[2], zero, -v[0]), (-v[1], v[0], zero)))
 
 
+_T = _dq(np.eye(4))                                  # T[j, a, b, c] = dD_j[a, b] / dq_c
+_HL = 0.5 * _left(np.eye(4))                         # L(q)[:, 1:] / 2 = _HL[:, :, c] q_c
+#: _W_QUAD @ (q (x) q) = Q, rows (a, b), columns (j, c).
+_W_QUAD = _T.transpose(1, 2, 0, 3).reshape(9, 16)
+#: _W_GRAD @ (m (x) q) = (D_j^T m)_i, rows (i, j), columns (l, c): T[j, l, i, c].
+_W_GRAD = _T.transpose(2, 0, 1, 3).reshape(12, 12)
+#: _W_COL3 @ q = D_j e3, rows (a, j).
+_W_COL3 = _T[:, :, 2, :].transpose(1, 0, 2).reshape(12, 4)
+#: _W_QDOT @ (u (x) q) = L(q)[:, 1:] u / 2, columns (k, c); for X (3, n) the same product
+#: with X (x) q (rows (k, c), columns (j, m)) is L(q)[:, 1:] X / 2.
+_W_QDOT = _HL.reshape(4, 12)
+#: _W_RIGHT @ u = M((0, u)) / 2, rows (r, s).
+_W_RIGHT = 0.5 * _right(np.eye(3)).reshape(16, 3)
+#: _W_HALF_CROSS @ m = -[m]_x / 2, rows (i, j).
+_W_HALF_CROSS = -0.5 * _cross_matrix(np.eye(3)).reshape(9, 3)
+
+
+def _frame(y):
+    """(q, q (x) q (16, m), |q|^2, R (9, m): rows (a, b)) at the points."""
+    q = y[3:7]
+    npts = q.shape[1]
+    n2 = np.einsum("ij,ij->j", q, q)
+    qq = (q[:, None, :] * q[None, :, :]).reshape(16, npts)
+    rot = _times(_W_QUAD, qq)
+    rot /= n2
+    return q, qq, n2, rot
+
+
+def _body_moment(rot, m):
+    """R^T m (3, m) from R's rows (a, b) (9, m)."""
+    return (rot.reshape(3, 3, -1) * m[:, None, :]).sum(axis=0)
+
+
+def _curvature(mb, p):
+    """u = K^-1 R^T m + u_hat from the body moment R^T m (3, m)."""
+    return mb / stiffness(p)[:, None] + np.array((p["u1"], p["u2"], p["u3"]))[:, None]
+
+
+def rhs(s, y, p):
+    """r' = d3, q' = (1/2) L(q)[:, 1:] u, m' = F x d3."""
+    q, _, _, rot = _frame(y)
+    d3 = rot[2::3]
+    u = _curvature(_body_moment(rot, y[7:10]), p)
+    dq = _times(_W_QDOT, (u[:, None, :] * q[None, :, :]).reshape(12, -1))
+    return np.concatenate((d3, dq, _load_cross(p) @ d3))
+
+
+#: OpenBLAS runs a product of more than 65536 x 4 multiply-adds on several threads: at these
+#: sizes that costs several times as much CPU (far more while the machine is busy).
+_SINGLE_THREAD = 65536 * 4
+
+
+def _times(w, x):
+    """w @ x for a constant w (r, c) and x (c, n), in blocks of columns that BLAS multiplies
+    on one thread (_SINGLE_THREAD)."""
+    step = max(1, _SINGLE_THREAD // w.size)
+    if x.shape[1] <= step:
+        return w @ x
+    return np.concatenate([w @ x[:, i:i + step] for i in range(0, x.shape[1], step)], axis=1)
+
+
+def tip_arm(yb, p):
+    """The arm's spatial vector eps R(q(1)) a_b."""
+    return p["eps"] * _rotation_at(yb[3:7]) @ arm_body(p)
+
+
+def _rotation_at(q):
+    """R(q) (3, 3) at one quaternion (4,) (``rotation``'s Q(q) / |q|^2 by the tensor)."""
+    return (_W_QUAD @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
+
+
+def bc(ya, yb, p):
+    return np.concatenate((ya[0:3], ya[3:7] - _clamp(float(p["theta0"]), float(p["phi0"]))[0],
+                           yb[7:10] - cross(tip_arm(yb, p), load(p))))
+
+
+
+# ---- Jacobians (the derivatives of rhs and bc; derivation in docs/kirchhoff.md) -----------
+
 def rhs_jac(s, y, p):
-    """df/dy, (10, 10, m), of ``rhs``: with dR_j = dR/dq_j,
-    dd3/dq_j = dR_j e3; du/dq_j = K^-1 dR_j^T m, du/dm = K^-1 R^T;
+    """df/dy, (10, 10, m), of ``rhs``: with dR_j = dR/dq_j = 2 (D_j - q_j R) / |q|^2,
+    dd3/dq_j = dR_j e3; du/dq_j = K^-1 dR_j^T m = 2 K^-1 (D_j^T m - q_j R^T m) / |q|^2,
+    du/dm = K^-1 R^T;
     q' = (1/2) q (x) (0, u) = (1/2) M((0, u)) q = (1/2) L(q) (0, u), so
     dq'/dq = (1/2) M((0, u)) + (1/2) L(q)[:, 1:] du/dq and dq'/dm = (1/2) L(q)[:, 1:] du/dm;
     m' = F x d3: dm'/dq_j = F x dd3/dq_j. L and M are the left and right multiplication
-    matrices of the Hamilton product."""
-    q, m = y[3:7], y[7:10]
-    npts = y.shape[1]
-    rot = rotation(q)
-    drot = rotation_derivative(q)                              # (3, 3, 4, m)
-    kinv = (1 / stiffness(p))[:, None]
-    u = kinv * np.einsum("ji...,j...->i...", rot, m) + np.array(
-        (p["u1"], p["u2"], p["u3"]))[:, None]
-    du_dq = kinv[:, None] * np.einsum("jik...,j...->ik...", drot, m)       # (3, 4, m)
-    du_dm = kinv[:, None] * rot.transpose(1, 0, 2)                        # (3, 3, m)
-    q0, q1, q2, q3 = q
-    left = np.array(((-q1, -q2, -q3), (q0, -q3, q2), (q3, q0, -q1), (-q2, q1, q0)))
-    zero = np.zeros(npts)
-    u1, u2, u3 = u
-    right = np.array(((zero, -u1, -u2, -u3), (u1, zero, u3, -u2), (u2, -u3, zero, u1),
-                      (u3, u2, -u1, zero)))
+    matrices of the Hamilton product (each factor by the constant tensors above)."""
+    q, _, n2, rot = _frame(y)
+    m = y[7:10]
+    npts = q.shape[1]
+    kinv = 1 / stiffness(p)
+    scale = 2 / n2
+    d3 = rot[2::3]
+    mb = _body_moment(rot, m)
+    u = _curvature(mb, p)
+    du_dq = _times(_W_GRAD, (m[:, None, :] * q[None, :, :]).reshape(12, npts)).reshape(3, 4, npts)
+    du_dq -= mb[:, None, :] * q[None, :, :]
+    du_dq *= kinv[:, None, None] * scale                                  # (3, 4, m)
+    dd3 = (_W_COL3 @ q).reshape(3, 4, npts)
+    dd3 -= d3[:, None, :] * q[None, :, :]
+    dd3 *= scale                                                          # (3, 4, m)
     jac = np.zeros((10, 10, npts))
-    dd3 = drot[:, 2]                                                      # (3, 4, m)
     jac[0:3, 3:7] = dd3
-    jac[3:7, 3:7] = 0.5 * (right + np.einsum("ik...,kj...->ij...", left, du_dq))
-    jac[3:7, 7:10] = 0.5 * np.einsum("ik...,kj...->ij...", left, du_dm)
-    jac[7:10, 3:7] = np.einsum("ik,kj...->ij...", _cross_matrix(load(p)), dd3)
+    jac[3:7, 3:7] = (_W_RIGHT @ u).reshape(4, 4, npts)
+    jac[3:7, 3:7] += _times(_W_QDOT, (du_dq[:, None] * q[None, :, None]).reshape(
+        12, 4 * npts)).reshape(4, 4, npts)
+    du_dm = rot.reshape(3, 3, npts).transpose(1, 0, 2) * kinv[:, None, None]   # K^-1 R^T
+    jac[3:7, 7:10] = _times(_W_QDOT, (du_dm[:, None] * q[None, :, None]).reshape(
+        12, 3 * npts)).reshape(4, 3, npts)
+    jac[7:10, 3:7] = (_load_cross(p) @ dd3.reshape(3, 4 * npts)).reshape(3, 4, npts)
     return jac
 
 
@@ -259,13 +345,32 @@ def bc_jac(ya, yb, p):
     """(dbc/dya, dbc/dyb) of ``bc``: the clamp's 7 rows are the identity on (r, q)(0); the
     tip's m(1) - (eps R(q(1)) a_b) x F = m(1) + [F]_x eps R(q(1)) a_b has d/dm = I and
     d/dq_j = [F]_x eps dR/dq_j a_b."""
+    q = yb[3:7]
+    n2 = q @ q
+    # dR/dq_j a_b = 2 (D_j - q_j R) a_b / |q|^2, rows j
+    darm = (_T @ q) @ arm_body(p) - np.outer(q, _rotation_at(q) @ arm_body(p))
+    darm *= 2 * p["eps"] / n2
     da = np.zeros((10, 10))
     db = np.zeros((10, 10))
-    da[0:7, 0:7] = np.eye(7)
-    db[7:10, 7:10] = np.eye(3)
-    darm = p["eps"] * np.einsum("ikj,k->ij", rotation_derivative(yb[3:7]), arm_body(p))
-    db[7:10, 3:7] = _cross_matrix(load(p)) @ darm
+    da[0:7, 0:7] = _EYE7
+    db[7:10, 7:10] = _EYE7[:3, :3]
+    db[7:10, 3:7] = _load_cross(p) @ darm.T
     return da, db
+
+
+_EYE7 = np.eye(7)
+
+
+def _load_cross(p):
+    """[F]_x (3, 3), read-only (cached per P, alpha, beta: asked for at every call)."""
+    return _load_cross_of(float(p["P"]), float(p["alpha"]), float(p["beta"]))
+
+
+@functools.lru_cache(maxsize=64)
+def _load_cross_of(P, alpha, beta):
+    out = _cross_matrix(load({"P": P, "alpha": alpha, "beta": beta}))
+    out.flags.writeable = False
+    return out
 
 
 # ---- ordinates ---------------------------------------------------------------------------
@@ -389,24 +494,25 @@ def _blocks(s, y, p):
     return block([2]), block([0, 1])
 
 
-#: (key, counts) of the last state asked for: index_in and index_out are asked for one after
-#: the other at each point and share one evaluation of the form (one tuple, swapped whole,
-#: so that threads computing side by side read a consistent pair).
-_last_split = [None]
-
-
 def _split_counts(s, y, p):
     """(index_in, index_out) at the state, each -1 at a non-planar state or a zero
-    eigenvalue of its block."""
+    eigenvalue of its block (:func:`_split_counts_of`, keyed by value)."""
+    s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+    return _split_counts_of(s.tobytes(), y.tobytes(), len(y), tuple(sorted(p.items())))
+
+
+@functools.lru_cache(maxsize=4)
+def _split_counts_of(s_bytes, y_bytes, n, items):
+    """:func:`_split_counts` of the state given by value: index_in and index_out are asked
+    for one after the other at each point and share one evaluation of the form (the cache
+    is safe across threads computing side by side)."""
     from elastica_auto.numerics.stability import count_form
-    key = (np.asarray(s).tobytes(), np.asarray(y).tobytes(), tuple(sorted(p.items())))
-    entry = _last_split[0]
-    if entry is None or entry[0] != key:
-        blocks = _blocks(s, y, p)
-        counts = ((-1.0, -1.0) if blocks is None else
-                  tuple(float(count_form(b, s).index) for b in blocks))
-        entry = _last_split[0] = (key, counts)
-    return entry[1]
+    s = np.frombuffer(s_bytes).copy()
+    y = np.frombuffer(y_bytes).reshape(n, -1).copy()
+    blocks = _blocks(s, y, dict(items))
+    if blocks is None:
+        return -1.0, -1.0
+    return tuple(float(count_form(b, s).index) for b in blocks)
 
 
 def _split_index(which):
@@ -480,18 +586,20 @@ SYMMETRIC = 1e-12
 
 def clamp_axis(p):
     """e = d3(0), the clamp's axis (spatial)."""
-    return rotation(clamp_quaternion(p))[:, 2]
+    return _clamp(float(p["theta0"]), float(p["phi0"]))[1].copy()
 
 
 def is_symmetric(p) -> bool:
     """Whether the rotation about the clamp axis (the frames counter-rotated about d3) maps
     solutions to solutions: b2 = 1, u1 = u2 = 0, the load along the axis (or none) and the
     arm along the tip tangent (or of length 0)."""
-    f = load(p)
-    return bool(abs(p["b2"] - 1.0) <= SYMMETRIC and abs(p["u1"]) <= SYMMETRIC
-                and abs(p["u2"]) <= SYMMETRIC
-                and np.linalg.norm(np.cross(f, clamp_axis(p))) <= SYMMETRIC * abs(p["P"])
-                and (p["eps"] == 0 or abs(math.sin(p["psi"])) <= SYMMETRIC))
+    if not (abs(p["b2"] - 1.0) <= SYMMETRIC and abs(p["u1"]) <= SYMMETRIC
+            and abs(p["u2"]) <= SYMMETRIC
+            and (p["eps"] == 0 or abs(math.sin(p["psi"])) <= SYMMETRIC)):
+        return False
+    (f1, f2, f3), (e1, e2, e3) = load(p).tolist(), clamp_axis(p).tolist()
+    return math.hypot(f2 * e3 - f3 * e2, f3 * e1 - f1 * e3, f1 * e2 - f2 * e1) <= (
+        SYMMETRIC * abs(p["P"]))
 
 
 def symmetry(s, y, p):
@@ -526,9 +634,12 @@ def zero_mode(s, y, p):
     """The symmetry's zero mode of the second variation, the rotation field omega = e - d3(s)
     (spatial; omega(0) = 0), L2-normalised on the points ``s``, or None where the parameters
     break the symmetry or the state is fixed by it (omega = 0: the straight rod)."""
-    if not is_symmetric(p):
-        return None
-    omega = clamp_axis(p)[:, None] - rotation(y[3:7])[:, 2]
+    return _zero_mode_of(s, rotation(y[3:7])[:, 2], p) if is_symmetric(p) else None
+
+
+def _zero_mode_of(s, d3, p):
+    """:func:`zero_mode` of a symmetric state from its tangents d3 (3, m)."""
+    omega = _clamp(float(p["theta0"]), float(p["phi0"]))[1][:, None] - d3
     size = math.sqrt(float(trapezoid_weights(s) @ np.sum(omega * omega, axis=0)))
     return omega / size if size > ZERO_MODE else None
 
@@ -541,22 +652,22 @@ def second_variation(s, y, p):
     """The second variation in spatial rotation perturbations omega (docs/kirchhoff.md):
     A = R K R^T, C = -[m]_x / 2, B = (F.d3) I - sym(F d3^T), E1 = (F.a) I - sym(F a^T) with
     a = eps R(1) a_b, omega(0) = 0 (the clamp), natural at s = 1."""
+    # A and B to the last bit as they were (R by ``rotation``): a count at a located branch
+    # point, whose pivot is at the zero threshold, turns on their rounding
     rot = rotation(y[3:7])                                    # (3, 3, m)
     a = np.einsum("ik...,k,jk...->ij...", rot, stiffness(p), rot)
-    m = y[7:10]
-    zero = np.zeros_like(m[0])
-    cross_m = np.array(((zero, -m[2], m[1]), (m[2], zero, -m[0]), (-m[1], m[0], zero)))
     f = load(p)
     d3 = rot[:, 2]
-    eye = np.eye(3)[:, :, None]
     fd = np.einsum("i,j...->ij...", f, d3)
-    b = (f @ d3) * eye - 0.5 * (fd + fd.transpose(1, 0, 2))
-    arm = tip_arm(y[:, -1], p)
+    b = (f @ d3) * _EYE7[:3, :3, None] - 0.5 * (fd + fd.transpose(1, 0, 2))
+    c = (_W_HALF_CROSS @ y[7:10]).reshape(3, 3, -1)                      # -[m]_x / 2 exactly
+    arm = (p["eps"] * rot[:, :, -1]) @ arm_body(p)
     fa = np.outer(f, arm)
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
-    mode = zero_mode(s, y, p)
-    return SecondVariation(a, b, -0.5 * cross_m, E1=e1, fixed0=[0, 1, 2],
+    mode = _zero_mode_of(s, d3, p) if is_symmetric(p) else None
+    return SecondVariation(a, b, c, E1=e1, fixed0=[0, 1, 2],
                            constraints=() if mode is None else [Constraint(mode, kernel=True)])
+
 
 
 # ---- shooting (the snap-back targets) -------------------------------------------------------

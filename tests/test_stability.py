@@ -710,3 +710,22 @@ def test_fold_transitions_match_the_dense_count_on_either_side(rotating_arm, tri
     # the P-branches of trivial_buckling have no folds: the straight rod is parameterised by P
     # itself, and the buckled branches leave supercritical pitchforks with P increasing
     assert _fold_checks(trivial_buckling) == 0
+
+
+def test_smallest_eigenvalue_of_small_blocks_matches_lapack():
+    """The closed forms of the 2 x 2 and 3 x 3 smallest eigenvalue (stability._min_eig)
+    against LAPACK's, on random symmetric blocks and on rotated diag(1, 1, c) and diag(c, c, 1)
+    (a double eigenvalue above or at the bottom: the arccos is steep there), to rounding."""
+    rng = np.random.default_rng(7)
+    for k in (2, 3):
+        x = rng.normal(size=(300, k, k))
+        blocks = [x @ x.transpose(0, 2, 1) + 0.1 * np.eye(k), 2.5 * np.broadcast_to(
+            np.eye(k), (5, k, k)).copy()]
+        if k == 3:
+            q, _ = np.linalg.qr(rng.normal(size=(300, 3, 3)))
+            for diag in ((1.0, 1.0, 1 / 1.3), (0.5, 0.5, 1.0), (0.5, 0.5 + 1e-9, 1.0)):
+                blocks.append((q * np.array(diag)) @ q.transpose(0, 2, 1))
+        for a in blocks:
+            ref = np.linalg.eigvalsh(a)
+            err = np.abs(stability._min_eig(a) - ref[:, 0]) / np.abs(ref).max(axis=1)
+            assert np.max(err) < 1e-14, (k, np.max(err))

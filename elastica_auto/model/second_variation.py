@@ -118,7 +118,7 @@ def _check_symmetric(name, m):
     if m.shape[-1] == 1:
         return
     gap = np.abs(m - m.transpose(0, 2, 1))
-    if np.max(gap) > SYMMETRY_TOL * (1.0 + np.max(np.abs(m))):
+    if gap.max() > SYMMETRY_TOL * (1.0 + np.abs(m).max()):
         q, i, j = np.unravel_index(np.argmax(gap), gap.shape)
         _fail(f"{name} is not symmetric: {name}[{i}, {j}] - {name}[{j}, {i}] = "
               f"{m[q, i, j] - m[q, j, i]:.3g} at point {q}")

@@ -124,11 +124,45 @@ def _min_eig(a):
     """The smallest eigenvalue of each symmetric block (p, k, k). (A lower bound would do for
     the Legendre check, but the refinement's wavenumber divides by it: a bound a factor k - 1
     low refines meshes that need it not.)"""
-    if a.shape[-1] == 1:
+    k = a.shape[-1]
+    if k == 1:
         return a[:, 0, 0]
     if a.strides[0] == 0:   # a constant field (a stiffness), broadcast: one block to solve
         return np.broadcast_to(np.linalg.eigvalsh(a[:1])[:, 0], len(a))
+    if k <= 3:
+        return _small_min_eig(a)
     return np.linalg.eigvalsh(a)[:, 0]
+
+
+def _small_min_eig(a):
+    """:func:`_min_eig` of 2 x 2 and 3 x 3 blocks in closed form (numpy's batched eigensolver
+    costs several times as much on them). 2 x 2: (a + b)/2 - |((a - b)/2, d)|. 3 x 3
+    (trigonometric; Smith 1961): with q = tr A / 3, A = q I + p B, p^2 = |A - q I|_F^2 / 6,
+    the eigenvalues are q + 2 p cos(phi + 2 pi j / 3), 3 phi = arccos(det B / 2), the smallest
+    at j = 1: accurate to rounding (relative to |A|) except where the two smallest nearly
+    coincide (det B / 2 near 1, where the arccos is steep), which go to the eigensolver."""
+    rows = a.transpose(1, 2, 0).reshape(a.shape[-1] ** 2, -1)   # no copy for a hook's layout
+    if a.shape[-1] == 2:
+        return 0.5 * (rows[0] + rows[3]) - np.hypot(0.5 * (rows[0] - rows[3]), rows[1])
+    q = rows[_DIAG3].sum(axis=0) / 3
+    a0, a1, a2 = rows[_DIAG3] - q
+    d, e, f = rows[_SYM3[3:]]
+    p2 = (a0 * a0 + a1 * a1 + a2 * a2 + 2 * (d * d + e * e + f * f)) / 6
+    det = a0 * (a1 * a2 - f * f) - d * (d * a2 - e * f) + e * (d * f - a1 * e)
+    # p = 0 (A = q I): det = 0, so phi = pi / 6 and the result q
+    half_det = np.clip(0.5 * det / np.maximum(p2 * np.sqrt(p2), _TINY), -1.0, 1.0)
+    out = q + 2 * np.sqrt(p2) * np.cos(np.arccos(half_det) / 3 + 2 * np.pi / 3)
+    near = half_det > _NEAR_DOUBLE
+    if np.count_nonzero(near):     # the two smallest (nearly) coincide: solve those blocks
+        out[near] = np.linalg.eigvalsh(a[near])[:, 0]
+    return out
+
+
+_TINY = np.finfo(float).tiny
+#: det B / 2 above this: the two smallest eigenvalues are so close that the arccos, steep at
+#: 1, would lose up to half the digits of the smallest; below it at most a factor 1 /
+#: sqrt(1 - 0.99^2) = 7 of a rounding error.
+_NEAR_DOUBLE = 0.99
 
 
 def _norm(a):
@@ -143,7 +177,7 @@ def _wavenumber(a_min, b, c):
     h' + A^-1 C h = v the form is v.A v + h.(B - C^T A^-1 C) h, so the solutions turn at the
     rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A); bounded by norms (for k = 1
     and C = 0, sqrt(|b| / a))."""
-    if not np.any(c):
+    if not np.count_nonzero(c):
         return np.sqrt(_norm(b) / a_min)
     c_norm = _norm(c)
     return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
@@ -177,7 +211,7 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
     w = _wavenumber(a_min, b, c)
     w = np.maximum(np.maximum(w[0:-1:2], w[1::2]), w[2::2])
     parts = np.ceil(h * w / MAX_PHASE).astype(int)
-    if np.any(parts > 1):
+    if np.count_nonzero(parts > 1):
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
@@ -198,8 +232,8 @@ def _evaluate(evaluate, s, shift, source):
     a, b, c, g = form.fields(len(pts))
     ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
     # one sum: NaN and inf propagate through it (a finite sum overflows only past 1e300)
-    if not math.isfinite(float(np.sum(a) + np.sum(b) + np.sum(c) + np.sum(g)
-                               + sum(np.sum(v) for v in ends))):
+    if not math.isfinite(float(a.sum() + b.sum() + c.sum() + g.sum()
+                               + sum(v.sum() for v in ends))):
         return form, None
     if shift:
         b = b - shift * np.eye(form.k)
@@ -226,14 +260,18 @@ def _element_blocks(s, a, b, c):
     """
     h = np.diff(s).reshape(-1, *(1,) * (a.ndim - 1))
     a0, am, a2 = a[0:-1:2], a[1::2], a[2::2]
-    b0, bm, b2 = b[0:-1:2], b[1::2], b[2::2]
-    k00 = (9 * a0 + 4 * am + a2) / (6 * h) + (h / 6) * b0
-    k22 = (a0 + 4 * am + 9 * a2) / (6 * h) + (h / 6) * b2
-    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * bm
-    k02 = (3 * a0 - 4 * am + 3 * a2) / (6 * h)
-    k0m = -(12 * a0 + 4 * a2) / (6 * h)
-    k2m = -(4 * a0 + 12 * a2) / (6 * h)
-    if np.any(c):
+    # k00, k22, k02, k0m, k2m as (w0 a0 + wm am + w2 a2) / (6 h), all five at once (the
+    # weights of each as written above: -(12 a0 + 4 a2) is -12 a0 + 0 am - 4 a2 exactly)
+    w = _P2_A.reshape(3, 5, *(1,) * a.ndim)
+    blocks = w[0] * a0
+    blocks += w[1] * am
+    blocks += w[2] * a2
+    blocks /= 6 * h
+    k00, k22, k02, k0m, k2m = blocks
+    k00 += (h / 6) * b[0:-1:2]
+    k22 += (h / 6) * b[2::2]
+    kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * b[1::2]
+    if np.count_nonzero(c):
         c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
         c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
         k00 -= 0.5 * (c0 + c0t)
@@ -242,6 +280,10 @@ def _element_blocks(s, a, b, c):
         k0m += (4 / 6) * (c0t - cm)
         k2m += (4 / 6) * (cm - c2t)
     return (k00, k02, k22), (k0m, k2m, kmm)
+
+
+#: The weights of a0, am, a2 in k00, k22, k02, k0m, k2m (times 6 h).
+_P2_A = np.array([[9, 1, 3, -12, -4], [4, 4, -4, 0, 0], [1, 9, 3, -4, -12]], dtype=float)
 
 
 def _inertia(form, s, a, b, c, a_min, g) -> int:
@@ -255,22 +297,29 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
         return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
     h = np.diff(s)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
-    x0, x2 = kmm_inv @ k0m.transpose(0, 2, 1), kmm_inv @ k2m.transpose(0, 2, 1)
+    # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
+    # products (as in _reduce)
+    x = np.empty((len(h), k, 2 * k))
+    x[:, :, :k] = k0m.transpose(0, 2, 1)
+    x[:, :, k:] = k2m.transpose(0, 2, 1)
+    y = kmm_inv @ x
+    z = x.transpose(0, 2, 1) @ y
     d = np.zeros((len(s), k, k))
-    d[:-1] += k00 - k0m @ x0
-    d[1:] += k22 - k2m @ x2
-    u = k02 - k0m @ x2
+    d[:-1] += k00 - z[:, :k, :k]
+    d[1:] += k22 - z[:, k:2 * k, k:2 * k]
+    u = k02 - z[:, :k, k:2 * k]
     d[0] += form.E0
     d[-1] += form.E1
-    f = _constraint_columns(form, h, g, x0, x2)
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    f = _constraint_columns(form, h, gt, y[:, :, :k], y[:, :, k:], cm)
     _restrict(d, u, f, 0, form.free0, form.fixed0)
     _restrict(d, u, f, -1, form.free1, form.fixed1)
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
-        _accumulate(g[:, 1::2, :].transpose(1, 2, 0) * ((4 / 6) * h)[:, None, None], kmm_inv,
-                    s_mat)
+        _accumulate(cm, kmm_inv, s_mat)
     neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
     negative += neg_k
     if not r:
@@ -297,7 +346,7 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
     call dominates."""
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float(np.max(np.abs(k00) + np.abs(k22)))
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     if np.any(np.abs(kmm) <= scale):
         raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
                         "precision")
@@ -321,20 +370,19 @@ def _accumulate(f, inv, into):
     into[1] += np.einsum("pai,pab,pbj->ij", np.abs(f), np.abs(inv), np.abs(f))
 
 
-def _constraint_columns(form, h, g, x0, x2):
+def _constraint_columns(form, h, gt, x0, x2, cm):
     """The constraints as columns on the nodes, (n_nodes, k, r): Simpson's rule for int g.h
-    (a node or midpoint value times its weight) plus d0, d1 at the ends, the midpoint parts
-    condensed like the stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
+    (a node or midpoint value times its weight; ``gt`` the values (points, k, r), ``cm`` the
+    midpoints' weighted) plus d0, d1 at the ends, the midpoint parts condensed like the
+    stiffness: C_n - K_nm K_mm^-1 C_m, with K_nm K_mm^-1 = x^T."""
     r = len(form.constraints)
     f = np.zeros((len(h) + 1, form.k, r))
     if not r:
         return f
-    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
     f[:-1] += (h / 6)[:, None, None] * gt[0:-1:2]
     f[1:] += (h / 6)[:, None, None] * gt[2::2]
     f[0] += np.array([con.d0 for con in form.constraints]).T
     f[-1] += np.array([con.d1 for con in form.constraints]).T
-    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
     f[:-1] -= x0.transpose(0, 2, 1) @ cm
     f[1:] -= x2.transpose(0, 2, 1) @ cm
     return f
@@ -348,7 +396,7 @@ def _restrict(d, u, f, end, free, fixed):
     if not fixed.shape[1]:
         return
     if not free.shape[1]:   # all fixed: the node's own block, decoupled
-        fill = max(float(np.max(np.abs(d[end]))), 1.0)
+        fill = max(float(np.abs(d[end]).max()), 1.0)
         d[end] = fill * np.eye(len(fixed))
         u[0 if end == 0 else -1] = 0.0
         f[end] = 0.0
@@ -378,7 +426,7 @@ def _pivots(blocks, scale, what):
     k = blocks.shape[-1]
     if k == 1:
         w = blocks[:, 0, 0]
-        if np.any(np.abs(w) <= scale):
+        if np.count_nonzero(np.abs(w) <= scale):
             raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
         return 1.0 / blocks, int(np.count_nonzero(w < 0))
     if k <= 3:
@@ -408,33 +456,46 @@ def _small_pivots(m, scale):
     (n_2 xor n_3); a zero coefficient counts as positive."""
     p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
+    coefficients = np.empty((k, p))                # c_1, ..., c_k
+    c_last, det = coefficients[-2], coefficients[-1]
     if k == 2:
         a, b, d = rows[0], rows[3], rows[1]
-        det = a * b - d * d
-        inv = rows[_ADJ2] * _ADJ2_SIGN[:, None] / det
-        c_last = a + b
-        neg1 = c_last < 0
-        changes = np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ (det < 0))
+        np.multiply(a, b, out=det)
+        det -= d * d
+        adj = rows[_ADJ2] * _ADJ2_SIGN[:, None]
+        np.add(a, b, out=c_last)
     else:
-        e = rows[_SYM3]                                     # a, b, c, d, e, f (_SYM3)
-        cof = e[_COF[0]] * e[_COF[1]] - e[_COF[2]] * e[_COF[3]]
-        det = e[0] * cof[0] + e[3] * cof[3] + e[4] * cof[4]     # a c00 + d c01 + e c02
-        inv = cof[_COF_TO_3X3] / det
-        c_last = cof[0] + cof[1] + cof[2]
-        neg1, neg2 = e[0] + e[1] + e[2] < 0, c_last < 0
-        changes = (np.count_nonzero(neg1) + np.count_nonzero(neg1 ^ neg2)
-                   + np.count_nonzero(neg2 ^ (det < 0)))
-    singular = bool(np.any(np.abs(det) <= scale * np.abs(c_last)))
-    return inv.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+        e = rows[_COF_FACTORS]                      # the factors of the cofactors (4, 6, p)
+        cof = e[0] * e[1]
+        cof -= e[2] * e[3]                          # c00, c11, c22, c01, c02, c12
+        adj = cof[_COF_TO_3X3]
+        # (sums written out: np.sum costs more than the additions on these rows)
+        np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
+        det += rows[1] * adj[1]
+        det += rows[2] * adj[2]
+        np.add(cof[0], cof[1], out=c_last)
+        c_last += cof[2]
+        np.add(rows[0], rows[4], out=coefficients[0])
+        coefficients[0] += rows[8]
+    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
+    negative = coefficients < 0
+    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
+    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
+    adj /= det
+    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
 _ADJ2, _ADJ2_SIGN = np.array([3, 1, 2, 0]), np.array([1.0, -1.0, -1.0, 1.0])
+#: The diagonal of a 3 x 3 block flattened.
+_DIAG3 = np.array([0, 4, 8])
 #: A symmetric 3 x 3 block flattened, its entries a, b, c (diagonal), d, e, f (01, 02, 12).
 _SYM3 = np.array([0, 4, 8, 1, 2, 5])
 #: Its cofactors c00, c11, c22, c01, c02, c12 as e[i] e[j] - e[k] e[l]: b c - f f, a c - e e,
 #: a b - d d, e f - d c, d f - b e, d e - a f.
 _COF = np.array([[1, 0, 0, 4, 3, 3], [2, 2, 1, 5, 5, 4], [5, 4, 3, 3, 1, 0], [5, 4, 3, 2, 4, 5]])
+#: The same factors as entries of the flattened block.
+_COF_FACTORS = _SYM3[_COF]
 #: The adjugate (the cofactors' symmetric matrix) flattened from them.
 _COF_TO_3X3 = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])
 
@@ -468,29 +529,38 @@ def _reduce(d, u, f, scale, s_mat):
     inverted all at once; their Schur complement is again block tridiagonal on the even
     nodes. By Haynsworth's additivity the negative eigenvalues of all the pivots, the last
     included, are n_-(K) (Sylvester), and the constraint columns, eliminated alongside,
-    accumulate C K^-1 C^T.
+    accumulate C K^-1 C^T (and, for the scale of its rounding, |C| |K^-1| |C|^T).
     The first levels' pivots couple neighbours a few elements apart, where the stiffness
     dominates (MAX_PHASE): they are positive definite and well conditioned."""
-    negative = 0
+    negative, k, r = 0, d.shape[-1], f.shape[2]
     while len(d) > 1:
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
-        left, right = u[0::2], u[1::2]             # K[o-1, o] and K[o, o+1], o odd
-        pl = inv @ left.transpose(0, 2, 1)         # D_o^-1 K[o, o-1]
-        pr = inv[: len(right)] @ right             # D_o^-1 K[o, o+1]
+        p, n_right = len(inv), len(u) // 2
+        # x = [K[o, o-1], K[o, o+1]] for each odd node o (the last may have no right
+        # neighbour: zero), y = D_o^-1 x: x^T y holds the even nodes' new blocks, y^T K[o,
+        # o+1] their coupling (each product associated as K D^-1 K' was before, to the last
+        # bit: a count next to a zero eigenvalue turns on it)
+        x = np.empty((p, k, 2 * k))
+        x[:, :, :k] = u[0::2].transpose(0, 2, 1)
+        x[:n_right, :, k:] = u[1::2]
+        if n_right < p:
+            x[n_right:, :, k:] = 0.0
+        y = inv @ x
+        z = x.transpose(0, 2, 1) @ y
         de = d[0::2].copy()
-        de[: len(left)] -= left @ pl
-        de[1: len(right) + 1] -= right.transpose(0, 2, 1) @ pr
-        if f.shape[2]:
+        de[:p] -= z[:, :k, :k]
+        de[1:n_right + 1] -= z[:n_right, k:, k:]
+        u = -(y[:n_right, :, :k].transpose(0, 2, 1) @ x[:n_right, :, k:])
+        if r:
             fo = f[1::2]
             fe = f[0::2].copy()
-            fe[: len(left)] -= pl.transpose(0, 2, 1) @ fo
-            fe[1: len(right) + 1] -= pr.transpose(0, 2, 1) @ fo[: len(right)]
+            fe[:p] -= y[:, :, :k].transpose(0, 2, 1) @ fo
+            fe[1:n_right + 1] -= y[:n_right, :, k:].transpose(0, 2, 1) @ fo[:n_right]
             _accumulate(fo, inv, s_mat)
             f = fe
         else:
             f = f[0::2]
-        u = -pl[: len(right)].transpose(0, 2, 1) @ right
         d = de
     return negative, d[0], f[0]
 
