@@ -196,31 +196,52 @@ def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]
     return lin.sign, lin.fact.logdet
 
 
+#: The half-widths, as fractions of the step, of the brackets in which the branch point is
+#: looked for on a refined mesh around its root on the mesh before (then in the whole step):
+#: the roots move between the meshes by up to 1e-4 of the step on the shipped 3D runs (the
+#: hyperplanes' coordinate of the discrete solution changes with its mesh), and the Illinois
+#: iterations from a narrow bracket are fewer.
+NEAR = (1e-3, 0.02)
+#: The accuracy, as a fraction of the step, of a branch point's root: on the mesh it is
+#: reported on (BP_XTOL: closer than the parameter's rounding at the symmetric points, where
+#: the index counted at the branch point itself is then refused as it should be, the zero
+#: eigenvalue at rounding level), and on a mesh it is only the start of a refined one's
+#: search from (COARSE_XTOL: that mesh is made from the error estimate there, which a shift
+#: of 1e-8 of the step does not change).
+BP_XTOL = 1e-12
+COARSE_XTOL = 1e-8
+
+
 def locate_branch_point(corr, step: Step) -> Located:
     """The branch point between a and b, where the determinant changes sign: the root of
     ``det(sigma) / |det(0)|`` along the hyperplanes, on b's mesh and then, until the solution
     and the kernel (the other branch's direction) are resolved to ``fold_tol``, on
-    equidistributed ones. ``value``: the scaled determinant there.
+    equidistributed ones, bracketed within NEAR of the root on the mesh before; to BP_XTOL of
+    the step, on b's mesh first to COARSE_XTOL (b's mesh is seldom the last). ``value``: the
+    scaled determinant there.
 
     The sign change must survive a re-solve of a and b on that mesh with every interval
     halved: a change of sign that an under-resolved mesh makes (a discrete eigenvalue that
     crosses zero on one mesh only) is not a branch point. CorrectorFailure where it does
     not."""
     name = step.name
-    s, lo, hi = step.b.mesh, 0.0, step.dist
+    s, brackets, xtol = step.b.mesh, [(0.0, step.dist)], COARSE_XTOL
     for _ in range(4):
-        bp = _branch_point_on(corr, step, s, lo, hi)
+        bp = _branch_point_on(corr, step, s, brackets, xtol)
         sol = bp.solution
         v, v_lam = kernel(sol.lin)
         disc = sol.lin.disc
         rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
                                                            v, v_lam, name))
+        brackets = [(max(bp.sigma - w * step.dist, 0.0), min(bp.sigma + w * step.dist,
+                                                               step.dist))
+                    for w in NEAR] + [(0.0, step.dist)]
         if rms.max() <= corr.options.fold_tol:
-            _check_on_finer_mesh(corr, step, sol.mesh)
+            if xtol > BP_XTOL:
+                bp = _branch_point_on(corr, step, s, brackets, BP_XTOL)
+            _check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
-        s = corr.regrid(s, rms, corr.options.fold_tol)
-        width = 0.02 * step.dist
-        lo, hi = max(bp.sigma - width, 0.0), min(bp.sigma + width, step.dist)
+        s, xtol = corr.regrid(s, rms, corr.options.fold_tol), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
 
@@ -238,20 +259,28 @@ def _check_on_finer_mesh(corr, step: Step, s):
                                f"mesh ({len(fine)} nodes)")
 
 
-def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
-    """The root of the scaled determinant on mesh ``s``, bracketed in [lo, hi] if possible,
-    else in [0, dist]."""
-    sec, a = step.secant, step.a
+def _branch_point_on(corr, step: Step, s, brackets, xtol: float) -> Located:
+    """The root of the scaled determinant on mesh ``s``, in the first of the ``brackets``
+    ((lo, hi) pairs) where it changes sign, to ``xtol`` of the step."""
+    sec, a, b = step.secant, step.a, step.b
+    known = {}
 
     def det(sigma):
-        sol = corr.on_plane(a, sec, sigma, s, regrid=False) if sigma else a
-        return _det_on(corr, sol, sec, s)
+        if sigma not in known:
+            if sigma == 0.0:
+                sol = a
+            elif sigma == step.dist and s is b.mesh:
+                sol = b     # on the hyperplane <x - a, secant> = dist by the secant's making
+            else:
+                sol = corr.on_plane(a, sec, sigma, s, regrid=False)
+            known[sigma] = _det_on(corr, sol, sec, s)
+        return known[sigma]
 
-    (sign0, ref), (sign1, log1) = det(lo), det(hi)
-    if sign0 * sign1 >= 0 and (lo, hi) != (0.0, step.dist):
-        lo, hi = 0.0, step.dist
+    for lo, hi in brackets:
         (sign0, ref), (sign1, log1) = det(lo), det(hi)
-    if sign0 * sign1 >= 0:
+        if sign0 * sign1 < 0:
+            break
+    else:
         raise CorrectorFailure("the determinant does not change sign along the secant")
 
     def tau(sol):
@@ -261,7 +290,7 @@ def _branch_point_on(corr, step: Step, s, lo: float, hi: float) -> Located:
         return sign * math.exp(min(logdet - ref, 700.0)) if sign else 0.0
 
     return along(corr, step, tau, lo, hi, s,
-                 ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))))
+                 ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))), xtol=xtol)
 
 
 def locate_index_change(corr, step: Step, index_of, index_a: int,
