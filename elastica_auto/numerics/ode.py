@@ -147,7 +147,9 @@ def dop853(f, y0, s0: float = 0.0, s1: float = 1.0, rtol: float = 1e-11, atol: f
     s = s0
     k[0] = f(np.full(m, s), y)
     h = _first_step(lambda t, z: f(np.full(m, t), z), s, y, k[0], s1 - s0, rtol, atol)
-    steps = [(s, y)]
+    # the steps' starts, kept only for values between them: a scan of a thousand columns
+    # would otherwise hold every step's y to the end
+    steps = [(s, y)] if s_eval is not None else None
     rejected = False
     while s < s1:
         if h < 10 * np.spacing(abs(s)):
@@ -158,7 +160,8 @@ def dop853(f, y0, s0: float = 0.0, s1: float = 1.0, rtol: float = 1e-11, atol: f
         if err <= 1.0:
             s = s1 if h >= s1 - s else s + h
             y = y_new
-            steps.append((s, y))
+            if steps is not None:
+                steps.append((s, y))
             k[0] = f(np.full(m, s), y)    # the first stage of the next step
             factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** -0.125)
             h *= min(factor, 1.0) if rejected else factor
