@@ -51,7 +51,7 @@ def small_cli_run(tmp_path_factory, cli_exe):
 @pytest.fixture(scope="session")
 def trivial_buckling(tmp_path_factory) -> RunOutput:
     """The shipped trivial_buckling run (P from the straight rod, switching at its first two
-    branch points), computed once (about 5 s on two processes)."""
+    branch points), computed once (about 5 s)."""
     from helpers import REPO
     plan = runfile.load(REPO / "runs" / "trivial_buckling.toml")
     # The tests assume the shipped configuration: straight rods with psi = alpha = theta0 = 0.
@@ -59,7 +59,7 @@ def trivial_buckling(tmp_path_factory) -> RunOutput:
     for spec in plan.branches:
         assert spec.start.kind == "trivial"
         assert all(spec.params.get(k, 0.0) == 0.0 for k in ("psi", "alpha", "theta0", "P"))
-    return run_plan(plan, tmp_path_factory.mktemp("trivial_buckling"), jobs=2)
+    return run_plan(plan, tmp_path_factory.mktemp("trivial_buckling"))
 
 
 @pytest.fixture(scope="session")

@@ -24,7 +24,7 @@ from helpers import EXAMPLES, run_plan
 def eigen_run(tmp_path_factory):
     plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
     assert plan.switch_count == 2
-    return run_plan(plan, tmp_path_factory.mktemp("eigen"), jobs=2)
+    return run_plan(plan, tmp_path_factory.mktemp("eigen"))
 
 
 def _shoot(p, slope):

@@ -22,6 +22,9 @@ from elastica_auto.model.problem import load_problem
 from elastica_auto.storage.store import BranchFile
 from test_paper_runs import REPO, build_paper, make
 
+#: one worker of `pytest -n` builds the reduced paper runs for both files (make test)
+pytestmark = pytest.mark.xdist_group("paper")
+
 
 @pytest.fixture(scope="session")
 def drawn(tmp_path_factory, rotating_arm):

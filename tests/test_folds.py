@@ -184,12 +184,12 @@ CUSP = dict(eps="0.362", P="9*pi^2/4", bounds=("-6*pi", "6*pi"))
 GAPS = {"0.3612": 2.555434e-5, "0.3615": 2.436414e-4, "0.362": 8.515e-4}
 
 
-def _cusp_folds(tmp_path, eps=CUSP["eps"], jobs=2, **options):
+def _cusp_folds(tmp_path, eps=CUSP["eps"], **options):
     tmp_path.mkdir(exist_ok=True)
     path = elastica_run_file(tmp_path / "cusp.toml", eps=eps, P=CUSP["P"], bounds=CUSP["bounds"])
     plan = runfile.load(path)
     plan.options = dataclasses.replace(plan.options, **options)
-    return run_plan(plan, tmp_path, jobs=jobs).result.branches
+    return run_plan(plan, tmp_path).result.branches
 
 
 def _check_cusp(branches, eps=0.362, gap=GAPS["0.362"]):
@@ -227,11 +227,11 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     from elastica_auto.branches import stepper
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
     monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
-    missed = _cusp_folds(tmp_path / "without", jobs=1, ds_max=1.0)
+    missed = _cusp_folds(tmp_path / "without", ds_max=1.0)
     assert all(len(b.folds) < 17 for b in missed), "choose a case where pairs are missed"
     monkeypatch.undo()
     monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
-    _check_cusp(_cusp_folds(tmp_path / "with", jobs=1, ds_max=1.0))
+    _check_cusp(_cusp_folds(tmp_path / "with", ds_max=1.0))
 
 
 def test_the_rotating_arm_folds_do_not_depend_on_ds_max(tmp_path):
@@ -243,7 +243,7 @@ def test_the_rotating_arm_folds_do_not_depend_on_ds_max(tmp_path):
         plan.options = dataclasses.replace(plan.options, ds=min(0.05, ds_max), ds_max=ds_max,
                                            max_points=20000)
         plan.user_values = []
-        branches = run_plan(plan, tmp_path / str(ds_max), jobs=2).result.branches
+        branches = run_plan(plan, tmp_path / str(ds_max)).result.branches
         assert [len(b.folds) for b in branches] == [5, 5, 5, 5, 5, 5, 10, 10]
         for b in branches:
             assert b.disagreements == [] and b.warnings == [] and b.end == "EP"

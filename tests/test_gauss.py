@@ -133,7 +133,7 @@ def test_rotating_arm_folds_with_gauss_collocation_match_shooting(tmp_path):
     plan.branches = [b for b in plan.branches if abs(b.params["P"] - math.pi ** 2 / 4) < 1e-12]
     plan.user_values = []
     plan = dataclasses.replace(plan, options=dataclasses.replace(plan.options, ncol=4))
-    branches = run_plan(plan, tmp_path, jobs=2).result.branches
+    branches = run_plan(plan, tmp_path).result.branches
     assert [len(b.folds) for b in branches] == [5, 5, 5, 5]
     for br in branches:
         for p in br.folds:

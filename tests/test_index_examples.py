@@ -125,7 +125,7 @@ def test_bratu_index_against_conjugate_points_of_the_closed_form(bratu):
 @pytest.fixture(scope="module")
 def eigen(tmp_path_factory):
     return run_plan(runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml"),
-                    tmp_path_factory.mktemp("eigen"), jobs=2).result.branches
+                    tmp_path_factory.mktemp("eigen")).result.branches
 
 
 def critical_count(p, loads):
@@ -187,13 +187,13 @@ def test_kernel_dimension_at_the_branch_points(eigen):
 @pytest.fixture(scope="module")
 def guided(tmp_path_factory):
     return run_plan(runfile.load(EXAMPLES / "guided_column.toml"),
-                    tmp_path_factory.mktemp("guided"), jobs=2).result.branches
+                    tmp_path_factory.mktemp("guided")).result.branches
 
 
 @pytest.fixture(scope="module")
 def clamped(tmp_path_factory):
     return run_plan(runfile.load(EXAMPLES / "clamped_column.toml"),
-                    tmp_path_factory.mktemp("clamped"), jobs=2).result.branches
+                    tmp_path_factory.mktemp("clamped")).result.branches
 
 
 @pytest.mark.parametrize("name, loads", [

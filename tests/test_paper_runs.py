@@ -24,6 +24,9 @@ from scipy.optimize import brentq
 import shooting
 from elastica_auto.storage.store import BranchFile
 
+#: one worker of `pytest -n` builds the reduced paper runs for both files (make test)
+pytestmark = pytest.mark.xdist_group("paper")
+
 REPO = Path(__file__).resolve().parents[1]
 TWO_PI = 2 * math.pi
 P1, P2 = math.pi ** 2 / 4, 9 * math.pi ** 2 / 4
