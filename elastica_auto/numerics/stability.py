@@ -320,24 +320,39 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
         _accumulate(cm, kmm_inv, s_mat)
-    neg_k, d_last, f_last = _reduce(d, u, f, scale, s_mat)
+    neg_k, d, u, f = _reduce(d, u, f, scale, s_mat)
     negative += neg_k
-    if not r:
-        return negative + _pivots(d_last[None], scale, "the last pivot (a fold or a branch "
-                                  "point)")[1]
-    # The last node and the multipliers: what is left of the bordered matrix [[K, C^T],
-    # [C, 0]] once every other node is eliminated is [[D, F], [F^T, -C K'^-1 C^T]] (K' the
-    # eliminated part). Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but
-    # it is counted as a whole: a constraint that removes a zero mode of K (a symmetry) makes
-    # D singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
+    # What is left, the block tridiagonal matrix D of the last nodes and, with constraints,
+    # the multipliers, [[D, F], [F^T, -C K'^-1 C^T]] (K' the eliminated part), is counted as
+    # one dense matrix. Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but it
+    # is counted as a whole: a constraint that removes a zero mode of K (a symmetry) makes D
+    # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
     total, size = s_mat
-    last = np.block([[d_last, f_last], [f_last.T, -total]])
-    w = np.linalg.eigvalsh(0.5 * (last + last.T))
-    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * np.max(size)):
-        raise _Singular("zero eigenvalue: the constrained form is singular to working "
+    w = np.linalg.eigvalsh(_dense_tail(d, u, f, -total))
+    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * size.max(initial=0)):
+        raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
+                        "precision (a fold or a branch point)" if not r else
+                        "zero eigenvalue: the constrained form is singular to working "
                         "precision (a fold or a branch point), or the constraints are "
                         "dependent")
     return negative + int(np.count_nonzero(w < 0)) - r
+
+
+def _dense_tail(d, u, f, corner):
+    """The symmetric matrix [[D, F], [F^T, corner]] of the block tridiagonal D (diagonal
+    blocks ``d`` (N, k, k), upper ``u`` (N-1, k, k)) and the columns ``f`` (N, k, r)."""
+    n, k, r = d.shape[0], d.shape[1], f.shape[2]
+    blocks = np.zeros((n, k, n, k))
+    i = np.arange(n)
+    blocks[i, :, i, :] = d
+    blocks[i[:-1], :, i[1:], :] = u
+    blocks[i[1:], :, i[:-1], :] = u.transpose(0, 2, 1)
+    out = np.empty((n * k + r, n * k + r))
+    out[:n * k, :n * k] = blocks.reshape(n * k, n * k)
+    out[:n * k, n * k:] = f.reshape(n * k, r)
+    out[n * k:, :n * k] = out[:n * k, n * k:].T
+    out[n * k:, n * k:] = corner
+    return 0.5 * (out + out.T)
 
 
 def _inertia_scalar(form, s, a, b, c) -> int:
@@ -518,10 +533,18 @@ def _sturm(diag, off2, scale) -> int:
     return negative + (d < 0)
 
 
+#: The reduction stops at this many nodes or fewer, whose block tridiagonal matrix is then
+#: counted as one dense symmetric matrix: an eigenvalue solve of at most 3 x 16 + r rows
+#: costs about one level of the reduction, some fifteen array operations whatever its size,
+#: and replaces the last four levels of a 100-node mesh (10% of a k = 3 count, 17% with a
+#: constraint, benchmarks/bench.py --index).
+DENSE_TAIL = 16
+
+
 def _reduce(d, u, f, scale, s_mat):
-    """Eliminate all nodes but the last: (the negative eigenvalues of their pivots, the last
-    node's pivot block, its constraint columns), adding C K^-1 C^T of the eliminated part to
-    ``s_mat`` (:func:`_accumulate`), for the block
+    """Eliminate all nodes but the last DENSE_TAIL or fewer: (the negative eigenvalues of
+    their pivots, and the blocks d, u, f of what is left), adding C K^-1 C^T of the
+    eliminated part to ``s_mat`` (:func:`_accumulate`), for the block
     tridiagonal K (diagonal blocks ``d`` (N, k, k), upper blocks ``u`` (N-1, k, k): u[i] =
     K[i, i+1]) and the constraint columns ``f`` (N, k, r), by odd-even (cyclic) reduction: a
     block LDL^T of K with the nodes ordered odd ones first, level by level. The odd nodes of a
@@ -533,7 +556,7 @@ def _reduce(d, u, f, scale, s_mat):
     The first levels' pivots couple neighbours a few elements apart, where the stiffness
     dominates (MAX_PHASE): they are positive definite and well conditioned."""
     negative, k, r = 0, d.shape[-1], f.shape[2]
-    while len(d) > 1:
+    while len(d) > DENSE_TAIL:
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
         p, n_right = len(inv), len(u) // 2
@@ -562,7 +585,8 @@ def _reduce(d, u, f, scale, s_mat):
         else:
             f = f[0::2]
         d = de
-    return negative, d[0], f[0]
+    return negative, d, u, f
+
 
 
 def kernel_dimension(problem, state, delta: float | None = None) -> int:
