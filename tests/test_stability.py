@@ -729,3 +729,23 @@ def test_smallest_eigenvalue_of_small_blocks_matches_lapack():
             ref = np.linalg.eigvalsh(a)
             err = np.abs(stability._min_eig(a) - ref[:, 0]) / np.abs(ref).max(axis=1)
             assert np.max(err) < 1e-14, (k, np.max(err))
+
+
+def test_the_rule_past_a_branch_point_followed_by_a_fold_reads_the_count_beyond_it():
+    """A BP, then at once an LP (rotating_arm_3d has an out-of-plane BP at psi = -pi and an
+    in-plane fold 0.02 beyond it, with no point between): the index between them is the
+    count past the fold less the fold's change, not the LP's own count, which is taken at a
+    zero eigenvalue (a guess by rounding, or -1). Here the fold takes 5 to 4 (psi turns back,
+    its curvature < 0 and the ordinate's slope > 0: index_change = -1)."""
+    from types import SimpleNamespace as NS
+    lam, ordinate = [0.0, 1.0, 2.0, 1.5, 1.0], [0.0, 0.0, 1.0, 2.0, 3.0]
+    types = ["", "BP", "LP", "", ""]
+    for lp_count in (-1, 3, 5):        # whatever the count at the fold's own state says
+        direct = [4, -1, lp_count, 4, 4]
+        points = [NS(type=t, index_direct=d) for t, d in zip(types, direct)]
+        branch = NS(parameter="psi", points=points,
+                    column=lambda name: np.array(lam if name == "psi" else ordinate))
+        problem = NS(ordinates={"m": NS(name="m", parameter="psi")},
+                     parameters={"psi": NS(enters="free")})
+        assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 2) == -1
+        assert stability.fold_rule(branch, problem, 4) == [4, 4, 5, 4, 4], lp_count

@@ -637,13 +637,14 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
     The sign needs only the neighbouring points, so it also applies at a fold whose extended
     system failed. Where the rule cannot apply (a fold of a parameter without a distinguished
     ordinate, a branch point) it takes the direct count after the special point, if there is
-    one, else -1. Points at a branch point itself (the same parameter value: a user point
-    placed on it, before or after it) are not past it: the count there leaves out the
-    eigenvalues that cross zero (a symmetry's zero mode is constrained away, or the count
-    fails), so the rule takes the first point off it, and gives the points on it the smaller
-    of the values on either side, the negative eigenvalues that both sides share (the
-    kernel's eigenvalues cross zero, each negative on one side only); the BP itself, as an
-    LP, the value it is approached with.
+    one, else -1 (past a branch point followed by LPs, the count beyond them less their
+    changes: :func:`_count_past`). Points at a branch point itself (the same parameter
+    value: a user point placed on it, before or after it) are not past it: the count there
+    leaves out the eigenvalues that cross zero (a symmetry's zero mode is constrained away,
+    or the count fails), so the rule takes the first point off it, and gives the points on it
+    the smaller of the values on either side, the negative eigenvalues that both sides share
+    (the kernel's eigenvalues cross zero, each negative on one side only); the BP itself, as
+    an LP, the value it is approached with.
     """
     name = branch.parameter
     ordinate = next((o.name for o in problem.ordinates.values() if o.parameter == name), None)
@@ -656,7 +657,7 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
     while k < len(pts):
         if k in spans:
             last = spans[k]
-            after = pts[last + 1].index_direct if last + 1 < len(pts) else -1
+            after = _count_past(pts, last + 1, enters, lam, ords)
             for j in range(k, last + 1):
                 if pts[j].type == "BP":
                     out.append(current)
@@ -674,6 +675,24 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             current = pts[k + 1].index_direct
         k += 1
     return out
+
+
+def _count_past(pts, j, enters, lam, ords) -> int:
+    """The index on the branch at point ``j``, just past a branch point: the direct count at
+    ``j``, or, where ``j`` is an LP (its state has a zero eigenvalue, so its count is a guess
+    by rounding, or -1), the count at the first point past the LPs from ``j`` less their
+    changes by the fold rule. -1 where there is no such point or a change is not known (an
+    LP at the branch's end, no distinguished ordinate)."""
+    change = 0
+    while j < len(pts) and pts[j].type == "LP":
+        sign = fold_sign(enters, lam, ords, j) if ords is not None else 0
+        if not sign:
+            return -1
+        change += sign
+        j += 1
+    if j >= len(pts) or pts[j].index_direct < 0:
+        return -1
+    return pts[j].index_direct - change
 
 
 def _on_branch_points(pts, lam) -> dict[int, int]:
