@@ -749,3 +749,21 @@ def test_the_rule_past_a_branch_point_followed_by_a_fold_reads_the_count_beyond_
                      parameters={"psi": NS(enters="free")})
         assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 2) == -1
         assert stability.fold_rule(branch, problem, 4) == [4, 4, 5, 4, 4], lp_count
+
+
+def test_where_the_rule_cannot_apply_it_restarts_past_a_following_fold_too():
+    """The same restart where the rule stops at an LP it cannot sign (psi's curvature zero
+    there) followed at once by an LP that takes 5 to 4: the index between the two is the
+    count past the second less its change, whatever the second's own count says."""
+    from types import SimpleNamespace as NS
+    lam, ordinate = [0.0, 1.0, 2.0, 1.5, 1.0], [0.0, 1.0, 0.0, 2.0, 3.0]
+    for lp_count in (-1, 3, 5):
+        direct = [4, -1, lp_count, 4, 4]
+        points = [NS(type=t, index_direct=d) for t, d in zip(["", "LP", "LP", "", ""], direct)]
+        branch = NS(parameter="psi", points=points,
+                    column=lambda name: np.array(lam if name == "psi" else ordinate))
+        problem = NS(ordinates={"m": NS(name="m", parameter="psi")},
+                     parameters={"psi": NS(enters="free")})
+        assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 1) == 0
+        assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 2) == -1
+        assert stability.fold_rule(branch, problem, 4)[2:] == [5, 4, 4], lp_count

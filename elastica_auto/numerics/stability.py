@@ -637,8 +637,8 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
     The sign needs only the neighbouring points, so it also applies at a fold whose extended
     system failed. Where the rule cannot apply (a fold of a parameter without a distinguished
     ordinate, a branch point) it takes the direct count after the special point, if there is
-    one, else -1 (past a branch point followed by LPs, the count beyond them less their
-    changes: :func:`_count_past`). Points at a branch point itself (the same parameter
+    one, else -1 (where that point is an LP, the count beyond the LPs less their changes:
+    :func:`_count_past`). Points at a branch point itself (the same parameter
     value: a user point placed on it, before or after it) are not past it: the count there
     leaves out the eigenvalues that cross zero (a symmetry's zero mode is constrained away,
     or the count fails), so the rule takes the first point off it, and gives the points on it
@@ -672,17 +672,18 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             change = fold_sign(enters, lam, ords, k) if ords is not None else 0
             current = current + change if change else -1
         if current < 0 and k + 1 < len(pts):
-            current = pts[k + 1].index_direct
+            current = _count_past(pts, k + 1, enters, lam, ords)
         k += 1
     return out
 
 
 def _count_past(pts, j, enters, lam, ords) -> int:
-    """The index on the branch at point ``j``, just past a branch point: the direct count at
-    ``j``, or, where ``j`` is an LP (its state has a zero eigenvalue, so its count is a guess
-    by rounding, or -1), the count at the first point past the LPs from ``j`` less their
-    changes by the fold rule. -1 where there is no such point or a change is not known (an
-    LP at the branch's end, no distinguished ordinate)."""
+    """The index on the branch at point ``j``, where the rule restarts (past a branch point,
+    or where it cannot apply): the direct count at ``j``, or, where ``j`` is an LP (its state
+    has a zero eigenvalue, so its count is a guess by rounding, or -1), the count at the
+    first point past the LPs from ``j`` less their changes by the fold rule. -1 where there
+    is no such point or a change is not known (an LP at the branch's end, no distinguished
+    ordinate)."""
     change = 0
     while j < len(pts) and pts[j].type == "LP":
         sign = fold_sign(enters, lam, ords, j) if ords is not None else 0
