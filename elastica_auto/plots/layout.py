@@ -23,10 +23,10 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
-from scipy.interpolate import PchipInterpolator
 
 from ..model.problem import Problem, load_problem
 from ..storage.store import BranchFile, StoredBranch
+from .diagram import same_value
 from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
 
 TWO_PI = 2 * math.pi
@@ -147,14 +147,6 @@ def label_point(bf: BranchFile, name: str) -> Pt:
     """The stored point of label ``name`` (``LP3``)."""
     br, pt = bf.labels[name]
     return Pt(bf, bf.branches[br - 1], pt - 1)
-
-
-def same_value(a, b, period=None, tol=1e-9) -> bool:
-    """Whether ``a`` and ``b`` agree to ``tol`` relative, modulo ``period`` if given."""
-    d = a - b
-    if period:
-        d = math.remainder(d, period)
-    return abs(d) <= tol * (1 + abs(b))
 
 
 def branches_where(bf: BranchFile, **fixed) -> list[StoredBranch]:
@@ -303,6 +295,9 @@ def _fold(x, F, index, period):
 
 def _smooth(x, y, sx, sy, per_segment=8):
     """Points on the PCHIP curve through (x, y), parameterised by the scaled chord length."""
+    # imported here: scipy.interpolate takes half a second to import, and only the paper's
+    # figures smooth their curves
+    from scipy.interpolate import PchipInterpolator
     if len(x) < 3:
         return x, y
     t = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(x) / sx, np.diff(y) / sy))))
@@ -685,10 +680,15 @@ def _zoom(ax, panel: Panel):
 
 
 def save(fig, out_dir, name) -> list:
-    """Write ``name``.png and ``name``.pdf into ``out_dir``; return the paths."""
+    """Write ``name``.png and ``name``.pdf into ``out_dir``; return the paths.
+
+    The PDF keeps the PNG's layout: the constrained layout of a figure with dozens of
+    configuration insets is about a third of its drawing time, and solving it again for the
+    second file would only move the axes by rounding."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / f"{name}.png", out_dir / f"{name}.pdf"]
-    for p in paths:
-        fig.savefig(p, dpi=200 if p.suffix == ".png" else None)
+    fig.savefig(paths[0], dpi=200)
+    fig.set_layout_engine("none")
+    fig.savefig(paths[1])
     return paths
