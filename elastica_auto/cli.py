@@ -335,8 +335,8 @@ def export(file, output):
 def plot(file, xname, yname, output, fold):
     """Plot a bifurcation diagram of FILE.h5, one panel per combination of the values of the
     parameters fixed along its branches (reads the file, computes nothing)."""
-    from .plots import bifurcation_diagram
     bf = _open(file)
+    from .plots import bifurcation_diagram
     period = None
     if fold:
         x = xname or (bf.branches[0].parameter if bf.branches else "")
@@ -366,8 +366,8 @@ def view(file, output, xname, yname, fold):
     """Write an interactive bifurcation diagram of FILE.h5: one self-contained HTML page (no
     network access) showing the configuration of the point under the mouse beside the
     diagram (reads the file, computes nothing)."""
-    from .plots.viewer import check_output, page, write_page
     bf = _open(file)
+    from .plots.viewer import check_output, page, write_page
     try:
         output = check_output(output or Path(file).with_suffix(".html"), bf.path)
         text = page(bf, xname, yname, fold)

@@ -5,6 +5,13 @@ configurations drawn by the module's ``draw`` hook) and `style` (the one look of
 The paper's figures, which know the elastica, are `paper` (``python -m elastica_auto.plots``).
 """
 
-from .diagram import bifurcation_diagram
-
 __all__ = ["bifurcation_diagram"]
+
+
+def __getattr__(name):
+    # on first use: importing a submodule (the viewer, say) need not import the diagrams'
+    # matplotlib
+    if name == "bifurcation_diagram":
+        from .diagram import bifurcation_diagram
+        return bifurcation_diagram
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,15 +13,15 @@ from __future__ import annotations
 import math
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 
 from ..storage.store import BranchFile
-from .layout import same_value
 from .style import RC, index_label, index_style, marker_style
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Labelled points that are marked, in the order their names get room.
 MARKED = ("MX", "CP", "BP", "LP")
@@ -44,6 +44,14 @@ def index_runs(x, y, index, period):
             yield x[start:stop], y[start:stop], int(index[start])
             start = i + 1
     yield x[start:], y[start:], int(index[start])
+
+
+def same_value(a, b, period=None, tol=1e-9) -> bool:
+    """Whether ``a`` and ``b`` agree to ``tol`` relative, modulo ``period`` if given."""
+    d = a - b
+    if period:
+        d = math.remainder(d, period)
+    return abs(d) <= tol * (1 + abs(b))
 
 
 def fixed_parameters(bf: BranchFile, xname: str) -> list[str]:
@@ -184,6 +192,11 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
     Defaults: see `default_columns`. ``period`` folds x into [0, period). The line styles
     follow ``index_column`` (default the index; ``index_direct``: the direct count alone).
     """
+    # matplotlib is imported here, not with the module: the viewer and the commands' checks
+    # use the module's panel grouping and column defaults, and an error should not wait for it
+    import matplotlib
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     xname, yname = default_columns(bf, xname, yname)
     b0 = bf.branches[0]
     varying, groups = panel_groups(bf, xname)
@@ -233,6 +246,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
 def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
                         yname: str | None = None, period: float | None = None) -> Path:
     """Draw `diagram_figure` and save it to ``output`` (.png, .pdf, .svg)."""
+    import matplotlib
     fig = diagram_figure(bf, xname, yname, period)
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)

@@ -224,8 +224,8 @@ def _script_json(data) -> str:
 def page(bf: BranchFile, xname: str | None = None, yname: str | None = None,
          fold: bool = False, file_name: str | None = None) -> str:
     """The viewer's HTML document for ``bf`` (see `page_data` for the arguments)."""
-    from plotly.offline import get_plotlyjs
     data = page_data(bf, xname, yname, fold, file_name)
+    from plotly.offline import get_plotlyjs     # after page_data has checked the columns
     here = files(__package__)
     parts = {"TITLE": html.escape(data["title"]), "PLOTLY": get_plotlyjs(),
              "DATA": _script_json(data), "VIEWER": (here / "viewer.js").read_text()}
