@@ -47,6 +47,10 @@ REDUCED = {
                         ('P = ["pi^2/4", "9*pi^2/4"]', 'P = ["9*pi^2/4"]'),
                         ("b2 = [1, 2]", "b2 = [2]"),
                         ('bounds = ["-6*pi", "6*pi"]', 'bounds = ["-pi", "pi"]')],
+    # the curves through eps = 0.25 and both cusps (eps 0.211 and 0.361), and the load plane up to
+    # P = 25 (the UZ at 9 pi^2 / 4 = 22.2 inside): 10 and 12 s instead of 18 and 15
+    "fold_curves_arm": [("bounds = [0, 1]", "bounds = [0.2, 0.6]")],
+    "fold_curves_load": [("bounds = [0.5, 30]", "bounds = [1, 25]")],
     "snap_damping": [("damping = [0.05, 0.1, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, "
                       "2.0, 4.0, 8.0]", "damping = [0.5, 20.0]"),
                      ('damping_folds = ["LP13", "LP10", "LP18", "LP20"]',
