@@ -136,10 +136,12 @@ def test_drawn_lever_arm_and_load_balance_the_tip_moment(drawn, run):
     bf = BranchFile(drawn / "out" / f"{run}.h5")
     problem = load_problem(bf.equation)
     n = 0
-    for b in bf.branches:
+    ax = Figure().add_subplot()     # one axes, emptied after each configuration (a new one
+    for b in bf.branches:           # costs twice the drawing)
         for i in range(0, len(b), 7):
             p = {q: float(b.columns[q][i]) for q in bf.parameters}
-            ax = Figure().add_subplot()
+            for artist in [*ax.lines, *ax.texts, *ax.patches, *ax.collections]:
+                artist.remove()
             problem.draw(ax, b.profiles[i], p)
             (arm,) = [ln for ln in ax.lines if ln.get_gid() == "lever arm"]
             tip, end = np.array(arm.get_xydata())
