@@ -10,6 +10,7 @@ symmetry u -> -u.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -25,6 +26,46 @@ def eigen_run(tmp_path_factory):
     plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
     assert plan.switch_count == 2
     return run_plan(plan, tmp_path_factory.mktemp("eigen"))
+
+
+def _trivial_branch(tmp_path, **options):
+    """The straight branch u = 0 alone (no switching), with ``options`` changed."""
+    plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
+    plan.switch_count = 0
+    plan.options = dataclasses.replace(plan.options, **options)
+    return run_plan(plan, tmp_path).result.branches[0]
+
+
+def test_a_sign_change_is_kept_only_where_a_second_mesh_sees_it(tmp_path, monkeypatch):
+    """At the default fold_tol each branch point is found again, between solved points, on the
+    finer mesh that resolves its kernel: the second mesh, and no halved-mesh check. With
+    fold_tol = 1e-3 the step's own mesh is the last one, so a and b are solved again on it
+    with every interval halved; a sign change that does not survive that (the check made to
+    fail here) is no branch point: the steps are retried shorter, then a warning."""
+    from elastica_auto.branches import events
+    from elastica_auto.numerics.correctors import CorrectorFailure
+    checked = []
+    real = events._check_on_finer_mesh
+
+    def spy(corr, step, s):
+        checked.append(len(s))
+        return real(corr, step, s)
+
+    monkeypatch.setattr(events, "_check_on_finer_mesh", spy)
+    bps = [p.params["p"] for p in _trivial_branch(tmp_path / "fine").points if p.type == "BP"]
+    np.testing.assert_allclose(bps, [math.pi ** 2, 4 * math.pi ** 2], rtol=1e-9)
+    assert checked == []
+    coarse = _trivial_branch(tmp_path / "coarse", fold_tol=1e-3)
+    assert [p.type for p in coarse.points].count("BP") == 2 and len(checked) == 2
+
+    def fails(corr, step, s):
+        raise CorrectorFailure("the determinant's change of sign does not survive")
+
+    monkeypatch.setattr(events, "_check_on_finer_mesh", fails)
+    rejected = _trivial_branch(tmp_path / "rejected", fold_tol=1e-3)
+    assert "BP" not in [p.type for p in rejected.points]
+    assert sum("not located: the determinant's change of sign does not survive" in w
+               for w in rejected.warnings) == 2
 
 
 def _shoot(p, slope):

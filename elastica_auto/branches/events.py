@@ -220,14 +220,16 @@ def locate_branch_point(corr, step: Step) -> Located:
     the step, on b's mesh first to COARSE_XTOL (b's mesh is seldom the last). ``value``: the
     scaled determinant there.
 
-    The sign change must survive a re-solve of a and b on that mesh with every interval
-    halved: a change of sign that an under-resolved mesh makes (a discrete eigenvalue that
-    crosses zero on one mesh only) is not a branch point. CorrectorFailure where it does
-    not."""
+    The sign change must be seen on two meshes: a change of sign that an under-resolved mesh
+    makes (a discrete eigenvalue that crosses zero on one mesh only) is not a branch point.
+    Where the root was found again on an equidistributed mesh, between two points solved
+    there (b's mesh did not resolve the kernel to ``fold_tol``, as at every branch point of
+    the shipped 3D runs), that is the second mesh; else a and b are solved again on the last
+    mesh with every interval halved. CorrectorFailure where the change does not survive."""
     name = step.name
     s, brackets, xtol = step.b.mesh, [(0.0, step.dist)], COARSE_XTOL
     for _ in range(4):
-        bp = _branch_point_on(corr, step, s, brackets, xtol)
+        bp, solved_here = _branch_point_on(corr, step, s, brackets, xtol)
         sol = bp.solution
         v, v_lam = kernel(sol.lin)
         disc = sol.lin.disc
@@ -238,8 +240,9 @@ def locate_branch_point(corr, step: Step) -> Located:
                     for w in NEAR] + [(0.0, step.dist)]
         if rms.max() <= corr.options.fold_tol:
             if xtol > BP_XTOL:
-                bp = _branch_point_on(corr, step, s, brackets, BP_XTOL)
-            _check_on_finer_mesh(corr, step, bp.solution.mesh)
+                bp, solved_here = _branch_point_on(corr, step, s, brackets, BP_XTOL)
+            if s is step.b.mesh or not solved_here:
+                _check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
         s, xtol = corr.regrid(s, rms, corr.options.fold_tol), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
@@ -259,9 +262,10 @@ def _check_on_finer_mesh(corr, step: Step, s):
                                f"mesh ({len(fine)} nodes)")
 
 
-def _branch_point_on(corr, step: Step, s, brackets, xtol: float) -> Located:
+def _branch_point_on(corr, step: Step, s, brackets, xtol: float) -> tuple[Located, bool]:
     """The root of the scaled determinant on mesh ``s``, in the first of the ``brackets``
-    ((lo, hi) pairs) where it changes sign, to ``xtol`` of the step."""
+    ((lo, hi) pairs) where it changes sign, to ``xtol`` of the step; and whether both ends
+    of that bracket were solved on ``s`` (a, at sigma = 0, is only interpolated onto it)."""
     sec, a, b = step.secant, step.a, step.b
     known = {}
 
@@ -289,8 +293,9 @@ def _branch_point_on(corr, step: Step, s, brackets, xtol: float) -> Located:
         # too, but not where ref is -inf as well)
         return sign * math.exp(min(logdet - ref, 700.0)) if sign else 0.0
 
-    return along(corr, step, tau, lo, hi, s,
+    root = along(corr, step, tau, lo, hi, s,
                  ends=(float(sign0), sign1 * math.exp(min(log1 - ref, 700.0))), xtol=xtol)
+    return root, lo > 0.0 or np.array_equal(a.mesh, s)
 
 
 def locate_index_change(corr, step: Step, index_of, index_a: int,
