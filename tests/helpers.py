@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.resources
 import math
 import subprocess
+import sys
 import textwrap
 import time
 from dataclasses import dataclass
@@ -168,3 +169,18 @@ def invariant_bound(tol, P, alpha):
 
 def invariant(y, p):
     return y[1] - p["P"] * (y[2] * math.cos(p["alpha"]) + y[3] * math.sin(p["alpha"]))
+
+
+def imported_by(commands, modules, then: str = "") -> list[str]:
+    """Which of ``modules`` a fresh interpreter has imported once it has run the
+    ``elastica-auto`` command lines ``commands`` ([(arguments, exit status)], through click's
+    test runner) and then the Python code ``then``."""
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
+            f"for args, status in {[([str(a) for a in args], st) for args, st in commands]!r}:\n"
+            "    r = CliRunner().invoke(main, args)\n"
+            "    assert r.exit_code == status, (args, r.exit_code, r.output)\n"
+            f"{then}\n"
+            f"print(sorted(m for m in {list(modules)!r} if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    return eval(out.stdout)

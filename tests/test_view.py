@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 import time
 
 import h5py
@@ -18,7 +16,7 @@ import pytest
 import elastica_auto as ea
 from elastica_auto.plots import viewer
 from elastica_auto.storage.store import BranchFile
-from helpers import run_cli
+from helpers import imported_by, run_cli
 
 
 def stored(path) -> dict:
@@ -128,27 +126,18 @@ def test_view_from_python_and_inline(viewer_file, elastica, tmp_path):
 
 
 def test_version_does_not_import_plotly():
-    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
-            "assert CliRunner().invoke(main, ['--version']).exit_code == 0\n"
-            "import elastica_auto as ea\nea.view\nprint('plotly' in sys.modules)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "False"
+    assert imported_by([(["--version"], 0)], ["plotly"],
+                       then="import elastica_auto as ea\nea.view") == []
 
 
 def test_rejected_view_and_plot_import_no_plotting(viewer_file, tmp_path):
     """A missing file or a column the file lacks is reported before matplotlib, plotly or
     scipy.interpolate is imported (together about 1.5 s of the command here)."""
-    code = ("import sys\nfrom click.testing import CliRunner\nfrom elastica_auto.cli import main\n"
-            f"f, out = {str(viewer_file)!r}, {str(tmp_path / 'out')!r}\n"
-            "for args in (['view', f + '.none'], ['view', f, '-y', 'nope', '-o', out + '.html'],\n"
-            "             ['plot', f + '.none', '-o', out + '.png']):\n"
-            "    assert CliRunner().invoke(main, args).exit_code == 2, args\n"
-            "print(sorted(m for m in ('matplotlib', 'plotly', 'scipy.interpolate')"
-            " if m in sys.modules))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "[]"
+    missing, out = f"{viewer_file}.none", tmp_path / "out"
+    commands = [(["view", missing], 2),
+                (["view", viewer_file, "-y", "nope", "-o", f"{out}.html"], 2),
+                (["plot", missing, "-o", f"{out}.png"], 2)]
+    assert imported_by(commands, ["matplotlib", "plotly", "scipy.interpolate"]) == []
 
 
 def test_rotating_arm_page_is_under_8_mb_in_under_10_s(rotating_arm, tmp_path):
