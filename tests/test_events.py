@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+import elastica_auto as ea
 import shooting
 from helpers import elastica_run_file, run_plan
 from elastica_auto.execution import runfile
@@ -74,3 +75,46 @@ def test_max_points_ends_with_an_end_point(tmp_path):
     br = _run(tmp_path, bounds=("-4*pi", "4*pi"), extra="[options]\nmax_points = 12\n")
     assert len(br.points) == 12
     assert br.points[-1].type == "EP" and br.end == "EP" and "max_points" in br.message
+
+
+CIRCLE = """\
+\"\"\"u' = 0, u(0)^2 + lam^2 = 1: constant solutions, on the unit circle of (u, lam).\"\"\"
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u",)
+PARAMETERS = [Parameter("lam", 0.0, r"\\lambda", "fixed")]
+ORDINATES = [Ordinate("u0", "u(0)", lambda s, y, p: y[0, 0], parameter="lam")]
+
+
+def rhs(s, y, p):
+    return np.zeros_like(y)
+
+
+def bc(ya, yb, p):
+    return np.array([ya[0] ** 2 + p["lam"] ** 2 - 1.0])
+
+
+def exact_start(s, p):
+    return np.ones((1, len(s))) if p["lam"] == 0 else None
+"""
+
+
+@pytest.mark.parametrize("direction", ["+", "-"])
+def test_a_closed_loop_ends_where_it_started(tmp_path, direction):
+    """The constant solutions u on the unit circle u^2 + lam^2 = 1, from (1, 0): the branch
+    goes round once, through its two folds at lam = +-1, and ends (EP) at its own start
+    point: not round and round until max_points."""
+    path = tmp_path / "circle.py"
+    path.write_text(CIRCLE)
+    problem = ea.load_problem(str(path))
+    (br,) = ea.continuation(problem, {"lam": 0.0}, "lam", directions=direction, ds=0.1,
+                            ds_max=0.3, max_points=500)
+    assert br.end == "EP" and br.message.startswith("closed loop"), br.message
+    assert br.points[-1].params == br.points[0].params
+    lam, u = br.columns["lam"], br.columns["u0"]
+    np.testing.assert_allclose(u ** 2 + lam ** 2, 1.0, atol=1e-10)
+    turn = np.diff(np.unwrap(np.arctan2(u, lam))) * (1 if direction == "-" else -1)
+    assert np.all(turn > 0) and np.sum(turn) == pytest.approx(2 * math.pi, abs=1e-12)
+    folds = sorted(p.params["lam"] for p in br.points if p.type == "LP")
+    np.testing.assert_allclose(folds, [-1.0, 1.0], atol=1e-9)

@@ -152,6 +152,46 @@ def test_snap_targets_in_3d_are_equilibria_with_the_index_two_ways(arms, b2):
     assert len(eqs) >= len(flat)
 
 
+def test_the_branch_born_out_of_the_plane_is_a_closed_loop_through_the_mirror_point(arms):
+    """Switching at the rotating arm's out-of-plane branch point (b2 = 2, psi = 1.1695, a
+    subcritical pitchfork): the non-planar branch born there leaves the plane towards smaller
+    psi, passes psi = 0 out of the plane, comes into the plane at the mirror image's branch
+    point (-psi) and returns to its start as the mirror image (z -> -z) of its first half: a
+    closed loop, where the branch ends (EP). Its states at psi = 0 are the non-planar
+    equilibria the shooting scan finds there, with index 1 by the engine's count and by the
+    conjugate points of the Jacobi system."""
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
+    _, rod, _, rods = arms
+    (br, bp), = [(br, p) for br, p in labelled(rods, "BP") if p.params["psi"] > 1.1]
+    psi_bp = bp.params["psi"]
+    loops = ea.continuation(rod, ea.Switch(br.label(bp.name)), "psi", bounds=(-1.4, 1.4),
+                            uz=(0.0,), max_points=200)
+    for loop in loops:
+        assert loop.end == "EP" and loop.message.startswith("closed loop"), loop.message
+        first, last = loop.points[0], loop.points[-1]
+        assert last.params == first.params and last.index == first.index
+        psi = loop.columns["psi"]
+        assert psi.max() == pytest.approx(psi_bp, abs=1e-12)
+        assert psi.min() == pytest.approx(-psi_bp, abs=1e-4)       # the mirror branch point
+        assert np.all(np.abs(loop.columns["z1"][1:-1]) > 0)         # off the plane between
+        at_zero = [p for p in loop.points if p.type == "UZ"]
+        assert len(at_zero) == 2                                    # once on each half
+        z = [p.ordinates["z1"] for p in at_zero]
+        assert z[0] == pytest.approx(-z[1], abs=1e-8) and abs(z[0]) > 0.3
+        assert at_zero[0].ordinates["m1"] == pytest.approx(at_zero[1].ordinates["m1"], abs=1e-8)
+    up, down = loops
+    np.testing.assert_allclose(sorted(up.columns["z1"]), sorted(-down.columns["z1"]), atol=1e-8)
+    params = next(p for p in up.points if p.type == "UZ").params
+    eqs = [e for e in enumerate_equilibria(rod, params) if abs(e.k[1]) > 1e-6]
+    assert len(eqs) == 2                                   # the non-planar pair
+    for p in (p for p in up.points if p.type == "UZ"):
+        state = up.label(p.name).state
+        k = _frame_k(mod, state.y, state.params)
+        (e,) = [e for e in eqs if np.max(np.abs(np.array(e.k) - k)) < 1e-6]
+        assert p.index == e.index == jacobi_count(mod, state) == 1
+
+
 def test_scan_box_finds_every_root_of_a_known_system():
     """r = (x^2 + y^2 - 4, sin(3 x) - y / 2) in [-3, 3]^2: the roots by an independent 1D
     bracketing along the circle x = 2 cos t, y = 2 sin t."""

@@ -2,7 +2,8 @@
 
 One call of :func:`continue_branch` fills one :class:`~elastica_auto.branches.branch.Branch`: from a
 start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
-n-th fold (``stop = ["LP4"]``), or a corrector failure at ``ds_min`` (MX).
+n-th fold (``stop = ["LP4"]``), its own start point again (EP: a closed loop), or a
+corrector failure at ``ds_min`` (MX).
 
 Each step from a solution a (with its unit tangent t_a, oriented along the direction of
 travel):
@@ -67,6 +68,13 @@ RISE_NOISE = 1e-10
 #: At most this many solves look for the minimum of the parameter's slope inside a step
 #: where the cubic model suspects a fold pair (`_Walk._probe`).
 PROBES = 4
+#: A step passes its branch's start point (the branch is a closed loop) where the start
+#: projects inside the step's secant and lies within this fraction of the step's length of
+#: it: the chord of an arc that turns by at most ``max_angle`` (0.35 rad by default) stays
+#: within about ``max_angle / 8`` of the step's length of the arc.
+CLOSED_LOOP = 0.2
+#: ... and the secant points the way the branch left its start: their cosine is at least this.
+CLOSED_LOOP_COS = 0.5
 
 
 @dataclass(frozen=True)
@@ -348,6 +356,7 @@ class _Walk:
                               if o.parameter == self.name), None)
         self.enters = self.problem.parameters[self.name].enters
         self.until = None   # (origin, unit direction, distance): end once past that hyperplane
+        self.start = None   # the first solution: the branch ends where it comes back to it
         self.event_retries = 0
 
     # -- the loop ---------------------------------------------------------------------------
@@ -364,6 +373,7 @@ class _Walk:
         if self.singular_start:
             self.base_point.note = ""
         self.a, self.arclength, self.first = a, 0.0, True
+        self.start = a
         self.curvature = None
         ds = abs(opt.ds)
         history = []
@@ -786,11 +796,12 @@ class _Walk:
                 if bound_hit is None:
                     bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
                 break
-        limit_hit = self._limit_event(step)
-        if limit_hit is not None and (bound_hit is None or limit_hit.sigma < bound_hit.sigma):
-            bound_hit = limit_hit
+        for hit in (self._limit_event(step), self._closure_event(step)):
+            if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
+                bound_hit = hit
         if bound_hit is not None:
-            events = [e for e in events if e.sigma < bound_hit.sigma] + [bound_hit]
+            events = [e for e in events if e.sigma < bound_hit.sigma
+                      and not self._at_start(step, e, bound_hit)] + [bound_hit]
         events.sort(key=lambda e: e.sigma)
         nfolds = len(branch.folds)
         for e in events:
@@ -830,6 +841,42 @@ class _Walk:
                 first = _Event(sigma, "EP", state, tangent_between(step, sigma),
                                message=f"reached {limit.name} = {value:.6g} (stop {limit})")
         return first
+
+    def _closure_event(self, step: Step) -> _Event | None:
+        """An EP at the branch's start point if the step passes it the way the branch left
+        it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
+        branch, say), else None. The start projects onto the step's secant at
+        ``0 < sigma <= dist`` within ``CLOSED_LOOP`` of the step's length of it; the end point
+        is the start's own solution, so the loop closes exactly. Not in a walk that ends at
+        a hyperplane (``until``: the refinement of one step)."""
+        start = self.start
+        if start is None or self.until is not None or self.first:
+            return None
+        s = step.b.mesh
+        sigma = step.sigma(start.state)
+        if not 0.0 < sigma <= step.dist:
+            return None
+        off = difference(start.state, step.a.state, self.name, s)
+        off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
+                      off.lam - sigma * step.secant.lam)
+        if (norm(off) > CLOSED_LOOP * step.dist
+                or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
+            return None
+        return _Event(sigma, "EP", start.state, start.tangent,
+                      message=f"closed loop: back at its start point ({self.name} = "
+                              f"{start.lam:g}) after arclength {step.position(sigma):.6g}")
+
+    def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
+        """Whether ``event``, found in the step that closes the loop at ``end``, is the start
+        itself found again (the fold or branch point the branch was started from, to 1e-6)
+        or lies past it (an event that could not be located, placed at the step's end)."""
+        if end.state is not self.start.state:
+            return False
+        if step.sigma(event.state) >= end.sigma:
+            return True
+        s = end.state.s
+        gap = norm(difference(event.state, end.state, self.name, s), s)
+        return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
     def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
         try:

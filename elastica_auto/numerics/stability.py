@@ -727,9 +727,10 @@ def label_stability(branch, problem) -> None:
     if not branch.points or not problem.has_second_variation:
         return
     # A branch switched at a branch point starts where the direct count is ambiguous.
-    seed = branch.points[1 if branch.singular_start and len(branch.points) > 1 else 0]
+    pts = branch.points
+    seed = pts[1 if branch.singular_start and len(pts) > 1 else 0]
     rule = fold_rule(branch, problem, seed.index_direct)
-    for k, (p, r) in enumerate(zip(branch.points, rule)):
+    for k, (p, r) in enumerate(zip(pts, rule)):
         p.index_rule = r
         if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):
             p.index = r
@@ -741,3 +742,13 @@ def label_stability(branch, problem) -> None:
             p.index = -1
             msg = f"index disagreement: rule {r}, direct {p.index_direct}"
             p.note = "; ".join(filter(None, (p.note, msg)))
+    if _closes(branch):   # a closed loop ends at its start's own solution, and so its index
+        pts[-1].index = pts[-1].index_rule = pts[0].index
+
+
+def _closes(branch) -> bool:
+    """Whether ``branch`` is a closed loop: its last point is its first point's solution
+    (the continuation ends there when it comes back to its start)."""
+    first, last = branch.points[0], branch.points[-1]
+    return (len(branch.points) > 2 and last.params == first.params
+            and np.array_equal(last.profile, first.profile))
