@@ -101,10 +101,17 @@ def exact_start(s, p):
 
 
 @pytest.mark.parametrize("direction", ["+", "-"])
-def test_a_closed_loop_ends_where_it_started(tmp_path, direction):
+@pytest.mark.parametrize("way", ["both", "ahead", "in a step"])
+def test_a_closed_loop_ends_where_it_started(tmp_path, monkeypatch, direction, way):
     """The constant solutions u on the unit circle u^2 + lam^2 = 1, from (1, 0): the branch
     goes round once, through its two folds at lam = +-1, and ends (EP) at its own start
-    point: not round and round until max_points."""
+    point: not round and round until max_points. Each of the two checks closes it alone:
+    the start ahead of the last point within the next step, or passed inside a step."""
+    from elastica_auto.branches.stepper import _Walk
+    if way == "ahead":
+        monkeypatch.setattr(_Walk, "_closure_event", lambda self, step: None)
+    elif way == "in a step":
+        monkeypatch.setattr(_Walk, "_close_ahead", lambda self, ds: False)
     path = tmp_path / "circle.py"
     path.write_text(CIRCLE)
     problem = ea.load_problem(str(path))

@@ -68,10 +68,11 @@ RISE_NOISE = 1e-10
 #: At most this many solves look for the minimum of the parameter's slope inside a step
 #: where the cubic model suspects a fold pair (`_Walk._probe`).
 PROBES = 4
-#: A step passes its branch's start point (the branch is a closed loop) where the start
-#: projects inside the step's secant and lies within this fraction of the step's length of
-#: it: the chord of an arc that turns by at most ``max_angle`` (0.35 rad by default) stays
-#: within about ``max_angle / 8`` of the step's length of the arc.
+#: A branch is back at its start point (a closed loop) where the start lies within the next
+#: step along the tangent, or inside the step just taken along its secant, within this
+#: fraction of the step's length of that line: the chord of an arc that turns by at most
+#: ``max_angle`` (0.35 rad by default) stays within about ``max_angle / 8`` of the step's
+#: length of the arc.
 CLOSED_LOOP = 0.2
 #: ... and the secant points the way the branch left its start: their cosine is at least this.
 CLOSED_LOOP_COS = 0.5
@@ -430,6 +431,8 @@ class _Walk:
     def _step(self, ds: float, retries: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
         raises _Reject to retry with a smaller ds."""
+        if self._close_ahead(ds):
+            return ds, True
         step, cos_turn = self._correct(ds)
         found, counted = self._detect(step, retries)
         return self._accept(step, found, counted, retries, cos_turn)
@@ -842,6 +845,34 @@ class _Walk:
                                message=f"reached {limit.name} = {value:.6g} (stop {limit})")
         return first
 
+    def _close_ahead(self, ds: float) -> bool:
+        """End the branch at its start point, without a step, where the start lies within
+        the next step (ahead of a along its tangent by at most ds, within ``CLOSED_LOOP`` ds
+        of the tangent's line, the tangent pointing the way the branch left it): a step that
+        ends next to a singular start (a branch point it was switched from) would see the
+        start's own fold or branch point there, and fail to locate it."""
+        start, a = self.start, self.a
+        if start is None or self.until is not None or self.first:
+            return False
+        s = a.mesh
+        t = a.tangent.on(s)
+        off = difference(start.state, a.state, self.name, s)
+        sigma = inner(off, t, s)
+        if not 0.0 < sigma <= ds:
+            return False
+        off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
+        if norm(off) > CLOSED_LOOP * ds or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
+            return False
+        self._add(start.state, type="EP", arclength=self.arclength + sigma,
+                  tangent=start.tangent, direct=self.branch.points[0].index_direct)
+        self.branch.end = "EP"
+        self.branch.message = self._closed(self.arclength + sigma)
+        return True
+
+    def _closed(self, arclength: float) -> str:
+        return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
+                f"after arclength {arclength:.6g}")
+
     def _closure_event(self, step: Step) -> _Event | None:
         """An EP at the branch's start point if the step passes it the way the branch left
         it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
@@ -863,8 +894,7 @@ class _Walk:
                 or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
             return None
         return _Event(sigma, "EP", start.state, start.tangent,
-                      message=f"closed loop: back at its start point ({self.name} = "
-                              f"{start.lam:g}) after arclength {step.position(sigma):.6g}")
+                      message=self._closed(step.position(sigma)))
 
     def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
         """Whether ``event``, found in the step that closes the loop at ``end``, is the start
