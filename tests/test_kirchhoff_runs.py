@@ -157,7 +157,9 @@ def test_the_branch_born_out_of_the_plane_is_a_closed_loop_through_the_mirror_po
     subcritical pitchfork): the non-planar branch born there leaves the plane towards smaller
     psi, passes psi = 0 out of the plane, comes into the plane at the mirror image's branch
     point (-psi) and returns to its start as the mirror image (z -> -z) of its first half: a
-    closed loop, where the branch ends (EP). Its states at psi = 0 are the non-planar
+    closed loop, where the branch ends (EP), without a warning (at the mirror point the
+    parameter turns and the fold system is singular: the branch point is labelled there to
+    the step, as one reached along its bifurcating branch). Its states at psi = 0 are the non-planar
     equilibria the shooting scan finds there, with index 1 by the engine's count and by the
     conjugate points of the Jacobi system."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
@@ -166,9 +168,10 @@ def test_the_branch_born_out_of_the_plane_is_a_closed_loop_through_the_mirror_po
     (br, bp), = [(br, p) for br, p in labelled(rods, "BP") if p.params["psi"] > 1.1]
     psi_bp = bp.params["psi"]
     loops = ea.continuation(rod, ea.Switch(br.label(bp.name)), "psi", bounds=(-1.4, 1.4),
-                            uz=(0.0,), max_points=200)
+                            uz=(0.0,), max_points=200, ds_max=1.0)   # as the run files
     for loop in loops:
         assert loop.end == "EP" and loop.message.startswith("closed loop"), loop.message
+        assert not loop.warnings, loop.warnings   # the mirror point: a BP, not a failure
         first, last = loop.points[0], loop.points[-1]
         assert last.params == first.params and last.index == first.index
         psi = loop.columns["psi"]

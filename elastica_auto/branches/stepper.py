@@ -487,7 +487,7 @@ class _Walk:
             if u is not None:
                 self._probe(step, u, ds, index_a)
         found = []
-        located = self._branch_point(step, can_retry) if bp else None
+        located, unlocated = self._branch_point(step, can_retry) if bp else (None, "")
         if fold:
             try:
                 found.extend(self._fold_events(step, bp, located))
@@ -502,6 +502,7 @@ class _Walk:
                     found.append(_Event(step.dist / 2, "BP", b.state, b.tangent,
                                         note="turning point without index change (the fold "
                                              f"system fails: {exc})"))
+                    unlocated = ""   # that is the branch point, labelled, its note says why
                 else:
                     self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
                                                 f"located: {exc}")
@@ -511,6 +512,8 @@ class _Walk:
             note = self._kernel_check(located.solution.state, index_a, index_b)
             found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
                                 abs(located.value), note=note))
+        if unlocated:
+            self.branch.warnings.append(unlocated)
         if index_a >= 0 and index_b >= 0 and not skip:
             expected = self._rule(step, found, index_a)
             if (expected is not None and expected != index_b and not found and not can_retry
@@ -734,9 +737,10 @@ class _Walk:
         return [_Event(sigma, "BP", fp.state, step.secant, fp.residual,
                        note="turning point without index change")]
 
-    def _branch_point(self, step: Step, can_retry: bool) -> Located | None:
-        """The branch point where the determinant changed sign in the step, located, or
-        None (with a warning) once retries are spent.
+    def _branch_point(self, step: Step, can_retry: bool) -> tuple[Located | None, str]:
+        """The branch point where the determinant changed sign in the step, located, and
+        ""; or, once retries are spent, None and the warning that says so (which the caller
+        drops where the step's turning point is labelled BP instead).
 
         A step whose branch point cannot be located is retried shorter: where the step
         jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
@@ -744,15 +748,13 @@ class _Walk:
         or the sign change does not survive a finer mesh, and a shorter step follows the
         branch round its corner."""
         try:
-            return locate_branch_point(self.corr, step)
+            return locate_branch_point(self.corr, step), ""
         except CorrectorFailure as exc:
             if can_retry:
                 self.event_retries += 1
                 raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
-            self.branch.warnings.append(f"branch point between {self.name} = "
-                                        f"{step.a.lam:.6g} and {step.b.lam:.6g} not located: "
-                                        f"{exc}")
-            return None
+            return None, (f"branch point between {self.name} = {step.a.lam:.6g} and "
+                          f"{step.b.lam:.6g} not located: {exc}")
 
     def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
         """The index at b by the fold rule from a's (None where the rule does not apply)."""
