@@ -184,3 +184,35 @@ def imported_by(commands, modules, then: str = "") -> list[str]:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     return eval(out.stdout)
+
+
+class WorkingBackground:
+    """A stand-in for a default run's background cluster (`execution.cluster.Background`):
+    up at once with one worker, which computes each task it is handed in a thread of its
+    own and reports it as the real one does (the result and a worker's name), or, with
+    ``fails``, reports each as failed (its worker died)."""
+
+    def __init__(self, workers, on_result, fails=False):
+        import threading
+        self.workers, self.on_result, self.fails = 1, on_result, fails
+        self.ready = threading.Event()
+        self.ready.set()
+        self.tasks = []
+
+    def submit(self, tag, function, args):
+        import threading
+        self.tasks.append(tag)
+
+        def work():
+            if self.fails:
+                self.on_result(tag, False, "KilledWorker: the worker died")
+            else:
+                self.on_result(tag, True, (function(*args), "stand-in"))
+        threading.Thread(target=work).start()
+        return True
+
+    def finish(self):
+        self.ready.clear()
+
+    def close(self, wait=0.0):
+        self.ready.clear()

@@ -192,6 +192,23 @@ def test_an_interrupted_cluster_run_keeps_its_finished_branches(cluster, tmp_pat
     assert all(b.attrs["end"] == "EP" for b in saved) and 1 <= len(saved) < 8
 
 
+def test_tasks_on_a_cluster_come_back_in_order_or_are_computed_here(cluster):
+    """cluster.map_tasks (the damped landings of a --jobs N or scheduler run): the results
+    in order, each reported once; a task the workers cannot compute (a module they cannot
+    import: `helpers` is on this process's path only) is computed in this process."""
+    import importlib
+
+    from distributed import Client
+
+    from elastica_auto.execution.cluster import map_tasks
+    with Client(cluster, timeout=30, set_as_default=False) as client:   # as a run's
+        reported = []
+        pids = map_tasks(client, os.getpid, [()] * 4, lambda i, r: reported.append((i, r)))
+        assert sorted(reported) == list(enumerate(pids)) and os.getpid() not in pids
+        mods = map_tasks(client, importlib.import_module, [("helpers",)], lambda i, r: None)
+        assert mods[0].__name__ == "helpers"
+
+
 def test_an_unreachable_scheduler_is_one_line(tmp_path, cli_exe):
     proc = run_cli(cli_exe, "run", "rotating_arm", "--out", tmp_path / "out", "--scheduler",
                    "tcp://127.0.0.1:1")
@@ -403,3 +420,29 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, worke
                                    for k in scans(plan.problem, b)}) > 0
     for a, b in zip(result.branches, one.branches):
         np.testing.assert_array_equal(a.column("psi"), b.column("psi"))
+
+
+@pytest.mark.parametrize("cluster", ["works", "fails", "ends"])
+def test_a_default_run_shares_its_other_tasks_with_its_cluster(cluster):
+    """_Alongside.map (the damped model's landings): each task is taken from the front of
+    the list by this process or by an idle worker of the cluster, the results come back in
+    order and each is reported once; a task whose worker dies, or that a cluster that ends
+    took with it, is computed here."""
+    import threading
+    from elastica_auto.execution.run import _Alongside
+    from helpers import WorkingBackground
+    background = {"works": lambda n, on: WorkingBackground(n, on),
+                  "fails": lambda n, on: WorkingBackground(n, on, fails=True),
+                  "ends": lambda n, on: _FakeBackground(1, on, ends=True)}[cluster]
+    pool = _Alongside(None, 1, background)
+    reported = []
+    got = pool.map(threading.get_ident, [()] * 5, lambda i, r: reported.append((i, r)))
+    assert sorted(i for i, _ in reported) == list(range(5))
+    assert dict(reported) == dict(enumerate(got))
+    here = threading.get_ident()
+    assert pool.background.tasks[0] == ("task", 0)     # the idle worker takes the first
+    assert here in got
+    if cluster == "works":
+        assert got[0] != here
+    else:
+        assert got == [here] * 5

@@ -210,6 +210,26 @@ def test_the_damped_landings_of_mirrored_folds_are_mirrored(arm):
                    for q in rows), (r["lp"], r["value"], r["k"])
 
 
+def test_the_damped_landings_are_the_same_whoever_computes_them(arm, elastica):
+    """A default run shares the damped landings between its own process and its cluster's
+    workers (here a stand-in worker thread, `helpers.WorkingBackground`): the rows are the
+    same, in the same order, as computed one after the other."""
+    from elastica_auto.analysis.landing import damping_sweep
+    from elastica_auto.execution.run import _Alongside
+    from helpers import WorkingBackground
+    branches = arm[0]
+    folds = [p.name for p, _ in snap_lps(branches[0])][:2]
+    serial = damping_sweep(elastica, branches, [20.0], folds)
+    pool = _Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
+    shared = damping_sweep(elastica, branches, [20.0], folds, mapper=pool.map)
+    assert len(serial) == 2 and all(r["landed"] == 1 for r in serial)
+    assert pool.background.tasks                          # the worker computed some
+    for a, b in zip(serial, shared):
+        assert a.keys() == b.keys()
+        for k in a:
+            assert a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]), (k, a[k], b[k])
+
+
 def test_the_damping_sweep_is_checked_saved_and_listed(arm, elastica, tmp_path, cli_exe):
     """Bad ``damping``/``damping_folds`` are errors naming the argument (a run file's name
     the key); a fold that ends no stable branch is a warning; the landings survive a save

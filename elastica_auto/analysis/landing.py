@@ -248,7 +248,8 @@ def _damped(flow, u0, damping: float, barrier: float):
 
 
 def damping_sweep(problem, branches, damping, folds=None, warnings: list | None = None,
-                  on_landing: Callable | None = None) -> list[dict]:
+                  on_landing: Callable | None = None, mapper: Callable | None = None
+                  ) -> list[dict]:
     """Where the damped model lands from folds of ``branches``, for each ``c`` in
     ``damping``: one row per (fold, c), in fold then ``damping`` order.
 
@@ -259,6 +260,12 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
     scan; else 0, a line in ``warnings`` and NaN below), that equilibrium's ``k``,
     ``target_<ordinate>`` values and ``energy_released``, and the ``transit_time``.
     ``on_landing(done, total, row)`` is called after each landing.
+
+    The landings are independent tasks (`landing_task`): ``mapper(function, args_list,
+    on_done)`` computes them (default one after the other here; a default run's
+    `execution.run` shares them between this process and its cluster), returns their
+    results in order and calls ``on_done(i, result)`` as each is done. The rows are the same
+    whoever computed them.
     """
     from .equilibria import beyond_fold, enumerate_equilibria, snap_lps
     warnings = warnings if warnings is not None else []
@@ -267,32 +274,53 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
     for name in [] if folds is None else [f for f in folds
                                           if f not in {p.name for _, _, p, _ in found}]:
         warnings.append(f"{name}: not a fold ending a stable branch; no damping sweep")
-    rows, total = [], len(found) * len(damping)
+    heads, tasks = [], []
     for nb, br, p, side in found:
         equilibria = enumerate_equilibria(problem, p.params)
         beyond = beyond_fold(br, p, side)
         for c in damping:
-            row = {"lp": p.name, "branch": nb, "parameter": br.parameter,
-                   "value": p.params[br.parameter], "damping": float(c), "landed": 0,
-                   "k": np.nan, **{f"target_{o}": np.nan for o in problem.ordinate_names},
-                   "energy_released": np.nan, "transit_time": np.nan}
-            try:
-                end = land(problem, p.state, p.tangent, equilibria, br.parameter, beyond,
-                           damping=float(c))
-            except Exception as exc:  # the module's hook failing: this landing only
-                warnings.append(f"{p.name}, damping {c:g}: the dynamics failed: "
-                                f"{one_line(exc)}")
-                end = None
-            if end is not None and end.target is None:
-                warnings.append(f"{p.name}, damping {c:g}: the dynamics ended at no "
-                                f"enumerated stable equilibrium (the nearest is "
-                                f"{end.distance:.3g} away)")
-            elif end is not None:
-                eq = equilibria[end.target]
-                row.update(landed=1, k=eq.k, energy_released=end.energy_released,
-                           transit_time=end.transit_time,
-                           **{f"target_{o}": v for o, v in eq.ordinates.items()})
-            rows.append(row)
-            if on_landing is not None:
-                on_landing(len(rows), total, row)
+            heads.append((nb, br.parameter, p, equilibria, float(c)))
+            tasks.append((problem, p.state, p.tangent, equilibria, br.parameter, beyond,
+                          float(c)))
+    rows: list[dict | None] = [None] * len(tasks)
+    lines: list[list[str]] = [[] for _ in tasks]
+    done = 0
+
+    def row_of(i, result):
+        nonlocal done
+        nb, name, p, equilibria, c = heads[i]
+        row = {"lp": p.name, "branch": nb, "parameter": name, "value": p.params[name],
+               "damping": c, "landed": 0, "k": np.nan,
+               **{f"target_{o}": np.nan for o in problem.ordinate_names},
+               "energy_released": np.nan, "transit_time": np.nan}
+        if isinstance(result, str):
+            lines[i].append(f"{p.name}, damping {c:g}: the dynamics failed: {result}")
+        elif result.target is None:
+            lines[i].append(f"{p.name}, damping {c:g}: the dynamics ended at no enumerated "
+                            f"stable equilibrium (the nearest is {result.distance:.3g} away)")
+        else:
+            eq = equilibria[result.target]
+            row.update(landed=1, k=eq.k, energy_released=result.energy_released,
+                       transit_time=result.transit_time,
+                       **{f"target_{o}": v for o, v in eq.ordinates.items()})
+        rows[i] = row
+        done += 1
+        if on_landing is not None:
+            on_landing(done, len(tasks), row)
+
+    if mapper is None:
+        for i, args in enumerate(tasks):
+            row_of(i, landing_task(*args))
+    else:
+        mapper(landing_task, tasks, row_of)
+    warnings.extend(line for group in lines for line in group)
     return rows
+
+
+def landing_task(problem, state, null, equilibria, parameter, beyond, damping) -> Landing | str:
+    """`land` with ``damping``, as a task of `damping_sweep`: the `Landing`, or the one-line
+    message of the module's hook failing (that landing only)."""
+    try:
+        return land(problem, state, null, equilibria, parameter, beyond, damping=damping)
+    except Exception as exc:  # the module's hook failing: this landing only
+        return one_line(exc)

@@ -127,6 +127,25 @@ def _task(plan, k: int, job):
     return branch, get_worker().address
 
 
+def map_tasks(client, function, args_list, on_done) -> list:
+    """``function(*args)`` for each of ``args_list`` as tasks of ``client``'s cluster; their
+    results in order, ``on_done(i, result)`` called as each arrives. A task that fails
+    there (its worker died) is computed in this process. (The damped model's landings of a
+    ``--jobs N`` or scheduler run: `execution.run._analyse`.)"""
+    from distributed import as_completed
+    futures = {client.submit(function, *args, pure=False): i
+               for i, args in enumerate(args_list)}
+    out = [None] * len(args_list)
+    for future in as_completed(futures, loop=client.loop):   # not the default client
+        i = futures[future]
+        try:
+            out[i] = future.result()
+        except Exception:  # the worker died, or could not unpickle the task: here, then
+            out[i] = function(*args_list[i])
+        on_done(i, out[i])
+    return out
+
+
 def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                    on_tasks: TaskProgress | None = None, stop=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to

@@ -371,27 +371,47 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                     interrupted = run_on_cluster(client, plan, second, branches, save,
                                                  on_branch, on_tasks, signals.stop)
             finally:
-                if own:
+                # kept open for the damped landings, its tasks too
+                if own and (interrupted or not plan.damping):
                     close(client, interrupted)
+                    own = False
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
     result.interrupted = interrupted
-    if not interrupted:
-        _analyse(plan, result, kept, pool.scans if pool is not None else None,
-                 callbacks.on_landing)
+    mapper = None
     if pool is not None:
-        pool.background.close(wait=5.0)
+        mapper = pool.map
+    elif client is not None and not interrupted and plan.damping:
+        from functools import partial
+
+        from .cluster import map_tasks
+        mapper = partial(map_tasks, client)
+    broken = True           # until the analysis is done (a Ctrl-C in it ends the workers)
+    try:
+        if not interrupted:
+            _analyse(plan, result, kept, pool, callbacks.on_landing, mapper)
+        broken = False
+    finally:
+        if pool is not None:
+            pool.background.close(wait=5.0)
+        if own:
+            from .cluster import close
+            close(client, broken)
 
 
-def _analyse(plan: Plan, result: RunResult, kept, scans_done: dict | None,
-             on_landing: Callable[[int, int, dict], None] | None):
+def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
+             on_landing: Callable[[int, int, dict], None] | None, mapper=None):
     """The computed branches' snap-back targets, and as the plan asks, the damped model's
     landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
     branches). A failure of the module in any of them is a warning: the branches stand.
-    ``scans_done``: the equilibrium scans computed already (`snap_targets`'s ``cache``)."""
+    ``pool``: a default run's (`_Alongside`): its workers' equilibrium scans
+    (`snap_targets`'s ``cache``). ``mapper``: computes the damped landings as tasks (the
+    default run's `_Alongside.map`, a cluster's `cluster.map_tasks`; default here, one
+    after the other)."""
     branches = result.branches
     try:
         result.snaps = snap_targets(plan.problem, branches, result.warnings,
-                                    landing=plan.landing, cache=scans_done)
+                                    landing=plan.landing,
+                                    cache=pool.scans if pool is not None else None)
         for row in result.snaps:           # numbered after the kept branches
             row["branch"] += result.kept
             row["on_branch"] += result.kept if row["on_branch"] else 0
@@ -404,7 +424,8 @@ def _analyse(plan: Plan, result: RunResult, kept, scans_done: dict | None,
         from ..analysis.landing import damping_sweep
         try:
             result.landings = damping_sweep(plan.problem, branches, plan.damping,
-                                            plan.damping_folds, result.warnings, on_landing)
+                                            plan.damping_folds, result.warnings, on_landing,
+                                            mapper=mapper)
         except Exception as exc:  # the module failing in the scan: keep the branches
             result.warnings.append(f"damped landings failed: {one_line(exc)}")
         for row in result.landings:
@@ -441,7 +462,7 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
         finally:
             if interrupted:
                 pool.background.close()
-            else:   # its helper ends its cluster while this process goes on
+            elif not plan.damping:   # its helper ends its cluster while this process goes on
                 pool.background.finish()
     result.interrupted = interrupted
     return pool
@@ -468,6 +489,10 @@ class _Alongside:
         self.claimed, self.returned = set(), []
         self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
         self.pending_params: dict[tuple, dict] = {}
+        # the tasks of `map`: the function, its arguments, the next to take, those on the
+        # cluster, and those handed back (the cluster ended, or the task failed there)
+        self.task_fn, self.tasks, self.task_front = None, [], 0
+        self.task_claimed, self.task_returned = set(), []
         self.background = background(workers, self._on_result)
 
     def _on_result(self, tag, ok, value):
@@ -478,10 +503,14 @@ class _Alongside:
                 self.returned += sorted(self.claimed)
                 self.claimed.clear()
                 self.asked.clear()
+                self.task_returned += sorted(self.task_claimed)
+                self.task_claimed.clear()
             elif tag is not None:
                 self.results.put((tag, ok, value))
                 if tag[0] == "branch":
                     self.claimed.discard(tag[1])
+                elif tag[0] == "task":
+                    self.task_claimed.discard(tag[1])
                 else:
                     self.asked.discard(tag[1])
             self._feed()
@@ -492,7 +521,8 @@ class _Alongside:
         """Under the lock, if the cluster is up: a task for each idle worker, the next
         branch or else a scan."""
         bg = self.background
-        while bg.ready.is_set() and len(self.claimed) + len(self.asked) < bg.workers:
+        while bg.ready.is_set() and (len(self.claimed) + len(self.asked)
+                                     + len(self.task_claimed)) < bg.workers:
             if self.front <= self.back:
                 i = self.front
                 if not bg.submit(("branch", i), compute_branch,
@@ -507,6 +537,12 @@ class _Alongside:
                     return
                 self.unsent.pop(0)
                 self.asked.add(key)
+            elif self.task_front < len(self.tasks):
+                i = self.task_front
+                if not bg.submit(("task", i), self.task_fn, self.tasks[i]):
+                    return
+                self.task_front += 1
+                self.task_claimed.add(i)
             else:
                 return
 
@@ -518,6 +554,13 @@ class _Alongside:
         if kind == "scan":
             if ok:
                 self.scans[what] = (self.pending_params[what], value[0])
+            return
+        if kind == "task":
+            if ok:
+                done[what] = value[0]
+            else:  # its worker died (KilledWorker, say): computed here instead
+                with self.lock:
+                    self.task_returned.append(what)
             return
         job = self.jobs[what]
         if ok:
@@ -594,6 +637,53 @@ class _Alongside:
                 with self.lock:
                     self.unsent.append((key, params))
                     self._feed()
+
+    def map(self, function, args_list, on_done) -> list:
+        """``function(*args)`` for each of ``args_list``, in this process and on the
+        cluster's idle workers (once it is up), each taking the next from the front of the
+        list, as the branches are shared; their results in order, and ``on_done(i, result)``
+        called here as each arrives. A task the cluster fails or gives back is computed
+        here. (The damped model's landings, `analysis.landing.damping_sweep`: seconds each,
+        the same result whoever computes it.)"""
+        import queue
+        n = len(args_list)
+        with self.lock:
+            self.task_fn, self.tasks, self.task_front = function, list(args_list), 0
+            self.task_claimed.clear()
+            self.task_returned.clear()
+            self._feed()
+        done: dict[int, object] = {}
+        reported = set()
+
+        def report():
+            for i in sorted(set(done) - reported):
+                reported.add(i)
+                on_done(i, done[i])
+
+        while len(reported) < n:
+            with self.lock:
+                if self.task_returned:
+                    i = self.task_returned.pop(0)
+                elif self.task_front < n:
+                    i, self.task_front = self.task_front, self.task_front + 1
+                else:
+                    i = None
+            if i is not None:
+                done[i] = function(*self.tasks[i])
+            else:                                # the rest is on the cluster: wait for it
+                try:
+                    self._take(self.results.get(timeout=0.05), done)
+                except queue.Empty:
+                    pass
+            while True:
+                try:
+                    self._take(self.results.get_nowait(), done)
+                except queue.Empty:
+                    break
+            report()
+        with self.lock:
+            self.task_fn, self.tasks = None, []
+        return [done[i] for i in range(n)]
 
     def wait_for_scans(self, stop) -> bool:
         """The scans not done yet: this process takes those not sent to the cluster (a scan
