@@ -211,9 +211,10 @@ def test_the_damped_landings_of_mirrored_folds_are_mirrored(arm):
 
 
 def test_the_damped_landings_are_the_same_whoever_computes_them(arm, elastica):
-    """A default run shares the damped landings between its own process and its cluster's
-    workers (here a stand-in worker thread, `helpers.WorkingBackground`): the rows are the
-    same, in the same order, as computed one after the other."""
+    """A default run shares the landings between its own process and its cluster's workers
+    (here a stand-in worker thread, `helpers.WorkingBackground`): the damped model's rows,
+    and the snap-back table's overdamped landings, are the same, in the same order, as
+    computed one after the other."""
     from elastica_auto.analysis.landing import damping_sweep
     from elastica_auto.execution.run import _Alongside
     from helpers import WorkingBackground
@@ -228,6 +229,17 @@ def test_the_damped_landings_are_the_same_whoever_computes_them(arm, elastica):
         assert a.keys() == b.keys()
         for k in a:
             assert a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]), (k, a[k], b[k])
+    # and the overdamped landings of the snap-back table (the fixture's, one by one)
+    from elastica_auto.analysis.snaps import snap_targets
+    pool = _Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
+    rows = snap_targets(elastica, branches[:1], landing=True, mapper=pool.map)
+    assert pool.background.tasks
+    cols = ("lp", "k", "landed", "energy_released", "transit_time")
+    before = [tuple(r[c] for c in cols) for r in arm[0].snaps if r["branch"] == 1]
+    assert len(rows) == len(before) > 5
+    for got, want in zip((tuple(r[c] for c in cols) for r in rows), before):
+        assert got[0] == want[0] and np.array_equal(got[1:], want[1:], equal_nan=True), \
+            (got, want)
 
 
 def test_the_damping_sweep_is_checked_saved_and_listed(arm, elastica, tmp_path, cli_exe):

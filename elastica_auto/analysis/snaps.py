@@ -10,10 +10,11 @@ drawing the configuration after the snap).
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from ..branches.branch import PROFILE_GRID
-from ..core.errors import one_line
 from ..core.solution import State
 from .equilibria import Equilibrium, beyond_fold, enumerate_equilibria, snap_lps
 
@@ -74,7 +75,8 @@ def scans(problem, branch) -> dict[tuple, dict]:
 
 
 def snap_targets(problem, branches, warnings: list | None = None,
-                 landing: bool = False, cache: dict | None = None) -> list[dict]:
+                 landing: bool = False, cache: dict | None = None,
+                 mapper: Callable | None = None) -> list[dict]:
     """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
     values (excluding the fold's own solution), with the branch that passes through it.
 
@@ -83,7 +85,8 @@ def snap_targets(problem, branches, warnings: list | None = None,
     ``landed = 1`` and the energy released and transit time; the other rows ``landed = 0``
     and NaN. A fold whose dynamics
     fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
-    gets a line saying why.
+    gets a line saying why. The landings are tasks (`landing.landing_task`), computed by
+    ``mapper`` as `landing.damping_sweep`'s are (default here, one after the other).
 
     ``cache``: enumerations computed already (elsewhere: on a cluster's workers, as the
     branches came in), key (`scan_key`) -> (parameters, `enumerate_equilibria` there); one
@@ -92,12 +95,13 @@ def snap_targets(problem, branches, warnings: list | None = None,
     the others are computed here: the rows are the same whoever computed them."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
+    from .landing import landing_task
+    warnings = warnings if warnings is not None else []
     landing = landing and problem.has_gradient_flow
-    given, cache, exact, landings = cache or {}, {}, {}, {}
-    rows = []
+    given, cache, exact = cache or {}, {}, {}
+    folds, tasks, where = [], [], {}
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
-        period = problem.parameters[name].period
         for p, side in snap_lps(br):
             params = dict(p.params)
             key = scan_key(problem, name, params)
@@ -106,63 +110,75 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 there = given.get(key)
                 cache[key] = exact[own] = (there[1] if there is not None and there[0] == params
                                            else enumerate_equilibria(problem, params))
-            k_fold = p.state.y[:, 0]
-            reached = None
+            at = None
             if landing:
                 beyond = beyond_fold(br, p, side)
                 # periodic copies of a fold land alike: the same parameters (mod the period)
                 # and the same initial values y(0), hence the same solution
                 at = (key, beyond, tuple(np.round(p.state.y[:, 0], 8)))
-                if at not in landings:
+                if at not in where:
                     # the dynamics' end is compared with equilibria at the fold's own
                     # parameters: a periodic copy of the cached ones (a parameter moved by
                     # its period) may differ from them by a period in the states (theta0)
                     if own not in exact:
                         exact[own] = enumerate_equilibria(problem, params)
-                    there = exact[own]
-                    landings[at] = _landing(problem, p, there, name, beyond,
-                                            warnings if warnings is not None else [])
-                    if landings[at] is not None and landings[at].target is not None:
-                        # the same equilibrium in the cached list: by its ordinates, which
-                        # are physical and so the same on every periodic copy
-                        hit = there[landings[at].target].ordinates
-                        landings[at].target = int(np.argmin(
-                            [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
-                             for eq in cache[key]]))
-                reached = landings[at]
-            for j, eq in enumerate(cache[key]):
-                if eq.index != 0:
-                    continue
-                shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
-                if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
-                    continue  # the fold's own (vanishing, numerically a near-double) root
-                target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
-                row = {"lp": p.name, "branch": nb, "parameter": name,
-                       "value": params[name], "stable_side": side, **k_columns(eq.k),
-                       "index": eq.index, **{f"target_{o}": v
-                                             for o, v in eq.ordinates.items()},
-                       "on_branch": _on_branch(branches, name, period, target)}
-                if landing:
-                    here = reached is not None and reached.target == j
-                    row.update(landed=int(here),
-                               energy_released=reached.energy_released if here else np.nan,
-                               transit_time=reached.transit_time if here else np.nan)
-                rows.append({**row, "profile": eq.state(PROFILE_GRID)})
+                    where[at] = (len(tasks), p.name, own)
+                    tasks.append((problem, p.state, p.tangent, exact[own], name, beyond, None))
+            folds.append((nb, br, p, side, params, key, at))
+    ends = (mapper or _one_by_one)(landing_task, tasks, lambda i, result: None)
+    landings = {}
+    for at, (i, lp, own) in where.items():
+        landings[at] = _landed(ends[i], lp, warnings)
+        if landings[at] is not None and landings[at].target is not None:
+            # the same equilibrium in the cached list: by its ordinates, which are physical
+            # and so the same on every periodic copy
+            hit = exact[own][landings[at].target].ordinates
+            landings[at].target = int(np.argmin(
+                [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
+                 for eq in cache[at[0]]]))
+    rows = []
+    for nb, br, p, side, params, key, at in folds:
+        name = br.parameter
+        period = problem.parameters[name].period
+        reached = landings.get(at)
+        k_fold = p.state.y[:, 0]
+        for j, eq in enumerate(cache[key]):
+            if eq.index != 0:
+                continue
+            shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
+            if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
+                continue  # the fold's own (vanishing, numerically a near-double) root
+            target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
+            row = {"lp": p.name, "branch": nb, "parameter": name,
+                   "value": params[name], "stable_side": side, **k_columns(eq.k),
+                   "index": eq.index, **{f"target_{o}": v
+                                         for o, v in eq.ordinates.items()},
+                   "on_branch": _on_branch(branches, name, period, target)}
+            if landing:
+                here = reached is not None and reached.target == j
+                row.update(landed=int(here),
+                           energy_released=reached.energy_released if here else np.nan,
+                           transit_time=reached.transit_time if here else np.nan)
+            rows.append({**row, "profile": eq.state(PROFILE_GRID)})
     return rows
 
 
-def _landing(problem, point, equilibria, name, beyond, warnings: list):
-    """`elastica_auto.analysis.landing.land` from ``point``, or None with a line in ``warnings``: a
-    failure of the module's dynamics costs the fold its landing, not the run its snap-back
-    table."""
-    from .landing import land
-    try:
-        landing = land(problem, point.state, point.tangent, equilibria, name, beyond)
-    except Exception as exc:  # the module's hook failing: the targets stand without a landing
-        warnings.append(f"{point.name}: the dynamics from the fold failed: "
-                        f"{one_line(exc)}")
+def _one_by_one(function, args_list, on_done) -> list:
+    out = []
+    for i, args in enumerate(args_list):
+        out.append(function(*args))
+        on_done(i, out[-1])
+    return out
+
+
+def _landed(end, lp: str, warnings: list):
+    """A fold's landing (`landing.landing_task`'s result), or None with a line in
+    ``warnings``: a failure of the module's dynamics costs the fold its landing, not the run
+    its snap-back table."""
+    if isinstance(end, str):
+        warnings.append(f"{lp}: the dynamics from the fold failed: {end}")
         return None
-    if landing.target is None:
-        warnings.append(f"{point.name}: the dynamics from the fold ended at no enumerated "
-                        f"stable equilibrium (the nearest is {landing.distance:.3g} away)")
-    return landing
+    if end.target is None:
+        warnings.append(f"{lp}: the dynamics from the fold ended at no enumerated "
+                        f"stable equilibrium (the nearest is {end.distance:.3g} away)")
+    return end

@@ -371,8 +371,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                     interrupted = run_on_cluster(client, plan, second, branches, save,
                                                  on_branch, on_tasks, signals.stop)
             finally:
-                # kept open for the damped landings, its tasks too
-                if own and (interrupted or not plan.damping):
+                # kept open for the landings, its tasks too
+                if own and (interrupted or not (plan.landing or plan.damping)):
                     close(client, interrupted)
                     own = False
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
@@ -380,7 +380,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     mapper = None
     if pool is not None:
         mapper = pool.map
-    elif client is not None and not interrupted and plan.damping:
+    elif client is not None and not interrupted and (plan.landing or plan.damping):
         from functools import partial
 
         from .cluster import map_tasks
@@ -404,14 +404,15 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
     landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
     branches). A failure of the module in any of them is a warning: the branches stand.
     ``pool``: a default run's (`_Alongside`): its workers' equilibrium scans
-    (`snap_targets`'s ``cache``). ``mapper``: computes the damped landings as tasks (the
-    default run's `_Alongside.map`, a cluster's `cluster.map_tasks`; default here, one
-    after the other)."""
+    (`snap_targets`'s ``cache``). ``mapper``: computes the landings (overdamped and
+    damped) as tasks (the default run's `_Alongside.map`, a cluster's
+    `cluster.map_tasks`; default here, one after the other)."""
     branches = result.branches
     try:
         result.snaps = snap_targets(plan.problem, branches, result.warnings,
                                     landing=plan.landing,
-                                    cache=pool.scans if pool is not None else None)
+                                    cache=pool.scans if pool is not None else None,
+                                    mapper=mapper)
         for row in result.snaps:           # numbered after the kept branches
             row["branch"] += result.kept
             row["on_branch"] += result.kept if row["on_branch"] else 0
@@ -462,8 +463,8 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
         finally:
             if interrupted:
                 pool.background.close()
-            elif not plan.damping:   # its helper ends its cluster while this process goes on
-                pool.background.finish()
+            elif not (plan.landing or plan.damping):   # the landings need it; else its
+                pool.background.finish()   # helper ends its cluster while this process goes on
     result.interrupted = interrupted
     return pool
 
@@ -643,8 +644,9 @@ class _Alongside:
         cluster's idle workers (once it is up), each taking the next from the front of the
         list, as the branches are shared; their results in order, and ``on_done(i, result)``
         called here as each arrives. A task the cluster fails or gives back is computed
-        here. (The damped model's landings, `analysis.landing.damping_sweep`: seconds each,
-        the same result whoever computes it.)"""
+        here. (The landings of `analysis.snaps.snap_targets` and
+        `analysis.landing.damping_sweep`: seconds each, the same result whoever computes
+        it.)"""
         import queue
         n = len(args_list)
         with self.lock:
