@@ -854,7 +854,7 @@ class _Walk:
         ends next to a singular start (a branch point it was switched from) would see the
         start's own fold or branch point there, and fail to locate it."""
         start, a = self.start, self.a
-        if start is None or self.until is not None or self.first:
+        if start is None or self.until is not None or self.first or self._far(a, ds):
             return False
         s = a.mesh
         t = a.tangent.on(s)
@@ -871,6 +871,15 @@ class _Walk:
         self.branch.message = self._closed(self.arclength + sigma)
         return True
 
+    def _far(self, a, length: float) -> bool:
+        """Whether the start is farther from ``a`` in the parameter alone than either check
+        allows: both need |x0 - a| <= hypot(1, CLOSED_LOOP) ``length`` (the start within
+        ``length`` along a line from a, within CLOSED_LOOP ``length`` of it), and the norm
+        bounds the parameter's difference. (The checks interpolate the start onto a's mesh;
+        this one costs nothing, and rules out nearly every step.)"""
+        gap = abs(self.start.state.params[self.name] - a.state.params[self.name])
+        return gap > math.hypot(1.0, CLOSED_LOOP) * length
+
     def _closed(self, arclength: float) -> str:
         return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
                 f"after arclength {arclength:.6g}")
@@ -883,7 +892,8 @@ class _Walk:
         is the start's own solution, so the loop closes exactly. Not in a walk that ends at
         a hyperplane (``until``: the refinement of one step)."""
         start = self.start
-        if start is None or self.until is not None or self.first:
+        if (start is None or self.until is not None or self.first
+                or self._far(step.a, step.dist)):
             return None
         s = step.b.mesh
         sigma = step.sigma(start.state)
