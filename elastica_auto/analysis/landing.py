@@ -308,13 +308,19 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
         if on_landing is not None:
             on_landing(done, len(tasks), row)
 
-    if mapper is None:
-        for i, args in enumerate(tasks):
-            row_of(i, landing_task(*args))
-    else:
-        mapper(landing_task, tasks, row_of)
+    (mapper or one_by_one)(landing_task, tasks, row_of)
     warnings.extend(line for group in lines for line in group)
     return rows
+
+
+def one_by_one(function, args_list, on_done) -> list:
+    """The mapper of a run without workers: ``function(*args)`` for each of ``args_list``
+    here, in order, ``on_done(i, result)`` after each; the results."""
+    out = []
+    for i, args in enumerate(args_list):
+        out.append(function(*args))
+        on_done(i, out[-1])
+    return out
 
 
 def landing_task(problem, state, null, equilibria, parameter, beyond, damping) -> Landing | str:

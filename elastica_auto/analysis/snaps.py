@@ -95,7 +95,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
     the others are computed here: the rows are the same whoever computed them."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
-    from .landing import landing_task
+    from .landing import landing_task, one_by_one
     warnings = warnings if warnings is not None else []
     landing = landing and problem.has_gradient_flow
     given, cache, exact = cache or {}, {}, {}
@@ -125,7 +125,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                     where[at] = (len(tasks), p.name, own)
                     tasks.append((problem, p.state, p.tangent, exact[own], name, beyond, None))
             folds.append((nb, br, p, side, params, key, at))
-    ends = (mapper or _one_by_one)(landing_task, tasks, lambda i, result: None)
+    ends = (mapper or one_by_one)(landing_task, tasks, lambda i, result: None)
     landings = {}
     for at, (i, lp, own) in where.items():
         landings[at] = _landed(ends[i], lp, warnings)
@@ -161,14 +161,6 @@ def snap_targets(problem, branches, warnings: list | None = None,
                            transit_time=reached.transit_time if here else np.nan)
             rows.append({**row, "profile": eq.state(PROFILE_GRID)})
     return rows
-
-
-def _one_by_one(function, args_list, on_done) -> list:
-    out = []
-    for i, args in enumerate(args_list):
-        out.append(function(*args))
-        on_done(i, out[-1])
-    return out
 
 
 def _landed(end, lp: str, warnings: list):
