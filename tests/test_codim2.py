@@ -388,3 +388,48 @@ def test_every_fold_curve_point_has_its_fold_residual(fold_curve):
     solution and null vector together, is set and under the curve's tol (1e-7)."""
     res = fold_curve[0].columns["fold_residual"]
     assert np.all(np.isfinite(res)) and np.all(res <= 1e-7) and np.any(res > 0)
+
+
+def _level_fold():
+    """The fold of examples/bratu_level.py in closed form (its docstring): with
+    I(z) = int_0^1 (x - 1/2) tanh(z (x - 1/2)) dx, the shifted Bratu solution's mean is
+    m(z) = 2 z I(z) (by parts), and G = Lam exp(m) is largest where z I(z) = 1, so m = 2 there:
+    the fold curve is lam exp(M) = G(z*) = 2 z*^2 e^2 / cosh(z*/2)^2 with c = M - 2, and
+    u'(0) = 2 z* tanh(z*/2) all along it. Returns (G(z*), u'(0))."""
+    from scipy.integrate import quad
+
+    def zi(z):
+        return z * quad(lambda x: (x - 0.5) * math.tanh(z * (x - 0.5)), 0, 1,
+                        epsabs=1e-14, epsrel=1e-14)[0] - 1.0
+
+    z = brentq(zi, 2, 8, xtol=1e-14)
+    return 2 * z * z * math.e ** 2 / math.cosh(z / 2) ** 2, 2 * z * math.tanh(z / 2)
+
+
+def test_a_module_with_an_integral_condition_and_a_free_parameter_has_fold_curves(tmp_path):
+    """u'' + lam e^u = 0, u(0) = u(1) = c (c free), int u = M: the fold in lam, and the fold
+    curve through it in (lam, M) from the stored label, against the closed form; the free
+    level c is a column of the curve."""
+    from helpers import EXAMPLES
+    level = ea.load_problem(str(EXAMPLES / "bratu_level.py"))
+    K, du0 = _level_fold()
+    branches = ea.continuation(level, {"lam": 0.0, "M": 0.0}, "lam", bounds=(-1, 20),
+                               max_points=60, ds_max=1.0, directions="+")
+    (lp,) = branches[0].folds
+    assert lp.params["lam"] == pytest.approx(K, rel=1e-9)
+    assert lp.params["c"] == pytest.approx(-2.0, abs=1e-9)
+    path = ea.save(branches, tmp_path / "level.h5")
+    curves = ea.continuation(level, ea.BranchFile(path).label("LP1"), ["lam", "M"],
+                             bounds=(-1, 2), tol=1e-7, directions="both")
+    assert [b.end for b in curves] == ["EP", "EP"]
+    ends = sorted(b.points[-1].params["M"] for b in curves)
+    assert ends == pytest.approx([-1, 2], abs=1e-12)
+    for b in curves:
+        c = b.columns
+        assert len(c["M"]) >= 8
+        assert np.abs(c["lam"] * np.exp(c["M"]) / K - 1).max() <= 1e-9
+        assert np.abs(c["c"] - (c["M"] - 2)).max() <= 1e-9
+        assert np.abs(c["du0"] - du0).max() <= 1e-8
+    with pytest.raises(ea.PlanError, match="'c' is a free parameter") as exc_info:
+        ea.continuation(level, branches.label("LP1"), ["lam", "c"])
+    assert exc_info.value.key == "parameter"

@@ -25,6 +25,14 @@ derivatives of f_y v) are central differences of the module's first derivatives 
 by the symmetry of second derivatives, d/dy (f_y v) = d/dt f_y(y + t v) at t = 0, one pair of
 calls per Jacobian. Both problems are ordinary `Problem` objects (modules built here), so
 everything the engine does (steps, folds, branch points, user points, files) applies.
+
+A module with integral conditions or free parameters of its own is solved as a square problem
+on its states, the running integrals and the free parameters (`elastica_auto.model.augmented`):
+its fold system is that square problem's, built the same way. The null vector then has
+components along the running integrals and the free parameters too (v_mu constant, the
+integrals' rows v_w' = phi_y v + phi_mu v_mu, v_w(0) = v_w(1) = 0), and a point of the fold
+curve carries the free parameters' values among its parameters. Branch-point curves of such
+modules are not built: their exact family would have to be completed the same way.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ import types
 import numpy as np
 
 from ..core.errors import PlanError, ProblemError, StartError
+from ..model.augmented import Augmented
 from ..model.problem import Ordinate, Problem
 from ..core.solution import State
 
@@ -53,18 +62,34 @@ def _null_states(base: Problem) -> tuple[str, ...]:
     return tuple(f"null:{name}" for name in base.states)
 
 
-def _check_base(base: Problem, lam: str, what: str):
-    if base.extra_conditions or getattr(base, "free", ()) and base.free:
-        raise PlanError("parameter", f"{base.source}: {what} of a module with integral "
-                        "conditions or free parameters is not supported")
+def _check_base(base, lam: str, what: str):
     if lam not in base.parameters:
         raise PlanError("parameter", f"unknown parameter {lam!r}; {base.source} declares "
                         f"{', '.join(base.parameter_names)}")
+    if lam in getattr(base, "free", ()):
+        raise PlanError("parameter", f"{lam!r} is a free parameter of {base.source} (solved "
+                        f"for); {what} needs a parameter the module holds fixed")
 
 
-def fold_problem(base: Problem, lam: str) -> Problem:
+class _Extended(Augmented):
+    """The square problem of an extended system whose first states are those of ``inner``, a
+    module's square problem with free parameters of its own: a solution's parameter values
+    carry the extended system's solved-for parameter and ``inner``'s."""
+
+    def __init__(self, base, free, inner):
+        super().__init__(base, free)
+        self.inner = inner
+
+    def point_params(self, params, y):
+        return self.inner.point_params(super().point_params(params, y), y[: self.inner.n])
+
+
+def fold_problem(base, lam: str) -> Problem:
     """The fold system of ``base`` in ``lam`` (module docstring): states (y, v), the integral
-    condition ``null_norm``, ``lam`` free; the ordinates are ``base``'s, of y."""
+    condition ``null_norm``, ``lam`` free; the ordinates are ``base``'s, of y. ``base`` is a
+    module's problem with one condition per state, or the square problem of one with integral
+    conditions or free parameters (`elastica_auto.model.augmented.Augmented`), whose states y
+    then include the running integrals and the free parameters."""
     _check_base(base, lam, "a fold curve")
     n = base.n
 
@@ -127,14 +152,19 @@ def fold_problem(base: Problem, lam: str) -> Problem:
 
     module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
                      lam, _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp),
-                     [_on_y(o, n) for o in base.ordinates.values()], first=n)
-    return Problem(module, base.source).with_free((lam,))
+                     [_on_y(o, base) for o in base.ordinates.values()], first=n)
+    problem = Problem(module, base.source)
+    return _Extended(problem, (lam,), base) if isinstance(base, Augmented) \
+        else problem.with_free((lam,))
 
 
 def branch_point_problem(base: Problem, lam: str) -> Problem:
     """The branch-point system of ``base``'s exact family in ``lam`` (module docstring):
     states v, the integral condition ``null_norm``, ``lam`` free; the ordinates are
     ``base``'s, of the exact solution."""
+    if isinstance(base, Augmented) or base.extra_conditions:
+        raise PlanError("start", f"{base.source}: branch-point curves of a module with integral "
+                        "conditions or free parameters are not built (fold curves are)")
     _check_base(base, lam, "a branch-point curve")
 
     def y0(s, p):
@@ -190,8 +220,16 @@ def _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp) -> dict:
     return dict(rhs=rhs, rhs_jac=rhs_jac, rhs_dp=rhs_dp, bc=bc, bc_jac=bc_jac, bc_dp=bc_dp)
 
 
-def _on_y(o: Ordinate, n: int) -> Ordinate:
-    return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n], p), o.parameter, o.doc)
+def _on_y(o: Ordinate, base) -> Ordinate:
+    """The ordinate ``o`` of ``base``'s solution y, the first states of the extended system's Y:
+    of the module's own states, at parameter values with ``base``'s free ones (if any) read
+    from y."""
+    if not isinstance(base, Augmented):
+        n = base.n
+        return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n], p), o.parameter, o.doc)
+    n0, n = base.n0, base.n
+    return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n0], base.point_params(p, Y[:n])),
+                    o.parameter, o.doc)
 
 
 def _module(base, doc, states, lam, hooks: dict, ordinates, first):
@@ -270,7 +308,8 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
     The other folds stay LP: there the two folds that meet face opposite ways (the
     one-parameter branches reconnect, or an isola appears), and ``lam`` moves through."""
     row = problem.n - 1                          # the free parameter is the last state
-    n = base.n
+    own = base.base if isinstance(base, Augmented) else base    # the module's own problem
+    n = own.n
     for p in branch.points:
         if p.type != "LP" or p.tangent is None:
             continue
@@ -281,7 +320,7 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
         if slope < CUSP_SLOPE:
             p.type = "CP"
         y = p.state.y[:n]
-        y0 = base.exact_start(p.state.s, p.params)
+        y0 = own.exact_start(p.state.s, p.params)
         if y0 is not None and np.max(np.abs(y - y0)) <= ON_FAMILY * (1 + np.max(np.abs(y0))):
             p.type = "BP"
             note += "; on the exact family: the fold curve meets its branch-point curve"

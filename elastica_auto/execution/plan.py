@@ -301,12 +301,24 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
     if not kinds <= {"LP", "BP"} or len(kinds) != 1:
         raise PlanError("start", f"expected LP labels (fold curves) or BP labels (branch-point "
                         f"curves), not a mix; got {', '.join(x.name for x in items)}")
+    curve = "fold" if kinds == {"LP"} else "bp"
+    if curve == "fold":
+        free = {_label_free(base, x) for x in items}
+        if len(free) != 1:
+            raise PlanError("start", "the LP labels were found with different free parameters")
+        try:
+            base = base.with_free(free.pop())
+        except ProblemError as exc:
+            raise PlanError("start", str(exc)) from None
+    for q in parameter:
+        if q in getattr(base, "free", ()):
+            raise PlanError("parameter", f"{q!r} is a free parameter of {base.source} (solved "
+                            "for along the labels' branches); continue in another one")
     for x in items:
         _start(base, x)
         if x.tangent_parameter != lam:
             raise PlanError("start", f"{x.name} is a {'fold' if 'LP' in kinds else 'branch point'}"
                             f" in {x.tangent_parameter!r}, not in {lam!r}")
-    curve = "fold" if kinds == {"LP"} else "bp"
     try:
         problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
             base, lam)
@@ -322,6 +334,18 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
                         "the shooting and second_variation hooks")
     plan.curve, plan.base, plan.maps = curve, base, request.map
     return plan
+
+
+def _label_free(base: Problem, label) -> tuple[str, ...]:
+    """The free parameters of the run that found ``label`` (its states ``free:NAME`` among the
+    module's square problem's states, before any null vector's)."""
+    free = []
+    for name in label.states:
+        if name.startswith("null:"):
+            break
+        if name.startswith("free:") and name[5:] in base.parameters:
+            free.append(name[5:])
+    return tuple(free)
 
 
 def _finite(key: str, v) -> float:
