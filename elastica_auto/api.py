@@ -92,7 +92,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  params: Mapping[str, float | Iterable[float]] | None = None,
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
-                 stop: Iterable[str] = (), switch: int = 0, free: Iterable[str] | None = None,
+                 stop: Iterable[str] = (), switch: int = 0, switch_depth: int = 1,
+                 free: Iterable[str] | None = None,
                  map: bool = False, landing: bool = False, damping: Iterable[float] = (),
                  damping_folds: Iterable[str] | None = None, jobs: int = 1,
                  scheduler: str | None = None,
@@ -125,6 +126,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     switch : int
         Also follow the other branch, both ways, at the first ``switch`` branch points of
         each branch (AUTO-07p's ISW=-1).
+    switch_depth : int
+        Levels of switching (default 1): 2 also switches at the first ``switch`` branch
+        points of the switched branches, and so on; a branch point met again (the same
+        point on a branch already computed) is not switched at twice.
     free : list of str, optional
         The parameters solved for where the module has more conditions than states (extra
         boundary conditions, integral conditions); default: the module's ``FREE``.
@@ -175,7 +180,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
     request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
-                      uz_period=uz_period, stop=stop, switch=switch, free=free, map=map,
+                      uz_period=uz_period, stop=stop, switch=switch,
+                      switch_depth=switch_depth, free=free, map=map,
                       landing=landing, damping=damping, damping_folds=damping_folds)
     plan = make_plan(problem, start, parameter, request, options)
     t0 = time.perf_counter()
@@ -186,8 +192,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                                    [])) from None
     result = RunResult(None, [], 0.0)
     try:
-        compute(plan, first, result, lambda: None, Callbacks(progress=progress),
-                Workers(jobs, scheduler))
+        # labels numbered as each branch is done (as a saved run's): a switched branch's
+        # start names its BP
+        compute(plan, first, result, lambda: number_labels(result.branches),
+                Callbacks(progress=progress), Workers(jobs, scheduler))
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
     number_labels(result.branches)

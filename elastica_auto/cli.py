@@ -113,7 +113,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
     nbr = len(plan.branches)
     varying = plan.varying
     tty = sys.stderr.isatty() and not quiet
-    switched = (f", then the other branch at the first {plan.switch_count} BPs of each"
+    levels = f", {plan.switch_depth} levels deep" if plan.switch_depth > 1 else ""
+    switched = (f", then the other branch at the first {plan.switch_count} BPs of each{levels}"
                 if plan.switch_count else "")
 
     def header():  # once the starts and the output are checked: an error stays one line

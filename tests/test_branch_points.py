@@ -108,3 +108,103 @@ def test_switched_branches_solve_the_problem_and_mirror_each_other(eigen_run):
         np.testing.assert_allclose(up.column("slope"), -down.column("slope"), rtol=1e-9,
                                    atol=1e-9)
         np.testing.assert_allclose(up.column("p"), down.column("p"), rtol=1e-12)
+
+
+def _two_modes(depth, **keywords):
+    import elastica_auto as ea
+    problem = ea.load_problem(str(EXAMPLES / "two_modes.py"))
+    return ea.continuation(problem, {"lam": -0.5}, "lam", bounds=(-1, 3), switch=2,
+                           switch_depth=depth, **keywords)
+
+
+def test_a_second_level_of_switching_reaches_the_mixed_mode():
+    """examples/two_modes.py (its docstring): u = v = 0 has branch points at lam = 0 and 1,
+    the pure u-mode one at lam = d / (1 - a) = 2, where the mixed mode u^2 = (2 lam + 2) / 3,
+    v^2 = (2 lam - 4) / 3 is born. One level of switching gives the pure modes only, two give
+    the four mixed branches (each sign of u and of v), a third finds nothing more."""
+    one, three = _two_modes(1), _two_modes(3)
+    assert len(one) == 5 and len(three) == 9
+    for br in one[1:]:
+        u, v = br.columns["u0"], br.columns["v0"]
+        assert np.all(np.abs(u) < 1e-12) or np.all(np.abs(v) < 1e-12)
+    signs = set()
+    for br in three[5:]:
+        lam, u, v = br.columns["lam"], br.columns["u0"], br.columns["v0"]
+        assert lam[0] == pytest.approx(2.0, abs=1e-8) and lam[-1] == 3.0
+        # after the start (the branch point, located to ~1e-8 in lam, where v = 0)
+        np.testing.assert_allclose(u[1:] ** 2, (2 * lam[1:] + 2) / 3, atol=1e-9)
+        np.testing.assert_allclose(v[1:] ** 2, (2 * lam[1:] - 4) / 3, atol=1e-9)
+        signs.add((np.sign(u[-1]), np.sign(v[-1])))
+    assert signs == {(1, 1), (1, -1), (-1, 1), (-1, -1)}
+    assert [br.start for br in three[:5]] == [br.start for br in one]
+    assert [br.start for br in three[1:]] == [f"switch at BP{k}" for k in (1, 1, 2, 2, 3, 3, 4, 4)]
+
+
+def test_the_run_file_s_switch_depth(tmp_path):
+    """examples/two_modes.toml asks for two levels; --from a label drops switching."""
+    plan = runfile.load(EXAMPLES / "two_modes.toml")
+    assert (plan.switch_count, plan.switch_depth) == (2, 2)
+    out = run_plan(plan, tmp_path).result
+    assert len(out.branches) == 9
+    restart = runfile.load(EXAMPLES / "two_modes.toml", tmp_path,
+                           restart=f"{out.path}:BP3")
+    assert (restart.switch_count, restart.switch_depth) == (0, 1)
+
+
+RING = """\
+\"\"\"u'' + u (1 - lam^2 - u^2) = 0, u'(0) = u'(1) = 0: u = 0, and the circle u^2 + lam^2 = 1
+of constant solutions, a closed loop through its branch points at lam = -1 and 1.\"\"\"
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "du")
+PARAMETERS = [Parameter("lam", 0.0, r"\\lambda", "ode")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -y[0] * (1 - p["lam"] ** 2 - y[0] ** 2)))
+
+
+def bc(ya, yb, p):
+    return np.array((ya[1], yb[1]))
+
+
+def exact_start(s, p):
+    return np.zeros((2, len(s)))
+
+
+ORDINATES = [Ordinate("u0", "$u(0)$", lambda s, y, p: y[0, 0], "lam")]
+"""
+
+
+def test_a_branch_point_met_again_is_not_switched_at_twice(tmp_path):
+    """The circle u^2 + lam^2 = 1 leaves u = 0 at lam = -1 and comes back at lam = 1: each
+    switched branch goes round it once and meets the other branch point of u = 0 (labelled
+    BP where lam turns). Its other branch is u = 0, computed already, so a second level of
+    switching adds nothing."""
+    import elastica_auto as ea
+    path = tmp_path / "ring.py"
+    path.write_text(RING)
+    problem = ea.load_problem(str(path))
+    one, two = (ea.continuation(problem, {"lam": -1.5}, "lam", bounds=(-2, 2), switch=2,
+                                switch_depth=depth, ds_max=0.2) for depth in (1, 2))
+    assert len(one) == len(two) == 5 and not two.warnings
+    for br in two[1:]:
+        lam, u = br.columns["lam"], br.columns["u0"]
+        assert br.message.startswith("closed loop")
+        np.testing.assert_allclose(u ** 2 + lam ** 2, 1, atol=1e-8)
+        (bp,) = [p for p in br.points if p.type == "BP"]
+        assert bp.params["lam"] == pytest.approx(-br.points[0].params["lam"], abs=1e-3)
+
+
+@pytest.mark.parametrize("keywords, words", [
+    ({"switch": 2, "switch_depth": 0}, "count >= 1 of levels"),
+    ({"switch": 2, "switch_depth": True}, "count >= 1 of levels"),
+    ({"switch_depth": 2}, "need switch = N > 0"),
+])
+def test_switch_depth_is_checked(keywords, words):
+    import elastica_auto as ea
+    problem = ea.load_problem(str(EXAMPLES / "two_modes.py"))
+    with pytest.raises(ea.PlanError, match=words) as exc_info:
+        ea.continuation(problem, {"lam": -0.5}, "lam", **keywords)
+    assert exc_info.value.key == "switch_depth"

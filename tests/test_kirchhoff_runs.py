@@ -195,6 +195,27 @@ def test_the_branch_born_out_of_the_plane_is_a_closed_loop_through_the_mirror_po
         assert p.index == e.index == jacobi_count(mod, state) == 1
 
 
+def test_a_second_level_of_switching_passes_over_the_loops_mirror_points(arms):
+    """switch = 1 on both halves of the rotating arm (b2 = 2) switches at psi = +-1.1695: four
+    loops, each meeting the other branch point, where it is labelled only to the step. Both
+    branches through that point are computed, so a second level adds nothing."""
+    _, rod, _, _ = arms
+    run = ea.continuation(rod, {**BASE, "b2": 2.0}, "psi", bounds=(-1.4, 1.4),
+                          directions="both", max_points=200, ds_max=1.0, switch=1,
+                          switch_depth=2)
+    assert len(run) == 6 and not run.warnings
+    first = {round(br.points[0].params["psi"], 6) for br in run[2:]}
+    assert first == {1.169504, -1.169504}
+    for br in run[2:]:
+        assert br.message.startswith("closed loop")
+        (bp,) = [p for p in br.points if p.type == "BP"]
+        (mirror,) = [p for b in run[:2] for p in b.points
+                     if p.type == "BP" and p.params["psi"] * bp.params["psi"] > 0]
+        # the step's point, not the branch point itself: only the step says they are one
+        a, b = bp.state, mirror.state
+        assert np.sqrt(np.trapezoid(np.sum((a.y - b(a.s)) ** 2, axis=0), a.s)) > 1e-3
+
+
 def test_scan_box_finds_every_root_of_a_known_system():
     """r = (x^2 + y^2 - 4, sin(3 x) - y / 2) in [-3, 3]^2: the roots by an independent 1D
     bracketing along the circle x = 2 cos t, y = 2 sin t."""

@@ -92,6 +92,7 @@ class Plan:
     branches: list[BranchSpec] = field(default_factory=list)
     varying: list[str] = field(default_factory=list)
     switch_count: int = 0
+    switch_depth: int = 1
     maps: bool = False
     landing: bool = False
     damping: tuple[float, ...] = ()
@@ -133,6 +134,7 @@ class Request:
     uz_period: float | None = None
     stop: tuple[str, ...] = ()
     switch: int = 0
+    switch_depth: int = 1
     free: tuple[str, ...] | None = None
     map: bool = False
     landing: bool = False
@@ -160,6 +162,13 @@ class Request:
         if isinstance(self.switch, bool) or not isinstance(self.switch, int) or self.switch < 0:
             raise PlanError("switch", f"expected a count >= 0 of branch points to switch at, "
                             f"got {self.switch!r}")
+        if isinstance(self.switch_depth, bool) or not isinstance(self.switch_depth, int) \
+                or self.switch_depth < 1:
+            raise PlanError("switch_depth", f"expected a count >= 1 of levels of switching, "
+                            f"got {self.switch_depth!r}")
+        if self.switch_depth > 1 and not self.switch:
+            raise PlanError("switch_depth", "levels of switching need switch = N > 0 (the "
+                            "count of branch points to switch at on each branch)")
         if isinstance(self.stop, (str, bytes)) or not isinstance(self.stop, Iterable):
             raise PlanError("stop", f"expected a list such as [\"LP4\"], got {self.stop!r}")
         for name, value in (("damping", damping), ("damping_folds", folds), ("free", free),
@@ -224,7 +233,8 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     at_fold, limits = _stops(problem, request.stop)
     return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
                 request.user_values, specs, varying=[k for k, v in grid.items() if len(v) > 1],
-                switch_count=request.switch, landing=request.landing, damping=request.damping,
+                switch_count=request.switch, switch_depth=request.switch_depth,
+                landing=request.landing, damping=request.damping,
                 damping_folds=request.damping_folds)
 
 

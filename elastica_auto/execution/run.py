@@ -26,7 +26,7 @@ from ..branches.stepper import INTERRUPTED, Origin, start_point
 from ..branches.switching import switch_direction
 from ..core.errors import USER_ERRORS, RunFileError, StartError, one_line
 from ..core.interrupts import Interruptions
-from ..core.solution import State, Tangent
+from ..core.solution import State, Tangent, trapezoid_weights
 from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
@@ -184,12 +184,55 @@ def number_labels(branches: list[Branch], first: int = 1, counters: dict | None 
                 p.label = counters[p.type]
 
 
-def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list[Job]:
+#: Two branch points are the same point where their distance sqrt(|dy|^2 + dlam^2) (the
+#: continuation's norm, `core.solution.inner`) is below this fraction of the larger step
+#: around them, or below SAME_POINT_RELATIVE of the solution's size. A branch point
+#: located exactly is within ~1e-7 of the true one; one labelled at a step's turning point
+#: (a branch point passed along the branch born there) only to that step.
+SAME_POINT_STEP = 1.0
+SAME_POINT_RELATIVE = 1e-6
+
+
+def _branch_points(br: Branch) -> list[tuple]:
+    """The BPs of ``br`` in order, each with the larger step of its neighbours (a labelled
+    point's own ``ds`` is not a step)."""
+    pts = br.points
+    return [(p, max(pts[j].ds for j in (i - 1, i + 1) if 0 <= j < len(pts)))
+            for i, p in enumerate(pts) if p.type == "BP"]
+
+
+def _same_point(plan: Plan, one: tuple, other: tuple) -> bool:
+    """Two (branch point, step) pairs are the same point (see SAME_POINT_STEP): at the same
+    values of the parameters held fixed, and close in the states and the continued one."""
+    (p, step_p), (q, step_q) = one, other
+    pp, qp, parameter = p.params, q.params, plan.parameter
+    solved = (parameter, *getattr(plan.problem, "free", ()))
+    if any(pp[k] != qp[k] for k in pp if k not in solved):
+        return False
+    a, b = p.state, q.state
+    dy = a.y - b(a.s)
+    dist2 = float(np.sum(trapezoid_weights(a.s) * np.sum(dy * dy, axis=0))) \
+        + (pp[parameter] - qp[parameter]) ** 2
+    size2 = float(np.sum(trapezoid_weights(a.s) * np.sum(a.y * a.y, axis=0))) \
+        + pp[parameter] ** 2
+    return dist2 <= max((SAME_POINT_STEP * max(step_p, step_q)) ** 2,
+                        SAME_POINT_RELATIVE ** 2 * (1.0 + size2))
+
+
+def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
+                seen: list | None = None) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
-    BPs where that fails are reported in ``warnings``."""
+    BPs where that fails are reported in ``warnings``. A BP that is the same point
+    (`_same_point`) as one in ``seen`` (pairs of `_branch_points`) is passed over; each BP
+    switched at is added to it."""
     jobs = []
+    seen = [] if seen is None else seen
     for br in branches:
-        for p in [q for q in br.points if q.type == "BP"][: plan.switch_count]:
+        for bp in _branch_points(br)[: plan.switch_count]:
+            if any(_same_point(plan, bp, q) for q in seen):
+                continue
+            seen.append(bp)
+            p = bp[0]
             for d in (1, -1):
                 spec = BranchSpec(Start("switch", None, p.name), {}, d)
                 try:
@@ -199,6 +242,27 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str]) -> list
                 except Exception as exc:  # the module failing at the branch point
                     warnings.append(f"switch at {p.name}: {one_line(exc)}")
     return jobs
+
+
+def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) -> bool:
+    """``switch = N`` to ``plan.switch_depth`` levels, after the run's own ``branches``: the
+    other branches at the first N BPs of each of them (`switch_jobs`), then at the first N of
+    each branch so found, and so on. From the second level on, a BP that is the same point
+    as a BP of an earlier level's branch, or as one already switched at, is passed over: at
+    a simple branch point two branches cross, so both are computed already (a switched
+    branch that closes through the mirror image of its start, say). ``run(jobs)`` computes
+    the jobs and appends their branches to ``branches``; True if it was interrupted."""
+    level, seen = list(branches), []
+    for depth in range(plan.switch_depth):
+        jobs = switch_jobs(plan, level, warnings, seen)
+        if not jobs:
+            break
+        before = len(branches)
+        if run(jobs):
+            return True
+        seen.extend(bp for br in level for bp in _branch_points(br))
+        level = branches[before:]
+    return False
 
 
 def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs: int = 1,
@@ -357,8 +421,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     elif client is None:
         interrupted = _in_process(plan, first, branches, save, progress, on_branch)
         if not interrupted and plan.switch_count:
-            second = switch_jobs(plan, list(branches), result.warnings)
-            interrupted = _in_process(plan, second, branches, save, progress, on_branch)
+            interrupted = switch_levels(plan, branches, result.warnings, lambda jobs_list: (
+                _in_process(plan, jobs_list, branches, save, progress, on_branch)))
     else:
         from .cluster import close, run_on_cluster
         interrupted = True      # until the jobs have run
@@ -367,9 +431,10 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                 interrupted = run_on_cluster(client, plan, first, branches, save, on_branch,
                                              on_tasks, signals.stop)
                 if not interrupted and plan.switch_count:
-                    second = switch_jobs(plan, list(branches), result.warnings)
-                    interrupted = run_on_cluster(client, plan, second, branches, save,
-                                                 on_branch, on_tasks, signals.stop)
+                    interrupted = switch_levels(
+                        plan, branches, result.warnings, lambda jobs_list: run_on_cluster(
+                            client, plan, jobs_list, branches, save, on_branch, on_tasks,
+                            signals.stop))
             finally:
                 # kept open for the landings, its tasks too
                 if own and (interrupted or not (plan.landing or plan.damping)):
@@ -455,9 +520,9 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
             interrupted = pool.run(first, result.branches, save, progress, on_branch,
                                    signals.stop)
             if not interrupted and plan.switch_count:
-                second = switch_jobs(plan, list(result.branches), result.warnings)
-                interrupted = pool.run(second, result.branches, save, progress, on_branch,
-                                       signals.stop)
+                interrupted = switch_levels(
+                    plan, result.branches, result.warnings, lambda jobs_list: pool.run(
+                        jobs_list, result.branches, save, progress, on_branch, signals.stop))
             if not interrupted:
                 interrupted = not pool.wait_for_scans(signals.stop)
         finally:
@@ -728,5 +793,6 @@ def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
     return False
 
 
-__all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "Job", "RunResult",
+__all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "switch_levels",
+           "Job", "RunResult",
            "StartError", "RunFileError"]

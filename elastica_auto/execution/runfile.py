@@ -12,6 +12,8 @@ A run file (``runs/<name>.toml``)::
     switch = 2                          # optional: also follow the other branch, both ways,
                                         # at the first 2 BPs of each branch (AUTO's ISW=-1);
                                         # or a list of "FILE.h5:BPn" labels to switch at
+    switch_depth = 2                    # optional (default 1): also switch at the BPs of
+                                        # the switched branches (with switch = N)
 
     [parameters]                        # values; a list gives one set of branches per value
     eps = [0.25, 0.5]
@@ -55,8 +57,8 @@ from ..storage.store import BranchFile, StoredLabel
 __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 
-_TOP = {"description", "equation", "start", "switch", "parameters", "continuation", "options",
-        "execution"}
+_TOP = {"description", "equation", "start", "switch", "switch_depth", "parameters",
+        "continuation", "options", "execution"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
 _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map",
          "landing", "damping", "damping_folds"}
@@ -88,7 +90,8 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     starts, switch = doc.starts(problem)
     try:
         plan = make_plan(problem, starts, parameter,
-                         Request(params=params, switch=switch, **cont), options)
+                         Request(params=params, switch=switch,
+                                 switch_depth=doc.doc.get("switch_depth", 1), **cont), options)
     except PlanError as exc:
         raise RunFileError(f"{path}: {_toml_key(exc.key)}: {exc.detail}") from None
     plan.name, plan.path, plan.text = path.stem, path, doc.text
@@ -122,6 +125,7 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
             restart = f"{Path(fname).resolve()}:{label}"
         doc.doc["start"] = restart
         doc.doc.pop("switch", None)
+        doc.doc.pop("switch_depth", None)
         doc.doc.pop("parameters", None)  # the label's own; --set may change them
         notes.append(f"--from {restart}")
     for item in overrides:
