@@ -209,8 +209,10 @@ def _report_run(plan, result):
     for w in result.warnings:
         click.echo(f"warning: {w}")
     if result.snaps:
-        lps = len({(r["branch"], r["lp"]) for r in result.snaps})
-        click.echo(f"snap-back: {len(result.snaps)} stable targets at {lps} folds ending a "
+        ends = {(r["branch"], r["lp"]) for r in result.snaps}
+        bps = sum(lp.startswith("BP") for _, lp in ends)
+        where = f"{len(ends) - bps} folds" + (f" and {bps} branch points" if bps else "")
+        click.echo(f"snap-back: {len(result.snaps)} stable targets at {where} ending a "
                    f"stable branch (elastica-auto snaps {result.path})")
     if result.landings:
         lps = len({(r["branch"], r["lp"]) for r in result.landings})

@@ -195,6 +195,31 @@ def test_the_branch_born_out_of_the_plane_is_a_closed_loop_through_the_mirror_po
         assert p.index == e.index == jacobi_count(mod, state) == 1
 
 
+def test_the_rod_snaps_at_its_subcritical_out_of_plane_branch_points(arms):
+    """b2 = 2, eps = 0.5: the planar stable stretch ends at the branch points psi = +-1.1695,
+    before its folds (index 1 in 3D there). The branches born there are unstable (the loop
+    above), so the snap-back table has a row at each: the stable equilibria there are the
+    planar module's stable ones at those parameters (found by its own scan, with k2 = 0),
+    mirror images of each other between the two branch points."""
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
+    planar, rod, _, rods = arms
+    rows = rods.snaps
+    assert {r["lp"][:2] for r in rows} == {"BP"}
+    bps = {p.name: p for _, p in labelled(rods, "BP")}
+    by_bp = {}
+    for r in rows:
+        bp = bps[r["lp"]]
+        assert r["value"] == bp.params["psi"] and abs(abs(r["value"]) - 1.169504) < 1e-6
+        assert r["index"] == 0 and abs(r["k_2"]) < 1e-8
+        flat = [e for e in enumerate_equilibria(planar, {**BASE, "psi": r["value"],
+                                                         "alpha": 0.0, "theta0": 0.0})
+                if e.index == 0]
+        assert min(abs(e.k - r["k"]) for e in flat) < 1e-6
+        by_bp.setdefault(np.sign(r["value"]), []).append(r["k"])
+    assert len(by_bp[1.0]) == len(by_bp[-1.0]) >= 1
+    np.testing.assert_allclose(sorted(by_bp[1.0]), sorted(-np.array(by_bp[-1.0])), atol=1e-8)
+
+
 def test_a_second_level_of_switching_passes_over_the_loops_mirror_points(arms):
     """switch = 1 on both halves of the rotating arm (b2 = 2) switches at psi = +-1.1695: four
     loops, each meeting the other branch point, where it is labelled only to the step. Both

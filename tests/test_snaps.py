@@ -151,3 +151,27 @@ def test_modules_without_the_hooks_have_no_targets():
     bratu = load_problem(str(REPO / "examples" / "bratu.py"))
     assert not bratu.has_shooting
     assert snap_targets(bratu, []) == []
+
+
+def test_a_branch_point_is_a_snap_point_only_if_subcritical(trivial_buckling):
+    """u'' + p u (1 + u^2) = 0 (examples/nonlinear_eigenvalue.py) stiffens with the amplitude:
+    its branches are born at p = (k pi)^2 towards smaller p, unstable, so u = 0 snaps at its
+    first branch point. The elastica's straight rod buckles supercritically (the buckled
+    branch is born towards larger P, stable: no snap, the rod follows it)."""
+    import elastica_auto as ea
+    from elastica_auto.analysis.snaps import snap_points, subcritical
+    from helpers import EXAMPLES
+    eigen = ea.load_problem(str(EXAMPLES / "nonlinear_eigenvalue.py"))
+    (line,) = ea.continuation(eigen, {"p": 0.0}, "p", bounds=(-1, 12))
+    (bp,) = [p for p in line.points if p.type == "BP"]
+    assert bp.params["p"] == pytest.approx(math.pi ** 2, rel=1e-9)
+    assert bp.subcritical is True and "subcritical" in bp.note
+    assert subcritical(eigen, line, bp) is True
+    assert snap_points(line) == [(bp, "before")]
+    rod = ea.load_problem("elastica_lever_arm")
+    for br in trivial_buckling.result.branches[:4]:        # the straight rods
+        first = next(p for p in br.points if p.type == "BP")
+        assert first.index == 0 < br.points[br.points.index(first) + 1].index
+        assert first.subcritical is False and "supercritical" in first.note
+        assert subcritical(rod, br, first) is False
+        assert snap_points(br) == []

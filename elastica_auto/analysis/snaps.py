@@ -1,8 +1,12 @@
-"""Snap-back targets: where a stable branch ends at a fold, which stable equilibria remain?
+"""Snap-back targets: where a stable branch ends, which stable equilibria remain?
 
 At an LP next to an index-0 segment a stable equilibrium stops existing as the parameter moves
 past the fold value, and the structure snaps to another stable equilibrium at the same
-parameter values. The candidates are *all* the equilibria there, as the shooting scan of
+parameter values. At a BP next to an index-0 segment the equilibrium goes on existing but
+loses its stability; the structure snaps there too if the branches born at the BP are
+unstable (a subcritical pitchfork: they exist on the stable side), and follows them if one is
+stable (supercritical: no snap). `subcritical` decides it from a few points of each born
+branch. The candidates are *all* the equilibria there, as the shooting scan of
 `elastica_auto.analysis.equilibria` finds them. Each target records whether a computed branch
 of the same file passes through it, and its profile on the branch files' fixed grid (for
 drawing the configuration after the snap).
@@ -10,13 +14,98 @@ drawing the configuration after the snap).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
 import numpy as np
 
-from ..branches.branch import PROFILE_GRID
-from ..core.solution import State
+from ..branches.branch import PROFILE_GRID, Branch
+from ..core.options import ContinuationOptions
+from ..core.solution import State, Tangent
 from .equilibria import Equilibrium, beyond_fold, enumerate_equilibria, snap_lps
+
+#: The points of each branch born at a BP that `subcritical` computes (its start included).
+BORN_POINTS = 4
+
+
+def subcritical(problem, branch, point) -> bool | None:
+    """Whether the branch point ``point`` of ``branch`` is subcritical: both branches born
+    there (the two orientations of the other direction, `branches.switching`) have index > 0
+    at each of their first BORN_POINTS - 1 points past the BP; False if one of those points
+    is stable; None if the BP has no second direction or a born branch has no counted point
+    (nothing decided: no snap is reported). The born branches are continued with
+    ``branch``'s own options."""
+    from ..branches.stepper import Course, Origin, continue_branch
+    from ..branches.switching import switch_direction
+    from ..numerics.stability import label_stability
+    name = branch.parameter
+    options = dataclasses.replace(ContinuationOptions(**branch.options), max_points=BORN_POINTS)
+    direction = switch_direction(problem, point.state, point.tangent, name, options)
+    if direction is None:
+        return None
+    for d in (1, -1):
+        born = Branch.of(problem, name, d, f"switch at {point.name}", options.to_dict(),
+                         singular_start=True)
+        start = Tangent(direction.s, d * direction.y, d * direction.yp, d * direction.lam)
+        continue_branch(born, problem, Course(name, options), Origin(point.state, start,
+                                                                     "switch"))
+        label_stability(born, problem)
+        counted = [q.index for q in born.points[1:] if q.index >= 0]
+        if not counted:
+            return None
+        if min(counted) == 0:
+            return False
+    return True
+
+
+def _on_circle(problem, point) -> bool:
+    """``point`` lies on a circle of equilibria of the module's continuous symmetry (its
+    ``symmetry`` hook answers at those parameters): a branch point there is the circle's."""
+    if not problem.has_symmetry:
+        return False
+    s = point.state
+    return problem.symmetry(s.s, s.y, s.params) is not None
+
+
+def _stable_side(branch, k: int) -> str | None:
+    """'before' or 'after': the side of point ``k`` of ``branch`` with index 0, where the
+    other side's index is positive; None if the point bounds no stable segment."""
+    before, after = branch.points[k - 1].index, branch.points[k + 1].index
+    return "before" if before == 0 < after else "after" if after == 0 < before else None
+
+
+def mark_subcritical(problem, branch) -> None:
+    """Decide `subcritical` at each BP of ``branch`` that bounds a stable segment (index 0 on
+    one side, positive on the other), except on a circle of equilibria (`_on_circle`: the
+    structure turns along it): set the point's ``subcritical`` and say it in its note. A
+    failure of the module there leaves it undecided, with the reason in the note."""
+    pts = branch.points
+    for k, p in enumerate(pts):
+        if p.type != "BP" or k == 0 or k + 1 >= len(pts) or p.tangent is None \
+                or _stable_side(branch, k) is None:
+            continue
+        try:
+            if _on_circle(problem, p):
+                continue
+            p.subcritical = subcritical(problem, branch, p)
+            said = {True: "subcritical: the branches born here are unstable (a snap)",
+                    False: "supercritical: a stable branch is born here (no snap)",
+                    None: "born branches not found (no snap reported)"}[p.subcritical]
+        except Exception as exc:  # the module failing on a born branch: no decision
+            said = f"born branches failed ({type(exc).__name__}: {exc}); no snap reported"
+        p.note = "; ".join(filter(None, (p.note, said)))
+
+
+def snap_points(branch) -> list[tuple]:
+    """Where ``branch``'s stable segments end with a snap, in order along it: (point, stable
+    side 'before'/'after') for its LPs (`snap_lps`) and its BPs marked subcritical
+    (`mark_subcritical`) that bound an index-0 segment."""
+    pts = branch.points
+    out = list(snap_lps(branch)) + [
+        (p, _stable_side(branch, k)) for k, p in enumerate(pts)
+        if p.type == "BP" and p.subcritical and 0 < k < len(pts) - 1]
+    return sorted(out, key=lambda pair: pts.index(pair[0]))
+
 
 def k_columns(k) -> dict:
     """A target's shooting value as columns of the snap-back table: ``k``, and for d >= 2
@@ -69,7 +158,7 @@ def scans(problem, branch) -> dict[tuple, dict]:
     if not (problem.has_shooting and problem.has_second_variation):
         return {}
     out = {}
-    for p, _ in snap_lps(branch):
+    for p, _ in snap_points(branch):
         out.setdefault(scan_key(problem, branch.parameter, p.params), dict(p.params))
     return out
 
@@ -77,8 +166,9 @@ def scans(problem, branch) -> dict[tuple, dict]:
 def snap_targets(problem, branches, warnings: list | None = None,
                  landing: bool = False, cache: dict | None = None,
                  mapper: Callable | None = None) -> list[dict]:
-    """Rows: for every LP bounding a stable segment, every stable equilibrium at its parameter
-    values (excluding the fold's own solution), with the branch that passes through it.
+    """Rows: for every LP, and every subcritical BP, bounding a stable segment
+    (`snap_points`), every stable equilibrium at its parameter values (excluding the point's
+    own solution), with the branch that passes through it.
 
     With ``landing`` (and the module's ``gradient_flow`` hook), the row of the equilibrium
     the rod's overdamped dynamics reach from the fold (`elastica_auto.analysis.landing`) has
@@ -102,7 +192,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
     folds, tasks, where = [], [], {}
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
-        for p, side in snap_lps(br):
+        for p, side in snap_points(br):
             params = dict(p.params)
             key = scan_key(problem, name, params)
             own = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
@@ -111,7 +201,10 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 cache[key] = exact[own] = (there[1] if there is not None and there[0] == params
                                            else enumerate_equilibria(problem, params))
             at = None
-            if landing:
+            if landing and p.type == "BP":
+                warnings.append(f"{p.name}: no landing from a branch point (the dynamics "
+                                "start from folds)")
+            elif landing:
                 beyond = beyond_fold(br, p, side)
                 # periodic copies of a fold land alike: the same parameters (mod the period)
                 # and the same initial values y(0), hence the same solution

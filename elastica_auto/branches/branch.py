@@ -81,6 +81,9 @@ class Point:
     index: int = INDEX_UNKNOWN
     index_rule: int = INDEX_UNKNOWN
     index_direct: int = INDEX_UNKNOWN
+    #: At a BP bounding a stable segment: whether the branches born there are unstable (a
+    #: snap; `elastica_auto.analysis.snaps.mark_subcritical`), None where not decided.
+    subcritical: bool | None = None
 
     @property
     def name(self) -> str:

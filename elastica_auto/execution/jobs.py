@@ -79,6 +79,9 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
         if plan.curve == "fold":
             codim2.label_fold_curve(br, plan.problem, plan.base)
         label_stability(br, plan.problem)
+        if plan.problem.has_second_variation and plan.curve is None and not br.interrupted:
+            from ..analysis.snaps import mark_subcritical
+            mark_subcritical(plan.problem, br)
     br.interrupted = br.interrupted or late.stop.is_set()
     br.seconds = time.perf_counter() - t0
     return br
