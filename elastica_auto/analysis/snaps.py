@@ -58,15 +58,6 @@ def subcritical(problem, branch, point) -> bool | None:
     return True
 
 
-def _on_circle(problem, point) -> bool:
-    """``point`` lies on a circle of equilibria of the module's continuous symmetry (its
-    ``symmetry`` hook answers at those parameters): a branch point there is the circle's."""
-    if not problem.has_symmetry:
-        return False
-    s = point.state
-    return problem.symmetry(s.s, s.y, s.params) is not None
-
-
 def _stable_side(branch, k: int) -> str | None:
     """'before' or 'after': the side of point ``k`` of ``branch`` with index 0, where the
     other side's index is positive; None if the point bounds no stable segment."""
@@ -76,17 +67,14 @@ def _stable_side(branch, k: int) -> str | None:
 
 def mark_subcritical(problem, branch) -> None:
     """Decide `subcritical` at each BP of ``branch`` that bounds a stable segment (index 0 on
-    one side, positive on the other), except on a circle of equilibria (`_on_circle`: the
-    structure turns along it): set the point's ``subcritical`` and say it in its note. A
-    failure of the module there leaves it undecided, with the reason in the note."""
+    one side, positive on the other): set the point's ``subcritical`` and say it in its
+    note. A failure of the module there leaves it undecided, with the reason in the note."""
     pts = branch.points
     for k, p in enumerate(pts):
         if p.type != "BP" or k == 0 or k + 1 >= len(pts) or p.tangent is None \
                 or _stable_side(branch, k) is None:
             continue
         try:
-            if _on_circle(problem, p):
-                continue
             p.subcritical = subcritical(problem, branch, p)
             said = {True: "subcritical: the branches born here are unstable (a snap)",
                     False: "supercritical: a stable branch is born here (no snap)",
