@@ -106,7 +106,8 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
         roots = _scan_line(r, lo, hi)
         keys = [float(k) for k in roots]
     else:
-        roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+        roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float),
+                         coarse=lambda k: r(k, SCAN_TOL))
         keys = [tuple(float(v) for v in k) for k in roots.T]
     if len(keys) == 0:
         return []
@@ -161,23 +162,34 @@ def _scan_line(r, lo: float, hi: float) -> np.ndarray:
     return np.sort(np.concatenate((exact, x)))
 
 
-def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndarray:
+#: A box-scan candidate whose max |r_j| has not fallen below STALL_FACTOR of its smallest
+#: value STALL_STEPS Newton steps ago, and is not yet a root's (below 1e-9 of r's scale), is
+#: given up: it circles a local minimum of |r| that is no root (about a third of the
+#: spatial rod's candidates, which otherwise took every one of the 40 steps). A candidate on
+#: its way to a root, even by steps cut to a cell, lowers |r| on every few steps.
+STALL_STEPS, STALL_FACTOR = 6, 0.9
+
+
+def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
+             coarse=None) -> np.ndarray:
     """The roots (d, n) of ``r: (d, m) -> (d, m)`` in the box ``[lo, hi]`` of R^d, sorted
     lexicographically.
 
     ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
     3^d grid points that holds both signs of every component of r, or where max |r_j| is
     smallest among the block's points; Newton from all candidates together, the
-    Jacobian by forward differences, each step cut to a grid cell; the converged ones (|r|
-    below 1e-9 of r's scale on the grid and the step below 1e-12 of the box) within half a
-    cell of the box are kept, and roots closer than 1e-6 of the box merged."""
+    Jacobian by forward differences, each step cut to a grid cell, a candidate that stalls
+    given up (STALL_STEPS); the converged ones (|r| below 1e-9 of r's scale on the grid and
+    the step below 1e-12 of the box) within half a cell of the box are kept, and roots
+    closer than 1e-6 of the box merged. ``coarse``, if given, is ``r`` computed more
+    cheaply (a looser integration), used for the grid alone: it only places candidates."""
     d = len(lo)
     n = max(int(round(points ** (1.0 / d))), 3)
     axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
     width = np.maximum(hi - lo, 1e-300)
     cell = width / (n - 1)
     grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1)
-    rs = r(grid).reshape((d,) + (n,) * d)
+    rs = (coarse or r)(grid).reshape((d,) + (n,) * d)
     scale = max(float(np.max(np.abs(rs))), 1e-300)
     ok = np.ones((n - 2,) * d, bool)
     for comp in rs:
@@ -194,7 +206,9 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndar
     corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
     k = lo[:, None] + (corners + 1.0) * cell[:, None]         # its centre
     done = np.zeros(k.shape[1], bool)
-    for _ in range(max_iter):
+    # each candidate's max |r_j| at every step so far (for the stall test)
+    history = np.full((max_iter, k.shape[1]), np.inf)
+    for it in range(max_iter):
         live = np.flatnonzero(~done)
         if len(live) == 0:
             break
@@ -210,10 +224,18 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40) -> np.ndar
         step *= np.minimum(1.0, 1.0 / np.maximum(big, 1e-300))
         k[:, live] = x + step
         small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-12
-        converged = small & (np.max(np.abs(f[:, 0]), axis=0) < 1e-9 * scale)
+        size_now = np.max(np.abs(f[:, 0]), axis=0)
+        converged = small & (size_now < 1e-9 * scale)
         outside = np.any((k[:, live] < lo[:, None] - cell[:, None])
                          | (k[:, live] > hi[:, None] + cell[:, None]), axis=0)
-        done[live[converged | outside]] = True
+        history[it, live] = size_now
+        stalled = np.zeros(len(live), bool)
+        if it >= STALL_STEPS:
+            before = np.min(history[: it - STALL_STEPS + 1, live], axis=0)
+            stalled = (size_now >= 1e-9 * scale) \
+                & (np.min(history[it - STALL_STEPS + 1: it + 1, live], axis=0)
+                   > STALL_FACTOR * before)
+        done[live[converged | outside | stalled]] = True
     final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
     inside = np.all((k >= lo[:, None] - cell[:, None] / 2)
                     & (k <= hi[:, None] + cell[:, None] / 2), axis=0)
