@@ -220,6 +220,30 @@ def test_the_rod_snaps_at_its_subcritical_out_of_plane_branch_points(arms):
     np.testing.assert_allclose(sorted(by_bp[1.0]), sorted(-np.array(by_bp[-1.0])), atol=1e-8)
 
 
+def test_a_branch_point_s_own_root_is_no_target_whatever_the_cached_states(arms):
+    """The scan cached for a periodic copy of a branch point may have other states for the
+    same equilibria (turning the clamp by 2 pi flips the quaternion): the point's own root
+    is still left out. Here the cached states are those of such a copy (q -> -q), and the
+    own root's cluster of near roots is counted stable, as the rotating base's are in 3D
+    (here its index is 1)."""
+    from elastica_auto.analysis.equilibria import Equilibrium, enumerate_equilibria
+    from elastica_auto.analysis.snaps import scan_key, snap_targets
+    from elastica_auto.core.solution import State
+    _, rod, _, rods = arms
+    (br, bp), = [(br, p) for br, p in labelled(rods, "BP") if p.params["psi"] > 1.1]
+    flip = np.ones((rod.n, 1))
+    flip[3:7] = -1.0
+    k_bp = bp.state.y[7:10, 0]                        # m(0): k is its part across the load
+    copy = [Equilibrium(e.k, State(e.state.s, flip * e.state.y, flip * e.state.yp,
+                                   e.state.params),
+                        0 if abs(e.k[0] - k_bp[2]) < 1e-2 else e.index, e.ordinates)
+            for e in enumerate_equilibria(rod, bp.params)]
+    assert sum(abs(e.k[0] - k_bp[2]) < 1e-2 for e in copy) >= 1
+    cache = {scan_key(rod, "psi", bp.params): (dict(bp.params), copy)}
+    rows = [r["k"] for r in snap_targets(rod, [br], cache=cache) if r["lp"] == bp.name]
+    assert rows == [r["k"] for r in rods.snaps if r["lp"] == bp.name] and len(rows) == 1
+
+
 def test_a_second_level_of_switching_passes_over_the_loops_mirror_points(arms):
     """switch = 1 on both halves of the rotating arm (b2 = 2) switches at psi = +-1.1695: four
     loops, each meeting the other branch point, where it is labelled only to the step. Both

@@ -217,18 +217,32 @@ def snap_targets(problem, branches, warnings: list | None = None,
             landings[at].target = int(np.argmin(
                 [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
                  for eq in cache[at[0]]]))
-    rows = []
+    rows, rescans = [], {}
     for nb, br, p, side, params, key, at in folds:
         name = br.parameter
         period = problem.parameters[name].period
         reached = landings.get(at)
         k_fold = p.state.y[:, 0]
-        for j, eq in enumerate(cache[key]):
+
+        def own(eq):
+            """The point's own (at a fold vanishing, numerically a near-double) root."""
+            return np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold)))
+
+        there = cache[key]
+        if p.type == "BP" and not any(own(eq) for eq in there):
+            # a branch point's solution is a root of the scan at its parameters; the cached
+            # scan of a periodic copy may give it other states (a clamp turned by 2 pi has
+            # the opposite quaternion), so that the states above do not find it: scan here
+            own_key = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
+            if own_key not in rescans:
+                rescans[own_key] = enumerate_equilibria(problem, params)
+            there = rescans[own_key]
+        for j, eq in enumerate(there):
             if eq.index != 0:
                 continue
             shifted = State(eq.state.s, eq.state.y, eq.state.yp, params)
-            if np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold))):
-                continue  # the fold's own (vanishing, numerically a near-double) root
+            if own(eq):
+                continue
             target = Equilibrium(eq.k, shifted, eq.index, eq.ordinates)
             row = {"lp": p.name, "branch": nb, "parameter": name,
                    "value": params[name], "stable_side": side, **k_columns(eq.k),
