@@ -200,3 +200,21 @@ def test_bad_overrides_are_one_line_user_errors(cli_exe, tmp_path, args, words):
     proc = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", *args)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and words in proc.stderr, proc.stderr
+
+
+def test_the_snap_back_line_counts_folds_and_branch_points(capsys):
+    """Targets at folds and at subcritical branch points are counted apart; two targets at
+    one point count that point once."""
+    from types import SimpleNamespace
+
+    from elastica_auto.cli import _report_run
+    rows = [{"branch": 1, "lp": "LP1"}, {"branch": 1, "lp": "LP1"}, {"branch": 2, "lp": "LP1"},
+            {"branch": 2, "lp": "BP3"}]
+    result = SimpleNamespace(warnings=[], snaps=rows, landings=[], maps=[], kept=0,
+                             branches=[], seconds=1.0, path="out/x.h5")
+    _report_run(SimpleNamespace(name="x"), result)
+    assert ("snap-back: 4 stable targets at 2 folds and 1 branch points ending a stable "
+            "branch (elastica-auto snaps out/x.h5)") in capsys.readouterr().out
+    _report_run(SimpleNamespace(name="x"), SimpleNamespace(**{**vars(result),
+                                                              "snaps": rows[:3]}))
+    assert "3 stable targets at 2 folds ending" in capsys.readouterr().out
