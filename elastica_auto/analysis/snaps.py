@@ -21,7 +21,7 @@ import numpy as np
 
 from ..branches.branch import PROFILE_GRID, Branch
 from ..core.options import ContinuationOptions
-from ..core.solution import State, Tangent
+from ..core.solution import State
 from .equilibria import Equilibrium, beyond_fold, enumerate_equilibria, snap_lps
 
 #: The points of each branch born at a BP that `subcritical` computes (its start included).
@@ -46,9 +46,8 @@ def subcritical(problem, branch, point) -> bool | None:
     for d in (1, -1):
         born = Branch.of(problem, name, d, f"switch at {point.name}", options.to_dict(),
                          singular_start=True)
-        start = Tangent(direction.s, d * direction.y, d * direction.yp, d * direction.lam)
-        continue_branch(born, problem, Course(name, options), Origin(point.state, start,
-                                                                     "switch"))
+        continue_branch(born, problem, Course(name, options),
+                        Origin(point.state, direction.scaled(d), "switch"))
         label_stability(born, problem)
         counted = [q.index for q in born.points[1:] if q.index >= 0]
         if not counted:
@@ -205,7 +204,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                         exact[own] = enumerate_equilibria(problem, params)
                     where[at] = (len(tasks), p.name, own)
                     tasks.append((problem, p.state, p.tangent, exact[own], name, beyond, None))
-            folds.append((nb, br, p, side, params, key, at))
+            folds.append((nb, br, p, side, params, key, own, at))
     ends = (mapper or one_by_one)(landing_task, tasks, lambda i, result: None)
     landings = {}
     for at, (i, lp, own) in where.items():
@@ -218,7 +217,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
                  for eq in cache[at[0]]]))
     rows, rescans = [], {}
-    for nb, br, p, side, params, key, at in folds:
+    for nb, br, p, side, params, key, own_key, at in folds:
         name = br.parameter
         period = problem.parameters[name].period
         reached = landings.get(at)
@@ -233,7 +232,6 @@ def snap_targets(problem, branches, warnings: list | None = None,
             # a branch point's solution is a root of the scan at its parameters; the cached
             # scan of a periodic copy may give it other states (a clamp turned by 2 pi has
             # the opposite quaternion), so that the states above do not find it: scan here
-            own_key = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
             if own_key not in rescans:
                 rescans[own_key] = enumerate_equilibria(problem, params)
             there = rescans[own_key]

@@ -157,10 +157,7 @@ def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | N
     if direction is None:
         raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
                          "of the linearised problem not found)")
-    d = spec.direction
-    return _checked(plan, Job(spec, Origin(state, Tangent(direction.s, d * direction.y,
-                                                          d * direction.yp, d * direction.lam),
-                                           "switch")))
+    return _checked(plan, Job(spec, Origin(state, direction.scaled(spec.direction), "switch")))
 
 
 def _checked(plan: Plan, job: Job) -> Job:
