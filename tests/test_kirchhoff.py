@@ -5,7 +5,9 @@ oracles that do not use its own derivation (docs/kirchhoff.md, "Checks"):
   tip moment, centreline, folds), the out-of-plane components vanish, and the e_z block of the
   3D second variation is the planar module's form, with the same index;
 * exact symmetries: a rigid rotation about the load line (the clamp turned by phi0 with the
-  load along its axis), 2 pi periods of psi and theta0 (q -> -q);
+  load along its axis), 2 pi periods of psi, alpha, theta0, chi, beta and phi0 (q -> -q for
+  the clamp's angles), the mirror images z -> -z and x -> -x of states with every angle and
+  intrinsic curvature away from zero, and of whole continuations through folds;
 * |q| = 1 along every branch;
 * the index against an independent count: the Hessian, by finite differences, of the energy of
   a discretised rod (rigid frames at the nodes, curvature from the relative rotations), at the
@@ -338,6 +340,168 @@ def test_generic_state_against_the_discrete_hessian(modules, generic):
     assert index == (0, 0)
     assert len(engine) >= 3 and engine == discrete
     assert conjugate_index(mod, generic) == 0
+
+
+# ---- mirror images and periods at states away from the plane ---------------------------------
+#
+# A reflection M of space maps the rod to a rod: r -> M r, the frame R -> M R N with N the
+# reflection of the body frame that keeps M R N a rotation, the moment (a pseudovector) m ->
+# -M m, the load F -> M F, the arm a -> M a. Written as rotations, M = -Rot(a, pi) and N =
+# -Rot(b, pi), so q -> q_a (x) q (x) q_b (q_a, q_b the unit quaternions of a, b): linear in q.
+# The parameters move with the reflection (docs/kirchhoff.md, "Mirror images"):
+#
+# * z -> -z (out of the plane): M = diag(1, 1, -1), N = diag(-1, 1, 1) (the body axis d1,
+#   e_z at planar states): chi, beta, phi0, u2 and u3 change sign;
+# * x -> -x (the planar mirror): M = diag(-1, 1, 1), N = diag(1, -1, 1): psi, alpha, theta0,
+#   chi, phi0, u1 and u3 change sign.
+#
+# The energy is the same at mirror images, so the ordinate dE/dxi of a parameter xi changes
+# sign exactly where xi does; of the others, z1 = r(1).e_z changes sign under z -> -z, mz1 =
+# m(1).e_z under x -> -x, and the twist and m(1).d3(1) under both.
+MIRRORS = {
+    "z -> -z": ((1.0, 1.0, -1.0), (0, 0, 0, 1), (0, 1, 0, 0),
+                ("chi", "beta", "phi0", "u2", "u3"), ("z1", "twist", "m3")),
+    "x -> -x": ((-1.0, 1.0, 1.0), (0, 1, 0, 0), (0, 0, 1, 0),
+                ("psi", "alpha", "theta0", "chi", "phi0", "u1", "u3"), ("mz1", "twist", "m3")),
+}
+
+
+def mirrored(mod, state, mirror):
+    """The mirror image of ``state`` and its parameters (MIRRORS), with the image of the
+    right-hand side at ``state`` as its slopes; q's sign is the clamp's."""
+    from elastica_auto.core.solution import State
+    m, left, right, flipped, _ = MIRRORS[mirror]
+    m = np.array(m)[:, None]
+    left, right = (np.array(x, float)[:, None] for x in (left, right))
+
+    def image(y):
+        return np.vstack((m * y[0:3], mod.qmul(mod.qmul(left, y[3:7]), right), -m * y[7:10]))
+
+    params = {k: -v if k in flipped else v for k, v in state.params.items()}
+    y, yp = image(state.y), image(mod.rhs(state.s, state.y, state.params))
+    if np.dot(y[3:7, 0], mod.clamp_quaternion(params)) < 0:      # -q: the same frame
+        y[3:7], yp[3:7] = -y[3:7], -yp[3:7]
+    return State(state.s, y, yp, params)
+
+
+def expected_signs(rod, mirror) -> dict:
+    """Ordinate -> its sign at the mirror image (the comment above MIRRORS)."""
+    *_, flipped, others = MIRRORS[mirror]
+    return {name: -1 if (o.parameter in flipped or name in others) else 1
+            for name, o in rod.ordinates.items()}
+
+
+@pytest.fixture(scope="module")
+def tilted(modules, generic):
+    """The generic state with the arm's plane tilted and the clamp twisted too: every angle
+    and every intrinsic curvature away from zero."""
+    from elastica_auto.branches.branch import StoredLabel
+    _, rod, _ = modules
+    label = StoredLabel("UZ", 1, 0, generic, None, None)
+    for name, value in (("chi", 0.5), ("phi0", 0.3)):
+        (br,) = ea.continuation(rod, label, name, bounds=(-0.1, value + 0.1), uz=[value],
+                                max_points=60)
+        label = br.label("UZ1")
+    return label.state
+
+
+def spectrum_counts(rod, state, shifts=(2.0, 10.0, 30.0, 60.0)):
+    """The numbers of eigenvalues of the second variation below each shift."""
+    evaluate = stability._on_state(rod, state)
+    return [stability.count_form(evaluate, state.s, shift=mu).index for mu in shifts]
+
+
+@pytest.mark.parametrize("mirror", list(MIRRORS))
+def test_the_mirror_image_solves_the_mirrored_problem(modules, tilted, mirror):
+    """Exact to rounding: the image of a solution satisfies the mirrored boundary conditions
+    as well as the solution its own, the right-hand side commutes with the reflection, the
+    second variation has the same spectrum (counts below shifts) and the ordinates change
+    sign as derived."""
+    _, rod, mod = modules
+    p = tilted.params
+    assert all(abs(p[k]) > 0.1 for k in ("psi", "alpha", "theta0", "chi", "beta", "phi0",
+                                         "u1", "u2", "u3"))
+    image = mirrored(mod, tilted, mirror)
+    q = image.params
+    own = np.max(np.abs(mod.bc(tilted.y[:, 0], tilted.y[:, -1], p)))
+    assert np.max(np.abs(mod.bc(image.y[:, 0], image.y[:, -1], q))) <= max(2 * own, 1e-12)
+    assert np.max(np.abs(mod.rhs(image.s, image.y, q) - image.yp)) < 1e-12
+    assert spectrum_counts(rod, image) == spectrum_counts(rod, tilted)
+    assert stability.index(rod, image) == stability.index(rod, tilted)
+    signs = expected_signs(rod, mirror)
+    before = rod.ordinate_values(tilted.s, tilted.y, p)
+    after = rod.ordinate_values(image.s, image.y, q)
+    moved = [name for name in before if abs(before[name]) > 1e-3]
+    assert {"z1", "twist", "m3", "mz1", "mchi", "mB", "mphi", "m1", "mA", "m0"} <= set(moved)
+    for name in before:
+        assert after[name] == pytest.approx(signs[name] * before[name], abs=1e-12), name
+
+
+@pytest.mark.parametrize("mirror", list(MIRRORS))
+def test_continuations_from_mirror_images_are_mirror_images(modules, mirror):
+    """The rotating arm of BASE with its arm's plane tilted (chi), the load out of the plane
+    (beta), the clamp twisted (phi0) and an intrinsic twist (u3), continued in psi both ways
+    through a fold on each side, and again from the mirror image of its start: two
+    computations whose labels (LP, UZ, EP), index and columns are mirror images to 1e-9
+    (psi -> -psi, and the two directions swapped, for x -> -x), and so are the snap-back
+    targets at the folds."""
+    from elastica_auto.branches.branch import StoredLabel
+    _, rod, mod = modules
+    label = BASE
+    for name, value in (("psi", 0.3), ("chi", 0.4), ("beta", 0.15), ("phi0", 0.2),
+                        ("u3", 0.3)):
+        (br,) = ea.continuation(rod, label, name, bounds=(-0.1, value + 0.1), uz=[value],
+                                max_points=60)
+        label = br.label("UZ1")
+    image = StoredLabel("UZ", 1, 0, mirrored(mod, label.state, mirror), None, None)
+    kw = dict(bounds=(-1.2, 1.2), directions="both", uz=[-0.5, 0.5], max_points=200)
+    one, two = (ea.continuation(rod, start, "psi", **kw) for start in (label, image))
+    turn = -1 if "psi" in MIRRORS[mirror][3] else 1
+    signs = expected_signs(rod, mirror)
+    assert sum(len(br.folds) for br in one) == 2
+    for a, b in zip(one, two[::turn]):
+        assert [p.type for p in a.points] == [p.type for p in b.points]
+        assert set(a.columns["index"].tolist()) == {0, 1}
+        np.testing.assert_array_equal(a.columns["index"], b.columns["index"])
+        np.testing.assert_allclose(a.columns["psi"], turn * b.columns["psi"], rtol=0,
+                                   atol=1e-9)
+        for name, sign in signs.items():
+            np.testing.assert_allclose(a.columns[name], sign * b.columns[name], rtol=0,
+                                       atol=1e-9, err_msg=name)
+    assert len(one.snaps) == len(two.snaps) >= 2
+    for row in one.snaps:
+        (match,) = [r for r in two.snaps if abs(r["value"] - turn * row["value"]) < 1e-9
+                    and abs(r["target_m1"] - signs["m1"] * row["target_m1"]) < 1e-6]
+        for name in ("z1", "twist", "mz1", "gamma"):
+            assert match[f"target_{name}"] == pytest.approx(
+                signs[name] * row[f"target_{name}"], abs=1e-6)
+
+
+def test_periods_of_alpha_chi_beta_phi0(modules, tilted):
+    """alpha, chi and beta enter through sines and cosines: a solution is one at the angle
+    plus 2 pi k, with the same index and ordinates; phi0 + 2 pi k turns the clamp's
+    quaternion into (-1)^k q_c, and (-1)^k q is the same frame (as for theta0)."""
+    from elastica_auto.core.solution import State
+    _, rod, mod = modules
+    y, p = tilted.y, tilted.params
+    own = np.max(np.abs(mod.bc(y[:, 0], y[:, -1], p)))
+    slopes = mod.rhs(tilted.s, y, p)
+    index, ordinates = stability.index(rod, tilted), rod.ordinate_values(tilted.s, y, p)
+    for name in ("alpha", "chi", "beta", "phi0"):
+        for k in (1, -2, 3):
+            shifted = {**p, name: p[name] + 2 * math.pi * k}
+            z = y.copy()
+            if name == "phi0" and k % 2:
+                z[3:7] *= -1
+            assert np.max(np.abs(mod.bc(z[:, 0], z[:, -1], shifted))) <= max(2 * own, 1e-12)
+            zp = mod.rhs(tilted.s, z, shifted)
+            sign = -1.0 if name == "phi0" and k % 2 else 1.0
+            assert np.max(np.abs(zp[3:7] - sign * slopes[3:7])) < 1e-12
+            assert np.max(np.abs(np.delete(zp - slopes, np.s_[3:7], 0))) < 1e-12
+            assert stability.index(rod, State(tilted.s, z, zp, shifted)) == index
+            got = rod.ordinate_values(tilted.s, z, shifted)
+            for o in ordinates:
+                assert got[o] == pytest.approx(ordinates[o], abs=1e-12), (name, k, o)
 
 
 def test_straight_rod_branch_points_are_both_stiffnesses_critical_loads(modules):
