@@ -125,7 +125,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         (or a free parameter) passes a value (EP, located exactly).
     switch : int
         Also follow the other branch, both ways, at the first ``switch`` branch points of
-        each branch (AUTO-07p's ISW=-1).
+        each branch (AUTO-07p's ISW=-1). A closed loop is followed once: a branch point it
+        passes through (its own start included) is not switched at again.
     switch_depth : int
         Levels of switching (default 1): 2 also switches at the first ``switch`` branch
         points of the switched branches, and so on; a branch point met again (the same

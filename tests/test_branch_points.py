@@ -177,24 +177,34 @@ ORDINATES = [Ordinate("u0", "$u(0)$", lambda s, y, p: y[0, 0], "lam")]
 """
 
 
-def test_a_branch_point_met_again_is_not_switched_at_twice(tmp_path):
-    """The circle u^2 + lam^2 = 1 leaves u = 0 at lam = -1 and comes back at lam = 1: each
-    switched branch goes round it once and meets the other branch point of u = 0 (labelled
-    BP where lam turns). Its other branch is u = 0, computed already, so a second level of
-    switching adds nothing."""
+def test_a_closed_loop_is_switched_onto_once(tmp_path):
+    """The circle u^2 + lam^2 = 1 leaves u = 0 at lam = -1 and comes back at lam = 1: the
+    branch switched at lam = -1 goes round it once, meets the other branch point of u = 0
+    (labelled BP where lam turns) and ends back at its start (a closed loop). The other
+    orientation at lam = -1 and both at lam = 1 are that loop: not computed again, in this
+    process or on a cluster (where they are computed and left out, so that the file is the
+    same). Its other branch at lam = 1 is u = 0, so a second level adds nothing."""
     import elastica_auto as ea
     path = tmp_path / "ring.py"
     path.write_text(RING)
     problem = ea.load_problem(str(path))
-    one, two = (ea.continuation(problem, {"lam": -1.5}, "lam", bounds=(-2, 2), switch=2,
-                                switch_depth=depth, ds_max=0.2) for depth in (1, 2))
-    assert len(one) == len(two) == 5 and not two.warnings
-    for br in two[1:]:
-        lam, u = br.columns["lam"], br.columns["u0"]
-        assert br.message.startswith("closed loop")
-        np.testing.assert_allclose(u ** 2 + lam ** 2, 1, atol=1e-8)
-        (bp,) = [p for p in br.points if p.type == "BP"]
-        assert bp.params["lam"] == pytest.approx(-br.points[0].params["lam"], abs=1e-3)
+    one, two, cluster = (ea.continuation(problem, {"lam": -1.5}, "lam", bounds=(-2, 2),
+                                         switch=2, switch_depth=depth, ds_max=0.2, jobs=jobs)
+                         for depth, jobs in ((1, 1), (2, 1), (1, 2)))
+    assert len(one) == len(two) == len(cluster) == 2 and not (two.warnings or cluster.warnings)
+    assert [p.type for p in one[0].points].count("BP") == 2
+    loop = one[1]
+    lam, u = loop.columns["lam"], loop.columns["u0"]
+    assert loop.message.startswith("closed loop") and loop.start == "switch at BP1"
+    np.testing.assert_allclose(u ** 2 + lam ** 2, 1, atol=1e-8)
+    assert lam.min() == pytest.approx(-1, abs=1e-6) and lam.max() == pytest.approx(1, abs=1e-3)
+    (bp,) = [p for p in loop.points if p.type == "BP"]
+    assert bp.params["lam"] == pytest.approx(-loop.points[0].params["lam"], abs=1e-3)
+    for other in (two, cluster):
+        for a, b in zip(one, other):
+            assert a.start == b.start and a.direction == b.direction
+            np.testing.assert_array_equal(a.columns["lam"], b.columns["lam"])
+            np.testing.assert_array_equal(a.columns["u0"], b.columns["u0"])
 
 
 @pytest.mark.parametrize("keywords, words", [

@@ -192,6 +192,14 @@ class Branch:
         return [p for p in self.points if p.type == "LP"]
 
     @property
+    def closed(self) -> bool:
+        """Whether the branch is a closed loop: its last point is its first point's solution
+        (the continuation ends there when it comes back to its start)."""
+        pts = self.points
+        return (len(pts) > 2 and pts[-1].params == pts[0].params
+                and np.array_equal(pts[-1].profile, pts[0].profile))
+
+    @property
     def labelled(self) -> list[Point]:
         return [p for p in self.points if p.type]
 

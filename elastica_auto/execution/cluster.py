@@ -147,10 +147,12 @@ def map_tasks(client, function, args_list, on_done) -> list:
 
 
 def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
-                   on_tasks: TaskProgress | None = None, stop=None) -> bool:
+                   on_tasks: TaskProgress | None = None, stop=None, skip=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
-    ``branches`` in plan order and calling ``save()`` after each; True if interrupted
-    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
+    ``branches`` in plan order and calling ``save()`` after each, but those for which
+    ``skip(i, branches)`` is true when their turn comes (computed, and left out: see
+    `elastica_auto.execution.run.switch_levels`); True if interrupted (``stop``, a
+    `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
     from .jobs import new_branch
     from ..branches.stepper import start_point
     offset = len(branches)
@@ -164,7 +166,7 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         _task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
         key=[f"elastica-branch-{k}-{token}" for k in numbers]))}
     pending, done, points, finished = set(futures), {}, 0, 0
-    last = 0.0
+    last, taken = 0.0, 0        # taken: the jobs appended or left out, in order
 
     def report(force=False):
         nonlocal last
@@ -197,8 +199,11 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
             done[i] = br
             finished += 1
             points += len(br.points)
-        while len(branches) - offset in done:
-            branches.append(done.pop(len(branches) - offset))
+        while taken in done:
+            br, taken = done.pop(taken), taken + 1
+            if skip is not None and skip(taken - 1, branches):
+                continue
+            branches.append(br)
             save()
             if on_branch is not None:
                 on_branch(len(branches), branches[-1])

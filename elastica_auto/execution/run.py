@@ -217,11 +217,11 @@ def _same_point(plan: Plan, one: tuple, other: tuple) -> bool:
 
 
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
-                seen: list | None = None) -> list[Job]:
+                seen: list | None = None, sources: list | None = None) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
     BPs where that fails are reported in ``warnings``. A BP that is the same point
     (`_same_point`) as one in ``seen`` (pairs of `_branch_points`) is passed over; each BP
-    switched at is added to it."""
+    switched at is added to it. ``sources``, if given, gets each job's BP (its pair)."""
     jobs = []
     seen = [] if seen is None else seen
     for br in branches:
@@ -236,9 +236,20 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                     jobs.append(_switch_job(plan, spec, p.state, p.tangent))
                 except StartError as exc:
                     warnings.append(str(exc))
+                    continue
                 except Exception as exc:  # the module failing at the branch point
                     warnings.append(f"switch at {p.name}: {one_line(exc)}")
+                    continue
+                if sources is not None:
+                    sources.append(bp)
     return jobs
+
+
+def _loop_points(br: Branch) -> list[tuple]:
+    """Where a closed loop ``br`` meets other branches: its start (the BP it was switched
+    at) and the BPs along it, as (point, step) pairs for `_same_point`."""
+    pts = br.points
+    return [(pts[0], pts[1].ds), *_branch_points(br)]
 
 
 def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) -> bool:
@@ -247,15 +258,29 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
     each branch so found, and so on. From the second level on, a BP that is the same point
     as a BP of an earlier level's branch, or as one already switched at, is passed over: at
     a simple branch point two branches cross, so both are computed already (a switched
-    branch that closes through the mirror image of its start, say). ``run(jobs)`` computes
-    the jobs and appends their branches to ``branches``; True if it was interrupted."""
+    branch that closes through the mirror image of its start, say).
+
+    Within a level, a job whose BP is the same point as the start or a BP of a closed loop
+    switched before it in the level's order is passed over: that loop is the other branch
+    there, computed whole (both orientations of a loop from its start; the loop from the
+    other BP it joins). The decision reads only the branches before the job, so the kept
+    branches are the same whichever process computed them. ``run(jobs, skip)`` computes the
+    jobs, appending their branches to ``branches`` in order except those for which
+    ``skip(i, branches)`` is true when their turn comes (`_in_process` does not compute
+    them); True if it was interrupted."""
     level, seen = list(branches), []
     for depth in range(plan.switch_depth):
-        jobs = switch_jobs(plan, level, warnings, seen)
+        sources: list[tuple] = []
+        jobs = switch_jobs(plan, level, warnings, seen, sources)
         if not jobs:
             break
         before = len(branches)
-        if run(jobs):
+
+        def skip(i, done, before=before, sources=sources):
+            return any(_same_point(plan, sources[i], q) for br in done[before:]
+                       if br.closed for q in _loop_points(br))
+
+        if run(jobs, skip):
             return True
         seen.extend(bp for br in level for bp in _branch_points(br))
         level = branches[before:]
@@ -418,8 +443,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     elif client is None:
         interrupted = _in_process(plan, first, branches, save, progress, on_branch)
         if not interrupted and plan.switch_count:
-            interrupted = switch_levels(plan, branches, result.warnings, lambda jobs_list: (
-                _in_process(plan, jobs_list, branches, save, progress, on_branch)))
+            interrupted = switch_levels(plan, branches, result.warnings, lambda jobs_list, skip: (
+                _in_process(plan, jobs_list, branches, save, progress, on_branch, skip)))
     else:
         from .cluster import close, run_on_cluster
         interrupted = True      # until the jobs have run
@@ -429,9 +454,9 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                                              on_tasks, signals.stop)
                 if not interrupted and plan.switch_count:
                     interrupted = switch_levels(
-                        plan, branches, result.warnings, lambda jobs_list: run_on_cluster(
+                        plan, branches, result.warnings, lambda jobs_list, skip: run_on_cluster(
                             client, plan, jobs_list, branches, save, on_branch, on_tasks,
-                            signals.stop))
+                            signals.stop, skip))
             finally:
                 # kept open for the landings, its tasks too
                 if own and (interrupted or not (plan.landing or plan.damping)):
@@ -518,8 +543,9 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
                                    signals.stop)
             if not interrupted and plan.switch_count:
                 interrupted = switch_levels(
-                    plan, result.branches, result.warnings, lambda jobs_list: pool.run(
-                        jobs_list, result.branches, save, progress, on_branch, signals.stop))
+                    plan, result.branches, result.warnings, lambda jobs_list, skip: pool.run(
+                        jobs_list, result.branches, save, progress, on_branch, signals.stop,
+                        skip))
             if not interrupted:
                 interrupted = not pool.wait_for_scans(signals.stop)
         finally:
@@ -637,17 +663,23 @@ class _Alongside:
             br.points.append(start_point(br, job.origin))
         done[what] = br
 
-    def run(self, jobs_list, branches, save, progress, on_branch, stop) -> bool:
+    def run(self, jobs_list, branches, save, progress, on_branch, stop, skip=None) -> bool:
         """Compute ``jobs_list``, appending the branches to ``branches`` in order and calling
-        ``save()`` after each; True if interrupted (``stop`` set, or the branch in progress
-        here interrupted: it is kept up to its last point)."""
+        ``save()`` after each, but those for which ``skip(i, branches)`` is true when their
+        turn comes (not computed here if their turn has come when this process takes them);
+        True if interrupted (``stop`` set, or the branch in progress here interrupted: it is
+        kept up to its last point)."""
         import queue
         with self.lock:
             self.jobs, self.front, self.back = jobs_list, 0, len(jobs_list) - 1
             self.offset = len(branches)
             self._feed()
-        done: dict[int, Branch] = {}
+        done: dict[int, Branch | None] = {}      # None: left out before it was computed
         n, offset = len(jobs_list), len(branches)
+        taken = [0]                              # the jobs appended or left out, in order
+
+        def skipped(i):
+            return skip is not None and skip(i, branches)
 
         def flush():
             while True:
@@ -655,14 +687,18 @@ class _Alongside:
                     self._take(self.results.get_nowait(), done)
                 except queue.Empty:
                     break
-            while len(branches) - offset in done:
-                branches.append(done.pop(len(branches) - offset))
+            while taken[0] in done:
+                br, i = done.pop(taken[0]), taken[0]
+                taken[0] += 1
+                if br is None or skipped(i):
+                    continue
+                branches.append(br)
                 save()
                 if on_branch is not None and not branches[-1].interrupted:
                     on_branch(len(branches), branches[-1])
                 self._scan(branches[-1])
 
-        while not stop.is_set() and len(branches) - offset < n:
+        while not stop.is_set() and taken[0] < n:
             with self.lock:
                 if self.returned:
                     i = self.returned.pop(0)
@@ -677,6 +713,10 @@ class _Alongside:
                     pass
                 flush()
                 continue
+            if i == taken[0] and skipped(i):
+                done[i] = None
+                flush()
+                continue
             br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
             done[i] = br
             flush()
@@ -685,8 +725,9 @@ class _Alongside:
         if stop.is_set():
             self.background.close()
             flush()
-            if done:  # finished beyond a gap in the plan's order
-                branches.extend(done[i] for i in sorted(done))
+            kept = [done[i] for i in sorted(done) if done[i] is not None]
+            if kept:  # finished beyond a gap in the plan's order
+                branches.extend(kept)
                 save()
             return True
         return False
@@ -771,11 +812,14 @@ class _Alongside:
 
 
 
-def _in_process(plan, jobs_list, branches, save, progress, on_branch) -> bool:
+def _in_process(plan, jobs_list, branches, save, progress, on_branch, skip=None) -> bool:
     """Compute ``jobs_list`` one after the other in this process (appending to ``branches``,
-    ``save()`` after each); True if interrupted (the branch in progress is kept up to its last
-    point). A Ctrl-C while a computed branch is saved and reported waits for them."""
-    for job in jobs_list:
+    ``save()`` after each), but the jobs for which ``skip(i, branches)`` is true when their
+    turn comes (`switch_levels`); True if interrupted (the branch in progress is kept up to
+    its last point). A Ctrl-C while a computed branch is saved and reported waits for them."""
+    for i, job in enumerate(jobs_list):
+        if skip is not None and skip(i, branches):
+            continue
         k = len(branches) + 1
         # one context from the branch's start to its save: compute_branch's own raises in the
         # continuation, and this one records a signal wherever else it lands

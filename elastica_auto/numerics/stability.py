@@ -742,13 +742,5 @@ def label_stability(branch, problem) -> None:
             p.index = -1
             msg = f"index disagreement: rule {r}, direct {p.index_direct}"
             p.note = "; ".join(filter(None, (p.note, msg)))
-    if _closes(branch):   # a closed loop ends at its start's own solution, and so its index
+    if branch.closed:   # a closed loop ends at its start's own solution, and so its index
         pts[-1].index = pts[-1].index_rule = pts[0].index
-
-
-def _closes(branch) -> bool:
-    """Whether ``branch`` is a closed loop: its last point is its first point's solution
-    (the continuation ends there when it comes back to its start)."""
-    first, last = branch.points[0], branch.points[-1]
-    return (len(branch.points) > 2 and last.params == first.params
-            and np.array_equal(last.profile, first.profile))
