@@ -207,6 +207,88 @@ def test_a_closed_loop_is_switched_onto_once(tmp_path):
             np.testing.assert_array_equal(a.columns["u0"], b.columns["u0"])
 
 
+class _FirstOfEachLevel:
+    """A default run's background cluster (`execution.cluster.Background`), up at once
+    with one worker, that computes the first branch of each run of branches it is handed
+    (the job of index 0 of its level) and holds every other, never answering, until
+    ``release`` answers them all."""
+
+    def __init__(self, workers, on_result):
+        import threading
+        self.workers, self.on_result, self.ready = 1, on_result, threading.Event()
+        self.ready.set()
+        self.tasks, self.held, self.released = [], [], False
+
+    def _answer(self, tag, function, args):
+        import threading
+        value = (function(*args), "stand-in")
+        threading.Thread(target=self.on_result, args=(tag, True, value)).start()
+
+    def submit(self, tag, function, args):
+        self.tasks.append(tag)
+        if tag[1][1] == 0:
+            self._answer(tag, function, args)
+        else:
+            self.held.append((tag, function, args))
+        return True
+
+    def release(self):
+        self.released = True
+        for task in self.held:
+            self._answer(*task)
+
+    def finish(self):
+        self.ready.clear()
+
+    def close(self, wait=0.0):
+        self.ready.clear()
+
+
+def test_a_loop_s_other_jobs_are_left_out_as_soon_as_the_loop_is_done(tmp_path, monkeypatch):
+    """The ring of `test_a_closed_loop_is_switched_onto_once` in a default run, its cluster
+    a stand-in (`_FirstOfEachLevel`): of the four switches (lam = -1 and 1, both ways), the
+    worker computes the loop (job 0) while this process computes its other orientation (job
+    1); the worker, then handed job 2, holds it. Once the loop is in, jobs 1 to 3 are left
+    out at once: the run waits neither for the held job nor computes job 3, and its file is
+    jobs = 1's."""
+    import os
+    import threading
+    import elastica_auto as ea
+    from elastica_auto.execution import cluster
+    from elastica_auto.execution.jobs import Callbacks
+    from elastica_auto.execution.plan import Request, make_plan
+    from elastica_auto.execution.run import (RunResult, Workers, compute, number_labels,
+                                             start_job)
+    path = tmp_path / "ring.py"
+    path.write_text(RING)
+    problem = ea.load_problem(str(path))
+    kw = dict(bounds=(-2, 2), switch=2, ds_max=0.2)
+    one = ea.continuation(problem, {"lam": -1.5}, "lam", **kw)
+    stand_in = []
+    monkeypatch.setattr(cluster, "Background",
+                        lambda n, on: stand_in.append(_FirstOfEachLevel(n, on)) or stand_in[-1])
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    plan = make_plan(problem, {"lam": -1.5}, "lam",
+                     Request(bounds=(-2, 2), switch=2), {"ds_max": 0.2})
+    result = RunResult(None, [], 0.0)
+    # were the run to wait for the held job, this answers it after a while (and the test fails)
+    watchdog = threading.Timer(60, lambda: stand_in[0].release())
+    watchdog.start()
+    try:
+        compute(plan, [start_job(plan, spec) for spec in plan.branches], result,
+                lambda: number_labels(result.branches), Callbacks(), Workers(jobs=0))
+    finally:
+        watchdog.cancel()
+    (background,) = stand_in
+    assert not background.released
+    assert background.tasks == [("branch", (1, 0)), ("branch", (2, 0)), ("branch", (2, 2))]
+    assert [b.worker for b in result.branches] == ["stand-in", "stand-in"]
+    assert len(result.branches) == len(one) == 2
+    for a, b in zip(one, result.branches):
+        assert a.start == b.start and a.direction == b.direction
+        np.testing.assert_array_equal(a.columns["lam"], b.column("lam"))
+
+
 @pytest.mark.parametrize("keywords, words", [
     ({"switch": 2, "switch_depth": 0}, "count >= 1 of levels"),
     ({"switch": 2, "switch_depth": True}, "count >= 1 of levels"),

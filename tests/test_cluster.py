@@ -415,7 +415,7 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, worke
         assert pool.wait_for_scans(signals.stop)
     assert [b.worker for b in result.branches] == ["local", "local"]
     # a cluster up from the start is handed the plan's first branch (the next in plan order)
-    assert pool.background.tasks == ([("branch", 0)] if ends else [])
+    assert pool.background.tasks == ([("branch", (1, 0))] if ends else [])
     assert len(pool.scans) == len({k for b in result.branches
                                    for k in scans(plan.problem, b)}) > 0
     for a, b in zip(result.branches, one.branches):

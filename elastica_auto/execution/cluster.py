@@ -150,9 +150,9 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                    on_tasks: TaskProgress | None = None, stop=None, skip=None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
     ``branches`` in plan order and calling ``save()`` after each, but those for which
-    ``skip(i, branches)`` is true when their turn comes (computed, and left out: see
-    `elastica_auto.execution.run.switch_levels`); True if interrupted (``stop``, a
-    `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
+    ``skip(i, branches)`` is true when their turn comes (their tasks cancelled then, done
+    or not: see `elastica_auto.execution.run.switch_levels`); True if interrupted
+    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
     from .jobs import new_branch
     from ..branches.stepper import start_point
     offset = len(branches)
@@ -162,9 +162,9 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     # task waiting for it, down with it. One `map` is one message to the scheduler: a
     # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64.
     numbers = [offset + i + 1 for i in range(len(jobs_list))]
-    futures = {f: i for i, f in enumerate(client.map(
-        _task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
-        key=[f"elastica-branch-{k}-{token}" for k in numbers]))}
+    tasks = client.map(_task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
+                       key=[f"elastica-branch-{k}-{token}" for k in numbers])
+    futures = {f: i for i, f in enumerate(tasks)}
     pending, done, points, finished = set(futures), {}, 0, 0
     last, taken = 0.0, 0        # taken: the jobs appended or left out, in order
 
@@ -199,14 +199,22 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
             done[i] = br
             finished += 1
             points += len(br.points)
-        while taken in done:
-            br, taken = done.pop(taken), taken + 1
-            if skip is not None and skip(taken - 1, branches):
-                continue
-            branches.append(br)
-            save()
-            if on_branch is not None:
-                on_branch(len(branches), branches[-1])
+        # in order: a job whose turn has come is appended once done, or left out (and its
+        # task cancelled, done or not) if ``skip`` says so; its turn comes when every job
+        # before it is taken, so ``skip`` reads the branches it is decided on
+        while taken < len(jobs_list):
+            if skip is not None and skip(taken, branches):
+                client.cancel(tasks[taken])
+                pending.discard(tasks[taken])
+                done.pop(taken, None)
+            elif taken in done:
+                branches.append(done.pop(taken))
+                save()
+                if on_branch is not None:
+                    on_branch(len(branches), branches[-1])
+            else:
+                break
+            taken += 1
         report()
     if stop.is_set():
         client.cancel(list(pending))

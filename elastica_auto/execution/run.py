@@ -266,8 +266,8 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
     other BP it joins). The decision reads only the branches before the job, so the kept
     branches are the same whichever process computed them. ``run(jobs, skip)`` computes the
     jobs, appending their branches to ``branches`` in order except those for which
-    ``skip(i, branches)`` is true when their turn comes (`_in_process` does not compute
-    them); True if it was interrupted."""
+    ``skip(i, branches)`` is true when their turn comes (left out then: not started after
+    that, cancelled or dropped if a worker has it); True if it was interrupted."""
     level, seen = list(branches), []
     for depth in range(plan.switch_depth):
         sources: list[tuple] = []
@@ -574,7 +574,10 @@ class _Alongside:
     def __init__(self, plan, workers: int, background):
         import queue
         self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
-        self.jobs, self.front, self.back, self.offset = [], 0, -1, 0
+        # the branches: the jobs of the current `run` (its ``level``: a result of an earlier
+        # one, left out while its worker computed it, is dropped), the next to take from
+        # each end, those on the cluster as (level, job), and those handed back
+        self.jobs, self.front, self.back, self.offset, self.level = [], 0, -1, 0, 0
         self.claimed, self.returned = set(), []
         self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
         self.pending_params: dict[tuple, dict] = {}
@@ -589,7 +592,7 @@ class _Alongside:
         or ended (tag None, not ok)."""
         with self.lock:
             if tag is None and not ok:
-                self.returned += sorted(self.claimed)
+                self.returned += sorted(i for level, i in self.claimed if level == self.level)
                 self.claimed.clear()
                 self.asked.clear()
                 self.task_returned += sorted(self.task_claimed)
@@ -614,11 +617,11 @@ class _Alongside:
                                      + len(self.task_claimed)) < bg.workers:
             if self.front <= self.back:
                 i = self.front
-                if not bg.submit(("branch", i), compute_branch,
+                if not bg.submit(("branch", (self.level, i)), compute_branch,
                                  (self.plan, self.offset + i + 1, self.jobs[i])):
                     return
                 self.front += 1
-                self.claimed.add(i)
+                self.claimed.add((self.level, i))
             elif self.unsent:
                 key, params = self.unsent[0]
                 if not bg.submit(("scan", key), enumerate_equilibria,
@@ -651,6 +654,9 @@ class _Alongside:
                 with self.lock:
                     self.task_returned.append(what)
             return
+        level, what = what
+        if level != self.level:
+            return
         job = self.jobs[what]
         if ok:
             br, worker = value
@@ -666,20 +672,26 @@ class _Alongside:
     def run(self, jobs_list, branches, save, progress, on_branch, stop, skip=None) -> bool:
         """Compute ``jobs_list``, appending the branches to ``branches`` in order and calling
         ``save()`` after each, but those for which ``skip(i, branches)`` is true when their
-        turn comes (not computed here if their turn has come when this process takes them);
-        True if interrupted (``stop`` set, or the branch in progress here interrupted: it is
+        turn comes (left out then, computed or not: no one starts them after that); True if
+        interrupted (``stop`` set, or the branch in progress here interrupted: it is
         kept up to its last point)."""
         import queue
         with self.lock:
             self.jobs, self.front, self.back = jobs_list, 0, len(jobs_list) - 1
+            self.level += 1
+            self.returned.clear()                # an earlier level's, left out
             self.offset = len(branches)
             self._feed()
-        done: dict[int, Branch | None] = {}      # None: left out before it was computed
+        done: dict[int, Branch] = {}
         n, offset = len(jobs_list), len(branches)
         taken = [0]                              # the jobs appended or left out, in order
 
+        decided: dict[int, bool] = {}            # the branches do not change meanwhile
+
         def skipped(i):
-            return skip is not None and skip(i, branches)
+            if i not in decided:
+                decided[i] = skip is not None and skip(i, branches)
+            return decided[i]
 
         def flush():
             while True:
@@ -687,16 +699,27 @@ class _Alongside:
                     self._take(self.results.get_nowait(), done)
                 except queue.Empty:
                     break
-            while taken[0] in done:
-                br, i = done.pop(taken[0]), taken[0]
+            # in order: a job whose turn has come is appended once done, or left out if
+            # ``skip`` says so, computed or not (not handed out after that; the cluster's
+            # result for it, if it had it, is dropped); its turn comes when every job before
+            # it is taken, so ``skip`` reads the branches it is decided on
+            while taken[0] < n:
+                i = taken[0]
+                if skipped(i):
+                    with self.lock:
+                        self.front = max(self.front, i + 1)
+                    done.pop(i, None)
+                elif i in done:
+                    branches.append(done.pop(i))
+                    save()
+                    if on_branch is not None and not branches[-1].interrupted:
+                        on_branch(len(branches), branches[-1])
+                    self._scan(branches[-1])
+                else:
+                    break
                 taken[0] += 1
-                if br is None or skipped(i):
-                    continue
-                branches.append(br)
-                save()
-                if on_branch is not None and not branches[-1].interrupted:
-                    on_branch(len(branches), branches[-1])
-                self._scan(branches[-1])
+            for i in [i for i in done if i < taken[0]]:
+                del done[i]
 
         while not stop.is_set() and taken[0] < n:
             with self.lock:
@@ -713,9 +736,7 @@ class _Alongside:
                     pass
                 flush()
                 continue
-            if i == taken[0] and skipped(i):
-                done[i] = None
-                flush()
+            if i < taken[0]:                     # left out meanwhile (given back by the cluster)
                 continue
             br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
             done[i] = br
@@ -725,9 +746,8 @@ class _Alongside:
         if stop.is_set():
             self.background.close()
             flush()
-            kept = [done[i] for i in sorted(done) if done[i] is not None]
-            if kept:  # finished beyond a gap in the plan's order
-                branches.extend(kept)
+            if done:  # finished beyond a gap in the plan's order
+                branches.extend(done[i] for i in sorted(done))
                 save()
             return True
         return False
