@@ -13,6 +13,29 @@ from elastica_auto.model.problem import load_problem
 from helpers import ROTATING_ARM, RunOutput, elastica_run_file, run_cli, run_plan
 
 
+#: the tests of an xdist_group that --dist loadgroup does not keep on one worker
+_UNGROUPED: set[str] = set()
+
+
+def pytest_collection_finish(session):
+    """Under ``--dist loadgroup`` (``make test``), each test of an ``xdist_group`` runs on its
+    group's worker only because pytest-xdist appends the group to its node id: the paper's
+    reduced runs are then built once (tests/test_paper_runs.py). Where the pytest in use
+    ignores that (pytest 9.2 with pytest-xdist 3.8: nothing fails, and every worker builds
+    the runs, minutes of CPU each), those tests fail at once instead (`pytest_runtest_setup`)."""
+    if getattr(session.config.option, "loadgroup", False):     # set on xdist's workers
+        _UNGROUPED.update(item.nodeid for item in session.items
+                          if item.get_closest_marker("xdist_group") and "@" not in item.nodeid)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    if item.nodeid in _UNGROUPED:      # before its fixtures are set up
+        pytest.fail("--dist loadgroup does not group the tests of an xdist_group with this "
+                    "pytest (pytest-xdist's group suffix is not in their node ids): install "
+                    "a pytest that the test extra of pyproject.toml allows", pytrace=False)
+
+
 @pytest.fixture(scope="session")
 def elastica():
     return load_problem("elastica_lever_arm")
