@@ -446,3 +446,19 @@ def test_a_default_run_shares_its_other_tasks_with_its_cluster(cluster):
         assert got[0] != here
     else:
         assert got == [here] * 5
+
+
+def test_a_branch_of_an_earlier_level_is_dropped_when_it_comes_back():
+    """A worker's branch for a job of an earlier `_Alongside.run` (left out while it computed
+    it, and so never waited for) is not taken as the current run's job of the same number;
+    the current run's own is."""
+    from elastica_auto.execution.run import _Alongside
+    pool = _Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
+    pool.jobs, pool.level, done = ["job 0 of level 3"], 3, {}
+    pool._take((("branch", (2, 0)), True, ("a level-2 branch", "inproc://w")), done)
+    assert done == {}
+
+    class Branch:
+        worker = None
+    pool._take((("branch", (3, 0)), True, (Branch(), "inproc://w")), done)
+    assert list(done) == [0] and done[0].worker == "inproc://w"
