@@ -126,6 +126,128 @@ def test_folds_repeat_with_period_two_pi(rotating_arm):
         assert partners == len(psi), (eps, P, partners, len(psi))
 
 
+def _periodic_runs(tmp_path, monkeypatch, uz):
+    """The rotating arm at eps = 0.5, P = 9 pi^2/4 (its richest branches: 10 folds each),
+    psi both ways to +-6 pi, UZ values ``uz`` (None: none): (branches as the engine makes
+    them, branches with every period computed), in this process (jobs = 1: the patch of the
+    stepper does not reach a cluster's workers)."""
+    from elastica_auto.branches import stepper
+    path = elastica_run_file(tmp_path / "periodic.toml", eps="0.5", P="9*pi^2/4",
+                             bounds=("-6*pi", "6*pi"), uz=uz)
+    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
+    with monkeypatch.context() as m:
+        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
+        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+    return fast, full
+
+
+def _translated_from(branch):
+    """(index of the first point that is the start translated by whole periods, the shift in
+    psi), or None: the points from there on repeat the first period exactly."""
+    pts = branch.points
+    for i, p in enumerate(pts[1:], start=1):
+        shift = p.params["psi"] - pts[0].params["psi"]
+        if np.array_equal(p.profile, pts[0].profile) and abs(shift) > 1.0:
+            return i, shift
+    return None
+
+
+def test_a_periodic_branch_is_its_first_period_translated(tmp_path, monkeypatch):
+    """Both branches pass the straight rod, their start, at psi = -+2 pi the way they left
+    it: from there on each is its first period translated by 2 pi. Against the same run
+    with every period computed: the same labels in the same order at the same psi (1e-9)
+    and m1 (1e-8 at the folds, 1e-6 at the user points, solved to ``tol``), the same index
+    on every labelled point and on either side of each (the transitions). The copies
+    repeat the first period exactly (profiles equal, psi shifted by exactly the period),
+    and each labelled copy solves the BVP at its own parameters as its original does at
+    its own: the residuals of the boundary conditions and of the differential equation are
+    the original's to rounding (periodicity in psi, exact)."""
+    fast, full = _periodic_runs(tmp_path, monkeypatch, uz=[0, "pi/12", "pi/6", "pi/2"])
+    from elastica_auto.model.problem import load_problem
+    problem = load_problem("elastica_lever_arm")
+    for a, b in zip(fast, full):
+        assert a.end == b.end == "EP" and a.warnings == [] and a.disagreements == []
+        la = [p for p in a.points if p.type]
+        lb = [p for p in b.points if p.type]
+        assert [p.type for p in la] == [p.type for p in lb]
+        np.testing.assert_allclose([p.params["psi"] for p in la],
+                                   [p.params["psi"] for p in lb], rtol=0, atol=PSI_ATOL)
+        folds = [k for k, p in enumerate(la) if p.type == "LP"]
+        m1a, m1b = (np.array([p.ordinates["m1"] for p in pts]) for pts in (la, lb))
+        np.testing.assert_allclose(m1a[folds], m1b[folds], rtol=0, atol=FOLD_ATOL)
+        # the other labels are solved to tol = 1e-5 (rms residual) on their own meshes
+        np.testing.assert_allclose(m1a, m1b, rtol=0, atol=1e-6)
+        assert [p.index for p in la] == [p.index for p in lb]
+        assert [a.transition(p) for p in la] == [b.transition(p) for p in lb]
+        found = _translated_from(a)
+        assert found is not None and _translated_from(b) is None
+        i, shift = found
+        assert abs(abs(shift) - TWO_PI) <= 1e-12
+        copies = []     # the points past the translate that repeat the first period
+        for m, q in enumerate(a.points[i + 1:]):
+            p, k = a.points[m % i + 1], m // i + 1
+            if not (np.array_equal(q.profile, p.profile) and q.type == p.type
+                    and abs(q.params["psi"] - p.params["psi"] - k * shift) <= 1e-12 * k):
+                break
+            copies.append((q, p))
+        assert len(copies) >= i // 2        # at least half a period copied
+        for q, p in ((q, p) for q, p in copies if q.state is not None):
+            # the residuals of the copy at its parameters are the original's at its own
+            s, y, yp = q.state.s, q.state.y, q.state.yp
+            r_q = problem.bc(y[:, 0], y[:, -1], q.state.params)
+            r_p = problem.bc(y[:, 0], y[:, -1], p.state.params)
+            assert np.abs(r_q - r_p).max() <= 1e-13
+            f_q, f_p = (problem.rhs(s, y, x.state.params) for x in (q, p))
+            assert np.abs(f_q - f_p).max() <= 1e-13 * (1.0 + np.abs(yp).max())
+            assert np.abs(f_p - yp).max() <= 1e-10 * (1.0 + np.abs(yp).max())
+
+
+def test_ordinates_that_are_not_periodic_stop_the_translation(tmp_path, monkeypatch):
+    """An ordinate that is not periodic in psi (here m1 + psi): a copy of the first period
+    would carry the wrong values. The branch says so in a warning and is computed whole, its
+    folds at the same psi as the module's own run's (1e-9)."""
+    from elastica_auto.model.problem import Problem
+    path = elastica_run_file(tmp_path / "ordinates.toml", bounds=("-4*pi", "4*pi"))
+    plain = run_plan(runfile.load(path), tmp_path / "plain").result.branches
+    own = Problem.ordinate_values
+
+    def drifting(self, s, y, p):
+        values = own(self, s, y, p)
+        return {**values, "m1": values["m1"] + p["psi"]}
+
+    monkeypatch.setattr(Problem, "ordinate_values", drifting)
+    drift = run_plan(runfile.load(path), tmp_path / "drift").result.branches
+    for a, b in zip(drift, plain):
+        assert _translated_from(a) is None and _translated_from(b) is not None
+        assert len(a.warnings) == 1 and "ordinates there differ" in a.warnings[0]
+        np.testing.assert_allclose([p.params["psi"] for p in a.folds],
+                                   [p.params["psi"] for p in b.folds], rtol=0, atol=PSI_ATOL)
+
+
+def test_user_values_without_a_period_are_not_translated(tmp_path, monkeypatch):
+    """UZ values that do not recur with psi's period (uz_period absent): a copy of the first
+    period would carry its user points to values that are none, and miss those of the later
+    periods. Such a branch is computed whole: UZ exactly where psi crosses 0.3 or -9, and
+    the same labels as with every period computed."""
+    path = elastica_run_file(tmp_path / "values.toml", eps="0.5", P="9*pi^2/4",
+                             bounds=("-6*pi", "6*pi"),
+                             extra="uz = [0.3, -9.0]\n")
+    from elastica_auto.branches import stepper
+    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
+    with monkeypatch.context() as m:
+        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
+        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+    for a, b in zip(fast, full):
+        psi = np.array([p.params["psi"] for p in a.points if p.type != "UZ"])
+        uz = [p.params["psi"] for p in a.points if p.type == "UZ"]
+        crossed = sum(int(np.count_nonzero((psi[:-1] - v) * (psi[1:] - v) < 0))
+                      for v in (0.3, -9.0))
+        assert len(uz) == crossed > 0
+        assert all(min(abs(v - 0.3), abs(v + 9.0)) <= 1e-12 for v in uz)
+        assert [(p.type, round(p.params["psi"], 9)) for p in a.points if p.type] == \
+            [(p.type, round(p.params["psi"], 9)) for p in b.points if p.type]
+
+
 # ---- 5. the fold does not depend on the step size and converges in fold_tol -----------------
 
 @pytest.fixture(scope="module")
@@ -224,15 +346,25 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     """Without the probe of a dipping parameter slope, steps pass over some translates of the
     pair; the periodic translates of the folds that were found bring every missing one back.
     (Without the probe the translate check is all there is: where every translate of a pair
-    is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.) In this
+    is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.) The check
+    compares periods computed apart, so the branches are computed whole here: a branch that
+    repeats is otherwise its first period copied (`_Walk._repeat`), and a pair its steps
+    pass over is then missing from every copy, the probe being what finds it. In this
     process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
     from elastica_auto.branches import stepper
-    monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
-    monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
+
+    def patch(translates: bool):
+        monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
+        monkeypatch.setattr(stepper._Walk, "_repeat_period",
+                            lambda self, course, singular: None)
+        if not translates:
+            monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
+
+    patch(translates=False)
     missed = _cusp_folds(tmp_path / "without", ds_max=1.0)
     assert all(len(b.folds) < 17 for b in missed), "choose a case where pairs are missed"
     monkeypatch.undo()
-    monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
+    patch(translates=True)
     _check_cusp(_cusp_folds(tmp_path / "with", ds_max=1.0))
 
 

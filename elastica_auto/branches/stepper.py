@@ -76,6 +76,11 @@ PROBES = 4
 CLOSED_LOOP = 0.2
 #: ... and the secant points the way the branch left its start: their cosine is at least this.
 CLOSED_LOOP_COS = 0.5
+#: The kind of the event where a branch passes its start translated by whole periods of the
+#: parameter (`_Walk._period_event`), and the largest gap (in norm, relative) between the
+#: branch's solution there and the translate.
+PERIOD = "period"
+REPEAT_GAP = 1e-4
 
 
 @dataclass(frozen=True)
@@ -359,6 +364,8 @@ class _Walk:
         self.until = None   # (origin, unit direction, distance): end once past that hyperplane
         self.start = None   # the first solution: the branch ends where it comes back to it
         self.event_retries = 0
+        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
+        self.period = self._repeat_period(course, singular_start)
 
     # -- the loop ---------------------------------------------------------------------------
     def run(self, a: Solution):
@@ -407,6 +414,25 @@ class _Walk:
             history.clear()
             retries = 0
             ds = ds_next
+
+    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
+        """The period of the continued parameter if the branch may be completed by
+        translation once it passes its start one period on (:meth:`_repeat`): a regular
+        start, and nothing that a translate would have to decide afresh. Each UZ value
+        recurs with a period that divides the parameter's (every translate of a user point
+        is one, and no other point becomes one); no fold stop, no limit, not a fold curve
+        nor the refinement of a step."""
+        period = self.problem.parameters[self.name].period
+        if (period is None or singular_start or course.all_folds or course.stops.limits
+                or course.stops.at_fold is not None):
+            return None
+        for spec in course.user_values:
+            if spec.period is None:
+                return None
+            ratio = period / spec.period
+            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
+                return None
+        return period
 
     def _add(self, state: State, **fields) -> Point:
         if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
@@ -566,7 +592,10 @@ class _Walk:
         """Add the step's events and its end point b; the next ds (grown after an easy step)
         and whether the branch ended."""
         opt, a, b, ds = self.opt, step.a, step.b, step.ds
-        if self._add_events(step, found):
+        outcome = self._add_events(step, found)
+        if outcome == "moved":      # the branch repeats: the walk goes on past its translates
+            return self.resume_ds, False
+        if outcome:
             return ds, True
         arclength = self.arclength + ds
         residual = float(b.rms.max()) if self.all_folds else math.nan
@@ -776,10 +805,12 @@ class _Walk:
         return float(self.ordinate.fn(state.s, state.y, state.params))
 
     # -- user points, bounds, and adding the events -----------------------------------------
-    def _add_events(self, step: Step, found: list[_Event]) -> bool:
+    def _add_events(self, step: Step, found: list[_Event]) -> str:
         """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
-        return True if the branch ends in this step. Folds split the step: a value is solved
-        between the two knots that bracket it, so it cannot converge to the other side."""
+        return "ended" if the branch ends in this step, "moved" if it came back to its start
+        one period on and the walk moved past the translates of that period (:meth:`_repeat`),
+        else "". Folds split the step: a value is solved between the two knots that bracket
+        it, so it cannot converge to the other side."""
         branch, name, stops = self.branch, self.name, self.stops
         inside = sorted((e for e in found if e.kind == "LP" and not e.note
                          and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
@@ -801,7 +832,8 @@ class _Walk:
                 if bound_hit is None:
                     bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
                 break
-        for hit in (self._limit_event(step), self._closure_event(step)):
+        for hit in (self._limit_event(step), self._closure_event(step),
+                    self._period_event(step)):
             if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
                 bound_hit = hit
         if bound_hit is not None:
@@ -810,6 +842,8 @@ class _Walk:
         events.sort(key=lambda e: e.sigma)
         nfolds = len(branch.folds)
         for e in events:
+            if e.kind == PERIOD:
+                return self._repeat(step, e)
             self._add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
                       fold_residual=e.residual, note=e.note)
             if e.kind == "LP":
@@ -819,12 +853,12 @@ class _Walk:
                     branch.points[:] = [p for p in branch.points if p.arclength <= cut]
                     branch.end = "LP"
                     branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
-                    return True
+                    return "ended"
             if e.kind == "EP":
                 branch.end = "EP"
                 branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
-                return True
-        return False
+                return "ended"
+        return ""
 
     def _limit_event(self, step: Step) -> _Event | None:
         """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
@@ -908,11 +942,148 @@ class _Walk:
         return _Event(sigma, "EP", start.state, start.tangent,
                       message=self._closed(step.position(sigma)))
 
+    def _period_event(self, step: Step) -> _Event | None:
+        """The start translated by whole periods of the parameter, if the step passes it the
+        way the branch left it (as :meth:`_closure_event` tests for the start itself) and
+        the branch's own solution on that hyperplane is the translate: then the branch is
+        periodic, and :meth:`_repeat` completes it. None where the walk may not repeat
+        (``self.period`` None, the first step) or the step passes no translate.
+
+        The translate is checked twice, since what follows copies it: the solution on the
+        hyperplane through it differs from it by at most REPEAT_GAP (relative, in norm; the
+        corrector's tolerance makes the two discrete solutions differ by about 1e-6), and
+        its ordinates equal the start's to rounding (the module's ordinates are periodic in
+        the parameter as its equations are; a module whose ordinates are not gets a
+        warning, and no branch of it repeats)."""
+        if self.period is None or self.until is not None or self.first:
+            return None
+        start, name, period = self.start, self.name, self.period
+        lo, hi = sorted((step.a.lam, step.b.lam))
+        reach = math.hypot(1.0, CLOSED_LOOP) * step.dist
+        s = step.b.mesh
+        for k in range(math.ceil((lo - reach - start.lam) / period),
+                       math.floor((hi + reach - start.lam) / period) + 1):
+            if k == 0:
+                continue
+            there = State(start.state.s, start.state.y, start.state.yp,
+                          {**start.state.params, name: start.lam + k * period})
+            sigma = step.sigma(there)
+            if not 0.0 < sigma <= step.dist:
+                continue
+            off = difference(there, step.a.state, name, s)
+            off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
+                          off.lam - sigma * step.secant.lam)
+            if (norm(off) > CLOSED_LOOP * step.dist
+                    or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
+                continue
+            try:
+                sol = self.corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
+            except CorrectorFailure:
+                continue
+            if norm(difference(sol.state, there, name, s), s) > REPEAT_GAP * (1.0 + norm(there, s)):
+                continue
+            ours = self.problem.ordinate_values(there.s, there.y, there.params)
+            first = self.branch.points[0].ordinates
+            if any(abs(v - first[q]) > 1e-9 * (1.0 + abs(first[q])) for q, v in ours.items()):
+                self.branch.warnings.append(
+                    f"the branch passes its start translated by {k} periods of {name}, but "
+                    "the ordinates there differ from the start's: not completed by translation")
+                self.period = None
+                return None
+            return _Event(sigma, PERIOD, there, start.tangent)
+        return None
+
+    def _repeat(self, step: Step, hit: _Event) -> str:
+        """The branch passes ``hit``, its start translated by whole periods of the parameter,
+        the way it left the start: from there on it is its first period translated (the
+        solution set and the ordinates are periodic, and a continuation through a regular
+        point in a given direction is unique). Add the translate and then copies of the
+        period's points, each period shifted by the same amount in the parameter and in
+        arclength, while they stay within the bounds and ``max_points``; then resume the
+        walk from the last copy that is not a fold or a branch point (solved again from its
+        profile, or the last translate of the start, which is exact), for what remains.
+        Returns "moved" ("ended" if the copies filled the branch to ``max_points``: the walk
+        ends there as it would have)."""
+        branch, name, opt, stops = self.branch, self.name, self.opt, self.stops
+        shift = hit.state.params[name] - self.start.lam
+        translate = self._add(hit.state, type="UZ" if self._user_value(hit.state.params[name])
+                              else "", arclength=step.position(hit.sigma), tangent=hit.tangent,
+                              direct=branch.points[0].index_direct)
+        period = branch.points[1:]
+        length = translate.arclength - branch.points[0].arclength
+        exact = {id(translate): hit.state}     # the translates of the start: their solutions
+        j = 1
+        while True:
+            for p in period:
+                lam = p.params[name] + j * shift
+                if not stops.lower < lam < stops.upper or len(branch.points) >= opt.max_points:
+                    return self._resume(exact, shift)
+                copy = dataclasses.replace(p, params={**p.params, name: lam},
+                                           arclength=p.arclength + j * length,
+                                           profile=p.profile.copy())
+                if p.state is not None:
+                    copy.state = State(p.state.s, p.state.y, p.state.yp, {**p.state.params,
+                                                                          name: lam})
+                if p is translate:
+                    exact[id(copy)] = State(hit.state.s, hit.state.y, hit.state.yp,
+                                            {**hit.state.params, name: lam})
+                branch.points.append(copy)
+            j += 1
+
+    def _resume(self, exact: dict, shift: float) -> str:
+        """Go on from the last copy :meth:`_repeat` made that is not a fold or a branch point
+        (the later copies removed): its solution, solved again from its profile where it is
+        not a translate of the start, with the tangent along the branch."""
+        branch, name = self.branch, self.name
+        pts = branch.points
+        while pts[-1].type in ("LP", "BP"):
+            pts.pop()
+        point = pts[-1]
+        sol = None
+        if id(point) not in exact:
+            try:
+                sol = self._resolve(point)
+            except CorrectorFailure:
+                while id(pts[-1]) not in exact:
+                    pts.pop()
+                point = pts[-1]
+        if sol is None:
+            sol = self.corr.point(exact[id(point)])
+        prev = pts[-2]
+        grid = PROFILE_GRID
+        t = sol.tangent
+        along = (float(np.sum(np.gradient(grid) * np.sum(t(grid) * (point.profile - prev.profile),
+                                                           axis=0)))
+                 + t.lam * (point.params[name] - prev.params[name]))
+        if along < 0:
+            t = t.scaled(-1.0)
+        disc = self.corr.disc(sol.mesh)
+        sol = self.corr.solution(disc, sol.state.params, sol.state.y, sol.lam,
+                                 Row(disc.weights * t.on(sol.mesh).y, t.lam, 0.0))
+        self.base_point, self.a, self.arclength, self.curvature, self.first = \
+            point, sol, point.arclength, None, False
+        self.period = None
+        following = [p.ds for p in pts if p.ds > 0]
+        self.resume_ds = min(following[-1] if following else abs(self.opt.ds), self.opt.ds_max)
+        if self.progress is not None:
+            self.progress(branch, sol.lam)
+        return "moved"
+
+    def _user_value(self, lam: float) -> bool:
+        """Whether ``lam`` is a UZ value (each with its period)."""
+        for spec in self.user_values:
+            for v in spec.values:
+                k = round((lam - v) / spec.period)
+                if abs(lam - v - k * spec.period) <= 1e-9 * (1.0 + abs(lam)):
+                    return True
+        return False
+
     def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
-        """Whether ``event``, found in the step that closes the loop at ``end``, is the start
-        itself found again (the fold or branch point the branch was started from, to 1e-6)
+        """Whether ``event``, found in the step that closes the loop at ``end`` (or that
+        passes the start's translate by a period), is the start itself found again (the fold
+        or branch point the branch was started from, the UZ point at its translate, to 1e-6)
         or lies past it (an event that could not be located, placed at the step's end)."""
-        if end.state is not self.start.state:
+        if end.state is not self.start.state and end.kind != PERIOD:
             return False
         if step.sigma(event.state) >= end.sigma:
             return True
