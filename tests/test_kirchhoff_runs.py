@@ -350,3 +350,21 @@ def test_the_snap_back_table_of_a_3d_run_has_both_unknowns():
         assert r["index"] == 0 and abs(r["k_2"]) < 1e-6
         assert abs(r["k"]) == pytest.approx(2.2160, abs=1e-4)
         assert r["k"] * r["target_m0"] > 0 and abs(r["target_z1"]) < 1e-8
+
+
+def test_the_copies_of_a_branch_point_are_decided_as_if_alone():
+    """b2 = 2, eps = 0.5, psi up from 0, through its folds, down to -6 pi: the branch
+    repeats with period 2 pi, so the subcritical branch points at psi = 1.1695 and its
+    mirror -1.1695 recur at their translates, as copies with the same solution, each
+    decided by the first one's born branches (`snaps.mark_subcritical`). Each decision is
+    the one `subcritical` gives at that point alone."""
+    from elastica_auto.analysis.snaps import subcritical
+    rod = load_problem(K3)
+    (br,) = ea.continuation(rod, {**BASE, "b2": 2.0}, "psi", bounds=(-6 * math.pi, 6 * math.pi),
+                            directions="+", max_points=400)
+    decided = [p for p in br.points if p.type == "BP" and p.subcritical is not None]
+    copies = [p for p in decided if any(q is not p and np.array_equal(q.state.y, p.state.y)
+                                        for q in decided)]
+    assert len(decided) >= 4 and len(copies) >= 2
+    for p in decided:
+        assert subcritical(rod, br, p) is p.subcritical, p.name

@@ -67,19 +67,30 @@ def _stable_side(branch, k: int) -> str | None:
 def mark_subcritical(problem, branch) -> None:
     """Decide `subcritical` at each BP of ``branch`` that bounds a stable segment (index 0 on
     one side, positive on the other): set the point's ``subcritical`` and say it in its
-    note. A failure of the module there leaves it undecided, with the reason in the note."""
+    note. A failure of the module there leaves it undecided, with the reason in the note.
+    A BP whose solution is that of one decided before, its parameters the same up to whole
+    periods of the continued one (the translates of a periodic branch's first period,
+    `branches.stepper`), gets the same decision: its born branches are those translated."""
     pts = branch.points
+    decided = []    # (scan key, solution values, decision, note) of the BPs decided here
     for k, p in enumerate(pts):
         if p.type != "BP" or k == 0 or k + 1 >= len(pts) or p.tangent is None \
                 or _stable_side(branch, k) is None:
             continue
-        try:
-            p.subcritical = subcritical(problem, branch, p)
-            said = {True: "subcritical: the branches born here are unstable (a snap)",
-                    False: "supercritical: a stable branch is born here (no snap)",
-                    None: "born branches not found (no snap reported)"}[p.subcritical]
-        except Exception as exc:  # the module failing on a born branch: no decision
-            said = f"born branches failed ({type(exc).__name__}: {exc}); no snap reported"
+        key = scan_key(problem, branch.parameter, p.params)
+        same = next((d for d in decided if d[0] == key and np.array_equal(d[1], p.state.y)),
+                    None)
+        if same is not None:
+            p.subcritical, said = same[2], same[3]
+        else:
+            try:
+                p.subcritical = subcritical(problem, branch, p)
+                said = {True: "subcritical: the branches born here are unstable (a snap)",
+                        False: "supercritical: a stable branch is born here (no snap)",
+                        None: "born branches not found (no snap reported)"}[p.subcritical]
+            except Exception as exc:  # the module failing on a born branch: no decision
+                said = f"born branches failed ({type(exc).__name__}: {exc}); no snap reported"
+            decided.append((key, p.state.y, p.subcritical, said))
         p.note = "; ".join(filter(None, (p.note, said)))
 
 
