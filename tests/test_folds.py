@@ -202,6 +202,31 @@ def test_a_periodic_branch_is_its_first_period_translated(tmp_path, monkeypatch)
             assert np.abs(f_p - yp).max() <= 1e-10 * (1.0 + np.abs(yp).max())
 
 
+def test_a_repeating_branch_ends_at_max_points_as_if_computed_whole(tmp_path, monkeypatch):
+    """max_points = 100 (about two periods of the branch at eps = 0.25, P = pi^2/4): the
+    copies stop there and the branch ends at its 100th point (EP, "reached max_points").
+    A copied period has the first period's points, more than a later period computed with
+    the steps grown, so the branch ends earlier along the path than when computed whole;
+    the labels both have are the same, in the same order at the same psi (1e-9)."""
+    from elastica_auto.branches import stepper
+    path = elastica_run_file(tmp_path / "max.toml", bounds=("-6*pi", "6*pi"),
+                             extra="[options]\nmax_points = 100\n")
+    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
+    with monkeypatch.context() as m:
+        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
+        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+    for a, b in zip(fast, full):
+        assert _translated_from(a) is not None
+        assert len(a.points) == len(b.points) == 100 and a.end == b.end == "EP"
+        assert "max_points" in a.message
+        la = [p for p in a.points if p.type][:-1]       # the EP at max_points left out
+        lb = [p for p in b.points if p.type][:-1]
+        n = min(len(la), len(lb))
+        assert n >= 5 and [p.type for p in la[:n]] == [p.type for p in lb[:n]]
+        np.testing.assert_allclose([p.params["psi"] for p in la[:n]],
+                                   [p.params["psi"] for p in lb[:n]], rtol=0, atol=PSI_ATOL)
+
+
 def test_ordinates_that_are_not_periodic_stop_the_translation(tmp_path, monkeypatch):
     """An ordinate that is not periodic in psi (here m1 + psi): a copy of the first period
     would carry the wrong values. The branch says so in a warning and is computed whole, its

@@ -1002,8 +1002,8 @@ class _Walk:
         arclength, while they stay within the bounds and ``max_points``; then resume the
         walk from the last copy that is not a fold or a branch point (solved again from its
         profile, or the last translate of the start, which is exact), for what remains.
-        Returns "moved" ("ended" if the copies filled the branch to ``max_points``: the walk
-        ends there as it would have)."""
+        Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
+        at its next turn, as it would have there)."""
         branch, name, opt, stops = self.branch, self.name, self.opt, self.stops
         shift = hit.state.params[name] - self.start.lam
         translate = self._add(hit.state, type="UZ" if self._user_value(hit.state.params[name])
@@ -1017,7 +1017,7 @@ class _Walk:
             for p in period:
                 lam = p.params[name] + j * shift
                 if not stops.lower < lam < stops.upper or len(branch.points) >= opt.max_points:
-                    return self._resume(exact, shift)
+                    return self._resume(exact)
                 copy = dataclasses.replace(p, params={**p.params, name: lam},
                                            arclength=p.arclength + j * length,
                                            profile=p.profile.copy())
@@ -1030,7 +1030,7 @@ class _Walk:
                 branch.points.append(copy)
             j += 1
 
-    def _resume(self, exact: dict, shift: float) -> str:
+    def _resume(self, exact: dict) -> str:
         """Go on from the last copy :meth:`_repeat` made that is not a fold or a branch point
         (the later copies removed): its solution, solved again from its profile where it is
         not a translate of the start, with the tangent along the branch."""
