@@ -37,7 +37,7 @@ PARAMETERS = [
     Parameter("alpha", 0.0, r"\alpha", "free", period=2 * math.pi,
               doc="load direction from the vertical"),
     Parameter("theta0", 0.0, r"\theta_0", "fixed", period=2 * math.pi,
-              doc="rotation of the clamp"),
+              period_shift={"theta": 2 * math.pi}, doc="rotation of the clamp"),
 ]
 
 

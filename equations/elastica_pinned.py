@@ -64,7 +64,7 @@ PARAMETERS = [
     Parameter("psi", 0.0, r"\psi", "free", period=2 * math.pi,
               doc="arm angle to the tip tangent, clockwise"),
     Parameter("theta0", 0.0, r"\theta_0", "fixed", period=2 * math.pi,
-              doc="rotation of the clamp"),
+              period_shift={"theta": 2 * math.pi}, doc="rotation of the clamp"),
     Parameter("X", PIN_X, r"X", "free", doc="pin abscissa (the arm's end), / l"),
     Parameter("Y", PIN_Y, r"Y", "free", doc="pin ordinate (the arm's end), / l"),
 ]

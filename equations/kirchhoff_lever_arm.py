@@ -83,6 +83,9 @@ from elastica_auto.model.problem import Constraint, Ordinate, Parameter, SecondV
 from elastica_auto.core.solution import trapezoid_weights
 
 STATES = ("x", "y", "z", "q0", "q1", "q2", "q3", "mx", "my", "mz")
+#: The quaternion's states: turning the clamp by a whole turn (theta0 or phi0 grown by 2 pi)
+#: turns q(0), and with it q(s), to -q, the same frame.
+QUATERNION = ("q0", "q1", "q2", "q3")
 
 TWO_PI = 2 * math.pi
 
@@ -93,14 +96,14 @@ PARAMETERS = [
               doc="arm angle to the tip tangent, clockwise in the arm's plane"),
     Parameter("alpha", 0.0, r"\alpha", "free", period=TWO_PI,
               doc="load direction from the vertical, in the x-y plane"),
-    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=TWO_PI,
-              doc="rotation of the clamp about e_z"),
+    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=TWO_PI, period_flip=QUATERNION,
+              doc="rotation of the clamp about e_z (a whole turn is q -> -q)"),
     Parameter("chi", 0.0, r"\chi", "free", period=TWO_PI,
               doc="tilt of the arm's plane about the tip tangent"),
     Parameter("beta", 0.0, r"\beta", "free", period=TWO_PI,
               doc="azimuth of the load out of the x-y plane (towards +z)"),
-    Parameter("phi0", 0.0, r"\phi_0", "fixed", period=TWO_PI,
-              doc="twist of the clamp about its own axis"),
+    Parameter("phi0", 0.0, r"\phi_0", "fixed", period=TWO_PI, period_flip=QUATERNION,
+              doc="twist of the clamp about its own axis (a whole turn is q -> -q)"),
     Parameter("b2", 1.0, r"b_2", "ode", doc="out-of-plane bending stiffness / in-plane"),
     Parameter("c", 1 / 1.3, r"c", "ode",
               doc="torsional stiffness / in-plane bending stiffness (1/(1 + nu), nu = 0.3)"),

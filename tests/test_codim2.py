@@ -433,3 +433,36 @@ def test_a_module_with_an_integral_condition_and_a_free_parameter_has_fold_curve
     with pytest.raises(ea.PlanError, match="'c' is a free parameter") as exc_info:
         ea.continuation(level, branches.label("LP1"), ["lam", "c"])
     assert exc_info.value.key == "parameter"
+
+
+@pytest.mark.parametrize("module, name", [("elastica_lever_arm", "theta0"),
+                                          ("kirchhoff_lever_arm", "theta0"),
+                                          ("kirchhoff_lever_arm", "phi0")])
+def test_a_period_turns_the_fold_system_as_it_turns_the_module(module, name):
+    """The fold system (the solution y and the null vector v) inherits what a period does to
+    the module's states: a shift moves y and leaves v (a direction) alone, a flip turns
+    both. With that map the extended equations are equivariant at any Y, solution or not:
+    rhs(map Y, p + 2 pi k) = map(rhs(Y, p)) (the map's derivative) and the boundary
+    residuals the same up to the sign of each row, for k = 1, -1, 2, 3."""
+    from elastica_auto.branches.codim2 import fold_problem
+    from elastica_auto.model.problem import load_problem, periods_applied
+    base = load_problem(module)
+    fold = fold_problem(base, "psi")
+    par = fold.parameters[name]
+    assert (par.period_shift, par.period_flip) == (
+        (("theta", 2 * math.pi),), ()) if module == "elastica_lever_arm" else (
+        (), tuple(f"{pre}q{i}" for pre in ("", "null:") for i in range(4)))
+    rng = np.random.default_rng(1)
+    s = np.linspace(0.0, 1.0, 11)
+    Y = rng.normal(size=(len(fold.states), len(s)))
+    p = {**fold.defaults(), name: 0.3, "psi": 0.4, "P": 2.0}
+    f = fold.rhs(s, Y, p)
+    r = fold.bc(Y[:, 0], Y[:, -1], p)
+    for k in (1, -1, 2, 3):
+        q = {**p, name: p[name] + 2 * math.pi * k}
+        Z = periods_applied(fold, name, Y, k)
+        assert np.array_equal(Z, Y) != bool(par.period_shift or k % 2)
+        np.testing.assert_allclose(fold.rhs(s, Z, q), periods_applied(fold, name, f, k, True),
+                                   rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(np.abs(fold.bc(Z[:, 0], Z[:, -1], q)), np.abs(r),
+                                   rtol=1e-10, atol=1e-10)

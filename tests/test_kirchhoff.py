@@ -504,6 +504,39 @@ def test_periods_of_alpha_chi_beta_phi0(modules, tilted):
                 assert got[o] == pytest.approx(ordinates[o], abs=1e-12), (name, k, o)
 
 
+def test_the_declared_periods_are_those_found_by_hand(modules, tilted, rotating):
+    """What each periodic parameter declares a period does to the states
+    (`periods_applied`, which the stepper uses to copy a repeating branch) is what the two
+    tests above find: q -> (-1)^k q for k turns of theta0 and phi0 and nothing for psi,
+    alpha, chi and beta (the spatial rod); theta -> theta + 2 pi k for theta0 (the planar
+    rod: theta(0) = theta0, and theta enters the ODE and the tip through sines and
+    cosines), checked there on the planar module's own residuals."""
+    from elastica_auto.model.problem import periods_applied
+    planar, rod, _ = modules
+    for name in ("psi", "alpha", "theta0", "chi", "beta", "phi0"):
+        for k in (1, -2, 3):
+            z, zp = tilted.y.copy(), tilted.yp.copy()
+            if name in ("theta0", "phi0") and k % 2:
+                z[3:7] *= -1
+                zp[3:7] *= -1
+            assert np.array_equal(periods_applied(rod, name, tilted.y, k), z), (name, k)
+            assert np.array_equal(periods_applied(rod, name, tilted.yp, k, True), zp)
+    flat, _ = rotating
+    for br in flat:
+        for p in (p for p in br.points if p.type == "UZ"):
+            st = br.label(p.name).state
+            for k in (1, -2, 3):
+                turned = {**st.params, "theta0": st.params["theta0"] + 2 * math.pi * k}
+                z = periods_applied(planar, "theta0", st.y, k)
+                assert np.array_equal(z[1:], st.y[1:])
+                assert np.allclose(z[0] - st.y[0], 2 * math.pi * k, rtol=0, atol=1e-12)
+                assert np.max(np.abs(planar.bc(z[:, 0], z[:, -1], turned)
+                                     - planar.bc(st.y[:, 0], st.y[:, -1], st.params))) < 1e-12
+                assert np.max(np.abs(planar.rhs(st.s, z, turned)
+                                     - planar.rhs(st.s, st.y, st.params))) < 1e-12
+                assert np.array_equal(periods_applied(planar, "theta0", st.yp, k, True), st.yp)
+
+
 def test_straight_rod_branch_points_are_both_stiffnesses_critical_loads(modules):
     """The straight rod continued in P (eps = 0.25, b2 = 2): a branch point at each B_i k^2
     with eps k tan k = 1, B_1 = 1 (in-plane) and B_2 = b2 (out of plane), and the index

@@ -172,6 +172,11 @@ def test_bad_free_parameters_and_stops(bratu_mean, kwargs, key, words):
      "integrals(s, y, p) returned shape (2, 3); expected (1, 3)"),
     ('FREE = ("q",)\n', "FREE names unknown parameters ['q']"),
     ('def bc(ya, yb, p):\n    return ya[:1]\n', "bc(ya, yb, p) returned shape (1,)"),
+    ('PARAMETERS = [Parameter("lam", 2.0, "lam", "ode", period=1.0,\n'
+     '                        period_shift={"w": 1.0})]\n',
+     "parameter 'lam': period_shift and period_flip name no state ['w']"),
+    ('PARAMETERS = [Parameter("lam", 2.0, "lam", "ode", period_flip=("u",))]\n',
+     "parameter 'lam': period_shift and period_flip need a period"),
 ])
 def test_protocol_mistakes_are_named_on_load(tmp_path, text, words):
     path = tmp_path / "bad.py"

@@ -37,13 +37,14 @@ modules are not built: their exact family would have to be completed the same wa
 
 from __future__ import annotations
 
+import dataclasses
 import types
 
 import numpy as np
 
 from ..core.errors import PlanError, ProblemError, StartError
 from ..model.augmented import Augmented
-from ..model.problem import Ordinate, Problem
+from ..model.problem import Ordinate, Parameter, Problem
 from ..core.solution import State
 
 #: The name of the normalisation integral of the null vector (a state ``int:null_norm``).
@@ -249,9 +250,23 @@ def _module(base, doc, states, lam, hooks: dict, ordinates, first):
         return np.zeros((1, Y.shape[1]))
 
     return types.SimpleNamespace(
-        __doc__=doc, STATES=states, PARAMETERS=list(base.parameters.values()),
+        __doc__=doc, STATES=states, PARAMETERS=_extended_parameters(base, states),
         ORDINATES=ordinates, **hooks, INTEGRALS=(NORM,), integrals=integrals,
         integrals_jac=integrals_jac, integrals_dp=integrals_dp, FREE=(lam,))
+
+
+def _extended_parameters(base, states) -> list[Parameter]:
+    """``base``'s parameters, with what a period does to the extended system's ``states``:
+    a shift moves the solution's states and leaves the null vector's alone (a direction: the
+    shift's derivative is the identity), a flip turns both."""
+    out = []
+    for q in base.parameters.values():
+        flip = [k for k in q.period_flip if k in states]
+        flip += [f"null:{k}" for k in q.period_flip if f"null:{k}" in states]
+        out.append(dataclasses.replace(
+            q, period_shift=tuple((k, v) for k, v in q.period_shift if k in states),
+            period_flip=tuple(flip)))
+    return out
 
 
 def _normalised(s, v):

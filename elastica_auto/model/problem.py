@@ -7,7 +7,9 @@ An equation module is a plain Python file. It declares
 ``PARAMETERS``
     list of :class:`Parameter`: name, default, TeX label, and where it enters the problem:
     ``"fixed"`` (boundary condition at s = 0), ``"free"`` (boundary condition or end term at
-    s = 1) or ``"ode"`` (the differential equation). Angles declare ``period=2*pi``.
+    s = 1) or ``"ode"`` (the differential equation). Angles declare ``period=2*pi``, and
+    what a period does to the states where it changes them (``period_shift``,
+    ``period_flip``: :class:`Parameter`).
 ``ORDINATES``
     list of :class:`Ordinate`: named output functionals ``fn(s, y, p) -> float`` of a solution.
     Parameter and ordinate names become columns of the branch files, so none may contain
@@ -113,7 +115,14 @@ def _sequence(source, name, value, kind):
 
 @dataclass(frozen=True)
 class Parameter:
-    """A named parameter: default value, TeX label, where it enters, optional period."""
+    """A named parameter: default value, TeX label, where it enters, optional period.
+
+    A period's effect on the solutions, where it has one (the default is none: the same
+    states solve the problem at ``value + period``): ``period_shift`` maps state names to
+    what one period adds to them (the clamp turned by a whole turn turns the tangent angle
+    ``theta`` by 2 pi: ``{"theta": 2 * math.pi}``), and ``period_flip`` names the states
+    one period turns to their negatives (a quaternion of the clamp's frame, a double cover:
+    a whole turn is -q)."""
 
     name: str
     default: float
@@ -121,11 +130,28 @@ class Parameter:
     enters: str
     period: float | None = None
     doc: str = ""
+    period_shift: tuple = ()
+    period_flip: tuple = ()
 
     def __post_init__(self):
         if self.enters not in ENTERS:
             raise ProblemError(
                 f"parameter {self.name!r}: enters={self.enters!r}, expected one of {ENTERS}")
+        shift = self.period_shift
+        pairs = tuple(shift.items()) if isinstance(shift, dict) else tuple(shift)
+        if not all(isinstance(k, str) and isinstance(v, numbers.Real)
+                   and not isinstance(v, bool) and math.isfinite(v) for k, v in pairs):
+            raise ProblemError(f"parameter {self.name!r}: period_shift must map state names "
+                               f"to finite numbers, got {shift!r}")
+        flip = self.period_flip
+        if isinstance(flip, str) or not all(isinstance(k, str) for k in flip):
+            raise ProblemError(f"parameter {self.name!r}: period_flip must be a tuple of "
+                               f"state names, got {flip!r}")
+        if (pairs or flip) and self.period is None:
+            raise ProblemError(f"parameter {self.name!r}: period_shift and period_flip need "
+                               "a period")
+        object.__setattr__(self, "period_shift", pairs)
+        object.__setattr__(self, "period_flip", tuple(flip))
 
 
 @dataclass(frozen=True)
@@ -202,6 +228,13 @@ class Problem:
         self.parameters = {q.name: q for q in parameters}
         if len(self.parameters) != len(parameters):
             raise ProblemError(f"{source}: duplicate parameter names in PARAMETERS")
+        for q in parameters:
+            unknown = [k for k, _ in q.period_shift if k not in self.states] + \
+                [k for k in q.period_flip if k not in self.states]
+            if unknown:
+                raise ProblemError(f"{source}: parameter {q.name!r}: period_shift and "
+                                   f"period_flip name no state {unknown}; STATES are "
+                                   f"{', '.join(self.states)}")
         self.ordinates = {o.name: o for o in ordinates}
         clash = set(self.ordinates) & set(self.parameters)
         if clash:
@@ -508,6 +541,27 @@ def shipped_equations() -> list[str]:
     root = importlib.resources.files("elastica_auto.equations")
     return sorted(p.name[:-3] for p in root.iterdir()
                   if p.name.endswith(".py") and not p.name.startswith("_"))
+
+
+def periods_applied(problem, name: str, y, k: int, derivative: bool = False):
+    """The node values ``y`` (states x points) of a solution at ``value`` turned into those
+    of the same solution at ``value + k period`` of parameter ``name`` (its
+    ``period_shift`` and ``period_flip``): each shifted state plus k times its shift (not
+    for ``derivative``, the states' derivatives, which a shift leaves alone), each flipped
+    state times (-1)^k. Rows past the module's states (a phase condition's) are kept.
+    ``y`` itself where the period changes no state."""
+    par = problem.parameters[name]
+    if k == 0 or not (par.period_flip or (par.period_shift and not derivative)):
+        return y
+    out = np.array(y, dtype=float)
+    rows = {state: i for i, state in enumerate(problem.states)}
+    if not derivative:
+        for state, shift in par.period_shift:
+            out[rows[state]] += k * shift
+    if k % 2:
+        for state in par.period_flip:
+            out[rows[state]] *= -1.0
+    return out
 
 
 def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) -> Problem:
