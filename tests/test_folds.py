@@ -202,6 +202,55 @@ def test_a_periodic_branch_is_its_first_period_translated(tmp_path, monkeypatch)
             assert np.abs(f_p - yp).max() <= 1e-10 * (1.0 + np.abs(yp).max())
 
 
+def test_the_rotating_base_repeats_with_theta_turned(rotating_arm, tmp_path, monkeypatch):
+    """The paper's rotating base from its first start (theta0 continued both ways to
+    +-6 pi): the clamp turned by a whole turn turns theta by 2 pi (the module's
+    ``period_shift``), so each branch passes its start turned that way and is its first
+    turn translated from there. Against the same branches computed whole: the same labels in
+    the same order at the same theta0 (1e-9) and m0 (1e-8), the same index; the copies'
+    profiles are their originals' with theta plus 2 pi k (to the rounding of the sum)."""
+    import shutil
+    from elastica_auto.branches import stepper
+    shutil.copy(rotating_arm.file.path, tmp_path / "rotating_arm.h5")
+
+    def base():
+        plan = runfile.load(REPO / "runs" / "rotating_base.toml", tmp_path)
+        plan.branches = plan.branches[:2]
+        plan.landing = False
+        return plan
+
+    fast = run_plan(base(), tmp_path).result.branches
+    with monkeypatch.context() as m:
+        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
+        full = run_plan(base(), tmp_path / "full").result.branches
+    for a, b in zip(fast, full):
+        assert a.end == b.end == "EP" and a.warnings == b.warnings == []
+        la = [p for p in a.points if p.type]
+        lb = [p for p in b.points if p.type]
+        assert [p.type for p in la] == [p.type for p in lb]
+        assert [p.index for p in la] == [p.index for p in lb]
+        np.testing.assert_allclose([p.params["theta0"] for p in la],
+                                   [p.params["theta0"] for p in lb], rtol=0, atol=PSI_ATOL)
+        np.testing.assert_allclose([p.ordinates["m0"] for p in la if p.type == "LP"],
+                                   [p.ordinates["m0"] for p in lb if p.type == "LP"],
+                                   rtol=0, atol=FOLD_ATOL)
+        start = a.points[0]
+        turned = [(i, round((p.params["theta0"] - start.params["theta0"]) / TWO_PI))
+                  for i, p in enumerate(a.points[1:], start=1)
+                  if np.array_equal(p.profile[1:], start.profile[1:])]
+        assert turned, "the branch never passes its start turned"
+        i, k = turned[0]
+        assert k != 0
+        # theta plus 2 pi k, to the rounding of the addition
+        np.testing.assert_allclose(a.points[i].profile[0], start.profile[0] + TWO_PI * k,
+                                   rtol=0, atol=1e-13)
+        for m, q in enumerate(a.points[i + 1:i + 4]):
+            p = a.points[m + 1]
+            np.testing.assert_array_equal(q.profile[1:], p.profile[1:])
+            np.testing.assert_allclose(q.profile[0], p.profile[0] + TWO_PI * k, rtol=0,
+                                       atol=1e-13)
+
+
 def test_a_repeating_branch_ends_at_max_points_as_if_computed_whole(tmp_path, monkeypatch):
     """max_points = 100 (about two periods of the branch at eps = 0.25, P = pi^2/4): the
     copies stop there and the branch ends at its 100th point (EP, "reached max_points").

@@ -46,6 +46,7 @@ from .events import (Located, Step, UserValues, crossings, locate_branch_point, 
 from ..numerics.newton import Row
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
+from ..model.problem import periods_applied
 from ..numerics.stability import Count, count, index_change, kernel_dimension
 
 #: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
@@ -346,6 +347,21 @@ def start_point(branch: Branch, origin: Origin) -> Point:
                  arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
                  profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
                  state=state, tangent=origin.tangent)
+
+
+def _turned(problem, name: str, state: State, k: int, value: float) -> State:
+    """``state`` moved by ``k`` periods of parameter ``name`` to its ``value``."""
+    return State(state.s, periods_applied(problem, name, state.y, k),
+                 periods_applied(problem, name, state.yp, k, True), {**state.params,
+                                                                     name: value})
+
+
+def _turned_tangent(problem, name: str, t: Tangent | None, k: int) -> Tangent | None:
+    """The tangent ``t`` at a solution, at that solution moved by ``k`` periods."""
+    if t is None:
+        return None
+    return Tangent(t.s, periods_applied(problem, name, t.y, k, True),
+                   periods_applied(problem, name, t.yp, k, True), t.lam)
 
 
 class _Walk:
@@ -965,8 +981,8 @@ class _Walk:
                        math.floor((hi + reach - start.lam) / period) + 1):
             if k == 0:
                 continue
-            there = State(start.state.s, start.state.y, start.state.yp,
-                          {**start.state.params, name: start.lam + k * period})
+            there = _turned(self.problem, name, start.state, k, start.lam + k * period)
+            tangent = _turned_tangent(self.problem, name, start.tangent, k)
             sigma = step.sigma(there)
             if not 0.0 < sigma <= step.dist:
                 continue
@@ -974,7 +990,7 @@ class _Walk:
             off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
                           off.lam - sigma * step.secant.lam)
             if (norm(off) > CLOSED_LOOP * step.dist
-                    or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
+                    or inner(tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
                 continue
             try:
                 sol = self.corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
@@ -990,7 +1006,7 @@ class _Walk:
                     "the ordinates there differ from the start's: not completed by translation")
                 self.period = None
                 return None
-            return _Event(sigma, PERIOD, there, start.tangent)
+            return _Event(sigma, PERIOD, there, tangent)
         return None
 
     def _repeat(self, step: Step, hit: _Event) -> str:
@@ -1004,8 +1020,10 @@ class _Walk:
         profile, or the last translate of the start, which is exact), for what remains.
         Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
         at its next turn, as it would have there)."""
-        branch, name, opt, stops = self.branch, self.name, self.opt, self.stops
+        branch, name, opt, stops, problem = (self.branch, self.name, self.opt, self.stops,
+                                             self.problem)
         shift = hit.state.params[name] - self.start.lam
+        turns = round(shift / self.period)      # the periods from the start to ``hit``
         translate = self._add(hit.state, type="UZ" if self._user_value(hit.state.params[name])
                               else "", arclength=step.position(hit.sigma), tangent=hit.tangent,
                               direct=branch.points[0].index_direct)
@@ -1018,15 +1036,15 @@ class _Walk:
                 lam = p.params[name] + j * shift
                 if not stops.lower < lam < stops.upper or len(branch.points) >= opt.max_points:
                     return self._resume(exact)
-                copy = dataclasses.replace(p, params={**p.params, name: lam},
-                                           arclength=p.arclength + j * length,
-                                           profile=p.profile.copy())
+                k = j * turns
+                copy = dataclasses.replace(
+                    p, params={**p.params, name: lam}, arclength=p.arclength + j * length,
+                    profile=np.array(periods_applied(problem, name, p.profile, k)))
                 if p.state is not None:
-                    copy.state = State(p.state.s, p.state.y, p.state.yp, {**p.state.params,
-                                                                          name: lam})
+                    copy.state = _turned(problem, name, p.state, k, lam)
+                    copy.tangent = _turned_tangent(problem, name, p.tangent, k)
                 if p is translate:
-                    exact[id(copy)] = State(hit.state.s, hit.state.y, hit.state.yp,
-                                            {**hit.state.params, name: lam})
+                    exact[id(copy)] = _turned(problem, name, hit.state, k, lam)
                 branch.points.append(copy)
             j += 1
 
