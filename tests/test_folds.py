@@ -126,19 +126,24 @@ def test_folds_repeat_with_period_two_pi(rotating_arm):
         assert partners == len(psi), (eps, P, partners, len(psi))
 
 
-def _periodic_runs(tmp_path, monkeypatch, uz):
-    """The rotating arm at eps = 0.5, P = 9 pi^2/4 (its richest branches: 10 folds each),
-    psi both ways to +-6 pi, UZ values ``uz`` (None: none): (branches as the engine makes
-    them, branches with every period computed), in this process (jobs = 1: the patch of the
-    stepper does not reach a cluster's workers)."""
+def _fast_and_whole(make_plan, tmp_path, monkeypatch):
+    """(branches as the engine makes them, the same with every period computed) of the plan
+    ``make_plan()``, in this process (jobs = 1: the patch of the stepper does not reach a
+    cluster's workers)."""
     from elastica_auto.branches import stepper
-    path = elastica_run_file(tmp_path / "periodic.toml", eps="0.5", P="9*pi^2/4",
-                             bounds=("-6*pi", "6*pi"), uz=uz)
-    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
+    fast = run_plan(make_plan(), tmp_path / "fast").result.branches
     with monkeypatch.context() as m:
         m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
-        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+        full = run_plan(make_plan(), tmp_path / "full").result.branches
     return fast, full
+
+
+def _periodic_runs(tmp_path, monkeypatch, uz):
+    """The rotating arm at eps = 0.5, P = 9 pi^2/4 (its richest branches: 10 folds each),
+    psi both ways to +-6 pi, UZ values ``uz`` (None: none): `_fast_and_whole`."""
+    path = elastica_run_file(tmp_path / "periodic.toml", eps="0.5", P="9*pi^2/4",
+                             bounds=("-6*pi", "6*pi"), uz=uz)
+    return _fast_and_whole(lambda: runfile.load(path), tmp_path, monkeypatch)
 
 
 def _translated_from(branch):
@@ -210,7 +215,6 @@ def test_the_rotating_base_repeats_with_theta_turned(rotating_arm, tmp_path, mon
     the same order at the same theta0 (1e-9) and m0 (1e-8), the same index; the copies'
     profiles are their originals' with theta plus 2 pi k (to the rounding of the sum)."""
     import shutil
-    from elastica_auto.branches import stepper
     shutil.copy(rotating_arm.file.path, tmp_path / "rotating_arm.h5")
 
     def base():
@@ -219,10 +223,7 @@ def test_the_rotating_base_repeats_with_theta_turned(rotating_arm, tmp_path, mon
         plan.landing = False
         return plan
 
-    fast = run_plan(base(), tmp_path).result.branches
-    with monkeypatch.context() as m:
-        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
-        full = run_plan(base(), tmp_path / "full").result.branches
+    fast, full = _fast_and_whole(base, tmp_path, monkeypatch)
     for a, b in zip(fast, full):
         assert a.end == b.end == "EP" and a.warnings == b.warnings == []
         la = [p for p in a.points if p.type]
@@ -257,13 +258,9 @@ def test_a_repeating_branch_ends_at_max_points_as_if_computed_whole(tmp_path, mo
     A copied period has the first period's points, more than a later period computed with
     the steps grown, so the branch ends earlier along the path than when computed whole;
     the labels both have are the same, in the same order at the same psi (1e-9)."""
-    from elastica_auto.branches import stepper
     path = elastica_run_file(tmp_path / "max.toml", bounds=("-6*pi", "6*pi"),
                              extra="[options]\nmax_points = 100\n")
-    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
-    with monkeypatch.context() as m:
-        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
-        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+    fast, full = _fast_and_whole(lambda: runfile.load(path), tmp_path, monkeypatch)
     for a, b in zip(fast, full):
         assert _translated_from(a) is not None
         assert len(a.points) == len(b.points) == 100 and a.end == b.end == "EP"
@@ -306,11 +303,7 @@ def test_user_values_without_a_period_are_not_translated(tmp_path, monkeypatch):
     path = elastica_run_file(tmp_path / "values.toml", eps="0.5", P="9*pi^2/4",
                              bounds=("-6*pi", "6*pi"),
                              extra="uz = [0.3, -9.0]\n")
-    from elastica_auto.branches import stepper
-    fast = run_plan(runfile.load(path), tmp_path / "fast").result.branches
-    with monkeypatch.context() as m:
-        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
-        full = run_plan(runfile.load(path), tmp_path / "full").result.branches
+    fast, full = _fast_and_whole(lambda: runfile.load(path), tmp_path, monkeypatch)
     for a, b in zip(fast, full):
         psi = np.array([p.params["psi"] for p in a.points if p.type != "UZ"])
         uz = [p.params["psi"] for p in a.points if p.type == "UZ"]
