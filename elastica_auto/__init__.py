@@ -20,7 +20,7 @@ FORMAT_VERSION = 2
 _PUBLIC = {
     "load_problem": "model.problem", "Problem": "model.problem",
     # what an equation module builds its declarations and hooks from
-    "Parameter": "model.problem", "Ordinate": "model.problem",
+    "Parameter": "model.problem", "Ordinate": "model.problem", "Mirror": "model.problem",
     "SecondVariation": "model.second_variation", "Constraint": "model.second_variation",
     "Symmetry": "model.symmetry", "Flow": "analysis.landing",
     "simpson": "core.solution", "hermite": "core.solution",

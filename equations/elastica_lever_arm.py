@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from elastica_auto import Flow, Ordinate, Parameter
+from elastica_auto import Flow, Mirror, Ordinate, Parameter
 
 STATES = ("theta", "kappa", "x", "y")
 
@@ -136,6 +136,13 @@ ORDINATES = [
              "-x(1) sin alpha + y(1) cos alpha + eps cos(alpha + psi - theta(1)); ordinate for P"),
     Ordinate("m0", r"$m(0)\cdot e_z$", _m0, "theta0", "clamp moment kappa(0); ordinate for theta0"),
 ]
+
+#: The reflection x -> -x of the plane: theta -> -theta turns the rod, its arm, the clamp and
+#: the load into their mirror images (psi, alpha, theta0 -> their negatives), kappa = theta'
+#: and x = -int sin(theta) with them; the moments m1, mA and m0 change sign, beta and gamma
+#: (cosines of mirrored angles) do not; the shooting unknown theta'(0) changes sign.
+MIRROR = Mirror({"theta": "-theta", "kappa": "-kappa", "x": "-x"}, ("psi", "alpha", "theta0"),
+                ("m1", "mA", "m0"), shooting=(-1,))
 
 
 def exact_start(s, p):

@@ -79,7 +79,8 @@ import math
 
 import numpy as np
 
-from elastica_auto.model.problem import Constraint, Ordinate, Parameter, SecondVariation
+from elastica_auto.model.problem import (Constraint, Mirror, Ordinate, Parameter,
+                                         SecondVariation)
 from elastica_auto.core.solution import trapezoid_weights
 
 STATES = ("x", "y", "z", "q0", "q1", "q2", "q3", "mx", "my", "mz")
@@ -558,6 +559,17 @@ ORDINATES = [
              "index of the out-of-plane block at a planar state; -1 elsewhere or at a zero "
              "eigenvalue"),
 ]
+
+#: The planar mirror x -> -x (docs/kirchhoff.md, "Mirror images"): r -> M r, m -> -M m with
+#: M = diag(-1, 1, 1), and q -> -(e_x (x) q (x) e_y) = (-q3, q2, q1, -q0), the sign that
+#: keeps the clamp's quaternion the mirrored clamp's. psi, alpha, theta0, chi, phi0, u1, u3
+#: change sign, and so do their distinguished ordinates (dE/dxi) and mz1, twist and m3. Of
+#: the shooting unknowns (`shooting`), k1 = m(0).e1 changes sign (e1 = e_z in the plane) and
+#: k2 = m(0).e2 does not (e2 -> -M e2 as m -> -M m).
+MIRROR = Mirror({"x": "-x", "q0": "-q3", "q1": "q2", "q2": "q1", "q3": "-q0", "my": "-my",
+                 "mz": "-mz"},
+                ("psi", "alpha", "theta0", "chi", "phi0", "u1", "u3"),
+                ("m1", "mA", "m0", "mchi", "mphi", "mz1", "twist", "m3"), shooting=(-1, 1))
 
 
 def exact_start(s, p):

@@ -177,6 +177,17 @@ def test_bad_free_parameters_and_stops(bratu_mean, kwargs, key, words):
      "parameter 'lam': period_shift and period_flip name no state ['w']"),
     ('PARAMETERS = [Parameter("lam", 2.0, "lam", "ode", period_flip=("u",))]\n',
      "parameter 'lam': period_shift and period_flip need a period"),
+    ('from elastica_auto import Mirror\nMIRROR = Mirror({"u": "-w"}, ("lam",))\n',
+     "MIRROR names ['w'], which are not states, parameters or ordinates"),
+    ('from elastica_auto import Mirror\nMIRROR = Mirror({}, ("mu",), ("du1",))\n',
+     "MIRROR names ['du1', 'mu']"),
+    ('from elastica_auto import Mirror\nMIRROR = Mirror({"u": "v"})\n',
+     "is not a signed permutation that is its own inverse"),
+    ('from elastica_auto import Mirror\nMIRROR = Mirror({"u": "v", "v": "-u"})\n',
+     "is not a signed permutation that is its own inverse"),
+    ('from elastica_auto import Mirror\nMIRROR = Mirror({"u": 1})\n',
+     "MIRROR: states must map state names to state names"),
+    ('MIRROR = ("u",)\n', "MIRROR must be a Mirror, got tuple"),
 ])
 def test_protocol_mistakes_are_named_on_load(tmp_path, text, words):
     path = tmp_path / "bad.py"

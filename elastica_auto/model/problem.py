@@ -68,6 +68,11 @@ and optionally
 ``DRAW_PROJECTION``
     the matplotlib projection of the axes ``draw`` gets (``"3d"`` for a spatial
     configuration); default None, plain 2D axes.
+``MIRROR``
+    a :class:`Mirror`: a reflection that maps the solutions at ``p`` to solutions at ``p``
+    with some parameters negated. A branch from a start that is its own mirror image, in a
+    parameter the mirror negates, is computed in one direction and mirrored into the other
+    (see `elastica_auto.branches.mirror`).
 
 Only equation modules know any physics; everything in `elastica_auto` is generic.
 """
@@ -155,6 +160,47 @@ class Parameter:
 
 
 @dataclass(frozen=True)
+class Mirror:
+    """A reflection of the problem: if y solves it at p, then y' solves it at p', where
+
+    * y'[a] = y[b] for each pair ``a: b`` of ``states``, y'[a] = -y[b] for ``a: "-b"``, and
+      y'[a] = y[a] for a state not named (a signed permutation, its own inverse);
+    * p' is p with the ``parameters`` negated;
+
+    the energy is the same at both, so the stability index is, and the ``ordinates`` are
+    negated (the others are the same at both). ``shooting``, if given: the signs s of the
+    image's shooting unknowns (the ``shooting`` hook's k -> s k, one sign per unknown), with
+    which the equilibria at mirrored parameters are the images of those enumerated. The
+    planar elastica's x -> -x, say: ``Mirror({"theta": "-theta", "kappa": "-kappa", "x":
+    "-x"}, ("psi", "alpha", "theta0"), ("m1", "mA", "m0"), shooting=(-1,))``."""
+
+    states: tuple = ()
+    parameters: tuple = ()
+    ordinates: tuple = ()
+    shooting: tuple = ()
+
+    def __post_init__(self):
+        pairs = self.states
+        pairs = tuple(pairs.items()) if isinstance(pairs, dict) else tuple(pairs)
+        if not all(isinstance(a, str) and isinstance(b, str) and b.lstrip("-")
+                   for a, b in pairs):
+            raise ProblemError(f"MIRROR: states must map state names to state names (\"-name\" "
+                               f"for the negative), got {self.states!r}")
+        for what in ("parameters", "ordinates"):
+            names = getattr(self, what)
+            if isinstance(names, str) or not all(isinstance(k, str) for k in names):
+                raise ProblemError(f"MIRROR: {what} must be a tuple of names, got {names!r}")
+            object.__setattr__(self, what, tuple(names))
+        object.__setattr__(self, "states", pairs)
+        signs = self.shooting
+        if isinstance(signs, str) or not all(not isinstance(v, bool) and v in (1, -1)
+                                             for v in signs):
+            raise ProblemError(f"MIRROR: shooting must be a tuple of signs (1 or -1), got "
+                               f"{signs!r}")
+        object.__setattr__(self, "shooting", tuple(float(v) for v in signs))
+
+
+@dataclass(frozen=True)
 class Ordinate:
     """A named output functional of a solution, ``fn(s, y, p) -> float``.
 
@@ -236,6 +282,7 @@ class Problem:
                                    f"period_flip name no state {unknown}; STATES are "
                                    f"{', '.join(self.states)}")
         self.ordinates = {o.name: o for o in ordinates}
+        self.mirror = self._checked_mirror(getattr(module, "MIRROR", None))
         clash = set(self.ordinates) & set(self.parameters)
         if clash:
             raise ProblemError(f"{source}: names used both as parameter and ordinate: "
@@ -274,6 +321,43 @@ class Problem:
                                f"PARAMETERS are {', '.join(self.parameters)}")
         self.nbc = self.n
         self._check_shapes()
+
+    def _checked_mirror(self, mirror):
+        """``MIRROR`` checked against the names, as (rows, signs, mirror): y' = signs * y[rows]
+        (None if the module declares none)."""
+        if mirror is None:
+            return None
+        source = self.source
+        if not isinstance(mirror, Mirror):
+            raise ProblemError(f"{source}: MIRROR must be a Mirror, got "
+                               f"{type(mirror).__name__}")
+        unknown = [a for pair in mirror.states for a in (pair[0], pair[1].lstrip("-"))
+                   if a not in self.states]
+        unknown += [k for k in mirror.parameters if k not in self.parameters]
+        unknown += [k for k in mirror.ordinates if k not in self.ordinates]
+        if unknown:
+            raise ProblemError(f"{source}: MIRROR names {sorted(set(unknown))}, which are not "
+                               "states, parameters or ordinates of the module")
+        index = {name: i for i, name in enumerate(self.states)}
+        rows, signs = np.arange(self.n), np.ones(self.n)
+        for a, b in mirror.states:
+            rows[index[a]], signs[index[a]] = index[b.lstrip("-")], -1.0 if b[0] == "-" else 1.0
+        twice = np.arange(self.n)[rows][rows], (signs * signs[rows])
+        if len(set(rows.tolist())) != self.n or not (np.array_equal(twice[0], np.arange(self.n))
+                                                     and np.all(twice[1] == 1.0)):
+            raise ProblemError(f"{source}: MIRROR: states {dict(mirror.states)} is not a signed "
+                               "permutation that is its own inverse (a reflection twice is "
+                               "the identity)")
+        return rows, signs, mirror
+
+    def mirrored(self, y, params: dict):
+        """The mirror image (`Mirror`) of node values ``y`` (states first, any trailing shape)
+        and ``params``; rows of ``y`` past the module's states are kept."""
+        rows, signs, mirror = self.mirror
+        out = np.array(y, dtype=float)
+        # (+ 0.0: an image of 0 is 0, not -0.0, whose sign would reach sines and printouts)
+        out[: self.n] = signs.reshape((-1,) + (1,) * (out.ndim - 1)) * np.asarray(y)[rows] + 0.0
+        return out, {k: -v + 0.0 if k in mirror.parameters else v for k, v in params.items()}
 
     # -- names ---------------------------------------------------------------------------------
     @property
