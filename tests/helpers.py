@@ -23,8 +23,10 @@ ROTATING_ARM = REPO / "runs" / "rotating_arm.toml"
 
 
 def elastica_run_file(path: Path, *, eps="0.25", P="pi^2/4", directions="both",
-                      bounds=("-2*pi", "2*pi"), uz=None, extra="") -> Path:
-    """Write a small psi-continuation run file for the elastica and return its path."""
+                      bounds=("-2*pi", "2*pi"), uz=None, extra="", mirror=True) -> Path:
+    """Write a small psi-continuation run file for the elastica and return its path.
+    ``mirror = False``: both directions computed, not one the other's mirror image (where a
+    test needs the second computed)."""
     uz_lines = ""
     if uz is not None:
         uz_lines = f"uz = [{', '.join(repr(v) for v in uz)}]\nuz_period = \"2*pi\"\n"
@@ -44,8 +46,14 @@ def elastica_run_file(path: Path, *, eps="0.25", P="pi^2/4", directions="both",
         parameter = "psi"
         directions = "{directions}"
         bounds = ["{bounds[0]}", "{bounds[1]}"]
-        """) + uz_lines + extra)
+        """) + uz_lines + extra + ("" if mirror else _options(extra) + "mirror = false\n"))
     return path
+
+
+def _options(extra: str) -> str:
+    """The header of the [options] table, unless ``extra`` opened it (and so it is open)."""
+    return "" if extra.rstrip("\n").split("\n")[0] == "[options]" or \
+        "\n[options]" in extra else "[options]\n"
 
 
 @dataclass

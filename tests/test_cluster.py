@@ -104,14 +104,22 @@ def test_a_cluster_writes_the_file_one_process_writes(on_cluster, in_one_process
 def test_a_local_cluster_writes_the_file_one_process_writes(rotating_arm, in_one_process):
     """The conftest's rotating_arm is computed with jobs = 2: a local cluster of 2 workers."""
     _same_numbers(in_one_process, rotating_arm.result.path)
-    workers = {b.attrs["worker"] for b in BranchFile(rotating_arm.result.path).branches}
-    assert len(workers) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
+    _two_workers([b.attrs["worker"] for b in BranchFile(rotating_arm.result.path).branches])
+
+
+def _two_workers(workers):
+    """Two workers computed the branches; the other direction of each symmetric start is the
+    mirror image of the branch before it, taken in this process
+    (`elastica_auto.branches.mirror`)."""
+    computed, images = workers[::2], workers[1::2]
+    assert len(set(computed)) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in computed)
+    assert images == [f"mirror of {w}" for w in computed]
 
 
 def test_both_workers_computed_branches_and_are_named(on_cluster, in_one_process):
-    workers = [b.attrs["worker"] for b in BranchFile(on_cluster).branches]
-    assert len(set(workers)) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
-    assert {b.attrs["worker"] for b in BranchFile(in_one_process).branches} == {"local"}
+    _two_workers([b.attrs["worker"] for b in BranchFile(on_cluster).branches])
+    assert [b.attrs["worker"] for b in BranchFile(in_one_process).branches] == \
+        ["local", "mirror of local"] * 4
 
 
 def test_a_cluster_run_reports_its_tasks(tmp_path):
@@ -121,7 +129,7 @@ def test_a_cluster_run_reports_its_tasks(tmp_path):
     from elastica_auto.execution.run import execute
     from helpers import elastica_run_file
     calls = []
-    plan = runfile.load(elastica_run_file(tmp_path / "small.toml", uz=[0]))
+    plan = runfile.load(elastica_run_file(tmp_path / "small.toml", uz=[0], mirror=False))
     result = execute(plan, tmp_path / "out", Callbacks(on_tasks=lambda *a: calls.append(a)),
                      jobs=2)
     total = len(plan.branches)
@@ -325,7 +333,7 @@ def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, mon
     from helpers import elastica_run_file
     flag, started = tmp_path / "wait", tmp_path / "started"
     _waiting_elastica(tmp_path / "mine.py", flag, started)
-    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False)
     run.write_text(run.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     assert not started.exists()
@@ -404,7 +412,7 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, worke
     from elastica_auto.execution.run import RunResult, _Alongside, start_job, execute
     from elastica_auto.analysis.snaps import scans
     from helpers import elastica_run_file
-    run = elastica_run_file(tmp_path / "two.toml", uz=[0])
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False)
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     plan = runfile.load(run)
     pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))

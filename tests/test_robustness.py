@@ -153,7 +153,8 @@ LONG = SMALL.replace("eps = 0.25", "eps = [0.25, 0.5]").replace('P = "pi^2/4"',
 #: where the run is. Its four branches (eps, direction): (0.25, +) stays below psi = 0.75,
 #: (0.25, -) goes up to psi = 6 pi, (0.5, +) stays above psi = -9.5, (0.5, -) goes down to
 #: -6 pi: the conditions below hold in one branch's continuation only.
-LONG_MINE = LONG.replace('equation = "elastica_lever_arm"', 'equation = "mine.py"')
+LONG_MINE = LONG.replace('equation = "elastica_lever_arm"', 'equation = "mine.py"') + \
+    "[options]\nmirror = false\n"   # each branch computed: the signals come in its steps
 IN_BRANCH_2 = 'p["eps"] == 0.25 and p["psi"] > 6'
 IN_BRANCH_4 = 'p["eps"] == 0.5 and p["psi"] < -12'
 

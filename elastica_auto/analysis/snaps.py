@@ -150,6 +150,49 @@ def scan_key(problem, parameter: str, params: dict) -> tuple:
                         for q, v in params.items()))
 
 
+def own_key(params: dict) -> tuple:
+    """The key of the enumeration at exactly ``params`` (to 10 digits)."""
+    return tuple(sorted((q, round(v, 10)) for q, v in params.items()))
+
+
+def mirror_key(problem, params: dict) -> tuple | None:
+    """`own_key` of the mirror image of ``params`` (the module's ``MIRROR``, where it says how
+    the shooting unknowns turn), or None."""
+    mirror = getattr(problem, "mirror", None)
+    if mirror is None or not mirror[2].shooting:
+        return None
+    return own_key(problem.mirrored(np.zeros((problem.n, 0)), params)[1])
+
+
+def mirrored_scan(problem, params: dict, exact: dict) -> list[Equilibrium] | None:
+    """The equilibria at ``params`` as the mirror images of those enumerated at the image of
+    ``params`` (``exact``: `own_key` -> `enumerate_equilibria` there), in the order
+    `enumerate_equilibria` gives them; None if that enumeration is not there, or if an
+    image's initial values are not those of its shooting unknowns turned by the declared
+    signs (then the scan is computed). Each image: the state turned, the ordinates negated
+    as declared, the same index (`elastica_auto.branches.mirror`)."""
+    key = mirror_key(problem, params)
+    there = exact.get(key) if key is not None else None
+    if there is None:
+        return None
+    _, _, mirror = problem.mirror
+    signs = np.array(mirror.shooting)
+    _, _, initial, _ = problem.shooting(params)
+    out = []
+    for eq in there:
+        k = signs * np.atleast_1d(eq.k)
+        y, _ = problem.mirrored(eq.state.y, {})
+        yp, _ = problem.mirrored(eq.state.yp, {})
+        y0 = np.asarray(initial(k if len(k) == 1 else k[:, None]), dtype=float)[:, 0]
+        if np.max(np.abs(y0 - y[:, 0])) > 1e-12 * (1.0 + np.max(np.abs(y[:, 0]))):
+            return None
+        ordinates = {o: -v + 0.0 if o in mirror.ordinates else v
+                     for o, v in eq.ordinates.items()}
+        out.append(Equilibrium(float(k[0]) if np.ndim(eq.k) == 0 else tuple(map(float, k)),
+                               State(eq.state.s, y, yp, params), eq.index, ordinates))
+    return sorted(out, key=lambda eq: eq.k)
+
+
 def scans(problem, branch) -> dict[tuple, dict]:
     """The enumerations `snap_targets` needs for ``branch``: key (`scan_key`) -> the
     parameters to enumerate at (those of the first fold with that key), one per key."""
@@ -163,7 +206,7 @@ def scans(problem, branch) -> dict[tuple, dict]:
 
 def snap_targets(problem, branches, warnings: list | None = None,
                  landing: bool = False, cache: dict | None = None,
-                 mapper: Callable | None = None) -> list[dict]:
+                 mapper: Callable | None = None, mirror: bool = True) -> list[dict]:
     """Rows: for every LP, and every subcritical BP, bounding a stable segment
     (`snap_points`), every stable equilibrium at its parameter values (excluding the point's
     own solution), with the branch that passes through it.
@@ -180,7 +223,10 @@ def snap_targets(problem, branches, warnings: list | None = None,
     branches came in), key (`scan_key`) -> (parameters, `enumerate_equilibria` there); one
     is used where its parameters are those of the first fold with its key (of a periodic
     parameter, another copy's differ by a period, and so may its equilibria's states), and
-    the others are computed here: the rows are the same whoever computed them."""
+    the others are computed here: the rows are the same whoever computed them.
+
+    ``mirror``: the enumeration at the mirror image of parameters enumerated already is made
+    from that one (`mirrored_scan`) rather than computed (the run's option ``mirror``)."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
     from .landing import landing_task, one_by_one
@@ -193,11 +239,13 @@ def snap_targets(problem, branches, warnings: list | None = None,
         for p, side in snap_points(br):
             params = dict(p.params)
             key = scan_key(problem, name, params)
-            own = tuple(sorted((q, round(v, 10)) for q, v in params.items()))
+            own = own_key(params)
             if key not in cache:
                 there = given.get(key)
-                cache[key] = exact[own] = (there[1] if there is not None and there[0] == params
-                                           else enumerate_equilibria(problem, params))
+                cache[key] = exact[own] = (
+                    there[1] if there is not None and there[0] == params
+                    else mirror and mirrored_scan(problem, params, exact)
+                    or enumerate_equilibria(problem, params))
             at = None
             if landing and p.type == "BP":
                 warnings.append(f"{p.name}: no landing from a branch point (the dynamics "
@@ -228,7 +276,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                 [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
                  for eq in cache[at[0]]]))
     rows, rescans = [], {}
-    for nb, br, p, side, params, key, own_key, at in folds:
+    for nb, br, p, side, params, key, exact_key, at in folds:
         name = br.parameter
         period = problem.parameters[name].period
         reached = landings.get(at)
@@ -243,9 +291,9 @@ def snap_targets(problem, branches, warnings: list | None = None,
             # a branch point's solution is a root of the scan at its parameters; the cached
             # scan of a periodic copy may give it other states (a clamp turned by 2 pi has
             # the opposite quaternion), so that the states above do not find it: scan here
-            if own_key not in rescans:
-                rescans[own_key] = enumerate_equilibria(problem, params)
-            there = rescans[own_key]
+            if exact_key not in rescans:
+                rescans[exact_key] = enumerate_equilibria(problem, params)
+            there = rescans[exact_key]
         for j, eq in enumerate(there):
             if eq.index != 0:
                 continue

@@ -141,6 +141,9 @@ class Branch:
     number: int = 0
     worker: str = "local"
     cell: str = ""
+    #: Points at UZ values not asked for, kept out of ``points`` for the branch's mirror image
+    #: (`elastica_auto.branches.mirror.set_aside`); not saved.
+    mirror_points: list[Point] = field(default_factory=list)
 
     @classmethod
     def of(cls, problem, parameter: str, direction: int, start: str, options: dict,

@@ -65,6 +65,11 @@ class ContinuationOptions:
         The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
         points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
         solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
+    mirror : bool
+        A run that continues a start both ways, where the module's ``MIRROR`` maps the start
+        to itself and the continued parameter to its negative, computes the ``+`` branch and
+        takes its mirror image as the ``-`` one (`elastica_auto.branches.mirror`); False
+        computes both (to compare them, say).
     """
 
     ds: float = 0.05
@@ -79,13 +84,16 @@ class ContinuationOptions:
     max_angle: float = 0.35
     corrector: str = "collocation"
     ncol: int = 0
+    mirror: bool = True
 
     def __post_init__(self):
         if self.corrector not in CORRECTORS:
             raise OptionsError(f"corrector must be one of {', '.join(CORRECTORS)}, "
                                f"got {self.corrector!r}")
+        if not isinstance(self.mirror, bool):
+            raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
         for f in fields(self):
-            if f.name == "corrector":
+            if f.name in ("corrector", "mirror"):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):

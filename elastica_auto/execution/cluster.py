@@ -153,19 +153,24 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     ``skip(i, branches)`` is true when their turn comes (their tasks cancelled then, done
     or not: see `elastica_auto.execution.run.switch_levels`); True if interrupted
     (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
-    from .jobs import new_branch
+    from .jobs import compute_branch, mirrored_branch, new_branch
     from ..branches.stepper import start_point
     offset = len(branches)
     token = uuid.uuid4().hex[:8]
     # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
     # data the scheduler cannot recompute, and a worker that dies would take it, and every
     # task waiting for it, down with it. One `map` is one message to the scheduler: a
-    # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64.
-    numbers = [offset + i + 1 for i in range(len(jobs_list))]
-    tasks = client.map(_task, [plan] * len(jobs_list), numbers, jobs_list, pure=False,
-                       key=[f"elastica-branch-{k}-{token}" for k in numbers])
-    futures = {f: i for i, f in enumerate(tasks)}
+    # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64. A mirror
+    # job is no task: it is made here at its turn, from the branch before it.
+    computed = [i for i, job in enumerate(jobs_list) if not job.mirror]
+    numbers = [offset + i + 1 for i in computed]
+    futures_list = client.map(_task, [plan] * len(computed), numbers,
+                              [jobs_list[i] for i in computed], pure=False,
+                              key=[f"elastica-branch-{k}-{token}" for k in numbers])
+    tasks = dict(zip(computed, futures_list))
+    futures = {f: i for i, f in tasks.items()}
     pending, done, points, finished = set(futures), {}, 0, 0
+    made = {}                   # the jobs' branches, for their mirror images
     last, taken = 0.0, 0        # taken: the jobs appended or left out, in order
 
     def report(force=False):
@@ -204,10 +209,21 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         # before it is taken, so ``skip`` reads the branches it is decided on
         while taken < len(jobs_list):
             if skip is not None and skip(taken, branches):
-                client.cancel(tasks[taken])
-                pending.discard(tasks[taken])
+                if taken in tasks:
+                    client.cancel(tasks[taken])
+                    pending.discard(tasks[taken])
                 done.pop(taken, None)
-            elif taken in done:
+            elif jobs_list[taken].mirror or taken in done:
+                if jobs_list[taken].mirror:
+                    job, source = jobs_list[taken], made.get(taken - 1)
+                    br = (mirrored_branch(plan, offset + taken + 1, job, source)
+                          if source is not None else
+                          compute_branch(plan, offset + taken + 1, job))
+                    if br.interrupted:   # a signal while it was made here: the run ends,
+                        stop.set()       # with the branches the cluster finished
+                        break
+                    done[taken] = br
+                made[taken] = done[taken]
                 branches.append(done.pop(taken))
                 save()
                 if on_branch is not None:

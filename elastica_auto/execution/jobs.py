@@ -14,6 +14,8 @@ from typing import Callable
 
 from ..branches import codim2
 from ..branches.branch import Branch
+from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
+                               symmetric_start)
 from ..branches.stepper import Origin, continue_branch
 from ..core.interrupts import Interruptions
 from ..numerics.stability import label_stability
@@ -22,10 +24,30 @@ from .plan import BranchSpec, Plan
 
 @dataclass
 class Job:
-    """One branch to compute: its spec and where it starts."""
+    """One branch to compute: its spec and where it starts. ``mirror``: the branch is the
+    mirror image of the job's before it in its list (`mark_mirrors`), taken from it once
+    that one is done (`mirrored_branch`) rather than computed."""
 
     spec: BranchSpec
     origin: Origin
+    mirror: bool = False
+    #: the next job is this one's mirror image: computed along `mirror_course`
+    mirrored: bool = False
+
+
+def mark_mirrors(plan: Plan, jobs_list: list[Job]) -> None:
+    """Set ``mirror`` on each job of ``jobs_list`` that continues the start of the job before
+    it, at the same parameter values, in the direction ``-`` where that one goes ``+``, from
+    a start that is its own mirror image (`elastica_auto.branches.mirror.symmetric_start`);
+    not for fold curves, nor with the option ``mirror`` off."""
+    if plan.curve is not None or not plan.options.mirror or not symmetric_course(plan.course):
+        return
+    for before, job in zip(jobs_list, jobs_list[1:]):
+        a, b = before.spec, job.spec
+        job.mirror = (not before.mirror and (a.direction, b.direction) == (1, -1)
+                      and str(a.start) == str(b.start) and a.params == b.params
+                      and symmetric_start(plan.problem, plan.parameter, job.origin))
+        before.mirrored = job.mirror
 
 
 #: Progress callback: (branch number, points so far, folds so far, current parameter value).
@@ -57,7 +79,9 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     with MX, keeping every point computed so far (`elastica_auto.branches.stepper.continue_branch`):
     one failing branch does not cost the run its other branches. A Ctrl-C once the
     continuation is over waits for the labelling, and sets ``interrupted`` on the branch,
-    which is kept whole."""
+    which is kept whole. A job whose mirror image is the next is continued with the negatives
+    of the UZ values too, and the points there set aside for the image
+    (`elastica_auto.branches.mirror.mirror_course`, `set_aside`)."""
     br = new_branch(plan, job)
 
     def on_step(b, lam):
@@ -72,17 +96,42 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     # only records after it
     with Interruptions(raising=True) as late:
         try:
-            continue_branch(br, plan.problem, plan.course, job.origin, on_step)
+            course = mirror_course(plan.course) if job.mirrored else plan.course
+            continue_branch(br, plan.problem, course, job.origin, on_step)
         except KeyboardInterrupt:  # after the continuation's own handling: the branch is whole
             pass
         late.raising = False
         if plan.curve == "fold":
             codim2.label_fold_curve(br, plan.problem, plan.base)
         label_stability(br, plan.problem)
+        if job.mirrored:
+            set_aside(br, plan.course)
         if plan.problem.has_second_variation and plan.curve is None and not br.interrupted:
             from ..analysis.snaps import mark_subcritical
             mark_subcritical(plan.problem, br)
     br.interrupted = br.interrupted or late.stop.is_set()
+    br.seconds = time.perf_counter() - t0
+    return br
+
+
+def mirrored_branch(plan: Plan, k: int, job: Job, source: Branch,
+                    progress: Progress | None = None,
+                    should_stop: Callable[[], bool] | None = None) -> Branch:
+    """Branch number ``k``, of the ``mirror`` job ``job``: the mirror image of ``source``,
+    the branch of the job before it (`elastica_auto.branches.mirror.image_of`), computed
+    (`compute_branch`) where the image is not used. A Ctrl-C while the image is checked
+    (the module is called there) ends it as one at the branch's first step does."""
+    t0 = time.perf_counter()
+    try:
+        with Interruptions(raising=True):
+            br = image_of(plan.problem, source, new_branch(plan, job), plan.course)
+    except KeyboardInterrupt:
+        return compute_branch(plan, k, job, progress, lambda: True)
+    finally:
+        source.mirror_points = []
+    if br is None:
+        return compute_branch(plan, k, job, progress, should_stop)
+    br.worker = f"mirror of {source.worker}"
     br.seconds = time.perf_counter() - t0
     return br
 

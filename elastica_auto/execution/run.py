@@ -19,7 +19,7 @@ import numpy as np
 
 from ..analysis.equilibria import enumerate_equilibria
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import scans, snap_targets
+from ..analysis.snaps import mirror_key, own_key, scans, snap_targets
 from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin, start_point
@@ -30,7 +30,8 @@ from ..core.solution import State, Tangent, trapezoid_weights
 from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
-from .jobs import Callbacks, Job, cell, compute_branch, new_branch
+from .jobs import (Callbacks, Job, cell, compute_branch, mark_mirrors, mirrored_branch,
+                   new_branch)
 from .plan import BranchSpec, Plan, Start
 
 
@@ -423,6 +424,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     cluster of one worker per other core started meanwhile in the background (`_Alongside`);
     with one branch (and no switching), or one core, in this process only."""
     branches = result.branches
+    mark_mirrors(plan, first)
     progress, on_branch, on_tasks = callbacks.progress, callbacks.on_branch, callbacks.on_tasks
     jobs, scheduler, client = workers.jobs, workers.scheduler, workers.client
     pool = None
@@ -499,7 +501,7 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
         result.snaps = snap_targets(plan.problem, branches, result.warnings,
                                     landing=plan.landing,
                                     cache=pool.scans if pool is not None else None,
-                                    mapper=mapper)
+                                    mapper=mapper, mirror=plan.options.mirror)
         for row in result.snaps:           # numbered after the kept branches
             row["branch"] += result.kept
             row["on_branch"] += result.kept if row["on_branch"] else 0
@@ -580,6 +582,7 @@ class _Alongside:
         self.jobs, self.front, self.back, self.offset, self.level = [], 0, -1, 0, 0
         self.claimed, self.returned = set(), []
         self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
+        self.sent: set[tuple] = set()      # the parameters of the scans sent (`own_key`)
         self.pending_params: dict[tuple, dict] = {}
         # the tasks of `map`: the function, its arguments, the next to take, those on the
         # cluster, and those handed back (the cluster ended, or the task failed there)
@@ -617,6 +620,9 @@ class _Alongside:
                                      + len(self.task_claimed)) < bg.workers:
             if self.front <= self.back:
                 i = self.front
+                if self.jobs[i].mirror:          # taken from the branch before it, here
+                    self.front += 1
+                    continue
                 if not bg.submit(("branch", (self.level, i)), compute_branch,
                                  (self.plan, self.offset + i + 1, self.jobs[i])):
                     return
@@ -687,6 +693,7 @@ class _Alongside:
         taken = [0]                              # the jobs appended or left out, in order
 
         decided: dict[int, bool] = {}            # the branches do not change meanwhile
+        made: dict[int, Branch] = {}             # the jobs' branches, for their mirror images
 
         def skipped(i):
             if i not in decided:
@@ -702,14 +709,25 @@ class _Alongside:
             # in order: a job whose turn has come is appended once done, or left out if
             # ``skip`` says so, computed or not (not handed out after that; the cluster's
             # result for it, if it had it, is dropped); its turn comes when every job before
-            # it is taken, so ``skip`` reads the branches it is decided on
+            # it is taken, so ``skip`` reads the branches it is decided on. A mirror job is
+            # made here at its turn, from the branch before it.
             while taken[0] < n:
                 i = taken[0]
                 if skipped(i):
                     with self.lock:
                         self.front = max(self.front, i + 1)
                     done.pop(i, None)
-                elif i in done:
+                elif jobs_list[i].mirror or i in done:
+                    if i not in done:   # made here: a signal meanwhile ends the run
+                        source = made.get(i - 1)
+                        done[i] = (mirrored_branch(self.plan, offset + i + 1, jobs_list[i],
+                                                   source, progress, stop.is_set)
+                                   if source is not None else
+                                   compute_branch(self.plan, offset + i + 1, jobs_list[i],
+                                                  progress, stop.is_set))
+                        if done[i].interrupted:
+                            stop.set()
+                    made[i] = done[i]
                     branches.append(done.pop(i))
                     save()
                     if on_branch is not None and not branches[-1].interrupted:
@@ -736,8 +754,8 @@ class _Alongside:
                     pass
                 flush()
                 continue
-            if i < taken[0]:                     # left out meanwhile (given back by the cluster)
-                continue
+            if i < taken[0] or jobs_list[i].mirror:   # left out meanwhile (given back by
+                continue                         # the cluster), or made at its turn
             br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
             done[i] = br
             flush()
@@ -753,10 +771,15 @@ class _Alongside:
         return False
 
     def _scan(self, br: Branch):
-        """The scans ``br``'s folds need that no earlier branch needed, to the cluster."""
-        for key, params in scans(self.plan.problem, br).items():
+        """The scans ``br``'s folds need that no earlier branch needed, to the cluster; not
+        those at the mirror images of scans sent (`snap_targets` makes them from those)."""
+        problem = self.plan.problem
+        for key, params in scans(problem, br).items():
             if key not in self.seen:
                 self.seen.add(key)
+                if self.plan.options.mirror and mirror_key(problem, params) in self.sent:
+                    continue
+                self.sent.add(own_key(params))
                 self.pending_params[key] = params
                 with self.lock:
                     self.unsent.append((key, params))
@@ -837,6 +860,7 @@ def _in_process(plan, jobs_list, branches, save, progress, on_branch, skip=None)
     ``save()`` after each), but the jobs for which ``skip(i, branches)`` is true when their
     turn comes (`switch_levels`); True if interrupted (the branch in progress is kept up to
     its last point). A Ctrl-C while a computed branch is saved and reported waits for them."""
+    made: dict[int, Branch] = {}        # the jobs' branches, for their mirror images
     for i, job in enumerate(jobs_list):
         if skip is not None and skip(i, branches):
             continue
@@ -844,7 +868,11 @@ def _in_process(plan, jobs_list, branches, save, progress, on_branch, skip=None)
         # one context from the branch's start to its save: compute_branch's own raises in the
         # continuation, and this one records a signal wherever else it lands
         with Interruptions() as late:
-            br = compute_branch(plan, k, job, progress, late.stop.is_set)
+            if job.mirror and i - 1 in made:
+                br = mirrored_branch(plan, k, job, made[i - 1], progress, late.stop.is_set)
+            else:
+                br = compute_branch(plan, k, job, progress, late.stop.is_set)
+            made[i] = br
             branches.append(br)
             save()
             if on_branch is not None and not br.interrupted:

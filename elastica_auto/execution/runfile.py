@@ -292,7 +292,8 @@ class _Document:
         return self.string("[execution] scheduler", table["scheduler"])
 
     def options(self) -> dict:
-        """``[options]``: numbers (or expressions), integers and the corrector's name."""
+        """``[options]``: numbers (or expressions), integers, the corrector's name and
+        ``mirror`` (true or false)."""
         known = {f.name for f in fields(ContinuationOptions)}
         values = {}
         for key, v in self.table("options").items():
@@ -305,6 +306,10 @@ class _Document:
                 values[key] = v
             elif key == "corrector":
                 values[key] = self.string(where, v)
+            elif key == "mirror":
+                if not isinstance(v, bool):
+                    self.fail(where, f"expected true or false, got {v!r}")
+                values[key] = v
             else:
                 values[key] = self.number(where, v)
         return values
