@@ -243,3 +243,16 @@ def test_a_signal_while_the_image_is_checked_ends_the_run_there(tmp_path, cli_ex
     assert first.attrs["end"] == "EP" and second.attrs["end"] == "MX"
     assert second.attrs["message"] == "interrupted by the user"
     assert len(second.columns["psi"]) <= 2          # its start, and at most one step
+
+
+def test_a_fold_stop_is_mirrored_too(planar):
+    """stop = LP2 (the n-th fold along the branch, which the image meets in the same
+    order): the image ends at its second fold as the computed - branch does."""
+    kw = dict(bounds=(-4 * math.pi, 4 * math.pi), directions="both", uz=UZ, stop=["LP2"])
+    (_, image), (_, minus) = (ea.continuation(planar, ARM, "psi", mirror=m, **kw)
+                              for m in (True, False))
+    assert image.worker.startswith("mirror of") and minus.worker == "local"
+    assert image.end == minus.end == "LP" and image.message == minus.message
+    assert len(image.folds) == 2 and _labels(image) == _labels(minus)
+    for a, b in zip(image.labelled, minus.labelled):
+        assert a.params["psi"] == pytest.approx(b.params["psi"], abs=1e-12)

@@ -14,8 +14,9 @@ point's parameters, ordinates (negated as the module declares), profile, labelle
 and tangent are the images of the ``+`` branch's, its index and labels the same (the
 energy, hence the second variation, is the same at both).
 
-The branch's course must be symmetric too: bounds -b and b, no fold or ordinate stops
-(`symmetric_course`), and UZ values that are the negatives of UZ values. The paper's runs
+The branch's course must be symmetric too: bounds -b and b, no stops on an ordinate
+(`symmetric_course`; a fold stop is symmetric), and UZ values that are the negatives of UZ
+values. The paper's runs
 ask for UZ values that are not (psi = pi/12, not -pi/12): the ``+`` branch is computed with
 the negatives added (`mirror_course`), and its points at the values not asked for are set
 aside for its image (`set_aside`), whose UZ points they give. Set aside, the ``+`` branch is
@@ -30,8 +31,8 @@ base from the straight rod) computes one branch of each pair. The image is used 
 nothing in the branch depends on the direction in a way the reflection does not say:
 `symmetric_start` (the module's own problem, no free parameters or phase condition, a
 regular start equal to its image, its given tangent if any the negative of its image) and
-`image_of` (a ``+`` branch that ended EP at a bound with no warnings and no note about a
-location that failed; its image checked at a few labelled points (`_witnesses`): the image
+`image_of` (a ``+`` branch that ended EP at a bound, or at its fold stop, with no warnings
+and no note about a location that failed; its image checked at a few labelled points (`_witnesses`): the image
 solves the mirrored collocation equations and its ordinates are those declared, within
 MIRROR_TOL).
 Elsewhere the ``-`` branch is computed.
@@ -73,10 +74,10 @@ def symmetric_start(problem, parameter: str, origin) -> bool:
 
 def symmetric_course(course) -> bool:
     """Whether ``course`` ends branches where their mirror images end: bounds -b and b, and
-    no fold or ordinate stops (a fold curve's course is not one either)."""
+    no stops on an ordinate (a fold stop, ``stop = "LP3"``, counts folds along the branch,
+    which its image meets in the same order; a fold curve's course is not one)."""
     stops = course.stops
-    return (stops.lower == -stops.upper and stops.at_fold is None and not stops.limits
-            and not course.all_folds)
+    return stops.lower == -stops.upper and not stops.limits and not course.all_folds
 
 
 def mirror_course(course):
@@ -115,9 +116,11 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
     module docstring): then the ``-`` branch is computed."""
     name = source.parameter
     last = source.points[-1] if source.points else None
-    if (last is None or source.end != "EP" or source.interrupted or source.warnings
+    at_bound = (source.end == "EP" and last is not None
+                and source.message == f"reached {name} = {last.params[name]:g}")
+    at_fold = source.end == "LP" and source.message.startswith("stopped at fold ")
+    if (last is None or not (at_bound or at_fold) or source.interrupted or source.warnings
             or source.diagnostics or last.state is None
-            or source.message != f"reached {name} = {last.params[name]:g}"
             or any("not located" in p.note for p in source.points)):
         return None
     if not all(_checked(problem, p) for p in _witnesses(problem, source)):
@@ -129,7 +132,8 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
     for p in source.mirror_points:
         new.insert(_point_image(problem, mirror, p))
     new.end = source.end
-    new.message = f"reached {name} = {new.points[-1].params[name]:g}"
+    new.message = (f"reached {name} = {new.points[-1].params[name]:g}" if at_bound
+                   else source.message)
     return new
 
 
