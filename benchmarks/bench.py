@@ -438,6 +438,7 @@ class _Phases:
 def _stacked_elastica(copies):
     """``copies`` copies of the planar elastica as one system of 4 copies states (a generic
     module object: the engine sees one BVP with block-diagonal Jacobians)."""
+    import dataclasses
     import types
 
     import numpy as np
@@ -448,7 +449,10 @@ def _stacked_elastica(copies):
     n = base.n
     mod = types.ModuleType("stacked")
     mod.STATES = tuple(f"{x}{j}" for j in range(copies) for x in base.states)
-    mod.PARAMETERS = list(base.parameters.values())
+    # one copy's period maps name its states ("theta"), not the stack's ("theta0", ...): left
+    # out (the steps here are timed on fixed meshes, no branch repeats)
+    mod.PARAMETERS = [dataclasses.replace(q, period_shift=(), period_flip=())
+                      for q in base.parameters.values()]
     mod.ORDINATES = []
 
     def split(y):
