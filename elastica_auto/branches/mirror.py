@@ -26,15 +26,15 @@ the added values left out, to rounding. (The ``-`` branch computed along the run
 course places some of its steps elsewhere, where a UZ value ends a step: its labels are
 the same to the location's accuracy.)
 
-So a run that continues a symmetric start both ways (the paper's rotating arm, load and
-base from the straight rod) computes one branch of each pair. The image is used only where
-nothing in the branch depends on the direction in a way the reflection does not say:
+So a run that continues a symmetric start both ways (the paper's rotating arm from the
+straight rod, planar and in 3D) computes one branch of each pair. The image is used only
+where nothing in the branch depends on the direction in a way the reflection does not say:
 `symmetric_start` (the module's own problem, no free parameters or phase condition, a
 regular start equal to its image, its given tangent if any the negative of its image) and
 `image_of` (a ``+`` branch that ended EP at a bound, or at its fold stop, with no warnings
-and no note about a location that failed; its image checked at a few labelled points (`_witnesses`): the image
-solves the mirrored collocation equations and its ordinates are those declared, within
-MIRROR_TOL).
+and no note about a location that failed; its image checked at a few labelled points
+(`_witnesses`): the image solves the mirrored collocation equations and its ordinates are
+those declared, within MIRROR_TOL).
 Elsewhere the ``-`` branch is computed.
 """
 
