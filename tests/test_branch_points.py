@@ -221,8 +221,20 @@ class _FirstOfEachLevel:
 
     def _answer(self, tag, function, args):
         import threading
+        import time
         value = (function(*args), "stand-in")
-        threading.Thread(target=self.on_result, args=(tag, True, value)).start()
+        pool = self.on_result.__self__          # the run's `_Alongside`
+
+        def answer():
+            # once this process has taken its own job of the level (the one after the
+            # worker's), or has none to take: the worker's next job is then the one after
+            # that, whichever thread the scheduler runs first
+            deadline = time.monotonic() + 60
+            while not (pool.front > 1 or pool.back < 1) and time.monotonic() < deadline:
+                time.sleep(0.001)
+            self.on_result(tag, True, value)
+
+        threading.Thread(target=answer).start()
 
     def submit(self, tag, function, args):
         self.tasks.append(tag)
