@@ -186,8 +186,7 @@ def mirrored_scan(problem, params: dict, exact: dict) -> list[Equilibrium] | Non
         y0 = np.asarray(initial(k if len(k) == 1 else k[:, None]), dtype=float)[:, 0]
         if np.max(np.abs(y0 - y[:, 0])) > 1e-12 * (1.0 + np.max(np.abs(y[:, 0]))):
             return None
-        ordinates = {o: -v + 0.0 if o in mirror.ordinates else v
-                     for o, v in eq.ordinates.items()}
+        ordinates = problem.mirrored_ordinates(eq.ordinates)
         out.append(Equilibrium(float(k[0]) if np.ndim(eq.k) == 0 else tuple(map(float, k)),
                                State(eq.state.s, y, yp, params), eq.index, ordinates))
     return sorted(out, key=lambda eq: eq.k)

@@ -38,6 +38,17 @@ class UserValues:
     period: float | None = None
 
 
+def is_user_value(lam: float, specs) -> bool:
+    """Whether ``lam`` is one of the UZ values of ``specs`` (each with its period), to 1e-9
+    (1 + |lam|): a located UZ point, or a copy of one shifted by whole periods."""
+    for spec in specs:
+        for v in spec.values:
+            k = 0 if spec.period is None else round((lam - v) / spec.period)
+            if abs(lam - v - k * (spec.period or 0.0)) <= 1e-9 * (1.0 + abs(lam)):
+                return True
+    return False
+
+
 def crossings(a: float, b: float, spec: UserValues) -> list[float]:
     """The user values c crossed on the way from a to b: c in (a, b] (or [b, a) going down),
     ordered in the direction of travel."""

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..core.solution import State, Tangent
 from .branch import Branch, Point
-from .events import UserValues
+from .events import UserValues, is_user_value
 
 #: The check of a mirrored point: its residual and recomputed ordinates within this of the
 #: ``+`` branch's (relative to 1 + their size).
@@ -95,18 +95,9 @@ def set_aside(branch: Branch, course) -> None:
     ``course`` asks for them (`image_of`)."""
     name = course.parameter
     aside = [p for p in branch.points
-             if p.type == "UZ" and not _asked(p.params[name], course.user_values)]
+             if p.type == "UZ" and not is_user_value(p.params[name], course.user_values)]
     branch.points = [p for p in branch.points if all(p is not q for q in aside)]
     branch.mirror_points = aside
-
-
-def _asked(lam: float, user_values) -> bool:
-    for spec in user_values:
-        for v in spec.values:
-            k = 0 if spec.period is None else round((lam - v) / spec.period)
-            if abs(lam - v - k * (spec.period or 0.0)) <= 1e-9 * (1.0 + abs(lam)):
-                return True
-    return False
 
 
 def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
@@ -125,21 +116,20 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
         return None
     if not all(_checked(problem, p) for p in _witnesses(problem, source)):
         return None
-    _, _, mirror = problem.mirror
     for p in source.points:
-        if not (p.type == "UZ" and not _asked(-p.params[name], course.user_values)):
-            new.points.append(_point_image(problem, mirror, p))
+        if not (p.type == "UZ" and not is_user_value(-p.params[name], course.user_values)):
+            new.points.append(_point_image(problem, p))
     for p in source.mirror_points:
-        new.insert(_point_image(problem, mirror, p))
+        new.insert(_point_image(problem, p))
     new.end = source.end
     new.message = (f"reached {name} = {new.points[-1].params[name]:g}" if at_bound
                    else source.message)
     return new
 
 
-def _point_image(problem, mirror, p: Point) -> Point:
+def _point_image(problem, p: Point) -> Point:
     _, params = problem.mirrored(p.profile[:, :0], p.params)
-    ordinates = {k: -v + 0.0 if k in mirror.ordinates else v for k, v in p.ordinates.items()}
+    ordinates = problem.mirrored_ordinates(p.ordinates)
     state = tangent = None
     if p.state is not None:
         s = p.state
@@ -190,10 +180,8 @@ def _checked(problem, p: Point) -> bool:
     own, image = residual(s.y, s.yp, s.params), residual(y, yp, params)
     if image > 2 * own + MIRROR_TOL * (1.0 + float(np.max(np.abs(s.y)))):
         return False
-    _, _, mirror = problem.mirror
     got = problem.ordinate_values(s.s, y, params)
-    for k, v in p.ordinates.items():
-        want = -v if k in mirror.ordinates else v
+    for k, want in problem.mirrored_ordinates(p.ordinates).items():
         if not (got[k] == want or abs(got[k] - want) <= MIRROR_TOL * (1.0 + abs(want))):
             return False
     return True

@@ -40,9 +40,9 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
-from .events import (Located, Step, UserValues, crossings, locate_branch_point, locate_fold,
-                     locate_index_change, locate_limit, locate_value, pair_suspected,
-                     tangent_between)
+from .events import (Located, Step, UserValues, crossings, is_user_value, locate_branch_point,
+                     locate_fold, locate_index_change, locate_limit, locate_value,
+                     pair_suspected, tangent_between)
 from ..numerics.newton import Row
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
@@ -1024,8 +1024,9 @@ class _Walk:
                                              self.problem)
         shift = hit.state.params[name] - self.start.lam
         turns = round(shift / self.period)      # the periods from the start to ``hit``
-        translate = self._add(hit.state, type="UZ" if self._user_value(hit.state.params[name])
-                              else "", arclength=step.position(hit.sigma), tangent=hit.tangent,
+        uz = is_user_value(hit.state.params[name], self.user_values)
+        translate = self._add(hit.state, type="UZ" if uz else "",
+                              arclength=step.position(hit.sigma), tangent=hit.tangent,
                               direct=branch.points[0].index_direct)
         period = branch.points[1:]
         length = translate.arclength - branch.points[0].arclength
@@ -1086,15 +1087,6 @@ class _Walk:
         if self.progress is not None:
             self.progress(branch, sol.lam)
         return "moved"
-
-    def _user_value(self, lam: float) -> bool:
-        """Whether ``lam`` is a UZ value (each with its period)."""
-        for spec in self.user_values:
-            for v in spec.values:
-                k = round((lam - v) / spec.period)
-                if abs(lam - v - k * spec.period) <= 1e-9 * (1.0 + abs(lam)):
-                    return True
-        return False
 
     def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
         """Whether ``event``, found in the step that closes the loop at ``end`` (or that

@@ -359,6 +359,12 @@ class Problem:
         out[: self.n] = signs.reshape((-1,) + (1,) * (out.ndim - 1)) * np.asarray(y)[rows] + 0.0
         return out, {k: -v + 0.0 if k in mirror.parameters else v for k, v in params.items()}
 
+    def mirrored_ordinates(self, ordinates: dict) -> dict:
+        """The ordinates of the mirror image of a solution with ``ordinates``: those the
+        mirror declares odd negated (0, not -0.0), the others the same."""
+        odd = self.mirror[2].ordinates
+        return {k: -v + 0.0 if k in odd else v for k, v in ordinates.items()}
+
     # -- names ---------------------------------------------------------------------------------
     @property
     def parameter_names(self) -> list[str]:
