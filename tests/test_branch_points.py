@@ -211,27 +211,24 @@ class _FirstOfEachLevel:
     """A default run's background cluster (`execution.cluster.Background`), up at once
     with one worker, that computes the first branch of each run of branches it is handed
     (the job of index 0 of its level) and holds every other, never answering, until
-    ``release`` answers them all."""
+    ``release`` answers them all. Where the level has other jobs, it answers its first once
+    ``taken`` is set (this process has started computing one of them): the worker's next
+    job is then the one after that, whichever thread runs first."""
 
-    def __init__(self, workers, on_result):
+    def __init__(self, workers, on_result, taken):
         import threading
         self.workers, self.on_result, self.ready = 1, on_result, threading.Event()
         self.ready.set()
-        self.tasks, self.held, self.released = [], [], False
+        self.tasks, self.held, self.released, self.taken = [], [], False, taken
 
     def _answer(self, tag, function, args):
         import threading
-        import time
         value = (function(*args), "stand-in")
-        pool = self.on_result.__self__          # the run's `_Alongside`
+        others = self.on_result.__self__.back >= 1     # the run's `_Alongside`, this level
 
         def answer():
-            # once this process has taken its own job of the level (the one after the
-            # worker's), or has none to take: the worker's next job is then the one after
-            # that, whichever thread the scheduler runs first
-            deadline = time.monotonic() + 60
-            while not (pool.front > 1 or pool.back < 1) and time.monotonic() < deadline:
-                time.sleep(0.001)
+            if tag[1][1] == 0 and others:
+                self.taken.wait(60)
             self.on_result(tag, True, value)
 
         threading.Thread(target=answer).start()
@@ -276,9 +273,21 @@ def test_a_loop_s_other_jobs_are_left_out_as_soon_as_the_loop_is_done(tmp_path, 
     problem = ea.load_problem(str(path))
     kw = dict(bounds=(-2, 2), switch=2, ds_max=0.2)
     one = ea.continuation(problem, {"lam": -1.5}, "lam", **kw)
-    stand_in = []
+    from elastica_auto.execution import run as run_module
+    stand_in, taken = [], threading.Event()
+    compute_here = run_module.compute_branch
+
+    def computed_here(*args, **kwargs):
+        # this process's own jobs come with its progress and stop (the cluster's tasks,
+        # which the stand-in computes with this same function, with three arguments)
+        if len(args) + len(kwargs) > 3:
+            taken.set()
+        return compute_here(*args, **kwargs)
+
+    monkeypatch.setattr(run_module, "compute_branch", computed_here)
     monkeypatch.setattr(cluster, "Background",
-                        lambda n, on: stand_in.append(_FirstOfEachLevel(n, on)) or stand_in[-1])
+                        lambda n, on: stand_in.append(_FirstOfEachLevel(n, on, taken))
+                        or stand_in[-1])
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
     plan = make_plan(problem, {"lam": -1.5}, "lam",
                      Request(bounds=(-2, 2), switch=2), {"ds_max": 0.2})
