@@ -292,6 +292,57 @@ def test_scan_box_finds_every_root_of_a_known_system():
         assert np.min(np.max(np.abs(got.T - w), axis=1)) < 1e-9
 
 
+class _Counted:
+    """r, counting the Newton steps of `scan_box` (calls after the grid's)."""
+
+    def __init__(self, r):
+        self.r, self.calls = r, 0
+
+    def __call__(self, k):
+        self.calls += 1
+        return self.r(k)
+
+
+@pytest.mark.parametrize("a", [0.3, -1.7])
+def test_scan_box_finds_a_double_root_in_few_newton_steps(a):
+    """r = ((x - a)^2, y - x / 2) has the one root (a, a / 2), where the Jacobian is
+    singular (a fold's own equilibrium in a scan at the fold): Newton steps halve the error.
+    Extrapolating their geometric sequence finds it to 1e-6; halving alone stops where |r|
+    is below 1e-9 of its scale, 1e-4 from it (and took all 40 steps before a root that
+    small was accepted)."""
+    from elastica_auto.analysis.equilibria import scan_box
+
+    r = _Counted(lambda k: np.vstack(((k[0] - a) ** 2, k[1] - k[0] / 2)))
+    got = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)))
+    assert got.shape == (2, 1)
+    assert np.max(np.abs(got[:, 0] - (a, a / 2))) < 1e-6
+    assert r.calls - 1 <= 20         # the grid's call, Newton's, the final check
+
+
+def test_scan_box_keeps_a_degenerate_root_and_polishes_coarse_roots():
+    """A root where r grows like a cube in one direction (a branch point's own equilibrium)
+    is kept, where |r| is small, without its 40 steps; and with ``coarse`` r plus a smooth
+    error of 1e-8 of r's scale (the loose integration's), the roots are r's to 1e-12."""
+    from elastica_auto.analysis.equilibria import scan_box
+
+    cubic = _Counted(lambda k: np.vstack((k[0] - 0.5, (k[1] + 0.25) ** 3)))
+    got = scan_box(cubic, np.array((-2.0, -2.0)), np.array((2.0, 2.0)))
+    assert got.shape[0] == 2 and got.shape[1] >= 1
+    assert np.max(np.abs(got[0] - 0.5)) < 1e-12 and np.max(np.abs(got[1] + 0.25)) < 2e-3
+    assert cubic.calls - 1 < 40
+
+    def r(k):
+        x, y = k
+        return np.vstack((x * x + y * y - 4, np.sin(3 * x) - y / 2))
+
+    def coarse(k):
+        return r(k) + 1e-8 * 5 * np.vstack((np.sin(7 * k[0] + k[1]), np.cos(5 * k[1])))
+
+    exact = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)))
+    got = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)), coarse=coarse)
+    assert got.shape == exact.shape and np.max(np.abs(got - exact)) < 1e-12
+
+
 def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):
     """The module declares 3D axes; its drawing holds the centreline r(s) in space (its 3D
     data is the profile's), the arm from the tip and the load arrow; the engine's layout

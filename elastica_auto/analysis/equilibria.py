@@ -163,11 +163,25 @@ def _scan_line(r, lo: float, hi: float) -> np.ndarray:
 
 
 #: A box-scan candidate whose max |r_j| has not fallen below STALL_FACTOR of its smallest
-#: value STALL_STEPS Newton steps ago, and is not yet a root's (below 1e-9 of r's scale), is
-#: given up: it circles a local minimum of |r| that is no root (about a third of the
-#: spatial rod's candidates, which otherwise took every one of the 40 steps). A candidate on
-#: its way to a root, even by steps cut to a cell, lowers |r| on every few steps.
+#: value STALL_STEPS Newton steps ago, and is not yet a root's, is given up: it circles a
+#: local minimum of |r| that is no root (about a third of the spatial rod's candidates,
+#: which otherwise took every one of the 40 steps). A candidate on its way to a root, even
+#: by steps cut to a cell, lowers |r| on every few steps.
 STALL_STEPS, STALL_FACTOR = 6, 0.9
+#: A root of r: max |r_j| below ROOT_SIZE of r's scale on the grid, the last Newton step
+#: below ROOT_STEP of the box. With ``coarse`` (the loose integration, whose residual is
+#: within about 2e-8 of r's scale of the tight one's: docs/benchmarks.md), Newton runs on it
+#: until max |r_j| is below COARSE_ROOT of the scale, and on r from there.
+ROOT_SIZE, ROOT_STEP, COARSE_ROOT = 1e-9, 1e-12, 1e-6
+#: A candidate whose max |r_j| stayed below the root's size for SETTLE_STEPS steps is a root,
+#: however long its steps.
+SETTLE_STEPS = 3
+#: A double root (the fold's own equilibrium, in a scan at a fold) takes Newton steps that
+#: halve: where two successive steps are parallel (cosine above AITKEN_COS) and the second
+#: is a fraction q in AITKEN_Q of the first, the step is taken as s / (1 - q), the limit of
+#: that geometric sequence (Aitken's extrapolation). Without it such a root took all
+#: 40 steps (each integrating 3 columns a candidate).
+AITKEN_COS, AITKEN_Q = 0.99, (0.3, 0.7)
 
 
 def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
@@ -177,17 +191,17 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
 
     ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
     3^d grid points that holds both signs of every component of r, or where max |r_j| is
-    smallest among the block's points; Newton from all candidates together, the
-    Jacobian by forward differences, each step cut to a grid cell, a candidate that stalls
-    given up (STALL_STEPS); the converged ones (|r| below 1e-9 of r's scale on the grid and
-    the step below 1e-12 of the box) within half a cell of the box are kept, and roots
-    closer than 1e-6 of the box merged. ``coarse``, if given, is ``r`` computed more
-    cheaply (a looser integration), used for the grid alone: it only places candidates."""
+    smallest among the block's points; Newton from all candidates together (`_newton`); the
+    converged ones (ROOT_SIZE, ROOT_STEP) within half a cell of the box are kept, and roots
+    closer than 1e-6 of the box merged. ``coarse``, if given, is ``r`` computed more cheaply
+    (a looser integration): the grid is computed with it, and Newton runs on it until
+    COARSE_ROOT, the candidates not given up merged, then on ``r``. (Each Newton step
+    integrates d + 1 columns a candidate; most are those of candidates still on their way,
+    and at the loose tolerance they take about half the time.)"""
     d = len(lo)
     n = max(int(round(points ** (1.0 / d))), 3)
     axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
-    width = np.maximum(hi - lo, 1e-300)
-    cell = width / (n - 1)
+    box = _Box(lo, hi, np.maximum(hi - lo, 1e-300), (hi - lo) / (n - 1))
     grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1)
     rs = (coarse or r)(grid).reshape((d,) + (n,) * d)
     scale = max(float(np.max(np.abs(rs))), 1e-300)
@@ -204,10 +218,41 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
     for o in np.ndindex(*(3,) * d):
         least &= inner <= size[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
     corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
-    k = lo[:, None] + (corners + 1.0) * cell[:, None]         # its centre
+    k = lo[:, None] + (corners + 1.0) * box.cell[:, None]     # its centre
+    if coarse is not None:
+        k = _distinct(_newton(coarse, k, box, COARSE_ROOT * scale, np.inf, max_iter),
+                      box.width)
+    k = _newton(r, k, box, ROOT_SIZE * scale, ROOT_STEP, max_iter)
+    final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
+    inside = np.all((k >= lo[:, None] - box.cell[:, None] / 2)
+                    & (k <= hi[:, None] + box.cell[:, None] / 2), axis=0)
+    return _distinct(k[:, inside & (final < ROOT_SIZE * scale)], box.width)
+
+
+@dataclass
+class _Box:
+    """The box scan's box [lo, hi], its widths and the grid's cell."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    width: np.ndarray
+    cell: np.ndarray
+
+
+def _newton(r, k, box: _Box, size_tol: float, step_tol: float, max_iter: int) -> np.ndarray:
+    """Newton on ``r`` from every column of ``k`` (d, m) together: the Jacobian by forward
+    differences (d + 1 columns of r a candidate), its pseudo-inverse (a singular Jacobian, a
+    double root, takes the least step), each step cut to a grid cell. A candidate is done
+    once max |r_j| < ``size_tol`` and its step < ``step_tol`` of the box; given up once it
+    leaves the box by a cell or stalls (STALL_STEPS). Returns the candidates not given up,
+    done or not."""
+    d = k.shape[0]
+    k = k.copy()
     done = np.zeros(k.shape[1], bool)
+    lost = np.zeros(k.shape[1], bool)
     # each candidate's max |r_j| at every step so far (for the stall test)
     history = np.full((max_iter, k.shape[1]), np.inf)
+    previous = np.zeros_like(k)         # each candidate's last step (0: none to compare)
     for it in range(max_iter):
         live = np.flatnonzero(~done)
         if len(live) == 0:
@@ -217,34 +262,56 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
         shifted = [x + np.where(np.arange(d)[:, None] == j, h, 0.0) for j in range(d)]
         f = r(np.hstack([x] + shifted)).reshape(d, d + 1, len(live))
         jac = ((f[:, 1:] - f[:, :1]) / h[None, :, :]).transpose(2, 0, 1)   # (m, d, d)
-        # the pseudo-inverse: a singular Jacobian (a double root) takes the least step
         step = -(np.linalg.pinv(jac) @ f[:, 0].T[:, :, None])[:, :, 0].T
         step = np.where(np.isfinite(step), step, 0.0)
-        big = np.max(np.abs(step) / cell[:, None], axis=0)
+        step, previous[:, live] = _aitken(step, previous[:, live])
+        big = np.max(np.abs(step) / box.cell[:, None], axis=0)
         step *= np.minimum(1.0, 1.0 / np.maximum(big, 1e-300))
         k[:, live] = x + step
-        small = np.max(np.abs(step) / width[:, None], axis=0) < 1e-12
+        small = np.max(np.abs(step) / box.width[:, None], axis=0) < step_tol
         size_now = np.max(np.abs(f[:, 0]), axis=0)
-        converged = small & (size_now < 1e-9 * scale)
-        outside = np.any((k[:, live] < lo[:, None] - cell[:, None])
-                         | (k[:, live] > hi[:, None] + cell[:, None]), axis=0)
+        converged = small & (size_now < size_tol)
+        outside = np.any((k[:, live] < box.lo[:, None] - box.cell[:, None])
+                         | (k[:, live] > box.hi[:, None] + box.cell[:, None]), axis=0)
         history[it, live] = size_now
         stalled = np.zeros(len(live), bool)
         if it >= STALL_STEPS:
             before = np.min(history[: it - STALL_STEPS + 1, live], axis=0)
-            stalled = (size_now >= 1e-9 * scale) \
+            stalled = (size_now >= size_tol) \
                 & (np.min(history[it - STALL_STEPS + 1: it + 1, live], axis=0)
                    > STALL_FACTOR * before)
-        done[live[converged | outside | stalled]] = True
-    final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
-    inside = np.all((k >= lo[:, None] - cell[:, None] / 2)
-                    & (k <= hi[:, None] + cell[:, None] / 2), axis=0)
-    k = k[:, inside & (final < 1e-9 * scale)]
+        # a root whose place the residual does not fix better (a degenerate one: along a
+        # direction where r grows like a cube, at a branch point's own equilibrium, the step
+        # does not shrink while |r| stays below size_tol)
+        settled = np.zeros(len(live), bool)
+        if it >= SETTLE_STEPS - 1:
+            settled = np.max(history[it - SETTLE_STEPS + 1: it + 1, live], axis=0) < size_tol
+        done[live[converged | outside | stalled | settled]] = True
+        lost[live[outside | stalled]] = True
+    return k[:, ~lost]
+
+
+def _aitken(step, previous):
+    """``step`` (d, m) with each column that halves (AITKEN_COS, AITKEN_Q) its ``previous``
+    one extrapolated to the limit, and the steps to compare the next ones with (0 after an
+    extrapolation: the next two steps are compared afresh)."""
+    a, b = np.linalg.norm(previous, axis=0), np.linalg.norm(step, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = b / a
+        cos = np.sum(step * previous, axis=0) / (a * b)
+    geometric = (a > 0) & (b > 0) & (cos > AITKEN_COS) & (q > AITKEN_Q[0]) & (q < AITKEN_Q[1])
+    factor = np.where(geometric, 1.0 / (1.0 - np.where(geometric, q, 0.0)), 1.0)
+    return step * factor, np.where(geometric, 0.0, step)
+
+
+def _distinct(k, width) -> np.ndarray:
+    """The columns of ``k`` sorted lexicographically, each one closer than 1e-6 of the box
+    (``width``) to one kept before it left out."""
     roots: list[np.ndarray] = []
     for x in k.T[np.lexsort(k[::-1])]:
         if not any(np.max(np.abs(x - y) / width) < 1e-6 for y in roots):
             roots.append(x)
-    return np.array(roots).T if roots else np.zeros((d, 0))
+    return np.array(roots).T if roots else np.zeros((k.shape[0], 0))
 
 
 def snap_lps(branch):
