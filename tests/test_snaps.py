@@ -175,3 +175,28 @@ def test_a_branch_point_is_a_snap_point_only_if_subcritical(trivial_buckling):
         assert first.subcritical is False and "supercritical" in first.note
         assert subcritical(rod, br, first) is False
         assert snap_points(br) == []
+
+
+def test_a_course_without_events_labels_nothing_and_counts_every_index(tmp_path, monkeypatch):
+    """What `subcritical` continues the born branches with: u = 0 of u'' + p u (1 + u^2) = 0
+    from p = 0 to 50 through its branch points p = (k pi)^2 (k = 1, 2) with no event located:
+    no LP or BP label, and every point's direct count is the number of (k pi)^2 below its p
+    (the fold rule, which follows the located events, is not asked)."""
+    import dataclasses
+
+    import elastica_auto as ea
+    from elastica_auto.execution.plan import Plan, Request, make_plan
+    from helpers import EXAMPLES, run_plan
+    eigen = ea.load_problem(str(EXAMPLES / "nonlinear_eigenvalue.py"))
+    plan = make_plan(eigen, {"p": 0.0}, "p", Request(bounds=(-1, 50)))
+    course = dataclasses.replace(plan.course, events=False)
+    monkeypatch.setattr(Plan, "course", property(lambda self: course))
+    (line,) = run_plan(plan, tmp_path).result.branches
+    assert {p.type for p in line.points} <= {"", "EP"}
+    loads = [(k * math.pi) ** 2 for k in (1, 2)]
+    seen = set()
+    for p in line.points:
+        if min(abs(p.params["p"] - c) for c in loads) > 1e-6:
+            assert p.index_direct == sum(c < p.params["p"] for c in loads)
+            seen.add(p.index_direct)
+    assert seen == {0, 1, 2} and line.points[-1].params["p"] == pytest.approx(50)

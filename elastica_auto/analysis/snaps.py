@@ -34,10 +34,10 @@ def subcritical(problem, branch, point) -> bool | None:
     at each of their first BORN_POINTS - 1 points past the BP; False if one of those points
     is stable; None if the BP has no second direction or a born branch has no counted point
     (nothing decided: no snap is reported). The born branches are continued with
-    ``branch``'s own options."""
+    ``branch``'s own options and no event located: the index at each point is its direct
+    count."""
     from ..branches.stepper import Course, Origin, continue_branch
     from ..branches.switching import switch_direction
-    from ..numerics.stability import label_stability
     name = branch.parameter
     options = dataclasses.replace(ContinuationOptions(**branch.options), max_points=BORN_POINTS)
     direction = switch_direction(problem, point.state, point.tangent, name, options)
@@ -46,10 +46,9 @@ def subcritical(problem, branch, point) -> bool | None:
     for d in (1, -1):
         born = Branch.of(problem, name, d, f"switch at {point.name}", options.to_dict(),
                          singular_start=True)
-        continue_branch(born, problem, Course(name, options),
+        continue_branch(born, problem, Course(name, options, events=False),
                         Origin(point.state, direction.scaled(d), "switch"))
-        label_stability(born, problem)
-        counted = [q.index for q in born.points[1:] if q.index >= 0]
+        counted = [q.index_direct for q in born.points[1:] if q.index_direct >= 0]
         if not counted:
             return None
         if min(counted) == 0:

@@ -239,13 +239,18 @@ class Origin:
 class Course:
     """How a branch is continued: the parameter, the options, where it ends, its UZ values.
     ``all_folds``: every point is a fold (a fold curve), and its ``fold_residual`` is the
-    point's largest error estimate, of the solution and its null vector together."""
+    point's largest error estimate, of the solution and its null vector together.
+    ``events``: folds and branch points are located; False: the points alone, each with its
+    directly counted index (what `analysis.snaps.subcritical` asks of the branches born at a
+    branch point: on the isotropic rod's they keep the parameter constant, and every step
+    met a turn of its rounding that could not be located, a third of a 3D run's time)."""
 
     parameter: str
     options: ContinuationOptions
     stops: Stops = Stops()
     user_values: tuple[UserValues, ...] = ()
     all_folds: bool = False
+    events: bool = True
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -370,7 +375,7 @@ class _Walk:
     def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
-        self.all_folds = course.all_folds
+        self.all_folds, self.events = course.all_folds, course.events
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None
@@ -514,7 +519,7 @@ class _Walk:
         then with a warning). Returns the events and b's index."""
         corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
         s = b.mesh
-        skip = self.first and self.singular_start
+        skip = (self.first and self.singular_start) or not self.events
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
         fold = a.tangent.lam * b.tangent.lam < 0 and not skip
         bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
