@@ -285,6 +285,7 @@ def test_a_loop_s_other_jobs_are_left_out_as_soon_as_the_loop_is_done(tmp_path, 
         return compute_here(*args, **kwargs)
 
     monkeypatch.setattr(run_module, "compute_branch", computed_here)
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)     # the stand-in up at once
     monkeypatch.setattr(cluster, "Background",
                         lambda n, on: stand_in.append(_FirstOfEachLevel(n, on, taken))
                         or stand_in[-1])

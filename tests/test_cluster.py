@@ -9,6 +9,7 @@ costs nothing; Ctrl-C keeps the finished branches; an unreachable scheduler is o
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -325,11 +326,14 @@ def _waiting_elastica(path: Path, flag: Path, started: Path) -> Path:
 
 def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, monkeypatch):
     """jobs = 0 on two cores: this process starts on the first branch at once and a local
-    cluster of one worker, started meanwhile, computes the other (this process waits, in its
-    first step, for the worker to start: else it could finish both first). The file is the
-    one jobs = 1 writes, number for number, snap-back table (scanned on the worker) too."""
+    cluster of one worker, started meanwhile (at once: `run.CLUSTER_PAYS` 0), computes the
+    other (this process waits, in its first step, for the worker to start: else it could
+    finish both first). The file is the one jobs = 1 writes, number for number, snap-back
+    table (scanned on the worker) too."""
+    from elastica_auto.execution import run as run_module
     from elastica_auto.execution import runfile
     from elastica_auto.execution.run import execute
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
     from helpers import elastica_run_file
     flag, started = tmp_path / "wait", tmp_path / "started"
     _waiting_elastica(tmp_path / "mine.py", flag, started)
@@ -363,6 +367,74 @@ def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     assert len(plan.branches) == 1
     result = execute(plan, tmp_path, jobs=0)
     assert [b.worker for b in result.branches] == ["local"] and result.branches[0].end == "EP"
+
+
+def test_the_default_run_s_cluster_starts_when_the_work_left_pays_for_it():
+    """`_Alongside` starts its cluster once the mean time of what this process finished,
+    times what is left of that kind, or the time of the one in hand, exceeds ``pays``."""
+    from elastica_auto.execution.run import _Alongside
+    started = []
+
+    def make(pays):
+        return _Alongside(None, 1, lambda n, on: started.append(n) or _FakeBackground(1, on),
+                          pays=pays)
+    pool = make(3.0)
+    assert not pool.started and not pool.background.ready.is_set() and started == []
+    pool.spent["branch"] = [1.0, 2]                # 0.5 s each
+    pool._consider("branch", 5)                    # 2.5 s left
+    pool._consider("scan", 100)                    # none finished: nothing known
+    pool._consider("branch", 1, running=2.9)       # the one in hand: 2.9 s so far
+    pool._consider("branch", 1, running=1.6)
+    assert not pool.started and started == []
+    pool._consider("branch", 7)                    # 3.5 s left
+    assert pool.started and pool.background.ready.is_set() and started == [1]
+    pool._consider("branch", 7)
+    assert started == [1]
+    pool = make(3.0)
+    pool._consider("task", 0, running=10.0)        # nothing left: no use
+    assert not pool.started
+    pool._consider("task", 1, running=3.1)
+    assert pool.started
+    make(0.0)
+    assert started == [1, 1, 1]
+
+
+@pytest.mark.parametrize("pays", [1e-9, math.inf])
+def test_a_default_run_starts_its_cluster_only_if_it_pays(tmp_path, monkeypatch, pays):
+    """Two branches on two cores (examples of the elastica): with `run.CLUSTER_PAYS` 1e-9
+    the first branch, computed here, outlasts it at its first step with the other left: the
+    cluster (a stand-in worker) is started before that branch is done, and computes the
+    second; with inf it is never started. The branches are those jobs = 1 computes."""
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import execute
+    from helpers import WorkingBackground, elastica_run_file
+    finished, at_start = [], []
+    compute_here = run_module.compute_branch
+
+    def computed(*args, **kwargs):
+        out = compute_here(*args, **kwargs)
+        finished.append(args[1])
+        return out
+
+    def background(n, on):
+        if math.isinf(pays):
+            raise AssertionError("a cluster was started that does not pay")
+        at_start.append(list(finished))
+        return WorkingBackground(n, on)
+
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", pays)
+    monkeypatch.setattr(cluster, "Background", background)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    run = elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False)
+    one = execute(runfile.load(run), tmp_path / "one", jobs=1)
+    monkeypatch.setattr(run_module, "compute_branch", computed)
+    both = execute(runfile.load(run), tmp_path / "both", jobs=0)
+    assert [b.worker for b in both.branches] == (["local", "local"] if math.isinf(pays)
+                                                 else ["local", "stand-in"])
+    assert at_start == ([] if math.isinf(pays) else [[]])
+    for a, b in zip(both.branches, one.branches):
+        np.testing.assert_array_equal(a.column("psi"), b.column("psi"))
 
 
 def test_a_one_branch_run_imports_only_what_it_uses(tmp_path):

@@ -539,7 +539,7 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     the pool: its ``scans`` are those its workers computed (`snap_targets`'s ``cache``)."""
     from .cluster import Background
     with Interruptions() as signals:
-        pool = _Alongside(plan, workers, Background)
+        pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS)
         try:
             interrupted = pool.run(first, result.branches, save, progress, on_branch,
                                    signals.stop)
@@ -559,6 +559,33 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     return pool
 
 
+#: The default run starts its local cluster only once the work left for it is estimated at
+#: more than this many seconds (`_Alongside`): its start-up takes about 1.6 s of wall time
+#: and as much CPU as three interpreters importing distributed, which on 2 cores is taken
+#: from the branches computed meanwhile. With the cluster started at once, rotating_arm (4
+#: branches computed of 8, about 0.5 s each) took 1.1x the time of --jobs 1.
+CLUSTER_PAYS = 3.0
+
+
+class _Idle:
+    """The background cluster of a default run before it is started (`_Alongside`): never
+    up, no worker, takes nothing."""
+
+    workers = 0
+
+    def __init__(self):
+        self.ready = threading.Event()
+
+    def submit(self, tag, function, args) -> bool:
+        return False
+
+    def finish(self):
+        pass
+
+    def close(self, wait: float = 0.0):
+        pass
+
+
 class _Alongside:
     """Branches computed in this process from the start, and by a local Dask cluster
     (`elastica_auto.execution.cluster.Background`) once it has started in the background,
@@ -571,11 +598,21 @@ class _Alongside:
     complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
     As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
     go to the cluster too, if it is up. If the cluster ends (or never starts), this process
-    computes what it had been given."""
+    computes what it had been given.
 
-    def __init__(self, plan, workers: int, background):
+    The cluster is started when it pays (``pays`` seconds, `CLUSTER_PAYS`; at once for 0):
+    once the work of a kind (branches, scans, tasks) not taken yet, each estimated at the
+    mean time of those this process finished, or at the time the one in hand has taken so
+    far if longer, comes to more than ``pays``. (Mirror images, made here at their turn,
+    are not counted: they cost nothing.)"""
+
+    def __init__(self, plan, workers: int, background, pays: float = 0.0):
         import queue
         self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
+        self.pays, self.started = pays, False
+        self._make = lambda: background(workers, self._on_result)
+        # seconds this process spent on each kind of work ("branch", "scan", "task") and how
+        # many it finished
         # the branches: the jobs of the current `run` (its ``level``: a result of an earlier
         # one, left out while its worker computed it, is dropped), the next to take from
         # each end, those on the cluster as (level, job), and those handed back
@@ -588,7 +625,39 @@ class _Alongside:
         # cluster, and those handed back (the cluster ended, or the task failed there)
         self.task_fn, self.tasks, self.task_front = None, [], 0
         self.task_claimed, self.task_returned = set(), []
-        self.background = background(workers, self._on_result)
+        self.spent: dict[str, list[float]] = {}
+        self.background = _Idle()
+        if pays <= 0:
+            self._start()
+
+    def _start(self):
+        """Start the cluster (once)."""
+        with self.lock:
+            if not self.started:
+                self.started = True
+                self.background = self._make()
+                self._feed()
+
+    def _consider(self, kind: str, left: int, running: float = 0.0):
+        """Start the cluster if it pays: ``left`` items of ``kind`` not taken yet, each
+        estimated at the mean of those finished here (``running``: the seconds of the one
+        in hand, at least that long)."""
+        if self.started or left <= 0:
+            return
+        seconds, count = self.spent.get(kind, (0.0, 0))
+        mean = seconds / count if count else 0.0
+        if max(mean, running) * left > self.pays:
+            self._start()
+
+    def _timed(self, kind: str, left: Callable[[], int], function, *args):
+        """``function(*args)`` computed here, its seconds added to ``spent[kind]``."""
+        t0 = time.perf_counter()
+        out = function(*args)
+        cost = self.spent.setdefault(kind, [0.0, 0])
+        cost[0] += time.perf_counter() - t0
+        cost[1] += 1
+        self._consider(kind, left())
+        return out
 
     def _on_result(self, tag, ok, value):
         """From the background's reading thread: a result, or the cluster up (tag None, ok)
@@ -695,6 +764,11 @@ class _Alongside:
         decided: dict[int, bool] = {}            # the branches do not change meanwhile
         made: dict[int, Branch] = {}             # the jobs' branches, for their mirror images
 
+        def branches_left():
+            with self.lock:
+                ahead = range(self.front, self.back + 1)
+                return sum(not jobs_list[i].mirror for i in ahead) + len(self.returned)
+
         def skipped(i):
             if i not in decided:
                 decided[i] = skip is not None and skip(i, branches)
@@ -756,7 +830,15 @@ class _Alongside:
                 continue
             if i < taken[0] or jobs_list[i].mirror:   # left out meanwhile (given back by
                 continue                         # the cluster), or made at its turn
-            br = compute_branch(self.plan, offset + i + 1, jobs_list[i], progress, stop.is_set)
+            t0 = time.perf_counter()
+
+            def watched(*args, t0=t0):
+                if progress is not None:
+                    progress(*args)
+                if not self.started:
+                    self._consider("branch", branches_left(), time.perf_counter() - t0)
+            br = self._timed("branch", branches_left, compute_branch, self.plan,
+                             offset + i + 1, jobs_list[i], watched, stop.is_set)
             done[i] = br
             flush()
             if br.interrupted:
@@ -803,6 +885,10 @@ class _Alongside:
         done: dict[int, object] = {}
         reported = set()
 
+        def tasks_left():
+            with self.lock:
+                return n - self.task_front + len(self.task_returned)
+
         def report():
             for i in sorted(set(done) - reported):
                 reported.add(i)
@@ -817,7 +903,7 @@ class _Alongside:
                 else:
                     i = None
             if i is not None:
-                done[i] = function(*self.tasks[i])
+                done[i] = self._timed("task", tasks_left, function, *self.tasks[i])
             else:                                # the rest is on the cluster: wait for it
                 try:
                     self._take(self.results.get(timeout=0.05), done)
@@ -845,7 +931,9 @@ class _Alongside:
                 self._feed()
                 key, params = self.unsent.pop(0) if self.unsent else (None, None)
             if key is not None:
-                self.scans[key] = (params, enumerate_equilibria(self.plan.problem, params))
+                self.scans[key] = (params, self._timed("scan", lambda: len(self.unsent),
+                                                       enumerate_equilibria, self.plan.problem,
+                                                       params))
                 continue
             try:
                 self._take(self.results.get(timeout=0.05), {})
