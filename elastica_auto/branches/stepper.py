@@ -243,7 +243,7 @@ class Course:
     ``events``: folds and branch points are located; False: the points alone, each with its
     directly counted index (what `analysis.snaps.subcritical` asks of the branches born at a
     branch point: on the isotropic rod's they keep the parameter constant, and every step
-    met a turn of its rounding that could not be located, a third of a 3D run's time)."""
+    met a turn of its rounding that could not be located: 8% of a 3D run's time)."""
 
     parameter: str
     options: ContinuationOptions

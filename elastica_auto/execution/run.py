@@ -563,7 +563,8 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
 #: more than this many seconds (`_Alongside`): its start-up takes about 1.6 s of wall time
 #: and as much CPU as three interpreters importing distributed, which on 2 cores is taken
 #: from the branches computed meanwhile. With the cluster started at once, rotating_arm (4
-#: branches computed of 8, about 0.5 s each) took 1.1x the time of --jobs 1.
+#: branches computed of 8, about 0.5 s each) took 0.95-1.13x the time of --jobs 1 (medians
+#: of three sittings): never the 0.65x a second core could give.
 CLUSTER_PAYS = 3.0
 
 
@@ -611,8 +612,6 @@ class _Alongside:
         self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
         self.pays, self.started = pays, False
         self._make = lambda: background(workers, self._on_result)
-        # seconds this process spent on each kind of work ("branch", "scan", "task") and how
-        # many it finished
         # the branches: the jobs of the current `run` (its ``level``: a result of an earlier
         # one, left out while its worker computed it, is dropped), the next to take from
         # each end, those on the cluster as (level, job), and those handed back
@@ -625,6 +624,8 @@ class _Alongside:
         # cluster, and those handed back (the cluster ended, or the task failed there)
         self.task_fn, self.tasks, self.task_front = None, [], 0
         self.task_claimed, self.task_returned = set(), []
+        # the seconds this process spent on each kind of work ("branch", "scan", "task") and
+        # how many of it it finished
         self.spent: dict[str, list[float]] = {}
         self.background = _Idle()
         if pays <= 0:
