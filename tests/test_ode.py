@@ -31,10 +31,13 @@ def test_linear_system_matches_the_matrix_exponential():
         assert np.max(np.abs(got[:, :, j] - want)) < 2e-10 * (1 + np.max(np.abs(want)))
 
 
-def test_pendulum_conserves_its_energy():
+@pytest.mark.parametrize("columns", [31, 3001])
+def test_pendulum_conserves_its_energy(columns):
     """theta'' = -sin theta over 10 time units, from rest at amplitudes up to 3.1 (next to
-    the separatrix, period about 17): E = omega^2 / 2 - cos theta stays within 1e-10."""
-    amp = np.linspace(0.1, 3.1, 31)
+    the separatrix, period about 17): E = omega^2 / 2 - cos theta stays within 1e-10. With
+    3001 columns (6002 numbers a stage) the stages' sums are made in blocks of columns
+    (`numerics.ode.SINGLE_THREAD_GEMV`), every block's columns checked."""
+    amp = np.linspace(0.1, 3.1, columns)
     y0 = np.vstack((amp, np.zeros_like(amp)))
     f = lambda t, y: np.vstack((y[1], -np.sin(y[0])))  # noqa: E731
     y1 = dop853(f, y0, 0.0, 10.0, rtol=1e-12, atol=1e-12)
@@ -88,3 +91,17 @@ def test_steps_shrink_as_an_eighth_order_method_does():
         dop853(f, y0, 0.0, 10.0, rtol=tol, atol=tol)
         counts.append(len(calls))
     assert 3.5 < counts[1] / counts[0] < 7.0
+
+
+def test_the_stage_sums_in_blocks_are_the_whole_product():
+    """`_combine` (the stages' weighted sums, in blocks of columns BLAS multiplies on one
+    thread) against numpy's product of the whole, over sizes below, at and across the
+    block's width, the last block short."""
+    from elastica_auto.numerics.ode import SINGLE_THREAD_GEMV, _combine
+    rng = np.random.default_rng(7)
+    for j in (1, 5, 11, 12):
+        cols = SINGLE_THREAD_GEMV // j
+        for n in (1, cols, cols + 1, 3 * cols - 7):
+            w, flat = rng.standard_normal(j), rng.standard_normal((j, n))
+            want = w @ flat
+            assert np.max(np.abs(_combine(w, flat) - want)) <= 1e-14 * np.max(np.abs(flat))
