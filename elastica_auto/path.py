@@ -74,7 +74,7 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
         return fn(*args, q, name)
 
     def shooting(p):
-        return base.shooting(eff(p))
+        return (*base.shooting(eff(p)), base.shooting_reflection(eff(p)))
 
     def second_variation(s, y, p):
         return base.second_variation(s, y, eff(p))

@@ -719,7 +719,10 @@ def shooting(p):
     ``residual`` = ((m(1) - a x F).e1, (m(1) - a x F).e2), whose component along F vanishes
     with m(0).F. In the plane (F in the x-y plane) k1 = m(0).e_z, the planar module's
     theta'(0), and planar states are k2 = 0. |k| <= `moment_bound` (the Hamiltonian), so the
-    box is [-bound, bound]^2 (docs/three-d.md, "Snap-back targets in 3D")."""
+    box is [-bound, bound]^2 (docs/three-d.md, "Snap-back targets in 3D"). At parameters
+    that keep the plane z = 0 (`keeps_plane`) its reflection z -> -z maps equilibria to
+    equilibria and (k1, k2) to (k1, -k2) (m(0) -> -S m(0) with S = diag(1, 1, -1), e1 = e_z
+    and e2 in the plane): the fifth item, (1, -1), halves the scan."""
     e1, e2 = load_frame(p)
     qc = clamp_quaternion(p)
     f = load(p)
@@ -736,7 +739,16 @@ def shooting(p):
         gap = yb[7:10] - np.cross(a, f, axis=0)
         return np.vstack((e1 @ gap, e2 @ gap))
 
-    return (-bound, -bound), (bound, bound), initial, residual
+    return ((-bound, -bound), (bound, bound), initial, residual,
+            (1, -1) if keeps_plane(p) else None)
+
+
+def keeps_plane(p) -> bool:
+    """The reflection z -> -z maps the problem at ``p`` to itself: the load, the arm and the
+    clamp's frame in or across the plane (beta, chi, phi0 multiples of pi) and no intrinsic
+    out-of-plane bending or twist (u2 = u3 = 0; the in-plane u1 is kept)."""
+    return (all(abs(math.sin(p[k])) <= SYMMETRIC for k in ("beta", "chi", "phi0"))
+            and p["u2"] == 0 and p["u3"] == 0)
 
 
 # ---- drawing -------------------------------------------------------------------------------

@@ -107,7 +107,7 @@ def test_shooting_residual_vanishes_at_collocation_solutions(arms):
     for st in states:
         p = st.params
         y = st.y
-        lo, hi, initial, residual = mod.shooting(p)
+        lo, hi, initial, residual, _ = mod.shooting(p)
         k = _frame_k(mod, y, p)
         assert np.all(np.abs(k) <= hi[0])                        # inside the bound
         assert abs(mod.load(p) @ y[7:10, 0]) < 1e-8              # m(0).F = 0
@@ -341,6 +341,98 @@ def test_scan_box_keeps_a_degenerate_root_and_polishes_coarse_roots():
     exact = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)))
     got = scan_box(r, np.array((-3.0, -3.0)), np.array((3.0, 3.0)), coarse=coarse)
     assert got.shape == exact.shape and np.max(np.abs(got - exact)) < 1e-12
+
+
+def _mirrored(k):
+    return k * np.array((1.0, -1.0))[:, None]
+
+
+@pytest.mark.parametrize("points", [10201, 10000])
+def test_scan_box_with_a_reflection_finds_the_full_scan_s_roots_from_half_the_grid(points):
+    """r = (x^2 + y^2 - 4, sin(3 y) - x y / 2) has r(x, -y) = (r1, -r2)(x, y): its roots
+    come in pairs (x, +-y), two on the mirror plane y = 0 (x = +-2). With the
+    reflection (1, -1) the scan finds the roots of the scan of the whole box (checked against
+    an independent bracketing in the test above) from a grid of about half its points, on
+    grids with the plane on a grid line (101 points an axis) and between two (100)."""
+    from elastica_auto.analysis.equilibria import scan_box
+
+    def r(k):
+        x, y = k
+        return np.vstack((x * x + y * y - 4, np.sin(3 * y) - x * y / 2))
+
+    lo, hi = np.array((-3.0, -3.0)), np.array((3.0, 3.0))
+    grids = []
+
+    def counted(k):
+        if not grids:
+            grids.append(k.shape[1])
+        return r(k)
+
+    full = scan_box(r, lo, hi, points=points)
+    half = scan_box(counted, lo, hi, points=points, reflection=(1, -1))
+    assert full.shape[1] >= 6 and half.shape == full.shape
+    for x in np.hstack((full, _mirrored(half))).T:     # the same roots (a pair's order
+        assert np.min(np.max(np.abs(half.T - x), axis=1)) < 1e-9     # is rounding's)
+    on_plane = full[:, np.abs(full[1]) < 1e-12]
+    assert np.allclose(np.sort(on_plane[0]), (-2.0, 2.0), atol=1e-12)
+    assert grids[0] <= 0.53 * points
+
+
+def test_the_rod_s_shooting_reflection_holds_where_it_is_given():
+    """At parameters that keep the plane z = 0 (load and arm in or across it, the clamp's
+    twist a multiple of pi, in-plane intrinsic curvature only) the tip residual of the
+    integrated rod satisfies r(k1, -k2) = (r1, -r2)(k1, k2), and the hook gives the
+    reflection (1, -1); where one of beta, chi, phi0, u2, u3 breaks it (b2 = 2), the
+    residuals do not, and the hook gives none."""
+    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    from elastica_auto.analysis.equilibria import _integrate
+
+    rod = load_problem(K3)
+    base = {**rod.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4, "b2": 2.0, "psi": 1.3,
+            "alpha": 0.4, "theta0": 0.2}
+    k = np.array(((1.3, 2.0, -3.1), (0.7, -1.1, 2.5)))
+
+    def gap(p):
+        _, _, initial, residual = rod.shooting(p)
+
+        def r(k):
+            y0 = initial(k)
+            return residual(y0, _integrate(rod, p, y0))
+        return float(np.max(np.abs(r(_mirrored(k)) - _mirrored(r(k)))))
+
+    keeping = [base, {**base, "u1": 0.7, "beta": math.pi, "chi": math.pi, "phi0": math.pi}]
+    for p in keeping:
+        assert mod.keeps_plane(p)
+        assert list(rod.shooting_reflection(p)) == [1.0, -1.0]
+        assert gap(p) < 1e-8
+    for name, value in (("beta", 0.2), ("chi", 0.3), ("phi0", 0.4), ("u2", 0.5),
+                        ("u3", 0.5)):
+        p = {**base, name: value}
+        assert rod.shooting_reflection(p) is None
+        assert gap(p) > 1e-3, name
+
+
+@pytest.mark.parametrize("bad", ["(1, 1)", "(1, -1, 1)", "(2, -1)", "(-1, 1)"])
+def test_a_bad_shooting_reflection_is_a_problem_error(tmp_path, bad):
+    """The hook's fifth item must be one sign (1 or -1) per unknown, one -1 at least, and
+    flip only components whose box is symmetric: the rod's box with its first component's
+    lower bound moved is not symmetric in it."""
+    from importlib.resources import files
+
+    from elastica_auto.core.errors import ProblemError
+
+    source = (files("elastica_auto.equations") / "kirchhoff_lever_arm.py").read_text()
+    old = "(1, -1) if keeps_plane(p) else None)"
+    assert source.count(old) == 1
+    source = source.replace(old, bad + ")")
+    if bad == "(-1, 1)":
+        old = "return ((-bound, -bound),"
+        assert source.count(old) == 1
+        source = source.replace(old, "return ((-2 * bound, -bound),")
+    (tmp_path / "mine.py").write_text(source)
+    rod = load_problem(tmp_path / "mine.py")
+    with pytest.raises(ProblemError, match="reflection"):
+        rod.shooting_reflection(rod.defaults())
 
 
 def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):

@@ -14,7 +14,9 @@ equation-module hook
     ``k_lo`` and ``k_hi`` may also be sequences of d >= 2 numbers: the unknown is then
     k in R^d, in the box between them, ``initial(k)`` takes k of shape (d, m) and
     ``residual`` returns (d, m) (for the spatial rod, d = 2: the clamp moment across the
-    load; its component along the load is conserved and zero).
+    load; its component along the load is conserved and zero). A fifth item, where not None,
+    is a reflection of the box: signs S with the roots in pairs k, S k at ``p`` (the spatial
+    rod's z -> -z at planar parameters), and the scan searches half the box.
 
 The scan integrates all grid values of k at once (`elastica_auto.numerics.ode.dop853`, at a
 loose tolerance, the values near zero again at the tight one), brackets every sign change,
@@ -107,7 +109,8 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
         keys = [float(k) for k in roots]
     else:
         roots = scan_box(r, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float),
-                         coarse=lambda k: r(k, SCAN_TOL))
+                         coarse=lambda k: r(k, SCAN_TOL),
+                         reflection=problem.shooting_reflection(params))
         keys = [tuple(float(v) for v in k) for k in roots.T]
     if len(keys) == 0:
         return []
@@ -185,7 +188,7 @@ AITKEN_COS, AITKEN_Q = 0.99, (0.3, 0.7)
 
 
 def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
-             coarse=None) -> np.ndarray:
+             coarse=None, reflection=None) -> np.ndarray:
     """The roots (d, n) of ``r: (d, m) -> (d, m)`` in the box ``[lo, hi]`` of R^d, sorted
     lexicographically.
 
@@ -197,33 +200,47 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
     (a looser integration): the grid is computed with it, and Newton runs on it until
     COARSE_ROOT, the candidates not given up merged, then on ``r``. (Each Newton step
     integrates d + 1 columns a candidate; most are those of candidates still on their way,
-    and at the loose tolerance they take about half the time.)"""
+    and at the loose tolerance they take about half the time.)
+
+    ``reflection``: signs S (d,) of +-1 such that the roots come in pairs k, S k (the box
+    symmetric in each component S flips). Only the half of the grid where S k >= k, from one
+    row of cells below each mirror plane (a root on the plane then lies inside its cells'
+    blocks), is computed and searched from, and each root found is given with its image."""
     d = len(lo)
     n = max(int(round(points ** (1.0 / d))), 3)
-    axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
     box = _Box(lo, hi, np.maximum(hi - lo, 1e-300), (hi - lo) / (n - 1))
+    flip = np.zeros(d, bool) if reflection is None else np.asarray(reflection) < 0
+    # each axis from its first grid point (index first[i]) on: one below the mirror plane
+    first = np.where(flip, n // 2 - 1, 0)
+    axes = [np.linspace(lo[i], hi[i], n)[first[i]:] for i in range(d)]
+    shape = np.array([len(a) for a in axes])
     grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1)
-    rs = (coarse or r)(grid).reshape((d,) + (n,) * d)
+    rs = (coarse or r)(grid).reshape((d, *shape))
     scale = max(float(np.max(np.abs(rs))), 1e-300)
-    ok = np.ones((n - 2,) * d, bool)
+
+    def shifted(o):
+        return tuple(slice(o[i], o[i] + shape[i] - 2) for i in range(d))
+
+    ok = np.ones(shape - 2, bool)
     for comp in rs:
-        blocks = [comp[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
-                  for o in np.ndindex(*(3,) * d)]
+        blocks = [comp[shifted(o)] for o in np.ndindex(*(3,) * d)]
         ok &= (np.min(blocks, axis=0) <= 0) & (np.max(blocks, axis=0) >= 0)
     # and every grid point where |r| is smallest among its 3^d neighbours (a root between
     # grid points where a component's zero set does not separate the block's points)
     size = np.max(np.abs(rs), axis=0)
-    inner = size[(slice(1, n - 1),) * d]
+    inner = size[shifted((1,) * d)]
     least = np.ones_like(inner, bool)
     for o in np.ndindex(*(3,) * d):
-        least &= inner <= size[tuple(slice(o[i], o[i] + n - 2) for i in range(d))]
+        least &= inner <= size[shifted(o)]
     corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
-    k = lo[:, None] + (corners + 1.0) * box.cell[:, None]     # its centre
+    k = lo[:, None] + (first[:, None] + corners + 1.0) * box.cell[:, None]     # its centre
     if coarse is not None:
         k = _distinct(_newton(coarse, k, box, COARSE_ROOT * scale, np.inf, max_iter),
                       box.width)
     k = _newton(r, k, box, ROOT_SIZE * scale, ROOT_STEP, max_iter)
     final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
+    if flip.any():     # the image of a root is one, as accurate
+        k, final = np.hstack((k, np.where(flip[:, None], -k, k))), np.tile(final, 2)
     inside = np.all((k >= lo[:, None] - box.cell[:, None] / 2)
                     & (k <= hi[:, None] + box.cell[:, None] / 2), axis=0)
     return _distinct(k[:, inside & (final < ROOT_SIZE * scale)], box.width)

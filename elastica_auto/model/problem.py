@@ -46,10 +46,11 @@ and optionally
     (`elastica_auto.model.second_variation`); or the scalar tuple ``(a, b, c)`` for ``int_0^1
     (a h'^2 + b h^2) ds + c h(1)^2`` with ``h(0) = 0``. Enables the stability index (see
     `elastica_auto.numerics.stability`).
-``shooting(p)`` -> ``(k_lo, k_hi, initial, residual)``
-    a one-parameter shooting formulation: the equilibria at ``p`` are the roots k in
-    [k_lo, k_hi] of ``residual(initial(k), y(1))``; enables the scan for snap-back targets
-    (see `elastica_auto.analysis.snaps`).
+``shooting(p)`` -> ``(k_lo, k_hi, initial, residual[, reflection])``
+    a shooting formulation: the equilibria at ``p`` are the roots k in [k_lo, k_hi] of
+    ``residual(initial(k), y(1))``; enables the scan for snap-back targets (see
+    `elastica_auto.analysis.snaps`). ``reflection``: signs S with the roots in pairs k, S k
+    at ``p``, or None (`elastica_auto.analysis.equilibria`).
 ``gradient_flow(p, nodes)`` -> `elastica_auto.analysis.landing.Flow`
     the energy of the equilibria at ``p`` discretised on ``nodes`` (a uniform grid of
     [0, 1]) and its overdamped dynamics; enables where a snap lands (see
@@ -521,7 +522,24 @@ class Problem:
 
     def shooting(self, p):
         """(k_lo, k_hi, initial(k) -> y(0), residual(y(0), y(1))) for enumerating equilibria."""
-        return self._shooting(p)
+        return tuple(self._shooting(p))[:4]
+
+    def shooting_reflection(self, p):
+        """The signs S (d,) of the shooting box's reflection at ``p`` (the roots k come in
+        pairs k, S k): the hook's optional fifth item, checked; None where it gives none."""
+        out = tuple(self._shooting(p))
+        if len(out) < 5 or out[4] is None:
+            return None
+        lo, hi, signs = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (*out[:2], out[4]))
+        if not (lo.ndim == 1 and len(lo) >= 2 and signs.shape == lo.shape
+                and np.all(np.abs(signs) == 1) and np.any(signs < 0)):
+            raise ProblemError(f"{self.source}: shooting(p)'s reflection must be {len(lo)} "
+                               f"signs (1 or -1, one -1 at least) of a box of two or more "
+                               f"unknowns; got {out[4]!r}")
+        if np.any((signs < 0) & (lo != -hi)):
+            raise ProblemError(f"{self.source}: shooting(p)'s reflection {out[4]!r} flips "
+                               "components whose box is not symmetric (k_lo != -k_hi)")
+        return signs
 
     @property
     def has_gradient_flow(self) -> bool:
