@@ -59,18 +59,23 @@ STAGE_TOL, STAGE_ITER = 1e-14, 12
 def tableau(k: int):
     """(tau (k,), A (k, k), b (k,), dk (k,), c_k): Gauss-Legendre points on [0, 1], the
     collocation (Runge-Kutta) coefficients, ``dk_l = l_l^(k-1)`` and the error constant."""
-    x, _ = np.polynomial.legendre.leggauss(k)
-    tau = (x + 1) / 2
-    coef = np.linalg.inv(np.vander(tau, k, increasing=True))   # l_l = sum_p coef[p, l] t^p
-    powers = np.arange(k)
+    x, w = np.polynomial.legendre.leggauss(k)
+    tau, b = (x + 1) / 2, w / 2
+    # the Lagrange basis l_l(t) = prod_{m != l} (t - tau_m) / (tau_l - tau_m) by its product
+    # (the inverse of the Vandermonde matrix, cond ~1e5 at k = 7, gave the coefficients to
+    # 1e-13 only, and how near depended on the BLAS kernel); a_jl = int_0^tau_j l_l by the
+    # rule itself scaled to [0, tau_j] (exact: l_l has degree k - 1)
+    gaps = tau[:, None] - tau[None, :]
+    np.fill_diagonal(gaps, 1.0)
+    denominators = np.prod(gaps, axis=1)             # prod_{m != l} (tau_l - tau_m)
 
-    def integral(t):          # int_0^t l_l, shape (len(t), k)
-        t = np.asarray(t, dtype=float)[:, None]
-        return (t ** (powers + 1) / (powers + 1)) @ coef
+    def basis(t):             # l_l(t), shape (len(t), k)
+        d = np.asarray(t, dtype=float)[:, None] - tau[None, :]
+        return np.stack([np.prod(np.delete(d, j, axis=1), axis=1) for j in range(k)],
+                        axis=1) / denominators
 
-    A = integral(tau)
-    b = integral([1.0])[0]
-    dk = math.factorial(k - 1) * coef[k - 1]
+    A = np.array([tj * (b @ basis(tj * tau)) for tj in tau])
+    dk = math.factorial(k - 1) / denominators
     # c_k: the largest |int_0^tau prod (t - tau_j) dt| on [0, 1], on a fine grid
     t = np.linspace(0.0, 1.0, 2001)
     prod = np.polynomial.polynomial.polyfromroots(tau)
