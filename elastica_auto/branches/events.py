@@ -255,7 +255,7 @@ def locate_branch_point(corr, step: Step) -> Located:
             if s is step.b.mesh or not solved_here:
                 _check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
-        s, xtol = corr.regrid(s, rms, corr.options.fold_tol), BP_XTOL
+        s, xtol = corr.fold_mesh(s, rms), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
 

@@ -41,7 +41,8 @@ COARSEN_BELOW, COARSEN_SIZE = 1 / 64, 0.7
 #: previous tangent) while that is within acos(STALE_NORMAL) of the tangent; else the
 #: tangent's own hyperplane, through a rank-one update.
 STALE_NORMAL = 0.5
-#: A fold's mesh aims at this fraction of fold_tol (it serves no further step).
+#: A fold's or branch point's mesh aims at this fraction of fold_tol (it serves no further
+#: step; `fold_mesh`).
 FOLD_TARGET = 0.5
 #: Regrid-and-resolve rounds before a solve is given up.
 MESH_ROUNDS = 4
@@ -203,6 +204,15 @@ class Collocation:
         return equidistributed_mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
                                     opt.ntst, opt.max_nodes - 1, self.disc(s).order)
 
+    def fold_mesh(self, s, rms):
+        """The mesh, equidistributed from the error estimate ``rms`` on ``s``, on which a fold
+        or a branch point is solved again with its kernel: aimed at FOLD_TARGET of
+        ``fold_tol`` (it serves no further step, and a located point needs its solution and
+        kernel within fold_tol only)."""
+        opt = self.options
+        return equidistributed_mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
+                                    opt.max_nodes - 1, self.disc(s).order)
+
     def next_mesh(self, a: Solution):
         """The mesh for the step from ``a``: its own while its error estimate stays between
         COARSEN_BELOW tol and REFINE_ABOVE tol, else an equidistributed one (a coarser one
@@ -296,8 +306,7 @@ class Collocation:
             state = State(disc.s, res.Y, ev.f, self.problem.point_params(p, res.Y))
             if rms.max() <= opt.fold_tol:
                 return FoldPoint(state, res.phi, float(rms.max()))
-            disc = self.disc(equidistributed_mesh(disc.s, rms, FOLD_TARGET * opt.fold_tol,
-                                                  opt.ntst, opt.max_nodes - 1, disc.order))
+            disc = self.disc(self.fold_mesh(disc.s, rms))
             Y, lam, t = state(disc.s), res.lam, res.phi
         raise CorrectorFailure(f"fold: error estimate {rms.max():.2e} > fold_tol after "
                                f"{MESH_ROUNDS} meshes")
