@@ -145,6 +145,55 @@ def test_the_snap_back_targets_at_the_image_are_those_scanned_there(arm_runs):
                 assert a[name] == pytest.approx(b[name], abs=1e-7), name
 
 
+def test_a_fold_s_image_by_a_period_is_made_from_the_scan_there(planar, monkeypatch):
+    """One branch through three periods: LP1 at psi = 0.817 and LP2 at -7.100, the image of
+    LP1 moved by -2 pi (psi's period leaves the states as they are). LP2's rows are made
+    from LP1's scan, mirrored: half the enumerations of the run without the mirror, and
+    the same rows as it, its targets, shooting values and ordinates within the scan's root
+    accuracy (7e-9 (1 + |k|))."""
+    import elastica_auto.analysis.snaps as snaps
+
+    scanned = []
+    enumerate_equilibria = snaps.enumerate_equilibria
+
+    def counted(problem, params):
+        scanned.append(params["psi"])
+        return enumerate_equilibria(problem, params)
+    monkeypatch.setattr(snaps, "enumerate_equilibria", counted)
+    runs = {}
+    for mirror in (True, False):
+        scanned.clear()
+        run = ea.continuation(planar, ARM, "psi", bounds=(-3 * math.pi, 3 * math.pi),
+                              directions="+", mirror=mirror)
+        assert len(run) == 1
+        runs[mirror] = (run.snaps, list(scanned))
+    (mirrored, once), (computed, twice) = runs[True], runs[False]
+    assert len(twice) >= 2 and len(once) == len(twice) // 2
+    lps = {r["lp"]: r["value"] for r in computed}
+    assert any(abs(v + lps["LP1"] + 2 * math.pi) < 1e-9 for v in lps.values())
+    assert len(mirrored) == len(computed)
+    for a, b in zip(mirrored, computed):
+        assert (a["lp"], a["index"], a["on_branch"]) == (b["lp"], b["index"], b["on_branch"])
+        for name in a:
+            if name.startswith("target_") or name in ("k", "value"):
+                assert a[name] == pytest.approx(b[name], abs=1e-7), name
+
+
+@pytest.mark.parametrize("module", ["elastica_lever_arm", "kirchhoff_lever_arm"])
+def test_only_a_period_that_leaves_the_states_makes_copies(module):
+    """psi's period changes no state: psi and psi + 2 pi have one `copy_key`. theta0's turns
+    the clamp and with it the states (the planar theta by 2 pi, the rod's quaternion to
+    -q): its copies keep their own keys."""
+    from elastica_auto.analysis.snaps import copy_key
+
+    problem = ea.load_problem(module)
+    p = {**problem.defaults(), "psi": 0.8, "theta0": 0.3}
+    assert copy_key(problem, "psi", p) == copy_key(problem, "psi", {**p, "psi": 0.8 - 4 * math.pi})
+    assert copy_key(problem, "psi", p) != copy_key(problem, "psi", {**p, "psi": 0.9})
+    moved = {**p, "theta0": 0.3 + 2 * math.pi}
+    assert copy_key(problem, "theta0", p) != copy_key(problem, "theta0", moved)
+
+
 def test_the_plus_branch_is_the_one_computed_without_the_mirror(arm_runs):
     (plus, _), (plus0, _) = arm_runs
     assert len(plus.points) == len(plus0.points) and not plus.mirror_points

@@ -154,24 +154,36 @@ def own_key(params: dict) -> tuple:
     return tuple(sorted((q, round(v, 10)) for q, v in params.items()))
 
 
-def mirror_key(problem, params: dict) -> tuple | None:
-    """`own_key` of the mirror image of ``params`` (the module's ``MIRROR``, where it says how
-    the shooting unknowns turn), or None."""
+def copy_key(problem, parameter: str, params: dict) -> tuple:
+    """`own_key` of ``params`` with ``parameter`` taken modulo its period where a period
+    leaves the states as they are (no ``period_shift`` or ``period_flip``): the enumerations
+    at such copies are the same, states included (a clamp turned by 2 pi is not such a
+    copy: its quaternion changes sign)."""
+    q = problem.parameters[parameter]
+    if q.period and not q.period_shift and not q.period_flip:
+        params = {**params, parameter: float(np.remainder(params[parameter], q.period))}
+    return own_key(params)
+
+
+def mirror_key(problem, parameter: str, params: dict) -> tuple | None:
+    """`copy_key` of the mirror image of ``params`` (the module's ``MIRROR``, where it says
+    how the shooting unknowns turn), or None."""
     mirror = getattr(problem, "mirror", None)
     if mirror is None or not mirror[2].shooting:
         return None
-    return own_key(problem.mirrored(np.zeros((problem.n, 0)), params)[1])
+    return copy_key(problem, parameter, problem.mirrored(np.zeros((problem.n, 0)), params)[1])
 
 
-def mirrored_scan(problem, params: dict, exact: dict) -> list[Equilibrium] | None:
+def mirrored_scan(problem, parameter: str, params: dict,
+                  copies: dict) -> list[Equilibrium] | None:
     """The equilibria at ``params`` as the mirror images of those enumerated at the image of
-    ``params`` (``exact``: `own_key` -> `enumerate_equilibria` there), in the order
-    `enumerate_equilibria` gives them; None if that enumeration is not there, or if an
-    image's initial values are not those of its shooting unknowns turned by the declared
-    signs (then the scan is computed). Each image: the state turned, the ordinates negated
-    as declared, the same index (`elastica_auto.branches.mirror`)."""
-    key = mirror_key(problem, params)
-    there = exact.get(key) if key is not None else None
+    ``params`` or at a copy of it (``copies``: `copy_key` -> `enumerate_equilibria` there),
+    in the order `enumerate_equilibria` gives them; None if that enumeration is not there,
+    or if an image's initial values are not those of its shooting unknowns turned by the
+    declared signs (then the scan is computed). Each image: the state turned, the ordinates
+    negated as declared, the same index (`elastica_auto.branches.mirror`)."""
+    key = mirror_key(problem, parameter, params)
+    there = copies.get(key) if key is not None else None
     if there is None:
         return None
     _, _, mirror = problem.mirror
@@ -223,14 +235,15 @@ def snap_targets(problem, branches, warnings: list | None = None,
     parameter, another copy's differ by a period, and so may its equilibria's states), and
     the others are computed here: the rows are the same whoever computed them.
 
-    ``mirror``: the enumeration at the mirror image of parameters enumerated already is made
-    from that one (`mirrored_scan`) rather than computed (the run's option ``mirror``)."""
+    ``mirror``: the enumeration at the mirror image of parameters enumerated already, or of
+    a copy of them by a period that leaves the states as they are (`copy_key`), is made from
+    that one (`mirrored_scan`) rather than computed (the run's option ``mirror``)."""
     if not (problem.has_shooting and problem.has_second_variation):
         return []
     from .landing import landing_task, one_by_one
     warnings = warnings if warnings is not None else []
     landing = landing and problem.has_gradient_flow
-    given, cache, exact = cache or {}, {}, {}
+    given, cache, exact, copies = cache or {}, {}, {}, {}
     folds, tasks, where = [], [], {}
     for nb, br in enumerate(branches, start=1):
         name = br.parameter
@@ -240,9 +253,9 @@ def snap_targets(problem, branches, warnings: list | None = None,
             own = own_key(params)
             if key not in cache:
                 there = given.get(key)
-                cache[key] = exact[own] = (
+                cache[key] = exact[own] = copies[copy_key(problem, name, params)] = (
                     there[1] if there is not None and there[0] == params
-                    else mirror and mirrored_scan(problem, params, exact)
+                    else mirror and mirrored_scan(problem, name, params, copies)
                     or enumerate_equilibria(problem, params))
             at = None
             if landing and p.type == "BP":

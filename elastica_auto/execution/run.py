@@ -19,7 +19,7 @@ import numpy as np
 
 from ..analysis.equilibria import enumerate_equilibria
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import mirror_key, own_key, scans, snap_targets
+from ..analysis.snaps import copy_key, mirror_key, scans, snap_targets
 from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin, start_point
@@ -618,7 +618,7 @@ class _Alongside:
         self.jobs, self.front, self.back, self.offset, self.level = [], 0, -1, 0, 0
         self.claimed, self.returned = set(), []
         self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
-        self.sent: set[tuple] = set()      # the parameters of the scans sent (`own_key`)
+        self.sent: set[tuple] = set()      # the parameters of the scans sent (`copy_key`)
         self.pending_params: dict[tuple, dict] = {}
         # the tasks of `map`: the function, its arguments, the next to take, those on the
         # cluster, and those handed back (the cluster ended, or the task failed there)
@@ -860,9 +860,11 @@ class _Alongside:
         for key, params in scans(problem, br).items():
             if key not in self.seen:
                 self.seen.add(key)
-                if self.plan.options.mirror and mirror_key(problem, params) in self.sent:
+                name = br.parameter
+                if (self.plan.options.mirror
+                        and mirror_key(problem, name, params) in self.sent):
                     continue
-                self.sent.add(own_key(params))
+                self.sent.add(copy_key(problem, name, params))
                 self.pending_params[key] = params
                 with self.lock:
                     self.unsent.append((key, params))
