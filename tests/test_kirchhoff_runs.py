@@ -220,6 +220,43 @@ def test_the_rod_snaps_at_its_subcritical_out_of_plane_branch_points(arms):
     np.testing.assert_allclose(sorted(by_bp[1.0]), sorted(-np.array(by_bp[-1.0])), atol=1e-8)
 
 
+def test_a_branch_point_s_degenerate_root_is_one_equilibrium(arms):
+    """At the branch point psi = 1.1695 of b2 = 2 (a pitchfork: across its own state the tip
+    residual grows like a cube) the box scan's planar roots (k2 = 0) are the planar
+    module's equilibria there, found by its own 1D scan, each once. (Newton's candidates
+    settle all along the flat direction: 13 roots within 1.6e-4 of the branch point's own
+    before they were merged.)"""
+    from elastica_auto.analysis.equilibria import enumerate_equilibria
+    planar, rod, _, rods = arms
+    (bp,) = [p for _, p in labelled(rods, "BP") if p.params["psi"] > 0]
+    roots = enumerate_equilibria(rod, bp.params)
+    flat = [e.k[0] for e in roots if abs(e.k[1]) < 1e-3]
+    want = [e.k for e in enumerate_equilibria(planar, {**BASE, "psi": bp.params["psi"],
+                                                        "alpha": 0.0, "theta0": 0.0})]
+    assert len(want) >= 3 and len(flat) == len(want)
+    np.testing.assert_allclose(sorted(flat), sorted(want), atol=1e-5)
+
+
+def test_close_roots_are_merged_only_where_r_stays_small_between_them():
+    """`_merged`: of a cubic root's settled candidates (r = (x, y^3), 1e-4 apart) one is
+    kept, the one of least |r|; two simple roots 5e-4 of the box apart (r = (x, (y - a)(y -
+    a - 0.002))) are both kept, as are roots further apart than MERGE_SPAN."""
+    from elastica_auto.analysis.equilibria import _merged
+
+    width, tol = np.array((4.0, 4.0)), 4e-9
+
+    def cubic(k):
+        return np.vstack((k[0], k[1] ** 3))
+    k = np.array(((0.0, 0.0, 0.0, 1.0), (-1e-4, 2e-6, 1e-4, 0.0)))
+    size = np.max(np.abs(cubic(k)), axis=0)
+    np.testing.assert_array_equal(_merged(cubic, k, size, width, tol), k[:, [1, 3]])
+
+    def pair(k):
+        return np.vstack((k[0], (k[1] - 0.1) * (k[1] - 0.102)))
+    k = np.array(((0.0, 0.0), (0.1, 0.102)))
+    np.testing.assert_array_equal(_merged(pair, k, np.zeros(2), width, tol), k)
+
+
 def test_a_branch_point_s_own_root_is_no_target_whatever_the_cached_states(arms):
     """The scan cached for a periodic copy of a branch point may have other states for the
     same equilibria (turning the clamp by 2 pi flips the quaternion): the point's own root
@@ -327,7 +364,7 @@ def test_scan_box_keeps_a_degenerate_root_and_polishes_coarse_roots():
 
     cubic = _Counted(lambda k: np.vstack((k[0] - 0.5, (k[1] + 0.25) ** 3)))
     got = scan_box(cubic, np.array((-2.0, -2.0)), np.array((2.0, 2.0)))
-    assert got.shape[0] == 2 and got.shape[1] >= 1
+    assert got.shape == (2, 1)                  # one root, not the candidates' settled span
     assert np.max(np.abs(got[0] - 0.5)) < 1e-12 and np.max(np.abs(got[1] + 0.25)) < 2e-3
     assert cubic.calls - 1 < 40
 

@@ -243,7 +243,9 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
         k, final = np.hstack((k, np.where(flip[:, None], -k, k))), np.tile(final, 2)
     inside = np.all((k >= lo[:, None] - box.cell[:, None] / 2)
                     & (k <= hi[:, None] + box.cell[:, None] / 2), axis=0)
-    return _distinct(k[:, inside & (final < ROOT_SIZE * scale)], box.width)
+    kept = inside & (final < ROOT_SIZE * scale)
+    return _distinct(_merged(r, k[:, kept], final[kept], box.width, ROOT_SIZE * scale),
+                     box.width)
 
 
 @dataclass
@@ -321,12 +323,45 @@ def _aitken(step, previous):
     return step * factor, np.where(geometric, 0.0, step)
 
 
+#: Roots closer than MERGE_SPAN of the box (in every component) between which |r| stays below
+#: the root's size are one root; closer than DISTINCT, one root whatever r.
+MERGE_SPAN, DISTINCT = 1e-3, 1e-6
+
+
+def _merged(r, k, size, width, size_tol) -> np.ndarray:
+    """The roots ``k`` (d, m), each set of them that are one degenerate root taken as its
+    member of least max |r_j| (``size``). Where r grows like a cube across a root (a branch
+    point's own equilibrium, r ~ c x^3 along its kernel), every point within about
+    (size_tol / c)^(1/3) of it is a root to size_tol, and Newton's candidates settle all
+    over that span (13 roots within 1.6e-4 at one of the spatial rod's branch points). Two
+    roots closer than MERGE_SPAN of the box are one where |r| at their midpoint is below
+    ``size_tol`` too: between two simple roots d apart it is about |r'| d / 2, far above."""
+    m = k.shape[1]
+    if m < 2:
+        return k
+    apart = np.max(np.abs(k[:, :, None] - k[:, None, :]) / width[:, None, None], axis=0)
+    i, j = np.nonzero(np.triu(apart < MERGE_SPAN, 1))
+    # pairs closer than `_distinct`'s 1e-6 are one without asking (a root and its image)
+    ask = apart[i, j] >= DISTINCT
+    if not ask.any():
+        return k
+    one = ~ask
+    one[ask] = np.max(np.abs(r(0.5 * (k[:, i[ask]] + k[:, j[ask]]))), axis=0) < size_tol
+    group = np.arange(m)
+    for a, b in zip(i[one], j[one]):      # union of the pairs, each set by its first member
+        ga, gb = group[a], group[b]
+        group[group == max(ga, gb)] = min(ga, gb)
+    best = [members[np.argmin(size[members])]
+            for members in (np.flatnonzero(group == g) for g in np.unique(group))]
+    return k[:, np.sort(best)]
+
+
 def _distinct(k, width) -> np.ndarray:
-    """The columns of ``k`` sorted lexicographically, each one closer than 1e-6 of the box
-    (``width``) to one kept before it left out."""
+    """The columns of ``k`` sorted lexicographically, each one closer than DISTINCT of the
+    box (``width``) to one kept before it left out."""
     roots: list[np.ndarray] = []
     for x in k.T[np.lexsort(k[::-1])]:
-        if not any(np.max(np.abs(x - y) / width) < 1e-6 for y in roots):
+        if not any(np.max(np.abs(x - y) / width) < DISTINCT for y in roots):
             roots.append(x)
     return np.array(roots).T if roots else np.zeros((k.shape[0], 0))
 
