@@ -257,6 +257,25 @@ def test_close_roots_are_merged_only_where_r_stays_small_between_them():
     np.testing.assert_array_equal(_merged(pair, k, np.zeros(2), width, tol), k)
 
 
+def test_a_candidate_circling_a_root_found_is_given_up():
+    """r = (x, sign(y) |y|^(1/1.95)): Newton maps y to -0.95 y, so a candidate started at
+    y = 2e-3 (5e-4 of the box) circles the root (0, 0) for ever, its |r| falling by 2.6% a
+    step (no stall, no Aitken: the steps alternate). Once the candidate started on y = 0 has
+    found the root, the other is given up after STRAGGLE_STEPS, not after all 40."""
+    from elastica_auto.analysis.equilibria import STRAGGLE_STEPS, _Box, _newton
+
+    calls = []
+
+    def r(k):
+        calls.append(k.shape[1])
+        return np.vstack((k[0], np.sign(k[1]) * np.abs(k[1]) ** (1 / 1.95)))
+    lo, hi = np.array((-2.0, -2.0)), np.array((2.0, 2.0))
+    box = _Box(lo, hi, hi - lo, (hi - lo) / 100)
+    got = _newton(r, np.array(((0.3, 0.01), (0.0, 2e-3))), box, 1e-9, 1e-12, 40)
+    assert got.shape == (2, 1) and np.max(np.abs(got)) < 1e-12
+    assert len(calls) == STRAGGLE_STEPS
+
+
 def test_a_branch_point_s_own_root_is_no_target_whatever_the_cached_states(arms):
     """The scan cached for a periodic copy of a branch point may have other states for the
     same equilibria (turning the clamp by 2 pi flips the quaternion): the point's own root

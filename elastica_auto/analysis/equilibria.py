@@ -179,6 +179,10 @@ ROOT_SIZE, ROOT_STEP, COARSE_ROOT = 1e-9, 1e-12, 1e-6
 #: A candidate whose max |r_j| stayed below the root's size for SETTLE_STEPS steps is a root,
 #: however long its steps.
 SETTLE_STEPS = 3
+#: A candidate not done after STRAGGLE_STEPS steps within MERGE_SPAN of a root found is given
+#: up: a degenerate root's candidates circle it for 20-30 steps (1-8 of them, at a branch
+#: point's parameters), each step an integration of the few still live.
+STRAGGLE_STEPS = 10
 #: A double root (the fold's own equilibrium, in a scan at a fold) takes Newton steps that
 #: halve: where two successive steps are parallel (cosine above AITKEN_COS) and the second
 #: is a fraction q in AITKEN_Q of the first, the step is taken as s / (1 - q), the limit of
@@ -305,8 +309,16 @@ def _newton(r, k, box: _Box, size_tol: float, step_tol: float, max_iter: int) ->
         settled = np.zeros(len(live), bool)
         if it >= SETTLE_STEPS - 1:
             settled = np.max(history[it - SETTLE_STEPS + 1: it + 1, live], axis=0) < size_tol
-        done[live[converged | outside | stalled | settled]] = True
-        lost[live[outside | stalled]] = True
+        # a candidate still on its way after STRAGGLE_STEPS next to a root found (`_merged`
+        # would make them one): the tail of a degenerate root's, whose steps circle it
+        straggling = np.zeros(len(live), bool)
+        found = k[:, done & ~lost]
+        if it >= STRAGGLE_STEPS - 1 and found.shape[1]:
+            gap = np.abs(k[:, live][:, :, None] - found[:, None, :]) / box.width[:, None, None]
+            straggling = ~(converged | settled) & np.any(
+                np.all(gap < MERGE_SPAN, axis=0), axis=1)
+        done[live[converged | outside | stalled | settled | straggling]] = True
+        lost[live[outside | stalled | straggling]] = True
     return k[:, ~lost]
 
 
