@@ -312,8 +312,8 @@ def _newton(r, k, box: _Box, size_tol: float, step_tol: float, max_iter: int) ->
         # a candidate still on its way after STRAGGLE_STEPS next to a root found (`_merged`
         # would make them one): the tail of a degenerate root's, whose steps circle it
         straggling = np.zeros(len(live), bool)
-        found = k[:, done & ~lost]
-        if it >= STRAGGLE_STEPS - 1 and found.shape[1]:
+        found = k[:, done & ~lost] if it >= STRAGGLE_STEPS - 1 else k[:, :0]
+        if found.shape[1]:
             gap = np.abs(k[:, live][:, :, None] - found[:, None, :]) / box.width[:, None, None]
             straggling = ~(converged | settled) & np.any(
                 np.all(gap < MERGE_SPAN, axis=0), axis=1)
