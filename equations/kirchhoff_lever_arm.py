@@ -450,79 +450,39 @@ def _qnorm(s, y, p):
     return float(np.max(np.abs(np.linalg.norm(y[3:7], axis=0) - 1.0)))
 
 
-#: A form is planar (its e_z component decoupled) where no coefficient couples e_z to the
-#: plane above this, relative to the largest coefficient: the continuation keeps the
-#: out-of-plane rows of planar states at rounding level (seen below 1e-12).
-DECOUPLED = 1e-9
+#: The second variation's parts (`SecondVariation` ``parts``): at a planar state the form
+#: decouples into its e_z component (rotations in the plane) and its (e_x, e_y) components
+#: (rotations out of it). The engine counts each part at every point of a branch, and the
+#: ordinates of the same names take those counts.
+PARTS = {"index_in": [2], "index_out": [0, 1]}
 
 
-def _blocks(s, y, p):
-    """The in-plane (e_z) and out-of-plane ((e_x, e_y)) blocks of the second variation at a
-    state given on the nodes ``s``, each as ``evaluate(pts)`` for `stability.count_form`
-    (the state interpolated by cubic Hermite with the slopes of the ODE, as the engine
-    does), or None where the form does not decouple (a non-planar state). The spatial form
-    is evaluated once per point set and sliced for both blocks (count_form asks first for
-    the nodes and midpoints, where the decoupling is checked too)."""
+def part_counts(s, y, p, shift: float = 0.0) -> dict[str, int]:
+    """The index of each of the second variation's parts (PARTS) at the state given on the
+    nodes ``s`` less ``shift`` times the L2 product, -1 for both at a non-planar state and
+    for a part with a zero eigenvalue (the state interpolated by cubic Hermite with the
+    slopes of the ODE, as the engine does). Where the engine has not counted them: snap-back
+    targets, mirror images."""
     from elastica_auto.core.solution import State
-    from elastica_auto.numerics.stability import nodes_and_midpoints
+    from elastica_auto.numerics.stability import count_form
     state = State(s, y, rhs(s, y, p), p)
-    forms = {}
-
-    def full(pts):
-        key = pts.tobytes()
-        if key not in forms:
-            forms[key] = second_variation(pts, state(pts), p)
-        return forms[key]
-
-    form = full(nodes_and_midpoints(s))
-    scale = max(np.max(np.abs(form.A)), np.max(np.abs(form.B)), np.max(np.abs(form.C)),
-                np.max(np.abs(form.E1)))
-    coupling = max(np.max(np.abs(m[:, 2, :2])) + np.max(np.abs(m[:, :2, 2]))
-                   for m in (form.A, form.B, form.C, form.E1[None]))
-    if not coupling <= DECOUPLED * scale:
-        return None
-
-    def block(rows):
-        def evaluate(pts):
-            f = full(pts)
-
-            def sub(m):
-                return m[:, rows][:, :, rows].transpose(1, 2, 0)
-            # the symmetry's zero mode, e - d3, lies in the out-of-plane block (L2-normalised:
-            # its in-plane component is rounding)
-            modes = [Constraint(c.g[rows], kernel=c.kernel) for c in f.constraints
-                     if np.max(np.abs(c.g[rows])) > DECOUPLED * np.max(np.abs(c.g))]
-            return SecondVariation(sub(f.A), sub(f.B), sub(f.C), E1=f.E1[np.ix_(rows, rows)],
-                                   fixed0=list(range(len(rows))), constraints=modes)
-        return evaluate
-    return block([2]), block([0, 1])
+    return count_form(lambda pts: second_variation(pts, state(pts), p), s, shift=shift).parts
 
 
-def _split_counts(s, y, p):
-    """(index_in, index_out) at the state, each -1 at a non-planar state or a zero
-    eigenvalue of its block (:func:`_split_counts_of`, keyed by value)."""
-    s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
-    return _split_counts_of(s.tobytes(), y.tobytes(), len(y), tuple(sorted(p.items())))
+def _part_count(name):
+    def fn(s, y, p):
+        s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+        return _part_counts_of(s.tobytes(), y.tobytes(), len(y), tuple(sorted(p.items())))[name]
+    return fn
 
 
 @functools.lru_cache(maxsize=4)
-def _split_counts_of(s_bytes, y_bytes, n, items):
-    """:func:`_split_counts` of the state given by value: index_in and index_out are asked
-    for one after the other at each point and share one evaluation of the form (the cache
-    is safe across threads computing side by side)."""
-    from elastica_auto.numerics.stability import count_form
-    s = np.frombuffer(s_bytes).copy()
-    y = np.frombuffer(y_bytes).reshape(n, -1).copy()
-    blocks = _blocks(s, y, dict(items))
-    if blocks is None:
-        return -1.0, -1.0
-    return tuple(float(count_form(b, s).index) for b in blocks)
-
-
-def _split_index(which):
-    def fn(s, y, p):
-        return _split_counts(s, y, p)[which]
-    return fn
+def _part_counts_of(s_bytes, y_bytes, n, items):
+    """:func:`part_counts` of the state given by value: index_in and index_out are asked for
+    one after the other and share one count (the cache is safe across threads computing side
+    by side)."""
+    return part_counts(np.frombuffer(s_bytes).copy(),
+                       np.frombuffer(y_bytes).reshape(n, -1).copy(), dict(items))
 
 
 ORDINATES = [
@@ -552,10 +512,10 @@ ORDINATES = [
     Ordinate("zero_mode", r"zero modes", _zero_mode, None,
              "1 where the symmetry's zero mode (rotation about the load line, omega = e - "
              "d3) is left out of the index, else 0"),
-    Ordinate("index_in", r"index in plane", _split_index(0), None,
+    Ordinate("index_in", r"index in plane", _part_count("index_in"), None,
              "index of the in-plane (e_z) block at a planar state; -1 elsewhere or at a zero "
              "eigenvalue"),
-    Ordinate("index_out", r"index out of plane", _split_index(1), None,
+    Ordinate("index_out", r"index out of plane", _part_count("index_out"), None,
              "index of the out-of-plane block at a planar state; -1 elsewhere or at a zero "
              "eigenvalue"),
 ]
@@ -666,7 +626,8 @@ ZERO_MODE = 1e-6
 def second_variation(s, y, p):
     """The second variation in spatial rotation perturbations omega (docs/kirchhoff.md):
     A = R K R^T, C = -[m]_x / 2, B = (F.d3) I - sym(F d3^T), E1 = (F.a) I - sym(F a^T) with
-    a = eps R(1) a_b, omega(0) = 0 (the clamp), natural at s = 1."""
+    a = eps R(1) a_b, omega(0) = 0 (the clamp), natural at s = 1; its parts PARTS (in and
+    out of the plane, decoupled at a planar state)."""
     # A and B to the last bit as they were (R by ``rotation``): a count at a located branch
     # point, whose pivot is at the zero threshold, turns on their rounding
     rot = rotation(y[3:7])                                    # (3, 3, m)
@@ -681,7 +642,8 @@ def second_variation(s, y, p):
     e1 = (f @ arm) * np.eye(3) - 0.5 * (fa + fa.T)
     mode = _zero_mode_of(s, d3, p) if is_symmetric(p) else None
     return SecondVariation(a, b, c, E1=e1, fixed0=[0, 1, 2],
-                           constraints=() if mode is None else [Constraint(mode, kernel=True)])
+                           constraints=() if mode is None else [Constraint(mode, kernel=True)],
+                           parts=PARTS)
 
 
 

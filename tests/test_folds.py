@@ -282,8 +282,8 @@ def test_ordinates_that_are_not_periodic_stop_the_translation(tmp_path, monkeypa
     plain = run_plan(runfile.load(path), tmp_path / "plain").result.branches
     own = Problem.ordinate_values
 
-    def drifting(self, s, y, p):
-        values = own(self, s, y, p)
+    def drifting(self, s, y, p, known=None):
+        values = own(self, s, y, p, known)
         return {**values, "m1": values["m1"] + p["psi"]}
 
     monkeypatch.setattr(Problem, "ordinate_values", drifting)

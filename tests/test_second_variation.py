@@ -312,6 +312,120 @@ def test_shifted_counts_follow_the_dense_spectrum():
             assert count_form(evaluate, MESH, shift=mid).index == np.count_nonzero(mu < mid)
 
 
+# ----------------------------------------------------------------------- parts
+
+
+def direct_sum(forms, parts, coupling=0.0, tie=False, mix=False):
+    """``evaluate(s)`` for the engine: the direct sum of the reference ``forms`` (each a
+    `Form`), form j on the components ``parts[name_j]`` of h in R^k (interleaved), with
+    ``parts`` declared. ``coupling``: that multiple of a fixed matrix couples the parts in C;
+    ``tie``: one more constraint, int h_first + h_last ds = 0, across the first two parts;
+    ``mix``: G0's rows made orthonormal and then rotated into each other (the same fixed
+    directions, every row of G0 across both parts)."""
+    comps = list(parts.values())
+    k = sum(len(c) for c in comps)
+
+    def embed(rows, values, width):            # rows of a (r, k_j) block into (r, k)
+        out = np.zeros((values.shape[0], width))
+        out[:, rows] = values
+        return out
+
+    def evaluate(s):
+        m = len(s)
+        a, b, c = (np.zeros((m, k, k)) for _ in range(3))
+        e0, e1 = np.zeros((k, k)), np.zeros((k, k))
+        g0, g1, cons = [], [], []
+        for form, rows in zip(forms, comps):
+            ix = np.ix_(range(m), rows, rows)
+            a[ix], b[ix], c[ix] = form.coefficients(s)
+            f0, f1, h0, h1 = form.ends()
+            e0[np.ix_(rows, rows)], e1[np.ix_(rows, rows)] = f0, f1
+            g0.append(embed(rows, h0, k))
+            g1.append(embed(rows, h1, k))
+            for g, d0, d1 in form.constraints:
+                field = np.zeros((k, m))
+                field[rows] = np.asarray(g(s), dtype=float).reshape(m, -1).T
+                cons.append(Constraint(field, d1=embed(rows, np.atleast_2d(d1), k)[0],
+                                       d0=embed(rows, np.atleast_2d(d0), k)[0]))
+        c += coupling * np.ones((k, k))
+        if tie:
+            g = np.zeros((k, m))
+            g[comps[0][0]] = g[comps[1][-1]] = 1.0
+            cons.append(Constraint(g))
+        g0, g1 = np.vstack(g0), np.vstack(g1)
+        if mix:
+            g0 = np.linalg.qr(g0.T)[0].T
+            g0 = np.linalg.qr(np.random.default_rng(3).normal(size=(len(g0),) * 2))[0] @ g0
+        return SecondVariation(np.moveaxis(a, 0, -1), np.moveaxis(b, 0, -1),
+                               np.moveaxis(c, 0, -1), E0=e0, E1=e1,
+                               fixed0=g0 if len(g0) else (), fixed1=g1 if len(g1) else (),
+                               constraints=cons, parts=parts)
+    return evaluate
+
+
+#: Random cases (k, pattern, seed, constraints) summed: a general G at s = 0 and a constraint
+#: in the first, component selections in the second; their dense spectra keep NEAR_ZERO
+#: away from zero (asserted).
+SUMMANDS = [(2, "general0", 2, 1), (1, "mixed", 1, 0)]
+
+
+def summands():
+    forms = [random_form(*c) for c in SUMMANDS]
+    dense = [dense_of(*c) for c in SUMMANDS]
+    assert all(gap > NEAR_ZERO for _, gap, _ in dense)
+    return forms, [d[0] for d in dense]
+
+
+@pytest.mark.parametrize("mix", [False, True])
+@pytest.mark.parametrize("parts", [{"out": [0, 2], "in": [1]}, {"out": [1, 2], "in": [0]}])
+def test_parts_of_a_direct_sum_are_the_summands_counts(parts, mix):
+    # the direct sum of two random forms, interleaved: each part's count is its summand's
+    # dense count, the index their sum, and the same as the whole form's (parts not declared)
+    forms, expected = summands()
+    evaluate = direct_sum(forms, parts, mix=mix)
+    if mix:
+        assert np.min(np.abs(evaluate(MESH).fixed0)) > 1e-3      # each row across the parts
+    got = count_form(evaluate, MESH)
+    assert got.parts == dict(zip(parts, expected)) and got.index == sum(expected) > 0
+    whole = count_form(lambda s: _without_parts(evaluate(s)), MESH)
+    assert whole.index == got.index and whole.parts == {}
+    assert count_form(evaluate, COARSE).parts == got.parts
+
+
+def _without_parts(form):
+    form.parts = {}
+    return form
+
+
+@pytest.mark.parametrize("how", ["coupling", "tie"])
+def test_parts_of_a_coupled_form_are_not_counted(how):
+    # a coefficient or a constraint that couples the parts: no part has an index of its own
+    # (-1 each), and the index is the whole form's, here the dense count of the same form
+    forms, expected = summands()
+    parts = {"out": [0, 2], "in": [1]}
+    evaluate = direct_sum(forms, parts, coupling=1e-6 if how == "coupling" else 0.0,
+                          tie=how == "tie")
+    got = count_form(evaluate, MESH)
+    assert got.parts == {"out": -1, "in": -1}
+    if how == "coupling":      # 1e-6 moves no eigenvalue across zero (gaps above NEAR_ZERO)
+        assert got.index == sum(expected)
+    else:                      # one more constraint: the interlacing bound
+        assert sum(expected) - 1 <= got.index <= sum(expected)
+    assert got.index == count_form(lambda s: _without_parts(evaluate(s)), MESH).index
+
+
+@pytest.mark.parametrize("parts,match", [
+    ({"a": [0, 1], "b": [1, 2]}, "do not partition"),
+    ({"a": [0, 1]}, "do not partition"),
+    ({"a": [0, 1], "b": []}, "non-empty list"),
+    ({"a": [0, 1], "b": [2.0]}, "non-empty list"),
+    ([[0], [1, 2]], "must be a dict"),
+])
+def test_parts_are_validated(parts, match):
+    with pytest.raises(ProblemError, match=match):
+        SecondVariation(np.eye(3), np.zeros((3, 3)), parts=parts)
+
+
 # ------------------------------------------------------------------------------ errors
 
 

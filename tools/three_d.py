@@ -304,7 +304,6 @@ class Embedded:
 
     def __init__(self, br, grid, b2, c):
         import elastica_auto.equations.kirchhoff_lever_arm as rod
-        from elastica_auto.numerics.stability import count_form
         self.number, self.attrs, self._br = br.number, dict(br.attrs), br
         self.attrs["ordinate"] = "m1"
         self._grid, self._b2, self._c = grid, float(b2), float(c)
@@ -317,9 +316,7 @@ class Embedded:
             p = {q.name: q.default for q in rod.PARAMETERS}
             p.update({q: float(cols[q][i]) for q in ("psi", "alpha", "theta0", "eps", "P")},
                      b2=float(b2), c=float(c))
-            blocks = rod._blocks(grid, embed(rod, prof), p)
-            if blocks is not None:          # -1 at a zero eigenvalue
-                out[i] = count_form(blocks[1], grid).index
+            out[i] = rod.part_counts(grid, embed(rod, prof), p)["index_out"]
         cols["index_in"] = np.where(np.isin(cols["type"], ("LP", "BP")), -1, cols["index"])
         cols["index_out"] = out
         self.columns = cols
@@ -329,7 +326,6 @@ class Embedded:
         j: each found by bisection on the shifted count to 1e-6, then linear interpolation
         in the parameter."""
         import elastica_auto.equations.kirchhoff_lever_arm as rod
-        from elastica_auto.numerics.stability import count_form
         lam = self.columns[self.parameter].astype(float)
 
         def eigenvalue(row):
@@ -337,11 +333,11 @@ class Embedded:
             p.update({q: float(self.columns[q][row]) for q in ("psi", "alpha", "theta0", "eps",
                                                                 "P")},
                      b2=self._b2, c=self._c)
-            block = rod._blocks(self._grid, embed(rod, self._br.profiles[row]), p)[1]
+            y = embed(rod, self._br.profiles[row])
             lo, hi = -50.0, 50.0
             while hi - lo > 1e-6:
                 mid = 0.5 * (lo + hi)
-                n = count_form(block, self._grid, shift=mid).index
+                n = rod.part_counts(self._grid, y, p, shift=mid)["index_out"]
                 lo, hi = (mid, hi) if n <= k else (lo, mid)
             return 0.5 * (lo + hi)
         a, b = eigenvalue(i), eigenvalue(j)
@@ -398,7 +394,6 @@ def table_embedded_labels(bf2, b2_values, c_values):
     """The stable (index 0) user points of a planar file, each distinct state once, with
     the out-of-plane index of the spatial rod at that planar state for each (b2, c)."""
     import elastica_auto.equations.kirchhoff_lever_arm as rod
-    from elastica_auto.numerics.stability import count_form
     grid = bf2.profile_grid
     pairs = [(b2, c) for b2 in b2_values for c in c_values]
     print("| eps, P | psi (mod 2 pi) | m(0).e_z | " + " | ".join(
@@ -422,7 +417,7 @@ def table_embedded_labels(bf2, b2_values, c_values):
         for b2, c in pairs:
             p = {q.name: q.default for q in rod.PARAMETERS}
             p.update({q: p2[q] for q in ("psi", "alpha", "theta0", "eps", "P")}, b2=b2, c=c)
-            cells.append(str(count_form(rod._blocks(grid, y3, p)[1], grid).index))
+            cells.append(str(rod.part_counts(grid, y3, p)["index_out"]))
         rows.append((key, cells))
     for key, cells in sorted(rows):
         print(f"| {key[0]:g}, {key[1]:.4f} | {key[2]:.4f} | {key[3]:.3f} | "

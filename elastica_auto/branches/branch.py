@@ -94,21 +94,26 @@ class Point:
 def new_point(problem, state: State, *, type: str = "", arclength: float, ds: float = 0.0,
               niter: int = 0, tangent: Tangent | None = None,
               fold_residual: float = float("nan"), note: str = "",
-              direct: int | None = None) -> Point:
+              direct: int | None = None, parts: dict | None = None) -> Point:
     """The point of a branch at ``state``: its parameter values (free ones included), its
     ordinates, its profile on PROFILE_GRID and its stability index by direct count
-    (``direct`` if the caller has it, unknown where an ordinate is not finite); a labelled
-    point keeps its solution and tangent."""
+    (``direct`` and the index of each part of the second variation, ``parts``, if the caller
+    has them; unknown where an ordinate is not finite); a labelled point keeps its solution
+    and tangent. The ordinates named after the form's parts take their counts."""
     if type and type not in LABEL_TYPES:
         raise ValueError(f"unknown label type {type!r}")
-    ordinates = problem.ordinate_values(state.s, state.y, state.params)
+    counted = None
+    if direct is None and problem.has_second_variation:
+        counted = count(problem, state)
+        direct, parts = counted.index, counted.parts
+    ordinates = problem.ordinate_values(state.s, state.y, state.params, parts)
     if not all(math.isfinite(v) for v in ordinates.values()):
         direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
     elif direct is None:
-        counted = count(problem, state)
-        direct = counted.index
-        if counted.refused:   # no index here: say why (a zero eigenvalue needs no note)
-            note = "; ".join(filter(None, (note, counted.reason)))
+        direct = INDEX_UNKNOWN  # no second_variation hook
+    elif counted is not None and counted.refused:
+        # no index here: say why (a zero eigenvalue needs no note)
+        note = "; ".join(filter(None, (note, counted.reason)))
     return Point(params=problem.point_params(state.params, state.y), ordinates=ordinates,
                  arclength=float(arclength), ds=float(ds), niter=int(niter),
                  nodes=len(state.s), type=type, profile=state(PROFILE_GRID),

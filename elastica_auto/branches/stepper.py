@@ -624,7 +624,7 @@ class _Walk:
         curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
                             (tb.lam - ta.lam) / step.dist)
         point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter,
-                          direct=counted.index, fold_residual=residual,
+                          direct=counted.index, parts=counted.parts, fold_residual=residual,
                           note=counted.reason if counted.refused else "")
         # the walk moves on to b in one statement that calls nothing (no signal lands inside)
         self.base_point, self.a, self.arclength, self.curvature, self.first = \

@@ -159,8 +159,8 @@ class Augmented(NamesOfBase):
                                np.zeros(2 * self.q)))
 
     # -- what sees the module's own states ------------------------------------------------------
-    def ordinate_values(self, s, y, p):
-        return self.base.ordinate_values(s, y[: self.n0], self._p(p, y))
+    def ordinate_values(self, s, y, p, known=None):
+        return self.base.ordinate_values(s, y[: self.n0], self._p(p, y), known)
 
     @property
     def has_second_variation(self) -> bool:

@@ -438,8 +438,13 @@ class Problem:
         return (self.bc(ya, yb, {**p, name: p[name] + h})
                 - self.bc(ya, yb, {**p, name: p[name] - h})) / (2 * h)
 
-    def ordinate_values(self, s, y, p) -> dict[str, float]:
-        return {k: float(o.fn(s, y, p)) for k, o in self.ordinates.items()}
+    def ordinate_values(self, s, y, p, known=None) -> dict[str, float]:
+        """The ordinates at the solution ``y`` on the nodes ``s``; those in ``known`` (a
+        dict, e.g. the index of each part of the second variation counted at this state:
+        `SecondVariation` ``parts``) taken from it instead of computed."""
+        known = known or {}
+        return {k: float(known[k]) if k in known else float(o.fn(s, y, p))
+                for k, o in self.ordinates.items()}
 
     def point_params(self, params: dict, y) -> dict[str, float]:
         """The parameter values of a solution (free parameters are part of ``y`` in

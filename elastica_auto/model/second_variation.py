@@ -39,6 +39,12 @@ from ..core.errors import ProblemError
 #: Relative asymmetry above which A, B, E0 or E1 is refused as not symmetric: several rounding
 #: errors of a product of a few terms, far below any modelling asymmetry.
 SYMMETRY_TOL = 1e-10
+#: A form decouples along its parts (:meth:`SecondVariation.split`) where no coefficient that
+#: couples two parts exceeds this, relative to the form's largest coefficient, and each end
+#: direction and constraint lies in one part to this, relative to its own largest entry: a
+#: continuation keeps the coupling of a symmetric state (the spatial rod's out-of-plane rows
+#: at a planar one) at rounding level, seen below 1e-12.
+DECOUPLED = 1e-9
 
 
 class Constraint(NamedTuple):
@@ -113,6 +119,61 @@ def _vector(name, value, k, points: bool):
     return v
 
 
+def _parts(parts, k) -> dict[str, np.ndarray]:
+    """``parts`` as {name: component indices (array)}, refused unless the names are strings
+    and the indices partition 0..k-1 (every component in exactly one part)."""
+    if parts is None:
+        return {}
+    if not isinstance(parts, dict) or not all(isinstance(n, str) for n in parts):
+        _fail(f"parts must be a dict {{name: [component indices]}}, got {parts!r:.80}")
+    out, seen = {}, []
+    for name, comps in parts.items():
+        c = np.atleast_1d(np.asarray(comps))
+        if c.ndim != 1 or not c.size or c.dtype.kind not in "iu":
+            _fail(f"parts[{name!r}] = {comps!r:.60}: expected a non-empty list of component "
+                  "indices")
+        out[name] = c.astype(int)
+        seen.extend(out[name].tolist())
+    if sorted(seen) != list(range(k)):
+        _fail(f"parts {dict((n, c.tolist()) for n, c in out.items())} do not partition the "
+              f"components 0..{k - 1} (each in exactly one part)")
+    return out
+
+
+def _parts_of(columns, label, tol) -> np.ndarray:
+    """The part (a value of ``label``, the part of each component) of each of the
+    ``columns`` (k, c): the one part of the components where the column is non-zero
+    (relative to its own largest entry), -1 where it is zero or lies in more than one part."""
+    size = np.abs(columns)
+    big = size > tol * size.max(axis=0, initial=0.0)
+    lo = np.where(big, label[:, None], len(label)).min(axis=0, initial=len(label))
+    hi = np.where(big, label[:, None], -1).max(axis=0, initial=-1)
+    return np.where(lo == hi, lo, -1)
+
+
+def _end_parts(free, fixed, label, parts) -> list | None:
+    """The free and fixed directions (orthonormal bases) of an end within each of the
+    ``parts`` (component indices; ``label`` the part of each component), or None where the
+    fixed directions are not the direct sum of their parts' (a condition that ties two parts).
+    Bases of components given as indices are columns of the identity and are sliced; a
+    general G's fixed space decouples where its projection on each part lies in it, the
+    projections' ranks adding up to its own."""
+    where = _parts_of(np.hstack((free, fixed)), label, DECOUPLED)
+    if np.all(where >= 0):
+        nf = free.shape[1]
+        return [(free[comps][:, where[:nf] == j], fixed[comps][:, where[nf:] == j])
+                for j, comps in enumerate(parts)]
+    out, rank = [], 0
+    for comps in parts:
+        u, sv, _ = np.linalg.svd(fixed[comps], full_matrices=True)
+        if np.any((sv > DECOUPLED) & (sv < 1.0 - DECOUPLED)):
+            return None
+        r = int(np.count_nonzero(sv >= 1.0 - DECOUPLED))
+        out.append((u[:, r:], u[:, :r]))
+        rank += r
+    return out if rank == fixed.shape[1] else None
+
+
 def _check_symmetric(name, m):
     """Refuse a matrix field (m', k, k) that is not symmetric at some point."""
     if m.shape[-1] == 1:
@@ -178,9 +239,17 @@ class SecondVariation:
         none (every direction natural).
     constraints : sequence of Constraint or tuples (g, d1[, d0]), optional
         ``int_0^1 g.h ds + d0.h(0) + d1.h(1) = 0`` for each.
+    parts : dict, optional
+        Named groups of components that partition 0..k-1, e.g. ``{"index_in": [2],
+        "index_out": [0, 1]}``: where the form decouples along them (:meth:`split`; a
+        symmetric state), the engine counts each part's index on its own, reports it under
+        its name and gives their sum as the index. A module ordinate of the same name takes
+        that count at every point of a branch (the module computes it where asked
+        elsewhere, e.g. with `elastica_auto.numerics.stability.count_form`).
     """
 
-    def __init__(self, A, B, C=0.0, *, E0=0.0, E1=0.0, fixed0=(), fixed1=(), constraints=()):
+    def __init__(self, A, B, C=0.0, *, E0=0.0, E1=0.0, fixed0=(), fixed1=(), constraints=(),
+                 parts=None):
         k = next((np.shape(v)[0] for v in (A, B, C, E0, E1) if np.ndim(v) >= 2), 1)
         self.k = int(k)
         self.A = _matrix_field("A", A, k)
@@ -203,6 +272,44 @@ class SecondVariation:
                                        _vector(f"constraints[{i}].d0", c.d0, k, False),
                                        bool(c.kernel))
                             for i, c in enumerate(items)]
+        self.parts = _parts(parts, self.k)
+
+    def split(self) -> dict[str, SecondVariation] | None:
+        """The form on each of its ``parts`` where it decouples along them, else None: where
+        A, B, C, E0 and E1 couple no two parts (to DECOUPLED of their largest entry) and each
+        free and fixed end direction and each constraint lies in one part. The index is then
+        the sum of the parts' indices (the form is the direct sum of theirs)."""
+        if not self.parts:
+            return None
+        label = np.empty(self.k, dtype=int)
+        for j, comps in enumerate(self.parts.values()):
+            label[comps] = j
+        across = label[:, None] != label[None, :]
+        sizes = [np.abs(m) for m in (self.A, self.B, self.C, self.E0[None], self.E1[None])]
+        scale = max(float(m.max()) for m in sizes)
+        if any(m[:, across].max(initial=0.0) > DECOUPLED * scale for m in sizes):
+            return None
+        # each constraint's size in each component: its largest value there, g or d
+        kept = _parts_of(np.array([np.maximum(np.abs(c.g).max(axis=1),
+                                              np.maximum(np.abs(c.d0), np.abs(c.d1)))
+                                   for c in self.constraints]).reshape(-1, self.k).T,
+                         label, DECOUPLED)
+        ends = [_end_parts(free, fixed, label, list(self.parts.values()))
+                for free, fixed in ((self.free0, self.fixed0), (self.free1, self.fixed1))]
+        if np.any(kept < 0) or None in ends:
+            return None
+        out = {}
+        for j, (name, comps) in enumerate(self.parts.items()):
+            part = copy.copy(self)
+            part.k, part.parts = len(comps), {}
+            part.A, part.B, part.C = (m[:, comps][:, :, comps] for m in (self.A, self.B,
+                                                                           self.C))
+            part.E0, part.E1 = (m[np.ix_(comps, comps)] for m in (self.E0, self.E1))
+            (part.free0, part.fixed0), (part.free1, part.fixed1) = ends[0][j], ends[1][j]
+            part.constraints = [Constraint(c.g[comps], c.d1[comps], c.d0[comps], c.kernel)
+                                for c, where in zip(self.constraints, kept) if where == j]
+            out[name] = part
+        return out
 
     def without_kernel_modes(self) -> SecondVariation:
         """The same form with the constraints that remove a zero mode (``kernel``) left out:

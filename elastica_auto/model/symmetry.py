@@ -158,8 +158,8 @@ class Phased(NamesOfBase):
         return np.concatenate((self.base.bc_dp(ya[:n0], yb[:n0], p, name), np.zeros(2)))
 
     # -- what sees the module's own states ----------------------------------------------------
-    def ordinate_values(self, s, y, p):
-        return self.base.ordinate_values(s, y[: self.n0], p)
+    def ordinate_values(self, s, y, p, known=None):
+        return self.base.ordinate_values(s, y[: self.n0], p, known)
 
     @property
     def has_second_variation(self) -> bool:

@@ -29,7 +29,7 @@ index changes by the dimension of the kernel (:func:`kernel_dimension`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,11 +53,14 @@ SINGULAR_ULPS = 64.0
 class Count:
     """The direct count at one state: ``index`` (-1 if not counted) and, when it was not,
     ``reason`` (no hook, values not finite, a zero eigenvalue, the Legendre condition);
-    ``refused`` where the form has no index there (the Legendre condition fails)."""
+    ``refused`` where the form has no index there (the Legendre condition fails); ``parts``
+    the index of each of the form's named parts (`SecondVariation.split`; -1 for every part
+    where the form does not decouple along them or that part has a zero eigenvalue)."""
 
     index: int
     reason: str = ""
     refused: bool = False
+    parts: dict = field(default_factory=dict)
 
 
 class LegendreError(ProblemError):
@@ -201,9 +204,47 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
     unconstrained symmetry) gives index -1 and says so: its sign would be a guess.
     LegendreError (a ProblemError) where A is not positive definite (the Legendre
     condition); :func:`count` turns it into index -1 with that one-line reason.
+
+    A form with ``parts`` that decouples along them (`SecondVariation.split`) is counted part
+    by part, its index their sum (-1 if a part's is), the count of each in ``parts``: the
+    same index as the whole form's, from smaller blocks.
     """
     s = np.asarray(mesh, dtype=float)
-    form, coeffs = _evaluate(evaluate, s, shift, source)
+    first = nodes_and_midpoints(s)
+    form = evaluate(first)
+    if form.parts:
+        split = form.split()
+        if split is not None:
+            counts = {name: _count(_part_form(evaluate, first, name, part), s, shift, source,
+                                   first) for name, part in split.items()}
+            if not any(c is None for c in counts.values()):
+                parts = {name: c.index for name, c in counts.items()}
+                failed = [f"{name}: {c.reason}" for name, c in counts.items() if c.index < 0]
+                return Count(-1 if failed else sum(parts.values()), "; ".join(failed),
+                             parts=parts)
+    whole = _count(lambda pts: form if pts is first else evaluate(pts), s, shift, source,
+                   first)
+    return Count(whole.index, whole.reason, parts=dict.fromkeys(form.parts, -1))
+
+
+def _part_form(evaluate, first, name, part):
+    """``evaluate`` for the part ``name`` of the form: ``part`` on the points ``first``,
+    elsewhere split anew (None where the form no longer decouples there)."""
+    def on(pts):
+        if pts is first:
+            return part
+        split = evaluate(pts).split()
+        return None if split is None else split[name]
+    return on
+
+
+def _count(evaluate, s, shift, source, first) -> Count | None:
+    """:func:`count_form` of one form, without its parts, ``first`` the nodes and midpoints
+    of ``s``; None where ``evaluate`` gives None (a part that no longer decouples on the
+    subdivided mesh)."""
+    form, coeffs = _evaluate(evaluate, first, shift, source)
+    if form is None:
+        return None
     if coeffs is None:
         return Count(-1, "the second variation is not finite")
     a, b, c, a_min, _ = coeffs
@@ -215,7 +256,9 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
-        form, coeffs = _evaluate(evaluate, s, shift, source)
+        form, coeffs = _evaluate(evaluate, nodes_and_midpoints(s), shift, source)
+        if form is None:
+            return None
         if coeffs is None:
             return Count(-1, "the second variation is not finite")
     try:
@@ -224,11 +267,13 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
         return Count(-1, str(exc))
 
 
-def _evaluate(evaluate, s, shift, source):
-    """The form on the nodes and midpoints of ``s`` and its fields (A, B, C, min eig A, g);
-    fields None if any value is not finite. ProblemError where A is not positive definite."""
-    pts = nodes_and_midpoints(s)
+def _evaluate(evaluate, pts, shift, source):
+    """The form on the points ``pts`` (the nodes and midpoints of a mesh) and its fields (A,
+    B, C, min eig A, g); fields None if any value is not finite (both None where ``evaluate``
+    gives None). ProblemError where A is not positive definite."""
     form = evaluate(pts)
+    if form is None:
+        return None, None
     a, b, c, g = form.fields(len(pts))
     ends = (form.E0, form.E1, *(v for con in form.constraints for v in (con.d0, con.d1)))
     # one sum: NaN and inf propagate through it (a finite sum overflows only past 1e300)
