@@ -577,6 +577,16 @@ def is_symmetric(p) -> bool:
         SYMMETRIC * abs(p["P"]))
 
 
+def symmetric_values(name, lo, hi, p):
+    """The values of ``name`` in [lo, hi] where :func:`is_symmetric` holds, the other
+    parameters at ``p``: for the arm angle psi, its multiples of pi (the arm along the tip
+    tangent, sin psi = 0) where the rest is symmetric and the arm has a length; none for the
+    other parameters (the engine searches for their branch points)."""
+    if name != "psi" or p["eps"] == 0 or not is_symmetric({**p, "psi": 0.0}):
+        return []
+    return [k * math.pi for k in range(math.ceil(lo / math.pi), math.floor(hi / math.pi) + 1)]
+
+
 def symmetry(s, y, p):
     """The rotation T_theta about the clamp axis e = d3(0) through the clamp, with the frames
     counter-rotated about their own d3: r -> Q r, m -> Q m, q -> q_Q (x) q (x) q_3(-theta)

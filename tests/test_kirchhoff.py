@@ -912,6 +912,34 @@ def test_switch_onto_the_lateral_torsional_branch(modules):
     assert tips[0][:2] == pytest.approx(tips[1][:2], abs=1e-7)
 
 
+def test_symmetric_branch_points_are_placed_where_the_search_finds_them(modules,
+                                                                       monkeypatch):
+    """b2 = 1: the branch points of the rotating arm lie where the symmetry holds, psi = k pi
+    (the module's symmetric_values): placed there exactly, with no search. Against the
+    determinant's root located by the search (the hook taken away): the same labels in the
+    same order, the branch points within 1e-9, the other points' parameters and indices the
+    same. A hook that answers a value outside [lo, hi] ends the branch (MX) and says so."""
+    _, rod, mod = modules
+    start = {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 1.0}
+    kw = dict(bounds=(-7.0, 1.0), max_points=150)
+    (placed,) = ea.continuation(rod, start, "psi", **kw)
+    monkeypatch.setattr(rod, "_symmetric_values", None)
+    (searched,) = ea.continuation(rod, start, "psi", **kw)
+    bps = [p for p in placed.points if p.type == "BP"]
+    assert [round(p.params["psi"] / math.pi, 9) for p in bps] == [0.0, -2.0]
+    assert all(p.params["psi"] == round(p.params["psi"] / math.pi) * math.pi for p in bps)
+    assert [p.type for p in placed.points if p.type] == \
+        [p.type for p in searched.points if p.type]
+    for a, b in zip([p for p in placed.points if p.type], [p for p in searched.points
+                                                           if p.type]):
+        assert abs(a.params["psi"] - b.params["psi"]) < 1e-9
+        if a.type != "BP":
+            assert a.index == b.index
+    monkeypatch.setattr(rod, "_symmetric_values", lambda name, lo, hi, p: [hi + 1.0])
+    (bad,) = ea.continuation(rod, start, "psi", **kw)
+    assert bad.end == "MX" and "not all finite and in [lo, hi]" in bad.message
+
+
 def test_isotropic_rotating_arm_through_the_symmetric_point(modules):
     """b2 = 1, P = pi^2/4: where the arm lies along the tip tangent (psi = 0) the buckled rod
     has the rotational zero mode (a circle of equilibria), and one out-of-plane eigenvalue

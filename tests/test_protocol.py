@@ -188,6 +188,8 @@ def test_bad_free_parameters_and_stops(bratu_mean, kwargs, key, words):
     ('from elastica_auto import Mirror\nMIRROR = Mirror({"u": 1})\n',
      "MIRROR: states must map state names to state names"),
     ('MIRROR = ("u",)\n', "MIRROR must be a Mirror, got tuple"),
+    ('def symmetric_values(name, lo, hi, p):\n    return []\n',
+     "symmetric_values(name, lo, hi, p) needs the hook symmetry(s, y, p)"),
 ])
 def test_protocol_mistakes_are_named_on_load(tmp_path, text, words):
     path = tmp_path / "bad.py"

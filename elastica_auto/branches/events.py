@@ -8,7 +8,9 @@ direction of travel) and the sign of the determinant of their bordered Jacobians
   the solution on the step where that component, interpolated linearly, vanishes.
 * BP (branch point): the determinant changes sign (it does not at a fold: AUTO-07p's test for
   boundary value problems). Located as the zero of the determinant, scaled by its value at a,
-  on the hyperplanes ``<x - a, secant> = sigma`` by the Illinois method.
+  on the hyperplanes ``<x - a, secant> = sigma`` by the Illinois method; or, where the
+  module's symmetry holds at a value of the parameter inside the step on states it moves,
+  placed at that value (:func:`place_symmetric_branch_point`).
 * A fold pair inside one step leaves both test functions unchanged; :func:`pair_suspected`
   reads it off the cubic that interpolates the parameter along the step (values and slopes at
   both ends): a slope that dips toward zero, or changes sign twice, inside the step.
@@ -28,6 +30,7 @@ import numpy as np
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
 from ..numerics.newton import Linearization, Row, kernel
 from ..core.solution import State, Tangent, difference, inner
+from ..model.symmetry import moves
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,20 @@ class Located:
     coordinate sigma along the secant, and the test function's value there."""
 
     solution: Solution
+    sigma: float
+    value: float
+
+    @property
+    def state(self) -> State:
+        return self.solution.state
+
+
+@dataclass
+class Placed:
+    """A point placed inside a step without a search: its state, coordinate sigma along the
+    secant and the test function's value there."""
+
+    state: State
     sigma: float
     value: float
 
@@ -258,6 +275,29 @@ def locate_branch_point(corr, step: Step) -> Located:
         s, xtol = corr.fold_mesh(s, rms), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
+
+
+def place_symmetric_branch_point(corr, problem, step: Step) -> Placed | None:
+    """The branch point in the step where the module's symmetry holds: the one value of
+    the parameter inside the step that its ``symmetric_values`` gives, solved there on b's
+    mesh (:func:`locate_value`), where the group moves that state (its generator, then in
+    the kernel of the linearisation, is not zero). Exact on every mesh: the discretised
+    problem keeps the symmetry. None where the module gives no such value, or more than
+    one, or the solve fails, or the group fixes the state there: the determinant's root is
+    then searched for (:func:`locate_branch_point`). ``value`` 0: the determinant vanishes
+    there."""
+    if not getattr(problem, "has_symmetric_values", False):
+        return None
+    a, b, name = step.a.state, step.b.state, step.name
+    lo, hi = sorted((a.params[name], b.params[name]))
+    inside = [v for v in problem.symmetric_values(name, lo, hi, b.params) if lo < v < hi]
+    if len(inside) != 1:
+        return None
+    try:
+        state, sigma = locate_value(corr, step, a, b, 0.0, step.dist, inside[0])
+    except CorrectorFailure:
+        return None
+    return Placed(state, sigma, 0.0) if moves(problem, state) else None
 
 
 def _check_on_finer_mesh(corr, step: Step, s):

@@ -40,9 +40,10 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
-from .events import (Located, Step, UserValues, crossings, is_user_value, locate_branch_point,
-                     locate_fold, locate_index_change, locate_limit, locate_value,
-                     pair_suspected, tangent_between)
+from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
+                     locate_branch_point, locate_fold, locate_index_change, locate_limit,
+                     locate_value, pair_suspected, place_symmetric_branch_point,
+                     tangent_between)
 from ..numerics.newton import Row
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
@@ -556,8 +557,8 @@ class _Walk:
                     found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
                                         note=f"fold not located: {exc}"))
         elif located is not None:
-            note = self._kernel_check(located.solution.state, index_a, index_b)
-            found.append(_Event(located.sigma, "BP", located.solution.state, step.secant,
+            note = self._kernel_check(located.state, index_a, index_b)
+            found.append(_Event(located.sigma, "BP", located.state, step.secant,
                                 abs(located.value), note=note))
         if unlocated:
             self.branch.warnings.append(unlocated)
@@ -782,21 +783,26 @@ class _Walk:
         if not bp:
             return [fold]
         if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
-            return [fold, _Event(located.sigma, "BP", located.solution.state, step.secant,
+            return [fold, _Event(located.sigma, "BP", located.state, step.secant,
                                  abs(located.value))]
         return [_Event(sigma, "BP", fp.state, step.secant, fp.residual,
                        note="turning point without index change")]
 
-    def _branch_point(self, step: Step, can_retry: bool) -> tuple[Located | None, str]:
-        """The branch point where the determinant changed sign in the step, located, and
-        ""; or, once retries are spent, None and the warning that says so (which the caller
-        drops where the step's turning point is labelled BP instead).
+    def _branch_point(self, step: Step, can_retry: bool
+                      ) -> tuple[Located | Placed | None, str]:
+        """The branch point where the determinant changed sign in the step, located (or
+        placed at a value of the parameter where the module's symmetry holds), and ""; or,
+        once retries are spent, None and the warning that says so (which the caller drops
+        where the step's turning point is labelled BP instead).
 
         A step whose branch point cannot be located is retried shorter: where the step
         jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
         has the other sign), the solutions on the hyperplanes between the two branches fail
         or the sign change does not survive a finer mesh, and a shorter step follows the
         branch round its corner."""
+        placed = place_symmetric_branch_point(self.corr, self.problem, step)
+        if placed is not None:
+            return placed, ""
         try:
             return locate_branch_point(self.corr, step), ""
         except CorrectorFailure as exc:

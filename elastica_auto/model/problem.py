@@ -62,6 +62,12 @@ and optionally
     that goes with the group), each (n, m). A branch that starts at a state the group moves
     is continued with a phase condition and an unfolding parameter (see
     `elastica_auto.model.symmetry`).
+``symmetric_values(name, lo, hi, p)`` -> list of floats
+    the values of the parameter ``name`` in [lo, hi] at which ``symmetry`` applies, the other
+    parameters at ``p`` (needs ``symmetry``). A branch continued in ``name`` that crosses one
+    on states the group moves passes a branch point there (the generator is in the kernel):
+    the engine places it at that value, with no search (see
+    `elastica_auto.branches.stepper`).
 ``draw(ax, profile, params)``
     draws the configuration of a solution on the matplotlib axes ``ax``: ``profile`` is the
     solution on the branch file's profile grid, shape (n, len(grid)), ``params`` its parameter
@@ -299,6 +305,10 @@ class Problem:
         self._gradient_flow = getattr(module, "gradient_flow", None)
         self._draw = getattr(module, "draw", None)
         self._symmetry = getattr(module, "symmetry", None)
+        self._symmetric_values = getattr(module, "symmetric_values", None)
+        if self._symmetric_values is not None and self._symmetry is None:
+            raise ProblemError(f"{source}: symmetric_values(name, lo, hi, p) needs the hook "
+                               "symmetry(s, y, p), the symmetry that holds there")
         if self._draw is not None and not callable(self._draw):
             raise ProblemError(f"{source}: draw must be a function draw(ax, profile, params), "
                                f"got {type(self._draw).__name__}")
@@ -575,6 +585,25 @@ class Problem:
                 raise ProblemError(f"{self.source}: symmetry(s, y, p).{what} has shape "
                                    f"{v.shape}; expected {y.shape} (the shape of y)")
         return Symmetry(g, b)
+
+    @property
+    def has_symmetric_values(self) -> bool:
+        return self._symmetric_values is not None
+
+    def symmetric_values(self, name: str, lo: float, hi: float, p) -> list[float]:
+        """The module's values of the parameter ``name`` in [lo, hi] at which the symmetry
+        applies (the other parameters at ``p``), sorted; ProblemError where it answers with
+        anything but finite numbers in [lo, hi]."""
+        out = self._symmetric_values(name, float(lo), float(hi), dict(p))
+        try:
+            values = sorted(float(v) for v in out)
+        except (TypeError, ValueError):
+            raise ProblemError(f"{self.source}: symmetric_values(name, lo, hi, p) returned "
+                               f"{out!r:.60}; expected a list of numbers") from None
+        if not all(math.isfinite(v) and lo <= v <= hi for v in values):
+            raise ProblemError(f"{self.source}: symmetric_values({name!r}, {lo:.6g}, {hi:.6g}, "
+                               f"p) returned {values}, not all finite and in [lo, hi]")
+        return values
 
     @property
     def has_draw(self) -> bool:

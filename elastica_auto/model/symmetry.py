@@ -205,6 +205,17 @@ class Phased(NamesOfBase):
                 p.tangent = Tangent(t.s, t.y[:n0], t.yp[:n0], t.lam)
 
 
+def moves(problem, state: State) -> bool:
+    """Whether the module's symmetry holds at ``state``'s parameters and the group moves the
+    state (its generator larger than FIXED_POINT of it): the state then lies on a circle of
+    solutions, the generator in its linearisation's kernel."""
+    if not getattr(problem, "has_symmetry", False):
+        return False
+    sym = problem.symmetry(state.s, state.y, state.params)
+    return sym is not None and (_size(state.s, sym.generator)
+                                > FIXED_POINT * (1.0 + _size(state.s, state.y)))
+
+
 def phased(problem, state: State, tangent: Tangent | None = None) -> Phased | None:
     """The phase-conditioned problem for a branch starting at ``state`` (along ``tangent``,
     if given), or None where the module declares no symmetry, the parameters break it, or
@@ -213,14 +224,12 @@ def phased(problem, state: State, tangent: Tangent | None = None) -> Phased | No
     A start the group fixes (a branch point on the fixed points, switched at along
     ``tangent``) takes as the orbit's direction the generator's derivative along the
     tangent, g'(y_ref) t: the first point off the fixed points moves along it."""
-    if not getattr(problem, "has_symmetry", False):
+    if moves(problem, state):
+        return Phased(problem, state)
+    if tangent is None or not getattr(problem, "has_symmetry", False):
         return None
     sym = problem.symmetry(state.s, state.y, state.params)
     if sym is None:
-        return None
-    if _size(state.s, sym.generator) > FIXED_POINT * (1.0 + _size(state.s, state.y)):
-        return Phased(problem, state)
-    if tangent is None:
         return None
     t = tangent.on(state.s)
     moved = problem.symmetry(state.s, state.y + PIVOT * t.y, state.params).generator
