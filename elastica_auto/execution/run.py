@@ -564,8 +564,12 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
 #: and as much CPU as three interpreters importing distributed, which on 2 cores is taken
 #: from the branches computed meanwhile. With the cluster started at once, rotating_arm (4
 #: branches computed of 8, about 0.5 s each) took 0.95-1.13x the time of --jobs 1 (medians
-#: of three sittings): never the 0.65x a second core could give.
-CLUSTER_PAYS = 3.0
+#: of three sittings): never the 0.65x a second core could give. The estimate (the mean of
+#: the branches done times those left) is low on a grid whose last branches are the longest:
+#: at 3 s rotating_arm_3d (branches of 0.3-0.6 s, then two of 2.3 and 3.8 s) started none
+#: and took its --jobs 1 time; at 2 s it starts one after its third branch (0.82x), and
+#: load_magnitude too (0.73x), the other runs of `make runs` as before (docs/benchmarks.md).
+CLUSTER_PAYS = 2.0
 
 
 class _Idle:
