@@ -151,6 +151,22 @@ def _parts_of(columns, label, tol) -> np.ndarray:
     return np.where(lo == hi, lo, -1)
 
 
+@functools.lru_cache(maxsize=16)
+def _layout(parts, k):
+    """(label, across, index) of the parts (tuples of component indices) of k components:
+    the part of each component, the (k, k) mask of the entries that couple two parts, and
+    each part's index (a slice where its components are consecutive: a view, not a copy)."""
+    label = np.empty(k, dtype=int)
+    for j, comps in enumerate(parts):
+        label[list(comps)] = j
+    across = label[:, None] != label[None, :]
+    index = [slice(c[0], c[-1] + 1) if list(c) == list(range(c[0], c[-1] + 1))
+             else np.array(c) for c in parts]
+    for v in (label, across):
+        v.flags.writeable = False
+    return label, across, index
+
+
 def _end_parts(free, fixed, label, parts) -> list | None:
     """The free and fixed directions (orthonormal bases) of an end within each of the
     ``parts`` (component indices; ``label`` the part of each component), or None where the
@@ -281,32 +297,34 @@ class SecondVariation:
         the sum of the parts' indices (the form is the direct sum of theirs)."""
         if not self.parts:
             return None
-        label = np.empty(self.k, dtype=int)
-        for j, comps in enumerate(self.parts.values()):
-            label[comps] = j
-        across = label[:, None] != label[None, :]
+        label, across, index = _layout(tuple(tuple(c) for c in self.parts.values()), self.k)
         sizes = [np.abs(m) for m in (self.A, self.B, self.C, self.E0[None], self.E1[None])]
         scale = max(float(m.max()) for m in sizes)
         if any(m[:, across].max(initial=0.0) > DECOUPLED * scale for m in sizes):
             return None
-        # each constraint's size in each component: its largest value there, g or d
-        kept = _parts_of(np.array([np.maximum(np.abs(c.g).max(axis=1),
-                                              np.maximum(np.abs(c.d0), np.abs(c.d1)))
-                                   for c in self.constraints]).reshape(-1, self.k).T,
-                         label, DECOUPLED)
-        ends = [_end_parts(free, fixed, label, list(self.parts.values()))
+        comps = list(self.parts.values())
+        ends = [_end_parts(free, fixed, label, comps)
                 for free, fixed in ((self.free0, self.fixed0), (self.free1, self.fixed1))]
-        if np.any(kept < 0) or None in ends:
+        if None in ends:
             return None
+        kept = []
+        if self.constraints:
+            # each constraint's size in each component: its largest value there, g or d
+            kept = _parts_of(np.array([np.maximum(np.abs(c.g).max(axis=1),
+                                                  np.maximum(np.abs(c.d0), np.abs(c.d1)))
+                                       for c in self.constraints]).T, label, DECOUPLED)
+            if np.any(kept < 0):
+                return None
         out = {}
-        for j, (name, comps) in enumerate(self.parts.items()):
+        for j, (name, ix) in enumerate(zip(self.parts, index)):
             part = copy.copy(self)
-            part.k, part.parts = len(comps), {}
-            part.A, part.B, part.C = (m[:, comps][:, :, comps] for m in (self.A, self.B,
-                                                                           self.C))
-            part.E0, part.E1 = (m[np.ix_(comps, comps)] for m in (self.E0, self.E1))
+            part.k, part.parts = len(comps[j]), {}
+            part.A, part.B, part.C = (m[:, ix, ix] if isinstance(ix, slice)
+                                      else m[:, ix][:, :, ix] for m in (self.A, self.B, self.C))
+            part.E0, part.E1 = (m[ix, ix] if isinstance(ix, slice) else m[np.ix_(ix, ix)]
+                                for m in (self.E0, self.E1))
             (part.free0, part.fixed0), (part.free1, part.fixed1) = ends[0][j], ends[1][j]
-            part.constraints = [Constraint(c.g[comps], c.d1[comps], c.d0[comps], c.kernel)
+            part.constraints = [Constraint(c.g[ix], c.d1[ix], c.d0[ix], c.kernel)
                                 for c, where in zip(self.constraints, kept) if where == j]
             out[name] = part
         return out
