@@ -567,3 +567,25 @@ def test_the_copies_of_a_branch_point_are_decided_as_if_alone():
     assert len(decided) >= 4 and len(copies) >= 2
     for p in decided:
         assert subcritical(rod, br, p) is p.subcritical, p.name
+
+
+def test_solve_bvp_s_corrector_finds_the_same_branch_points():
+    """scipy's solve_bvp as the corrector (a second discretisation, which refines the mesh it
+    is given): along the rotating arm at eps = 0.5, P = 9 pi^2/4, b2 = 2 to psi = -6.6 the
+    same folds and out-of-plane branch points as the collocation corrector, within 1e-9.
+    The branch point at psi = -6.439 is solved again on a mesh made from the error estimate
+    of solve_bvp's own (refined) mesh; it ended the branch (MX, a shape mismatch) when that
+    mesh was taken for the one it was given."""
+    rod = load_problem(K3)
+    start = {"eps": 0.5, "P": 9 * math.pi ** 2 / 4, "b2": 2.0}
+    located = {}
+    for corrector in ("solve_bvp", "collocation"):
+        (br,) = ea.continuation(rod, start, "psi", bounds=(-6.6, 6.6), corrector=corrector,
+                                max_points=60)
+        assert br.end == "EP", br.message
+        located[corrector] = [(p.type, p.params["psi"]) for p in br.points
+                              if p.type in ("LP", "BP")]
+    assert [t for t, _ in located["solve_bvp"]] == [t for t, _ in located["collocation"]] \
+        == ["BP", "LP", "BP", "BP"]
+    np.testing.assert_allclose([v for _, v in located["solve_bvp"]],
+                               [v for _, v in located["collocation"]], rtol=0, atol=1e-9)

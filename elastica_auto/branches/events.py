@@ -272,7 +272,8 @@ def locate_branch_point(corr, step: Step) -> Located:
             if s is step.b.mesh or not solved_here:
                 _check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
-        s, xtol = corr.fold_mesh(s, rms), BP_XTOL
+        # the solution's own mesh: solve_bvp's corrector refines the one it is given
+        s, xtol = corr.fold_mesh(disc.s, rms), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
 
