@@ -47,12 +47,15 @@ def _key(br, parameter):
 
 
 def stretches(br, parameter):
-    """[(i0, i1, index_in, index_out)] along ``br``: runs of rows with one split index."""
+    """[(i0, i1, index_in, index_out)] along ``br``: runs of rows with one split index (the
+    folds and branch points left out: the count at a singular point is one side's, or, at a
+    symmetric branch point, the count on the complement of the zero mode)."""
     iin = br.columns["index_in"].astype(int)
     iout = br.columns["index_out"].astype(int)
+    singular = np.isin(br.columns["type"], ("LP", "BP"))
     out, start = [], None
     for i in range(len(br)):
-        if iin[i] < 0 or iout[i] < 0:
+        if iin[i] < 0 or iout[i] < 0 or singular[i]:
             if start is not None:
                 out.append((start, i - 1, iin[start], iout[start]))
                 start = None
