@@ -912,6 +912,31 @@ def test_switch_onto_the_lateral_torsional_branch(modules):
     assert tips[0][:2] == pytest.approx(tips[1][:2], abs=1e-7)
 
 
+def test_a_branch_s_split_index_is_the_engine_s_count(monkeypatch):
+    """index_in and index_out at the points of a branch are the counts of the form's parts
+    that gave the point's index (`SecondVariation` ``parts``), not a second count in the
+    module's ordinates: the module counts them itself (``part_counts``) only at points the
+    engine did not count as steps (the start, labels, the end), and in-plane plus
+    out-of-plane is the index wherever both are counted."""
+    rod = load_problem(K3)
+    calls = []
+    counted = rod.module.part_counts
+
+    def part_counts(*args, **kwargs):
+        calls.append(args)
+        return counted(*args, **kwargs)
+    monkeypatch.setattr(rod.module, "part_counts", part_counts)
+    rod.module._part_counts_of.cache_clear()
+    (br,) = ea.continuation(rod, BASE, "psi", bounds=(-0.6, 0.6), max_points=40, ds_max=0.05)
+    stepped = [p for p in br.points if not p.type]
+    assert len(stepped) >= 15
+    assert len(calls) <= len(br.points) - len(stepped)
+    both = [p for p in br.points if min(p.ordinates["index_in"], p.ordinates["index_out"]) >= 0]
+    assert len(both) >= len(stepped)
+    assert all(p.ordinates["index_in"] + p.ordinates["index_out"] == p.index_direct
+               for p in both)
+
+
 def test_symmetric_branch_points_are_placed_where_the_search_finds_them(modules,
                                                                        monkeypatch):
     """b2 = 1: the branch points of the rotating arm lie where the symmetry holds, psi = k pi
