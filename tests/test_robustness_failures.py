@@ -362,11 +362,13 @@ def test_workers_end_when_the_command_is_killed(tmp_path, cli_exe):
 
 
 def _gone(pid: int) -> bool:
-    """Whether process ``pid`` has ended (a zombie, not reaped yet, has)."""
+    """Whether process ``pid`` has ended (a zombie, not reaped yet, has). A process reaped
+    between the open and the read of its stat file makes the read fail with ESRCH
+    (ProcessLookupError): ended too."""
     try:
         with open(f"/proc/{pid}/stat") as fh:
             return fh.read().rpartition(")")[2].split()[0] in ("Z", "X")
-    except FileNotFoundError:
+    except (FileNotFoundError, ProcessLookupError):
         return True
 
 
