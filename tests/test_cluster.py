@@ -351,6 +351,40 @@ def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, mon
     assert workers[0] == "local" and workers[1].startswith("inproc://")
 
 
+def test_a_default_run_hands_fold_curves_to_its_background_cluster(tmp_path, monkeypatch):
+    """A fold curve's problem is made of closures (`branches.codim2`), which pickle refuses;
+    the background cluster is sent its tasks by value, as Dask sends them. Fold curves from
+    the two folds of a waiting elastica (this process waits in its first branch until a
+    worker has called rhs), jobs = 0 on two cores, the cluster started at once: a worker
+    computes branches, and the file is the one jobs = 1 writes, number for number."""
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import execute
+    from helpers import elastica_run_file
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
+    flag, started = tmp_path / "wait", tmp_path / "started"
+    _waiting_elastica(tmp_path / "mine.py", flag, started)
+    arm = elastica_run_file(tmp_path / "arm.toml")
+    arm.write_text(arm.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
+    folds = execute(runfile.load(arm), tmp_path, jobs=1).path
+    curves = tmp_path / "curves.toml"
+    curves.write_text(f"""
+equation = "mine.py"
+start = [{{ file = "{folds}", type = "LP", where = {{ eps = 0.25 }} }}]
+[continuation]
+parameter = ["psi", "eps"]
+bounds = [0.2, 0.3]
+""")
+    one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
+    flag.touch()
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    both = execute(runfile.load(curves), tmp_path / "both", jobs=0)
+    assert started.exists() and len(both.branches) == len(one.branches) == 4
+    _same_numbers(one.path, both.path)
+    workers = [b.attrs["worker"] for b in BranchFile(both.path).branches]
+    assert workers[0] == "local" and any(w.startswith("inproc://") for w in workers)
+
+
 def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
     from elastica_auto.execution import cluster, runfile

@@ -315,7 +315,12 @@ class Background:
         import pickle
         import subprocess
         import sys
+
+        import cloudpickle
         self._pickle = pickle
+        # by value, as Dask sends a task: a plan's problem may be made of closures (the fold
+        # curves' extended system), which pickle refuses
+        self._dumps = cloudpickle.dumps
         read, write = os.pipe()
         self.proc = subprocess.Popen(
             [sys.executable, "-c", f"from elastica_auto.execution.cluster import serve; "
@@ -333,10 +338,15 @@ class Background:
         self._reader.start()
 
     def _send(self, message) -> bool:
+        """Write one request to the helper; False if it has ended, or if the request does
+        not pickle (then it is computed here, and nothing of it reaches the helper)."""
+        try:
+            data = self._dumps(message, protocol=self._pickle.HIGHEST_PROTOCOL)
+        except Exception:
+            return False
         try:
             with self._lock:
-                self._pickle.dump(message, self.proc.stdin,
-                                  protocol=self._pickle.HIGHEST_PROTOCOL)
+                self.proc.stdin.write(data)
                 self.proc.stdin.flush()
             return True
         except (OSError, ValueError):        # the helper has ended
