@@ -385,6 +385,29 @@ bounds = [0.2, 0.3]
     assert workers[0] == "local" and any(w.startswith("inproc://") for w in workers)
 
 
+def test_a_task_that_does_not_pickle_stays_here_and_sends_nothing():
+    """`Background.submit` of a task with an argument no pickler takes (a lock) answers
+    False (the command computes it) and writes nothing to the helper, whose input stays a
+    sequence of whole requests; a closure is sent, by value."""
+    import io
+    import pickle
+    import threading
+    import types
+
+    import cloudpickle
+    from elastica_auto.execution.cluster import Background
+    pipe = io.BytesIO()
+    bg = Background.__new__(Background)
+    bg._pickle, bg._dumps, bg._lock = pickle, cloudpickle.dumps, threading.Lock()
+    bg.proc = types.SimpleNamespace(stdin=pipe)
+    assert not bg.submit(("task", 0), print, (threading.Lock(),))
+    assert pipe.getvalue() == b""
+    offset = 2.0
+    assert bg.submit(("task", 1), lambda x: x + offset, (1.0,))
+    tag, call, (function, *args) = pickle.loads(pipe.getvalue())
+    assert tag == ("task", 1) and function(*args) == 3.0
+
+
 def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
     from elastica_auto.execution import cluster, runfile
