@@ -385,6 +385,41 @@ bounds = [0.2, 0.3]
     assert workers[0] == "local" and any(w.startswith("inproc://") for w in workers)
 
 
+def test_a_default_run_shares_its_maps_enumerations_with_its_cluster(tmp_path, monkeypatch,
+                                                                      rotating_arm):
+    """A fold-curve run with ``map = true``, jobs = 0 on two cores, a stand-in worker up at
+    once: the map's enumerations (one per region, `analysis.maps.region_counts`) are tasks
+    shared with it, and the file, maps included, is the one jobs = 1 writes."""
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import execute
+    from helpers import WorkingBackground
+    handed = []
+
+    class Recording(WorkingBackground):
+        def submit(self, tag, function, args):
+            handed.append((tag[0], function.__name__))
+            return super().submit(tag, function, args)
+
+    curves = tmp_path / "curves.toml"
+    curves.write_text(f"""
+equation = "elastica_lever_arm"
+start = [{{ file = "{rotating_arm.result.path}", type = "LP", where = {{ eps = 0.25 }} }}]
+[continuation]
+parameter = ["psi", "eps"]
+bounds = [0.2, 0.3]
+map = true
+""")
+    one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
+    monkeypatch.setattr(cluster, "Background", Recording)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    both = execute(runfile.load(curves), tmp_path / "both", jobs=0)
+    regions = sum(len(m.stable) for m in both.maps)
+    assert regions >= 2 and ("task", "region_counts") in handed
+    _same_numbers(one.path, both.path)
+
+
 def test_a_task_that_does_not_pickle_stays_here_and_sends_nothing():
     """`Background.submit` of a task with an argument no pickler takes (a lock) answers
     False (the command computes it) and writes nothing to the helper, whose input stays a

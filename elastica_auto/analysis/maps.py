@@ -145,12 +145,16 @@ def plane_groups(branches, names, x: str, y: str) -> list[tuple[dict, list]]:
 
 
 def stability_maps(problem, branches, x: str, y: str, bounds, nx=NX, ny=NY,
-                   progress=None) -> list[StabilityMap]:
+                   progress=None, mapper=None) -> list[StabilityMap]:
     """The map of each plane of a fold-curve run (``branches`` of ``problem``, the module's
-    own problem, with curves in ``x`` solved for and ``y`` continued within ``bounds``)."""
-    from .equilibria import enumerate_equilibria
+    own problem, with curves in ``x`` solved for and ``y`` continued within ``bounds``).
+    The enumerations, one per region of every plane, are independent tasks
+    (`region_counts`): ``mapper(function, args_list, on_done)`` computes them (a default
+    run's workers, `execution.run._analyse`; default here, one after the other), and
+    ``progress(done, total)`` follows them."""
+    from .landing import one_by_one
     period = problem.parameters[x].period
-    out = []
+    out, tasks = [], []
     for fixed, members in plane_groups(branches, problem.parameter_names, x, y):
         curves = [(b.columns[x], b.columns[y]) for b in members]
         xs = np.concatenate([c[0] for c in curves])
@@ -159,18 +163,28 @@ def stability_maps(problem, branches, x: str, y: str, bounds, nx=NX, ny=NY,
         cells, deepest = regions(curves, extent, period, nx, ny)
         x0, x1, y0, y1 = extent
         m = StabilityMap(x, y, dict(fixed), extent, cells)
-        rx, ry, stable, total = [], [], [], []
-        for j, i in deepest:
-            px = x0 + (i + 0.5) * (x1 - x0) / nx
-            py = y0 + (j + 0.5) * (y1 - y0) / ny
-            eqs = enumerate_equilibria(problem, {**fixed, x: px, y: py})
-            rx.append(px)
-            ry.append(py)
-            stable.append(sum(e.index == 0 for e in eqs))
-            total.append(len(eqs))
-            if progress is not None:
-                progress(len(rx), len(deepest))
-        m.region_x, m.region_y = np.array(rx), np.array(ry)
-        m.stable, m.equilibria = np.array(stable, dtype=int), np.array(total, dtype=int)
+        m.region_x = np.array([x0 + (i + 0.5) * (x1 - x0) / nx for _, i in deepest])
+        m.region_y = np.array([y0 + (j + 0.5) * (y1 - y0) / ny for j, _ in deepest])
+        tasks += [(problem, {**fixed, x: px, y: py}) for px, py in zip(m.region_x, m.region_y)]
         out.append(m)
+
+    finished = []
+
+    def done(i, counts):
+        finished.append(i)
+        if progress is not None:
+            progress(len(finished), len(tasks))
+
+    counts = iter((mapper or one_by_one)(region_counts, tasks, done))
+    for m in out:
+        stable, total = zip(*[next(counts) for _ in m.region_x]) if len(m.region_x) else ((), ())
+        m.stable, m.equilibria = np.array(stable, dtype=int), np.array(total, dtype=int)
     return out
+
+
+def region_counts(problem, params) -> tuple[int, int]:
+    """(stable, all) equilibria at ``params``: one region's enumeration, a task of
+    `stability_maps`."""
+    from .equilibria import enumerate_equilibria
+    eqs = enumerate_equilibria(problem, params)
+    return sum(e.index == 0 for e in eqs), len(eqs)

@@ -130,8 +130,8 @@ def _task(plan, k: int, job):
 def map_tasks(client, function, args_list, on_done) -> list:
     """``function(*args)`` for each of ``args_list`` as tasks of ``client``'s cluster; their
     results in order, ``on_done(i, result)`` called as each arrives. A task that fails
-    there (its worker died) is computed in this process. (The damped model's landings of a
-    ``--jobs N`` or scheduler run: `execution.run._analyse`.)"""
+    there (its worker died) is computed in this process. (The landings and the maps'
+    enumerations of a ``--jobs N`` or scheduler run: `execution.run._analyse`.)"""
     from distributed import as_completed
     futures = {client.submit(function, *args, pure=False): i
                for i, args in enumerate(args_list)}

@@ -460,8 +460,8 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
                             client, plan, jobs_list, branches, save, on_branch, on_tasks,
                             signals.stop, skip))
             finally:
-                # kept open for the landings, its tasks too
-                if own and (interrupted or not (plan.landing or plan.damping)):
+                # kept open for the landings and the maps, its tasks too
+                if own and (interrupted or not _tasks_after(plan)):
                     close(client, interrupted)
                     own = False
     number_labels(branches, result.kept + 1, _label_counters(kept, result.kept))
@@ -469,7 +469,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     mapper = None
     if pool is not None:
         mapper = pool.map
-    elif client is not None and not interrupted and (plan.landing or plan.damping):
+    elif client is not None and not interrupted and _tasks_after(plan):
         from functools import partial
 
         from .cluster import map_tasks
@@ -487,6 +487,12 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             close(client, broken)
 
 
+def _tasks_after(plan: Plan) -> bool:
+    """Whether the analysis after the branches has tasks for workers: the landings (snap
+    targets, damped model) and the stability maps' enumerations."""
+    return bool(plan.landing or plan.damping or plan.maps)
+
+
 def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
              on_landing: Callable[[int, int, dict], None] | None, mapper=None):
     """The computed branches' snap-back targets, and as the plan asks, the damped model's
@@ -494,8 +500,8 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
     branches). A failure of the module in any of them is a warning: the branches stand.
     ``pool``: a default run's (`_Alongside`): its workers' equilibrium scans
     (`snap_targets`'s ``cache``). ``mapper``: computes the landings (overdamped and
-    damped) as tasks (the default run's `_Alongside.map`, a cluster's
-    `cluster.map_tasks`; default here, one after the other)."""
+    damped) and the maps' enumerations as tasks (the default run's `_Alongside.map`, a
+    cluster's `cluster.map_tasks`; default here, one after the other)."""
     branches = result.branches
     try:
         result.snaps = snap_targets(plan.problem, branches, result.warnings,
@@ -528,7 +534,7 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
         try:
             result.maps = stability_maps(plan.base, every, plan.problem.free[0],
                                          plan.parameter,
-                                         (plan.stops.lower, plan.stops.upper))
+                                         (plan.stops.lower, plan.stops.upper), mapper=mapper)
         except Exception as exc:  # as for the snap-back scan
             result.warnings.append(f"stability map failed: {one_line(exc)}")
 
@@ -553,7 +559,7 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
         finally:
             if interrupted:
                 pool.background.close()
-            elif not (plan.landing or plan.damping):   # the landings need it; else its
+            elif not _tasks_after(plan):   # the landings and maps need it; else its
                 pool.background.finish()   # helper ends its cluster while this process goes on
     result.interrupted = interrupted
     return pool
@@ -880,8 +886,8 @@ class _Alongside:
         list, as the branches are shared; their results in order, and ``on_done(i, result)``
         called here as each arrives. A task the cluster fails or gives back is computed
         here. (The landings of `analysis.snaps.snap_targets` and
-        `analysis.landing.damping_sweep`: seconds each, the same result whoever computes
-        it.)"""
+        `analysis.landing.damping_sweep`, the enumerations of `analysis.maps.stability_maps`:
+        up to seconds each, the same result whoever computes it.)"""
         import queue
         n = len(args_list)
         with self.lock:
