@@ -288,6 +288,22 @@ def _null_vector(disc, blocks, name, c, split):
     return v, float(g[0]), w_col, w_bc
 
 
+def _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc) -> tuple[np.ndarray, float]:
+    """The gradient ``(g_Y (n, m), g_lam)`` of the test function g of :func:`_null_vector`
+    (its border b and row c held fixed) at the point Y, ``p`` of ``blocks``, from its null
+    vector v and multipliers w: differentiating ``[[F_y, b], [c, 0]] (v, g) = (0, 1)``,
+    ``dg = -w^T (dF_y) v``, so ``g_Y = -(d/dY (F_y v))^T w`` and ``g_lam = -w^T (dF_y/dlam) v
+    = -w^T (dF_lam/dY) v`` (mixed derivatives commute): both from one linearisation at
+    ``Y + eps v``, a one-sided difference whose O(eps) error only slows Newton's (then
+    linear, rate ~eps) convergence; F and g themselves are exact."""
+    eps = 1e-7 * (1 + float(np.max(np.abs(Y)))) / max(float(np.max(np.abs(v))), 1e-300)
+    plus = disc.blocks(disc.evaluate(Y + eps * v, p), p, (name,))
+    g_y = -(plus.transpose_times(w_col, w_bc) - blocks.transpose_times(w_col, w_bc)) / eps
+    g_lam = -(float(np.sum(w_col * (plus.dcol[name] - blocks.dcol[name])))
+              + float(w_bc @ (plus.dbc[name] - blocks.dbc[name]))) / eps
+    return g_y, g_lam
+
+
 def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t: Tangent,
                 split, tol: float = FOLD_NEWTON_TOL, max_iter: int = 15) -> FoldResult:
     """Locate a fold by Newton's method on the minimally augmented system (Govaerts)
@@ -297,8 +313,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     with g from ``[[F_y, b], [c, 0]] (v, g) = (0, 1)``: ``b`` = F_lam and ``c`` = the weighted
     state part of ``t`` (an approximate null vector) at the start, then frozen. The Newton
     matrix ``[[F_y, F_lam], [g_y, g_lam]]`` is the bordered Jacobian with the gradient of g as
-    its border row, ``g_z = -w^T (dF_y/dz) v`` (w from the transposed system), the
-    derivative of F_y along v and in lam by differences of the module's Jacobian."""
+    its border row (:func:`_fold_gradient`)."""
     Y = np.array(Y, dtype=float)
     lam = float(lam)
     p = {**params, name: lam}
@@ -310,15 +325,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
         aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
                      {name: frozen_bc}, blocks.jac, blocks.fp)
         v, g, w_col, w_bc = _null_vector(disc, aux, name, c, split)
-        # one-sided differences: an O(eps) error in the Newton matrix only slows the (then
-        # linear, rate ~eps) convergence; F and g themselves are exact
-        eps = 1e-7 * (1 + float(np.max(np.abs(Y)))) / max(float(np.max(np.abs(v))), 1e-300)
-        plus = disc.blocks(disc.evaluate(Y + eps * v, p), p)
-        g_y = -(plus.transpose_times(w_col, w_bc) - blocks.transpose_times(w_col, w_bc)) / eps
-        eps_l = 1e-7 * (1 + abs(lam))
-        up = disc.blocks(disc.evaluate(Y, {**p, name: lam + eps_l}), {**p, name: lam + eps_l})
-        (uc, ub), (bc_, bb) = up.times(v), blocks.times(v)
-        g_lam = -(float(np.sum(w_col * (uc - bc_))) + float(w_bc @ (ub - bb))) / eps_l
+        g_y, g_lam = _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc)
         fact = bordered.factor(blocks, (name,), [(g_y, [g_lam])], split)
         dY, dlam = fact.solve(ev.col, ev.bc, [g])
         dlam = float(dlam[0])
