@@ -93,7 +93,7 @@ def test_the_fold_newton_border_row_is_the_gradient_of_its_test_function(elastic
         fixed = Blocks(bl.d0, bl.d1, bl.ga, bl.gb, {name: b_col}, {name: b_bc}, bl.jac, bl.fp)
         return _null_vector(disc, fixed, name, c, split)[1]
 
-    v, _, w_col, w_bc = _null_vector(disc, Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb,
+    v, _, w_col, w_bc, _ = _null_vector(disc, Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb,
                                                   {name: b_col}, {name: b_bc}, blocks.jac,
                                                   blocks.fp), name, c, split)
     g_y, g_lam = _fold_gradient(disc, name, p, y, blocks, v, w_col, w_bc)
@@ -104,6 +104,49 @@ def test_the_fold_newton_border_row_is_the_gradient_of_its_test_function(elastic
     d = rng.standard_normal(y.shape)
     along = (g_at(y + h * d, lam) - g_at(y - h * d, lam)) / (2 * h)
     assert float(np.sum(g_y * d)) == pytest.approx(along, rel=1e-6)
+
+
+def test_a_fold_newton_step_is_newtons_step_on_the_augmented_system(elastica):
+    """One iteration of `newton.fold_newton` from beside the rotating arm's first fold (eps
+    = 0.25, P = pi^2/4; its solution and parameter moved by 1e-3) against Newton's step on
+    (F, g) with the Jacobian by central differences of the residuals and of g itself (its
+    border column F_lam taken at that point, as the iteration's gradient holds it), solved
+    densely."""
+    import elastica_auto as ea
+    from elastica_auto.numerics.newton import _null_vector, fold_newton
+    arm = ea.continuation(elastica, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                          bounds=(-2 * math.pi, 2 * math.pi))
+    near = arm.label("LP1")
+    s, p, name = near.state.s, dict(near.state.params), "psi"
+    y0 = near.state.y + 1e-3 * np.sin(np.arange(1, 5)[:, None] * s)
+    lam0 = p[name] = p[name] + 1e-3
+    disc = Discretisation(elastica, s)
+    blocks = disc.blocks(disc.evaluate(y0, p), p, (name,))
+    split = bordered.split_rows(blocks.ga, blocks.gb)
+    c = disc.weights * near.tangent.on(s).y
+    b_col, b_bc = blocks.dcol[name], blocks.dbc[name]
+
+    def residual(z):
+        Y, lam = z[:-1].reshape(y0.shape), z[-1]
+        q = {**p, name: lam}
+        ev = disc.evaluate(Y, q)
+        bl = disc.blocks(ev, q)
+        fixed = Blocks(bl.d0, bl.d1, bl.ga, bl.gb, {name: b_col}, {name: b_bc}, bl.jac, bl.fp)
+        return np.concatenate((ev.col.ravel(), ev.bc, [_null_vector(disc, fixed, name, c,
+                                                                    split)[1]]))
+
+    z0 = np.append(y0.ravel(), lam0)
+    h = 1e-6
+    jac = np.empty((len(z0), len(z0)))
+    for j in range(len(z0)):
+        e = np.zeros(len(z0))
+        e[j] = h
+        jac[:, j] = (residual(z0 + e) - residual(z0 - e)) / (2 * h)
+    dense = np.linalg.solve(jac, -residual(z0))
+    res = fold_newton(disc, name, p, y0, lam0, near.tangent, split, max_iter=1)
+    step = np.append((res.Y - y0).ravel(), res.lam - lam0)
+    # (measured 1e-8 of the step; a sign error in g or g_lam: O(1))
+    assert np.max(np.abs(step - dense)) <= 1e-6 * np.max(np.abs(dense))
 
 
 def test_equidistributed_mesh_meets_its_target(elastica):

@@ -278,14 +278,14 @@ class FoldResult:
 
 
 def _null_vector(disc, blocks, name, c, split):
-    """(v, g, w_col, w_bc) of the bordered system ``[[F_y, F_lam], [c, 0]]``: ``F_y v + F_lam g
-    = 0``, ``<c, v> = 1``; w the multipliers of its transpose with the same right-hand side.
-    ``g`` vanishes exactly where F_y is singular with null vector v (a fold when F_lam is not
-    in the range of F_y)."""
+    """(v, g, w_col, w_bc, fact) of the bordered system ``[[F_y, F_lam], [c, 0]]``: ``F_y v +
+    F_lam g = 0``, ``<c, v> = 1``; w the multipliers of its transpose with the same
+    right-hand side; ``fact`` its factorisation. ``g`` vanishes exactly where F_y is singular
+    with null vector v (a fold when F_lam is not in the range of F_y)."""
     fact = bordered.factor(blocks, (name,), [(c, [0.0])], split)
-    v, g = fact.solve(np.zeros((disc.n, disc.m - 1)), np.zeros(disc.n), [1.0])
+    v, g = fact.null_direction()
     w_col, w_bc, _ = fact.solve_transpose(np.zeros((disc.n, disc.m)), [1.0])
-    return v, float(g[0]), w_col, w_bc
+    return v, float(g[0]), w_col, w_bc, fact
 
 
 def _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc) -> tuple[np.ndarray, float]:
@@ -310,24 +310,24 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
 
         F(Y, lam) = 0,    g(Y, lam) = 0,
 
-    with g from ``[[F_y, b], [c, 0]] (v, g) = (0, 1)``: ``b`` = F_lam and ``c`` = the weighted
-    state part of ``t`` (an approximate null vector) at the start, then frozen. The Newton
-    matrix ``[[F_y, F_lam], [g_y, g_lam]]`` is the bordered Jacobian with the gradient of g as
-    its border row (:func:`_fold_gradient`)."""
+    with g from ``[[F_y, F_lam], [c, 0]] (v, g) = (0, 1)`` (:func:`_null_vector`): ``c`` = the
+    weighted state part of ``t`` (an approximate null vector), fixed. The Newton matrix
+    ``[[F_y, F_lam], [g_y, g_lam]]`` is that bordered matrix with the gradient of g as its
+    last row (:func:`_fold_gradient`), so it is solved with the same factorisation, its last
+    row exchanged (Sherman-Morrison, `Factorization.solve_with_border`). The gradient holds
+    the border column F_lam fixed: its variation adds ``-w^T (dF_lam) g`` to dg, a term that
+    vanishes with g at the fold, so that Newton's convergence stays quadratic (the
+    iterations on the shipped runs are those of a border frozen at the start)."""
     Y = np.array(Y, dtype=float)
     lam = float(lam)
     p = {**params, name: lam}
     ev = disc.evaluate(Y, p)
     blocks = disc.blocks(ev, p, (name,))
-    frozen_col, frozen_bc = blocks.dcol[name], blocks.dbc[name]
     c = disc.weights * t.on(disc.s).y
     for it in range(1, max_iter + 1):
-        aux = Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb, {name: frozen_col},
-                     {name: frozen_bc}, blocks.jac, blocks.fp)
-        v, g, w_col, w_bc = _null_vector(disc, aux, name, c, split)
+        v, g, w_col, w_bc, fact = _null_vector(disc, blocks, name, c, split)
         g_y, g_lam = _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc)
-        fact = bordered.factor(blocks, (name,), [(g_y, [g_lam])], split)
-        dY, dlam = fact.solve(ev.col, ev.bc, [g])
+        dY, dlam = fact.solve_with_border(g_y, [g_lam], ev.col, ev.bc, [g])
         dlam = float(dlam[0])
         size = scaled_norm(dY, dlam, Y, lam)
         if not size < FOLD_MAX_CORRECTION:  # started near the fold: this diverges (or is NaN)
