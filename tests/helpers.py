@@ -50,6 +50,33 @@ def elastica_run_file(path: Path, *, eps="0.25", P="pi^2/4", directions="both",
     return path
 
 
+def fold_curves_file(path: Path, equation: str, folds, extra: str = "") -> Path:
+    """Write a fold-curve run file: from the LP labels of the file ``folds`` at eps = 0.25,
+    continued in (psi, eps) over eps in [0.2, 0.3]; ``extra`` lines added to its
+    [continuation] table."""
+    path.write_text(f"""
+equation = "{equation}"
+start = [{{ file = "{folds}", type = "LP", where = {{ eps = 0.25 }} }}]
+[continuation]
+parameter = ["psi", "eps"]
+bounds = [0.2, 0.3]
+{extra}""")
+    return path
+
+
+def central_jacobian(fun, x0, h: float = 1e-6):
+    """The Jacobian of ``fun`` (a vector of a vector) at ``x0`` by central differences of
+    step ``h``, dense: an independent reference for the engine's Newton matrices."""
+    import numpy as np
+    x0 = np.asarray(x0, dtype=float)
+    jac = np.empty((len(fun(x0)), len(x0)))
+    for j in range(len(x0)):
+        e = np.zeros(len(x0))
+        e[j] = h
+        jac[:, j] = (fun(x0 + e) - fun(x0 - e)) / (2 * h)
+    return jac
+
+
 def _options(extra: str) -> str:
     """The header of the [options] table, unless ``extra`` opened it (and so it is open)."""
     return "" if extra.rstrip("\n").split("\n")[0] == "[options]" or \

@@ -360,21 +360,14 @@ def test_a_default_run_hands_fold_curves_to_its_background_cluster(tmp_path, mon
     from elastica_auto.execution import run as run_module
     from elastica_auto.execution import runfile
     from elastica_auto.execution.run import execute
-    from helpers import elastica_run_file
+    from helpers import elastica_run_file, fold_curves_file
     monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
     flag, started = tmp_path / "wait", tmp_path / "started"
     _waiting_elastica(tmp_path / "mine.py", flag, started)
     arm = elastica_run_file(tmp_path / "arm.toml")
     arm.write_text(arm.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
     folds = execute(runfile.load(arm), tmp_path, jobs=1).path
-    curves = tmp_path / "curves.toml"
-    curves.write_text(f"""
-equation = "mine.py"
-start = [{{ file = "{folds}", type = "LP", where = {{ eps = 0.25 }} }}]
-[continuation]
-parameter = ["psi", "eps"]
-bounds = [0.2, 0.3]
-""")
+    curves = fold_curves_file(tmp_path / "curves.toml", "mine.py", folds)
     one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
     flag.touch()
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
@@ -393,7 +386,7 @@ def test_a_default_run_shares_its_maps_enumerations_with_its_cluster(tmp_path, m
     from elastica_auto.execution import cluster, runfile
     from elastica_auto.execution import run as run_module
     from elastica_auto.execution.run import execute
-    from helpers import WorkingBackground
+    from helpers import WorkingBackground, fold_curves_file
     handed = []
 
     class Recording(WorkingBackground):
@@ -401,15 +394,8 @@ def test_a_default_run_shares_its_maps_enumerations_with_its_cluster(tmp_path, m
             handed.append((tag[0], function.__name__))
             return super().submit(tag, function, args)
 
-    curves = tmp_path / "curves.toml"
-    curves.write_text(f"""
-equation = "elastica_lever_arm"
-start = [{{ file = "{rotating_arm.result.path}", type = "LP", where = {{ eps = 0.25 }} }}]
-[continuation]
-parameter = ["psi", "eps"]
-bounds = [0.2, 0.3]
-map = true
-""")
+    curves = fold_curves_file(tmp_path / "curves.toml", "elastica_lever_arm",
+                              rotating_arm.result.path, "map = true\n")
     one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
     monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
     monkeypatch.setattr(cluster, "Background", Recording)

@@ -23,7 +23,7 @@ import shooting
 from elastica_auto.numerics import bordered
 from elastica_auto.execution import runfile
 from elastica_auto.numerics.collocation import Blocks, Discretisation, equidistributed_mesh
-from helpers import EXAMPLES, ROTATING_ARM, run_plan
+from helpers import EXAMPLES, ROTATING_ARM, central_jacobian, run_plan
 
 # ---- the discretisation ------------------------------------------------------------------
 
@@ -136,13 +136,7 @@ def test_a_fold_newton_step_is_newtons_step_on_the_augmented_system(elastica):
                                                                     split)[1]]))
 
     z0 = np.append(y0.ravel(), lam0)
-    h = 1e-6
-    jac = np.empty((len(z0), len(z0)))
-    for j in range(len(z0)):
-        e = np.zeros(len(z0))
-        e[j] = h
-        jac[:, j] = (residual(z0 + e) - residual(z0 - e)) / (2 * h)
-    dense = np.linalg.solve(jac, -residual(z0))
+    dense = np.linalg.solve(central_jacobian(residual, z0), -residual(z0))
     res = fold_newton(disc, name, p, y0, lam0, near.tangent, split, max_iter=1)
     step = np.append((res.Y - y0).ravel(), res.lam - lam0)
     # (measured 1e-8 of the step; a sign error in g or g_lam: O(1))

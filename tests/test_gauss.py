@@ -25,7 +25,7 @@ from elastica_auto.numerics.gauss import GaussDiscretisation, tableau
 from elastica_auto.numerics.newton import Row, newton
 from elastica_auto.core.options import ContinuationOptions, OptionsError
 from elastica_auto.model.problem import load_problem
-from helpers import EXAMPLES, ROTATING_ARM, run_plan
+from helpers import EXAMPLES, ROTATING_ARM, central_jacobian, run_plan
 
 
 @pytest.mark.parametrize("k", range(2, 8))
@@ -262,13 +262,7 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
                                [row.residual(Yx, lx)]))
 
     x0 = np.concatenate((y.ravel(), K.ravel(), [lam]))
-    h = 1e-6
-    jac = np.empty((len(x0), len(x0)))
-    for j in range(len(x0)):
-        e = np.zeros(len(x0))
-        e[j] = h
-        jac[:, j] = (residual(x0 + e) - residual(x0 - e)) / (2 * h)
-    dx = np.linalg.solve(jac, residual(x0))
+    dx = np.linalg.solve(central_jacobian(residual, x0), residual(x0))
     np.testing.assert_allclose(dY, dx[:y.size].reshape(y.shape), rtol=0, atol=1e-7)
     np.testing.assert_allclose(dK, dx[y.size:-1].reshape(K.shape), rtol=0, atol=1e-7)
     assert abs(dlam - dx[-1]) < 1e-7
