@@ -202,7 +202,8 @@ def gradient_flow(p, nodes):
 
     from elastica_auto import trapezoid_weights
     h = np.diff(nodes)
-    w = trapezoid_weights(nodes)[1:]
+    weights = trapezoid_weights(nodes)
+    w = weights[1:]
     big_p, a, eps, t0 = p["P"], p["alpha"], p["eps"], p["theta0"]
 
     def full(u):
@@ -211,7 +212,7 @@ def gradient_flow(p, nodes):
     def energy(u):
         th = full(u)
         return float(np.sum(np.diff(th) ** 2 / (2 * h))
-                     + np.sum(trapezoid_weights(nodes) * big_p * np.cos(th - a))
+                     + np.sum(weights * big_p * np.cos(th - a))
                      + eps * big_p * np.cos(p["psi"] + a - th[-1]))
 
     def gradient(u):
