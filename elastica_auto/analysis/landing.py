@@ -169,16 +169,16 @@ def _overdamped(flow, u0, t0: float = 0.0):
     from scipy.integrate import BDF
     solver = BDF(lambda t, u: flow.force(u), t0, u0, t0 + T_MAX, rtol=RTOL, atol=ATOL,
                  jac=lambda t, u: flow.jacobian(u))
-    return _steps(solver, lambda u: np.max(np.abs(flow.force(u))) < FORCE_TOL, flow.energy)
+    return _steps(solver, lambda u, e: np.max(np.abs(flow.force(u))) < FORCE_TOL, flow.energy)
 
 
 def _steps(solver, done, total):
-    """Step ``solver`` until ``done(y)`` after a step (or ``T_MAX``): the times, ``total(y)``
-    at each and the end. (Checked step by step, not located as an event: where it happens
-    to within a step is enough, and an event's root finding on the dense output fails when
-    the check is not continuous in time, as the settling test below is not.)"""
+    """Step ``solver`` until ``done(y, total(y))`` after a step (or ``T_MAX``): the times,
+    ``total(y)`` at each and the end. (Checked step by step, not located as an event: where
+    it happens to within a step is enough, and an event's root finding on the dense output
+    fails when the check is not continuous in time, as the settling test below is not.)"""
     times, energies = [solver.t], [total(solver.y)]
-    while not done(solver.y):
+    while not done(solver.y, energies[-1]):
         solver.step()
         if solver.status == "failed":
             raise RuntimeError(f"the integration failed at t = {solver.t:.4g}")
@@ -228,8 +228,9 @@ def _damped(flow, u0, damping: float, barrier: float):
     def total(z):
         return flow.energy(z[:m]) + 0.5 * np.sum(flow.mass * z[m:] ** 2)
 
-    def done(z):
-        if total(z) < below:
+    def done(z, energy):
+        """``energy``: ``total(z)``, which `_steps` records at every step anyway."""
+        if energy < below:
             return True
         # settled: the kinetic energy and the Newton step to the equilibrium nearby both
         # small (the force itself carries the integration error of the fastest modes); the
