@@ -620,3 +620,19 @@ def test_a_branch_of_an_earlier_level_is_dropped_when_it_comes_back():
         worker = None
     pool._take((("branch", (3, 0)), True, (Branch(), "inproc://w")), done)
     assert list(done) == [0] and done[0].worker == "inproc://w"
+
+
+def test_a_scan_the_cluster_finished_is_taken_not_computed_again():
+    """A scan whose result the cluster delivered (in the queue, no longer asked for) while
+    this process was busy is taken by `_Alongside.wait_for_scans`, not left for
+    `snap_targets` to compute again."""
+    import threading
+    from elastica_auto.execution.run import _Alongside
+    pool = _Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
+    key, params = (("P", 2.0),), {"P": 2.0}
+    pool.pending_params[key] = params
+    pool.asked.add(key)
+    pool._on_result(("scan", key), True, (["an equilibrium"], "inproc://w"))
+    assert not pool.asked
+    assert pool.wait_for_scans(threading.Event())
+    assert pool.scans == {key: (params, ["an equilibrium"])}

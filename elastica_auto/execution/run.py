@@ -933,15 +933,25 @@ class _Alongside:
         return [done[i] for i in range(n)]
 
     def wait_for_scans(self, stop) -> bool:
-        """The scans not done yet: this process takes those not sent to the cluster (a scan
-        costs it tens of ms and no import) and waits for those sent; False if interrupted
-        meanwhile."""
+        """The scans not done yet: this process takes those not sent to the cluster (no
+        import; tens of ms for the planar rod, half a second for the spatial one) and waits
+        for those sent; False if interrupted meanwhile. A scan leaves ``asked`` once its
+        result is in the queue, so the results still there are taken before returning
+        (dropped, one finished as this process finished its own was computed again by
+        `snap_targets`)."""
         import queue
         while not stop.is_set():
             with self.lock:
-                if not self.asked and not self.unsent:
-                    return True
-                self._feed()
+                finished = not self.asked and not self.unsent
+                if not finished:
+                    self._feed()
+            if finished:
+                while True:
+                    try:
+                        self._take(self.results.get_nowait(), {})
+                    except queue.Empty:
+                        return True
+            with self.lock:
                 key, params = self.unsent.pop(0) if self.unsent else (None, None)
             if key is not None:
                 self.scans[key] = (params, self._timed("scan", lambda: len(self.unsent),
