@@ -636,3 +636,135 @@ def test_a_scan_the_cluster_finished_is_taken_not_computed_again():
     assert not pool.asked
     assert pool.wait_for_scans(threading.Event())
     assert pool.scans == {key: (params, ["an equilibrium"])}
+
+
+@pytest.mark.parametrize("wanted, fails", [("all", False), ("first", False), ("all", True)])
+def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_computed(
+        tmp_path, monkeypatch, wanted, fails):
+    """A branch continued in this process, a stand-in worker idle from the start: the scans
+    at the folds that end a stable segment (by the direct count) are handed to the worker
+    as each fold is found, before the branch is done, and `_Alongside.wait_for_scans` ends
+    with each scan the labelled branch wants (`analysis.snaps.scans`, at its parameters)
+    as `enumerate_equilibria` gives it, none computed here; guesses the branch does not
+    want (``first``: it wants only its first) are not kept, nor computed here. A worker that
+    dies with each task (``fails``): the run goes on, and the scans this process keeps are
+    the right ones (`snap_targets` computes the others)."""
+    import threading
+
+    from elastica_auto.analysis import snaps
+    from elastica_auto.core.interrupts import Interruptions
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import RunResult, _Alongside, start_job
+    from helpers import WorkingBackground, elastica_run_file
+    computing, handed, where = threading.Event(), [], []
+    compute, enumerate_ = run_module.compute_branch, run_module.enumerate_equilibria
+
+    def computed(*args):
+        computing.set()
+        try:
+            return compute(*args)
+        finally:
+            computing.clear()
+
+    def enumerated(problem, params):
+        where.append(threading.current_thread() is threading.main_thread())
+        return enumerate_(problem, params)
+
+    class Recording(WorkingBackground):
+        def submit(self, tag, function, args):
+            if tag[0] == "branch":      # refused (as a task that does not pickle): the
+                return False            # branch is computed here
+            handed.append((tag[0], computing.is_set()))
+            return super().submit(tag, function, args)
+
+    def wanted_scans(problem, br):
+        out = snaps.scans(problem, br)
+        return out if wanted == "all" else dict(list(out.items())[:1])
+
+    monkeypatch.setattr(run_module, "compute_branch", computed)
+    monkeypatch.setattr(run_module, "enumerate_equilibria", enumerated)
+    monkeypatch.setattr(run_module, "scans", wanted_scans)
+    plan = runfile.load(elastica_run_file(tmp_path / "one.toml", eps="0.5", P="9*pi^2/4",
+                                          directions="forward", bounds=("-6*pi", "6*pi"),
+                                          mirror=False))
+    pool = _Alongside(plan, 1, lambda n, on: Recording(n, on, fails=fails))
+    result = RunResult(None, [], 0.0)
+    with Interruptions() as signals:
+        assert not pool.run([start_job(plan, spec) for spec in plan.branches],
+                            result.branches, lambda: None, None, None, signals.stop)
+        assert pool.wait_for_scans(signals.stop)
+    (br,) = result.branches
+    want = wanted_scans(plan.problem, br)
+    guessed = [t for t in handed if t[0] == "guess"]
+    assert len(snaps.scans(plan.problem, br)) >= 2 and len(guessed) >= len(want)
+    assert all(during for _, during in guessed)
+    assert fails or ("scan", False) not in handed     # (failed guesses are sent again)
+    if fails:
+        assert pool.scans.keys() <= want.keys()
+    else:
+        assert pool.scans.keys() == want.keys() and not any(where)
+    for key in pool.scans:
+        params = want[key]
+        assert pool.scans[key][0] == params
+        got, here = pool.scans[key][1], enumerate_(plan.problem, params)
+        assert [(e.k, e.index, e.ordinates) for e in got] == [
+            (e.k, e.index, e.ordinates) for e in here]
+        for a, b in zip(got, here):
+            np.testing.assert_array_equal(a.state.y, b.state.y)
+
+
+def test_a_default_run_whose_scans_were_guessed_writes_the_file_one_process_writes(
+        tmp_path, monkeypatch):
+    """The rotating arm at eps = 0.5, P = 9 pi^2/4 both ways (the second branch the first's
+    mirror image, whose scans `snap_targets` makes from the first's), jobs = 0, a stand-in
+    worker that takes no branch: every scan it computes was guessed, and the file, snap-back
+    table included, is the one jobs = 1 writes."""
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import execute
+    from helpers import WorkingBackground, elastica_run_file
+    handed = []
+
+    class Guessing(WorkingBackground):
+        def submit(self, tag, function, args):
+            if tag[0] == "branch":
+                return False
+            handed.append(tag[0])
+            return super().submit(tag, function, args)
+
+    path = elastica_run_file(tmp_path / "arm.toml", eps="0.5", P="9*pi^2/4",
+                             bounds=("-6*pi", "6*pi"))
+    one = execute(runfile.load(path), tmp_path / "one", jobs=1)
+    monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
+    monkeypatch.setattr(cluster, "Background", Guessing)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    both = execute(runfile.load(path), tmp_path / "both", jobs=0)
+    assert len(one.snaps) > 0 and "guess" in handed and "scan" not in handed
+    _same_numbers(one.path, both.path)
+
+
+@pytest.mark.parametrize("same", [True, False])
+def test_a_guessed_scan_is_kept_only_at_the_parameters_the_branch_wants(monkeypatch, same):
+    """A scan guessed at parameters of the same key (a periodic copy) but not those the
+    saved branch wants is not given as its scan: that one is sent; at the same parameters
+    the guess's result is kept."""
+    import types
+
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import _Alongside
+    key, wanted = (("psi", 1.0),), {"psi": 1.0}
+    guessed = wanted if same else {"psi": 1.0 + 2 * np.pi}
+    monkeypatch.setattr(run_module, "scans", lambda problem, br: {key: wanted})
+    monkeypatch.setattr(run_module, "copy_key", lambda problem, name, params: key)
+    plan = types.SimpleNamespace(problem=None, options=types.SimpleNamespace(mirror=False))
+    pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
+    br = types.SimpleNamespace(parameter="psi")
+    pool.guesses[key] = (br, guessed, key)
+    pool.spare[key] = ["the guess's equilibria"]
+    pool._scan(br)
+    if same:
+        assert pool.scans == {key: (wanted, ["the guess's equilibria"])} and not pool.unsent
+    else:
+        assert pool.scans == {} and pool.unsent == [(key, wanted)]
+    assert not pool.guesses and not pool.spare

@@ -73,7 +73,8 @@ class Callbacks:
 
 
 def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = None,
-                   should_stop: Callable[[], bool] | None = None) -> Branch:
+                   should_stop: Callable[[], bool] | None = None,
+                   watch: Callable[[Branch], None] | None = None) -> Branch:
     """Continue branch number ``k`` of the file from ``job``'s start, then label its
     stability. Ctrl-C (or ``should_stop()`` turning true) or a failure ends the branch early
     with MX, keeping every point computed so far (`elastica_auto.branches.stepper.continue_branch`):
@@ -81,7 +82,9 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
     continuation is over waits for the labelling, and sets ``interrupted`` on the branch,
     which is kept whole. A job whose mirror image is the next is continued with the negatives
     of the UZ values too, and the points there set aside for the image
-    (`elastica_auto.branches.mirror.mirror_course`, `set_aside`)."""
+    (`elastica_auto.branches.mirror.mirror_course`, `set_aside`). ``watch(branch)`` is
+    called after each step with the branch so far (unlabelled: the points' ``index_direct``
+    is the direct count)."""
     br = new_branch(plan, job)
 
     def on_step(b, lam):
@@ -89,6 +92,8 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
             raise KeyboardInterrupt
         if progress is not None:
             progress(k, len(b.points), len(b.folds), lam)
+        if watch is not None:
+            watch(b)
 
     t0 = time.perf_counter()
     # raised after the continuation, a signal would throw the computed branch away: one

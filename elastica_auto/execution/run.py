@@ -19,7 +19,7 @@ import numpy as np
 
 from ..analysis.equilibria import enumerate_equilibria
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import copy_key, mirror_key, scans, snap_targets
+from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
 from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin, start_point
@@ -608,8 +608,9 @@ class _Alongside:
     against 3.0 s here.) The branches are saved in the plan's order as they
     complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
     As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
-    go to the cluster too, if it is up. If the cluster ends (or never starts), this process
-    computes what it had been given.
+    go to the cluster too, if it is up; those of a branch computed here are guessed while
+    it is computed, for a worker that would otherwise wait (`_guess`). If the cluster ends
+    (or never starts), this process computes what it had been given.
 
     The cluster is started when it pays (``pays`` seconds, `CLUSTER_PAYS`; at once for 0):
     once the work of a kind (branches, scans, tasks) not taken yet, each estimated at the
@@ -630,6 +631,15 @@ class _Alongside:
         self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
         self.sent: set[tuple] = set()      # the parameters of the scans sent (`copy_key`)
         self.pending_params: dict[tuple, dict] = {}
+        # scans guessed while this process computes a branch (`_guess`): key -> (branch,
+        # parameters, copy_key), those not handed out yet (key, parameters), those on the
+        # cluster, their results not wanted (yet), and the wanted ones still on the cluster
+        self.guesses: dict[tuple, tuple] = {}
+        self.early: list[tuple] = []
+        self.guessing: set[tuple] = set()
+        self.spare: dict[tuple, object] = {}
+        self.awaited: dict[tuple, dict] = {}
+        self.cursor: tuple = (None, 1)    # the branch `_guess` reads, its next point
         # the tasks of `map`: the function, its arguments, the next to take, those on the
         # cluster, and those handed back (the cluster ended, or the task failed there)
         self.task_fn, self.tasks, self.task_front = None, [], 0
@@ -680,12 +690,16 @@ class _Alongside:
                 self.asked.clear()
                 self.task_returned += sorted(self.task_claimed)
                 self.task_claimed.clear()
+                self.guessing.clear()             # snap_targets computes the awaited ones
+                self.awaited.clear()
             elif tag is not None:
                 self.results.put((tag, ok, value))
                 if tag[0] == "branch":
                     self.claimed.discard(tag[1])
                 elif tag[0] == "task":
                     self.task_claimed.discard(tag[1])
+                elif tag[0] == "guess":
+                    self.guessing.discard(tag[1])
                 else:
                     self.asked.discard(tag[1])
             self._feed()
@@ -694,9 +708,9 @@ class _Alongside:
 
     def _feed(self):
         """Under the lock, if the cluster is up: a task for each idle worker, the next
-        branch or else a scan."""
+        branch, else a scan, else a task of `map`, else a guessed scan."""
         bg = self.background
-        while bg.ready.is_set() and (len(self.claimed) + len(self.asked)
+        while bg.ready.is_set() and (len(self.claimed) + len(self.asked) + len(self.guessing)
                                      + len(self.task_claimed)) < bg.workers:
             if self.front <= self.back:
                 i = self.front
@@ -721,6 +735,13 @@ class _Alongside:
                     return
                 self.task_front += 1
                 self.task_claimed.add(i)
+            elif self.early:
+                key, params = self.early[0]
+                if not bg.submit(("guess", key), enumerate_equilibria,
+                                 (self.plan.problem, params)):
+                    return
+                self.early.pop(0)
+                self.guessing.add(key)
             else:
                 return
 
@@ -732,6 +753,19 @@ class _Alongside:
         if kind == "scan":
             if ok:
                 self.scans[what] = (self.pending_params[what], value[0])
+            return
+        if kind == "guess":
+            with self.lock:
+                if what in self.awaited:
+                    params = self.awaited.pop(what)
+                    if ok:
+                        self.scans[what] = (params, value[0])
+                    else:   # its worker died: computed here (`wait_for_scans`)
+                        self.unsent.append((what, params))
+                elif ok and what in self.guesses:
+                    self.spare[what] = value[0]
+                elif what in self.guesses:   # failed: `_scan` sends it again if wanted
+                    del self.guesses[what]
             return
         if kind == "task":
             if ok:
@@ -849,7 +883,8 @@ class _Alongside:
                 if not self.started:
                     self._consider("branch", branches_left(), time.perf_counter() - t0)
             br = self._timed("branch", branches_left, compute_branch, self.plan,
-                             offset + i + 1, jobs_list[i], watched, stop.is_set)
+                             offset + i + 1, jobs_list[i], watched, stop.is_set,
+                             self._guess)
             done[i] = br
             flush()
             if br.interrupted:
@@ -865,20 +900,75 @@ class _Alongside:
 
     def _scan(self, br: Branch):
         """The scans ``br``'s folds need that no earlier branch needed, to the cluster; not
-        those at the mirror images of scans sent (`snap_targets` makes them from those)."""
+        those at the mirror images of scans sent (`snap_targets` makes them from those).
+        One guessed while ``br`` was computed (`_guess`) at the same parameters is taken
+        as it stands (done, on the cluster or waiting to be handed out); ``br``'s other
+        guesses are dropped."""
         problem = self.plan.problem
+        name = br.parameter
         for key, params in scans(problem, br).items():
-            if key not in self.seen:
-                self.seen.add(key)
-                name = br.parameter
-                if (self.plan.options.mirror
-                        and mirror_key(problem, name, params) in self.sent):
-                    continue
-                self.sent.add(copy_key(problem, name, params))
-                self.pending_params[key] = params
-                with self.lock:
+            with self.lock:
+                guess = self.guesses.pop(key, None)
+                done = self.spare.pop(key, None)
+                queued = any(e[0] == key for e in self.early)
+            if key in self.seen:
+                continue
+            self.seen.add(key)
+            if (self.plan.options.mirror
+                    and mirror_key(problem, name, params) in self.sent):
+                continue
+            self.sent.add(copy_key(problem, name, params))
+            self.pending_params[key] = params
+            taken = guess is not None and guess[1] == params
+            with self.lock:
+                if taken and done is not None:
+                    self.scans[key] = (params, done)
+                elif taken and not queued:          # handed out: its result is on its way
+                    self.awaited[key] = params
+                else:
+                    self.early = [e for e in self.early if e[0] != key]
                     self.unsent.append((key, params))
                     self._feed()
+        with self.lock:
+            for key in [k for k, g in self.guesses.items() if g[0] is br]:
+                del self.guesses[key]
+                self.spare.pop(key, None)
+            self.early = [e for e in self.early if e[0] in self.guesses]
+
+    def _guess(self, br: Branch):
+        """After each step of a branch computed here: a new fold or branch point with index 0
+        (the direct count) on one side and a positive index on the other may end a stable
+        segment, and then `_scan` will want the scan at its parameters once the branch is
+        labelled and saved. Queued now for a worker that has nothing else to do (after
+        every other kind of task), the worker has it done or under way by then: the scans
+        of a long branch no longer wait for its end (`rotating_arm_3d`'s last branch ran
+        alone for seconds, then its scans). Not where `_scan` will not send one: a scan
+        seen or guessed already, or at the mirror image of one sent or guessed."""
+        problem = self.plan.problem
+        if self.plan.curve is not None or not (problem.has_shooting
+                                               and problem.has_second_variation):
+            return
+        pts, (reading, j) = br.points, self.cursor
+        j = j if reading is br and j <= len(pts) else 1
+        name = br.parameter
+        for k in range(j, len(pts) - 1):
+            p = pts[k]
+            before, after = pts[k - 1].index_direct, pts[k + 1].index_direct
+            if p.type not in ("LP", "BP") or not (before == 0 < after or after == 0 < before):
+                continue
+            key = scan_key(problem, name, p.params)
+            if key in self.seen or key in self.guesses:
+                continue
+            params = dict(p.params)
+            if self.plan.options.mirror:
+                image = mirror_key(problem, name, params)
+                if image in self.sent or any(g[2] == image for g in self.guesses.values()):
+                    continue
+            with self.lock:
+                self.guesses[key] = (br, params, copy_key(problem, name, params))
+                self.early.append((key, params))
+                self._feed()
+        self.cursor = (br, max(j, len(pts) - 1))
 
     def map(self, function, args_list, on_done) -> list:
         """``function(*args)`` for each of ``args_list``, in this process and on the
@@ -940,9 +1030,13 @@ class _Alongside:
         (dropped, one finished as this process finished its own was computed again by
         `snap_targets`)."""
         import queue
+        with self.lock:
+            self.early.clear()                   # every branch is in: no more guesses
         while not stop.is_set():
             with self.lock:
-                finished = not self.asked and not self.unsent
+                if not self.background.ready.is_set():   # ended: none will come back
+                    self.awaited.clear()
+                finished = not self.asked and not self.unsent and not self.awaited
                 if not finished:
                     self._feed()
             if finished:
