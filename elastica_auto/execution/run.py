@@ -723,12 +723,8 @@ class _Alongside:
                 self.front += 1
                 self.claimed.add((self.level, i))
             elif self.unsent:
-                key, params = self.unsent[0]
-                if not bg.submit(("scan", key), enumerate_equilibria,
-                                 (self.plan.problem, params)):
+                if not self._hand_scan(bg, "scan", self.unsent, self.asked):
                     return
-                self.unsent.pop(0)
-                self.asked.add(key)
             elif self.task_front < len(self.tasks):
                 i = self.task_front
                 if not bg.submit(("task", i), self.task_fn, self.tasks[i]):
@@ -736,14 +732,20 @@ class _Alongside:
                 self.task_front += 1
                 self.task_claimed.add(i)
             elif self.early:
-                key, params = self.early[0]
-                if not bg.submit(("guess", key), enumerate_equilibria,
-                                 (self.plan.problem, params)):
+                if not self._hand_scan(bg, "guess", self.early, self.guessing):
                     return
-                self.early.pop(0)
-                self.guessing.add(key)
             else:
                 return
+
+    def _hand_scan(self, bg, kind: str, waiting: list, on_cluster: set) -> bool:
+        """Hand the first of ``waiting`` (key, parameters) to ``bg`` as a task of ``kind``
+        ("scan" or "guess"), moving its key to ``on_cluster``; False if it refused it."""
+        key, params = waiting[0]
+        if not bg.submit((kind, key), enumerate_equilibria, (self.plan.problem, params)):
+            return False
+        waiting.pop(0)
+        on_cluster.add(key)
+        return True
 
     def _take(self, message, done: dict):
         """A result from the cluster into ``done`` (a branch) or ``scans``."""
