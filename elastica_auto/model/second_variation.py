@@ -190,24 +190,24 @@ def _end_parts(free, fixed, label, parts) -> list | None:
     return out if rank == fixed.shape[1] else None
 
 
-#: `_end_parts` by the bases' values: a module's end conditions are the same at every point
-#: of a branch, and working out their parts costs (in numpy calls on 3 x 3 arrays) half of
-#: what `SecondVariation.split` does at a point of the spatial rod.
-_END_PARTS: dict = {}
+def _end_parts_of(free, fixed, layout) -> list | None:
+    """:func:`_end_parts` of the bases ``free`` and ``fixed`` for the parts ``layout`` (tuples
+    of component indices), worked out once for each of their values: a module's end
+    conditions are the same at every point of a branch, and their parts cost (in numpy calls
+    on 3 x 3 arrays) half of what `SecondVariation.split` does at a point of the spatial rod.
+    The bases returned are read-only, shared by every form that asks."""
+    return _end_parts_cached(layout, free.shape, free.tobytes(), fixed.shape, fixed.tobytes())
 
 
-def _end_parts_of(free, fixed, layout, label, parts) -> list | None:
-    """:func:`_end_parts`, computed once for each value of (free, fixed) and ``layout`` (the
-    parts as tuples); its bases read-only, shared by every form that asks."""
-    key = (layout, free.shape, fixed.shape, free.tobytes(), fixed.tobytes())
-    if key not in _END_PARTS:
-        if len(_END_PARTS) >= 256:      # bases that vary from point to point: keep a few
-            _END_PARTS.clear()
-        out = _end_parts(free, fixed, label, parts)
-        for v in () if out is None else (v for pair in out for v in pair):
-            v.flags.writeable = False
-        _END_PARTS[key] = out
-    return _END_PARTS[key]
+@functools.lru_cache(maxsize=256)
+def _end_parts_cached(layout, free_shape, free_bytes, fixed_shape, fixed_bytes):
+    free = np.frombuffer(free_bytes).reshape(free_shape)
+    fixed = np.frombuffer(fixed_bytes).reshape(fixed_shape)
+    label = _layout(layout, free_shape[0])[0]
+    out = _end_parts(free, fixed, label, [np.array(c) for c in layout])
+    for v in () if out is None else (v for pair in out for v in pair):
+        v.flags.writeable = False
+    return out
 
 
 def _check_symmetric(name, m):
@@ -324,7 +324,7 @@ class SecondVariation:
         if sizes[:, across].max(initial=0.0) > DECOUPLED * sizes.max():
             return None
         comps = list(self.parts.values())
-        ends = [_end_parts_of(free, fixed, layout, label, comps)
+        ends = [_end_parts_of(free, fixed, layout)
                 for free, fixed in ((self.free0, self.fixed0), (self.free1, self.fixed1))]
         if None in ends:
             return None
