@@ -638,9 +638,10 @@ def test_a_scan_the_cluster_finished_is_taken_not_computed_again():
     assert pool.scans == {key: (params, ["an equilibrium"])}
 
 
-@pytest.mark.parametrize("wanted, fails", [("all", False), ("first", False), ("all", True)])
+@pytest.mark.parametrize("wanted, fails, mirror", [("all", False, False), ("first", False, False),
+                                                   ("all", True, False), ("all", False, True)])
 def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_computed(
-        tmp_path, monkeypatch, wanted, fails):
+        tmp_path, monkeypatch, wanted, fails, mirror):
     """A branch continued in this process, a stand-in worker idle from the start: the scans
     at the folds that end a stable segment (by the direct count) are handed to the worker
     as each fold is found, before the branch is done, and `_Alongside.wait_for_scans` ends
@@ -648,7 +649,8 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
     as `enumerate_equilibria` gives it, none computed here; guesses the branch does not
     want (``first``: it wants only its first) are not kept, nor computed here. A worker that
     dies with each task (``fails``): the run goes on, and the scans this process keeps are
-    the right ones (`snap_targets` computes the others)."""
+    the right ones (`snap_targets` computes the others). With ``mirror`` (the images of
+    scans sent are made from them): no guess is made at such an image, each guess is kept."""
     import threading
 
     from elastica_auto.analysis import snaps
@@ -687,7 +689,7 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
     monkeypatch.setattr(run_module, "scans", wanted_scans)
     plan = runfile.load(elastica_run_file(tmp_path / "one.toml", eps="0.5", P="9*pi^2/4",
                                           directions="forward", bounds=("-6*pi", "6*pi"),
-                                          mirror=False))
+                                          mirror=mirror))
     pool = _Alongside(plan, 1, lambda n, on: Recording(n, on, fails=fails))
     result = RunResult(None, [], 0.0)
     with Interruptions() as signals:
@@ -697,11 +699,13 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
     (br,) = result.branches
     want = wanted_scans(plan.problem, br)
     guessed = [t for t in handed if t[0] == "guess"]
-    assert len(snaps.scans(plan.problem, br)) >= 2 and len(guessed) >= len(want)
+    assert len(snaps.scans(plan.problem, br)) >= 2 and len(guessed) >= len(want) // (1 + mirror)
     assert all(during for _, during in guessed)
     assert fails or ("scan", False) not in handed     # (failed guesses are sent again)
     if fails:
         assert pool.scans.keys() <= want.keys()
+    elif mirror:
+        assert len(pool.scans) == len(guessed) < len(want) and not any(where)
     else:
         assert pool.scans.keys() == want.keys() and not any(where)
     for key in pool.scans:
