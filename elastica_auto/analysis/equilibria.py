@@ -378,17 +378,21 @@ def _distinct(k, width) -> np.ndarray:
     return np.array(roots).T if roots else np.zeros((k.shape[0], 0))
 
 
+def stable_side(before: int, after: int) -> str | None:
+    """'before' or 'after': the side of a point with index 0, where the other side's index
+    is positive (the point ends a stable segment); None otherwise."""
+    return "before" if before == 0 < after else "after" if after == 0 < before else None
+
+
 def snap_lps(branch):
     """LPs of ``branch`` that bound an index-0 segment: (point, stable side 'before'/'after')."""
     out = []
     for k, p in enumerate(branch.points):
         if p.type != "LP" or k == 0 or k + 1 >= len(branch.points):
             continue
-        before, after = p.index, branch.points[k + 1].index
-        if before == 0 and after > 0:
-            out.append((p, "before"))
-        elif after == 0 and before > 0:
-            out.append((p, "after"))
+        side = stable_side(p.index, branch.points[k + 1].index)
+        if side is not None:
+            out.append((p, side))
     return out
 
 

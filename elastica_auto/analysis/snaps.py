@@ -22,7 +22,8 @@ import numpy as np
 from ..branches.branch import PROFILE_GRID, Branch
 from ..core.options import ContinuationOptions
 from ..core.solution import State
-from .equilibria import Equilibrium, beyond_fold, enumerate_equilibria, snap_lps
+from .equilibria import (Equilibrium, beyond_fold, enumerate_equilibria, snap_lps,
+                         stable_side)
 
 #: The points of each branch born at a BP that `subcritical` computes (its start included).
 BORN_POINTS = 4
@@ -59,8 +60,7 @@ def subcritical(problem, branch, point) -> bool | None:
 def _stable_side(branch, k: int) -> str | None:
     """'before' or 'after': the side of point ``k`` of ``branch`` with index 0, where the
     other side's index is positive; None if the point bounds no stable segment."""
-    before, after = branch.points[k - 1].index, branch.points[k + 1].index
-    return "before" if before == 0 < after else "after" if after == 0 < before else None
+    return stable_side(branch.points[k - 1].index, branch.points[k + 1].index)
 
 
 def mark_subcritical(problem, branch) -> None:

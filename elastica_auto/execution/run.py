@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..analysis.equilibria import enumerate_equilibria
+from ..analysis.equilibria import enumerate_equilibria, stable_side
 from ..analysis.maps import stability_maps
 from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
 from ..branches import codim2, restart
@@ -955,8 +955,8 @@ class _Alongside:
         name = br.parameter
         for k in range(j, len(pts) - 1):
             p = pts[k]
-            before, after = pts[k - 1].index_direct, pts[k + 1].index_direct
-            if p.type not in ("LP", "BP") or not (before == 0 < after or after == 0 < before):
+            if p.type not in ("LP", "BP") or stable_side(pts[k - 1].index_direct,
+                                                         pts[k + 1].index_direct) is None:
                 continue
             key = scan_key(problem, name, p.params)
             if key in self.seen or key in self.guesses:
