@@ -772,3 +772,74 @@ def test_a_guessed_scan_is_kept_only_at_the_parameters_the_branch_wants(monkeypa
     else:
         assert pool.scans == {} and pool.unsent == [(key, wanted)]
     assert not pool.guesses and not pool.spare
+
+
+@pytest.mark.parametrize("held", [0, 1])
+def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, monkeypatch,
+                                                                      held):
+    """Two branches, one worker that holds the branch it took (``held``: the plan's first,
+    or its second) until this process has computed every scan of the other, here, while
+    it waits: the guesses of a branch computed here that cannot be saved yet (``held =
+    0``: the branch before it is out), or the wanted scans of one saved (``held = 1``).
+    Without that this process waits and the worker is released only by its time-out. The
+    scans kept are those `enumerate_equilibria` gives (at the parameters of the first
+    branch to want each key), and the branches those of jobs = 1."""
+    import threading
+
+    from elastica_auto.analysis import snaps
+    from elastica_auto.core.interrupts import Interruptions
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution import runfile
+    from elastica_auto.execution.run import RunResult, _Alongside, execute, start_job
+    from helpers import WorkingBackground, elastica_run_file
+    path = elastica_run_file(tmp_path / "two.toml", eps="0.5", P="9*pi^2/4",
+                             bounds=("-6*pi", "6*pi"), mirror=False)
+    one = execute(runfile.load(path), tmp_path / "one", jobs=1)
+    plan = runfile.load(path)
+    mine = snaps.scans(plan.problem, one.branches[1 - held])
+    here, released, timed_out = [], threading.Event(), []
+    enumerate_ = run_module.enumerate_equilibria
+
+    def enumerated(problem, params):
+        out = enumerate_(problem, params)
+        if threading.current_thread() is threading.main_thread() and not released.is_set():
+            here.append(scan_key(params))
+            if set(here) >= mine.keys():
+                released.set()
+        return out
+
+    def scan_key(params):
+        return snaps.scan_key(plan.problem, "psi", params)
+
+    def holding(*args):
+        timed_out.append(not released.wait(60))
+        return run_module.compute_branch(*args)
+
+    class Holding(WorkingBackground):
+        refused = held == 1          # the first branch refused: this process takes it
+
+        def submit(self, tag, function, args):
+            if tag[0] == "branch":
+                if self.refused or tag[1][1] != held:
+                    self.refused = False
+                    return False
+                return super().submit(tag, holding, args)
+            return super().submit(tag, function, args)
+
+    monkeypatch.setattr(run_module, "enumerate_equilibria", enumerated)
+    pool = _Alongside(plan, 1, lambda n, on: Holding(n, on))
+    result = RunResult(None, [], 0.0)
+    with Interruptions() as signals:
+        assert not pool.run([start_job(plan, spec) for spec in plan.branches],
+                            result.branches, lambda: None, None, None, signals.stop)
+        assert pool.wait_for_scans(signals.stop)
+    assert len(mine) >= 2 and timed_out == [False]
+    assert [b.worker for b in result.branches][held] == "stand-in"
+    for a, b in zip(result.branches, one.branches):
+        np.testing.assert_array_equal(a.column("psi"), b.column("psi"))
+    assert mine.keys() <= pool.scans.keys()
+    for key in mine:    # at the parameters of the first branch to want the key
+        params, got = pool.scans[key]
+        again = enumerate_(plan.problem, params)
+        assert [(e.k, e.index, e.ordinates) for e in got] == [
+            (e.k, e.index, e.ordinates) for e in again]

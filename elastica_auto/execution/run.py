@@ -609,8 +609,10 @@ class _Alongside:
     complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
     As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
     go to the cluster too, if it is up; those of a branch computed here are guessed while
-    it is computed, for a worker that would otherwise wait (`_guess`). If the cluster ends
-    (or never starts), this process computes what it had been given.
+    it is computed, for a worker that would otherwise wait (`_guess`); a scan still waiting
+    for a worker when this process has no branch left to take is computed here
+    (`_scan_here`). If the cluster ends (or never starts), this process computes what it
+    had been given.
 
     The cluster is started when it pays (``pays`` seconds, `CLUSTER_PAYS`; at once for 0):
     once the work of a kind (branches, scans, tasks) not taken yet, each estimated at the
@@ -868,11 +870,12 @@ class _Alongside:
                     i, self.front = self.front, self.front + 1
                 else:
                     i = None
-            if i is None:                        # the rest is on the cluster: wait for it
-                try:
-                    self._take(self.results.get(timeout=0.05), done)
-                except queue.Empty:
-                    pass
+            if i is None:      # the rest is on the cluster: a scan meanwhile, or wait
+                if not self._scan_here():
+                    try:
+                        self._take(self.results.get(timeout=0.05), done)
+                    except queue.Empty:
+                        pass
                 flush()
                 continue
             if i < taken[0] or jobs_list[i].mirror:   # left out meanwhile (given back by
@@ -972,6 +975,28 @@ class _Alongside:
                 self._feed()
         self.cursor = (br, max(j, len(pts) - 1))
 
+    def _scan_here(self) -> bool:
+        """A scan waiting for a worker computed here, by a main thread that has nothing else
+        to do: the first wanted one (``unsent``), else the first guess (``early``, its result
+        kept for `_scan` as a worker's is); False if none waits. (`rotating_arm_3d`: this
+        process, done with its last branch while the one worker computed another for
+        seconds, waited with its branch's scans queued behind it.)"""
+        with self.lock:
+            if self.unsent:
+                kind, (key, params) = "scan", self.unsent.pop(0)
+            elif self.early:
+                kind, (key, params) = "guess", self.early.pop(0)
+            else:
+                return False
+        value = self._timed("scan", lambda: len(self.unsent) + len(self.early),
+                            enumerate_equilibria, self.plan.problem, params)
+        with self.lock:
+            if kind == "scan":
+                self.scans[key] = (params, value)
+            elif key in self.guesses:
+                self.spare[key] = value
+        return True
+
     def map(self, function, args_list, on_done) -> list:
         """``function(*args)`` for each of ``args_list``, in this process and on the
         cluster's idle workers (once it is up), each taking the next from the front of the
@@ -1047,12 +1072,7 @@ class _Alongside:
                         self._take(self.results.get_nowait(), {})
                     except queue.Empty:
                         return True
-            with self.lock:
-                key, params = self.unsent.pop(0) if self.unsent else (None, None)
-            if key is not None:
-                self.scans[key] = (params, self._timed("scan", lambda: len(self.unsent),
-                                                       enumerate_equilibria, self.plan.problem,
-                                                       params))
+            if self._scan_here():
                 continue
             try:
                 self._take(self.results.get(timeout=0.05), {})
