@@ -312,3 +312,26 @@ def test_a_file_of_format_2_packs_its_solutions(bratu_file):
         assert mine.state.params == memory.state.params
         if mine.tangent is not None:
             assert mine.tangent.lam == memory.tangent.lam
+
+
+def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
+    """`store._put` (a branch's numeric datasets, made by h5py's low-level calls): each
+    dataset has the type, shape, values and layout of the one h5py's ``g[name] = data``
+    makes, empty and non-contiguous arrays included."""
+    from elastica_auto.storage.store import _put
+    arrays = {"f": np.linspace(0, 1, 7), "i32": np.arange(5, dtype=np.int32),
+              "i64": np.arange(3, dtype=np.int64), "empty": np.zeros(0),
+              "empty2": np.zeros((4, 0)), "nan": np.array([np.nan, 1.0]),
+              "three": np.arange(24.0).reshape(2, 3, 4), "strided": np.arange(20.0)[::3],
+              "transposed": np.arange(12.0).reshape(3, 4).T}
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        for name, data in arrays.items():
+            f[f"high/{name}"] = data
+            _put(f.require_group("low"), name, data)
+    with h5py.File(tmp_path / "x.h5", "r") as f:
+        for name, data in arrays.items():
+            high, low = f[f"high/{name}"], f[f"low/{name}"]
+            assert (low.dtype, low.shape, low.chunks) == (high.dtype, high.shape, high.chunks)
+            assert low.id.get_create_plist().get_layout() == high.id.get_create_plist().get_layout()
+            np.testing.assert_array_equal(low[()], data)
+            np.testing.assert_array_equal(low[()], high[()])
