@@ -174,10 +174,14 @@ class Branch:
     def transition(self, point: Point) -> str:
         """``"1 -> 0"``: the index before and after a labelled point, in the direction of
         travel ('' where unknown)."""
-        k = self.points.index(point)
+        return self._transition(next(k for k, p in enumerate(self.points) if p is point))
+
+    def _transition(self, k: int) -> str:
+        """`transition` of the k-th point (found by position: ``points.index`` compares
+        every field of the points before it, a branch's labels made saving it quadratic)."""
         if k + 1 >= len(self.points):
             return ""
-        before, after = point.index, self.points[k + 1].index
+        before, after = self.points[k].index, self.points[k + 1].index
         return f"{before} -> {after}" if before >= 0 and after >= 0 else ""
 
     def label(self, name: str) -> StoredLabel:
@@ -231,7 +235,8 @@ class Branch:
             return np.arange(1, len(pts) + 1)
         if name in ("type", "label", "note", "transition"):
             values = ([p.name for p in pts] if name == "label" else
-                      [self.transition(p) if p.type in ("LP", "BP") else "" for p in pts]
+                      [self._transition(k) if p.type in ("LP", "BP") else ""
+                       for k, p in enumerate(pts)]
                       if name == "transition" else [getattr(p, name) for p in pts])
             return np.array(values, dtype=object)
         if name in (*INDEX_COLUMNS, *EXTRA_COLUMNS):
