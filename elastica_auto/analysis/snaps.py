@@ -101,7 +101,8 @@ def snap_points(branch) -> list[tuple]:
     out = list(snap_lps(branch)) + [
         (p, _stable_side(branch, k)) for k, p in enumerate(pts)
         if p.type == "BP" and p.subcritical and 0 < k < len(pts) - 1]
-    return sorted(out, key=lambda pair: pts.index(pair[0]))
+    where = {id(p): k for k, p in enumerate(pts)}     # (not pts.index: it compares fields)
+    return sorted(out, key=lambda pair: where[id(pair[0])])
 
 
 def k_columns(k) -> dict:
@@ -112,24 +113,20 @@ def k_columns(k) -> dict:
     return {"k": k[0], **{f"k_{j}": v for j, v in enumerate(k[1:], start=2)}}
 
 
-def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
+def _on_branch(tracks: "_Tracks", parameter, period, target: Equilibrium, tol=0.02):
     """Number (1-based) of a branch with the target's fixed parameters that passes through the
     target, or 0: the branch, interpolated at the target's parameter value (modulo the
     period), has the target's ordinates within ``tol`` (relative). Ordinates are physical, so
     they match on every periodic copy of a solution, whose states may differ by 2 pi."""
     value = target.state.params[parameter]
     want = np.array(list(target.ordinates.values()))
-    for nb, br in enumerate(branches, start=1):
-        p0 = br.points[0].params
-        # the parameters fixed along the branch (on a path, others move with the path's)
-        fixed = [q for q in p0 if q != parameter and np.ptp(br.column(q)) == 0]
-        if br.parameter != parameter or any(abs(p0[q] - target.state.params[q]) > 1e-12
-                                            for q in fixed):
+    for nb, (name, fixed, lam) in enumerate(tracks.branches(), start=1):
+        if name != parameter or any(abs(v - target.state.params[q]) > 1e-12
+                                    for q, v in fixed.items()):
             continue
-        lam = br.column(parameter)
         if period:
             lam = value + np.remainder(lam - value + period / 2, period) - period / 2
-        ords = np.array([[p.ordinates[o] for o in target.ordinates] for p in br.points])
+        ords = tracks.ordinates(nb, tuple(target.ordinates))
         for i in np.flatnonzero((lam[:-1] - value) * (lam[1:] - value) <= 0):
             if lam[i + 1] == lam[i] or abs(lam[i + 1] - lam[i]) > (period or np.inf) / 2:
                 continue
@@ -138,6 +135,33 @@ def _on_branch(branches, parameter, period, target: Equilibrium, tol=0.02):
             if np.max(np.abs(got - want)) < tol * (1 + np.max(np.abs(want))):
                 return nb
     return 0
+
+
+class _Tracks:
+    """What `_on_branch` compares each target with, made once per table (it was made again
+    for every target: every parameter's column of every branch, 0.2 s of `rotating_arm_3d`'s
+    60 targets): per branch its parameter, the parameters fixed along it (on a path, others
+    move with the path's) with their values, and its parameter's column; its ordinates
+    (points, names) when first asked for."""
+
+    def __init__(self, branches):
+        self._branches, self._made, self._ordinates = branches, None, {}
+
+    def branches(self) -> list[tuple]:
+        if self._made is None:
+            self._made = []
+            for br in self._branches:
+                p0 = br.points[0].params
+                fixed = {q: p0[q] for q in p0
+                         if q != br.parameter and np.ptp(br.column(q)) == 0}
+                self._made.append((br.parameter, fixed, br.column(br.parameter)))
+        return self._made
+
+    def ordinates(self, nb: int, names: tuple) -> np.ndarray:
+        if (nb, names) not in self._ordinates:
+            self._ordinates[nb, names] = np.array(
+                [[p.ordinates[o] for o in names] for p in self._branches[nb - 1].points])
+        return self._ordinates[nb, names]
 
 
 def scan_key(problem, parameter: str, params: dict) -> tuple:
@@ -286,7 +310,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
             landings[at].target = int(np.argmin(
                 [max(abs(eq.ordinates[o] - v) for o, v in hit.items())
                  for eq in cache[at[0]]]))
-    rows, rescans = [], {}
+    rows, rescans, tracks = [], {}, _Tracks(branches)
     for nb, br, p, side, params, key, exact_key, at in folds:
         name = br.parameter
         period = problem.parameters[name].period
@@ -316,7 +340,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                    "value": params[name], "stable_side": side, **k_columns(eq.k),
                    "index": eq.index, **{f"target_{o}": v
                                          for o, v in eq.ordinates.items()},
-                   "on_branch": _on_branch(branches, name, period, target)}
+                   "on_branch": _on_branch(tracks, name, period, target)}
             if landing:
                 here = reached is not None and reached.target == j
                 row.update(landed=int(here),
