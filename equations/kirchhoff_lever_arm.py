@@ -267,7 +267,20 @@ def _body_moment(rot, m):
 
 def _curvature(mb, p):
     """u = K^-1 R^T m + u_hat from the body moment R^T m (3, m)."""
-    return mb / stiffness(p)[:, None] + np.array((p["u1"], p["u2"], p["u3"]))[:, None]
+    k, u_hat = _constitutive(float(p["b2"]), float(p["c"]), float(p["u1"]), float(p["u2"]),
+                             float(p["u3"]))
+    u = mb / k
+    u += u_hat
+    return u
+
+
+@functools.lru_cache(maxsize=64)
+def _constitutive(b2, c, u1, u2, u3):
+    """(K as a column (3, 1), u_hat as a column), read-only: asked for at every call."""
+    out = (np.array((1.0, b2, c))[:, None], np.array((u1, u2, u3))[:, None])
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def rhs(s, y, p):
@@ -275,8 +288,11 @@ def rhs(s, y, p):
     q, _, _, rot = _frame(y)
     d3 = rot[2::3]
     u = _curvature(_body_moment(rot, y[7:10]), p)
-    dq = _times(_W_QDOT, (u[:, None, :] * q[None, :, :]).reshape(12, -1))
-    return np.concatenate((d3, dq, _load_cross(p) @ d3))
+    out = np.empty((10, q.shape[1]), dtype=rot.dtype)
+    out[0:3] = d3
+    out[3:7] = _times(_W_QDOT, (u[:, None, :] * q[None, :, :]).reshape(12, -1))
+    np.matmul(_load_cross(p), d3, out=out[7:10])
+    return out
 
 
 #: OpenBLAS runs a product of more than 65536 x 4 multiply-adds on several threads: at these
