@@ -426,9 +426,9 @@ _STR_COLUMNS = ("type", "note", "transition")
 
 def _put(g, name: str, data: np.ndarray):
     """``g[name] = data`` for a numeric array, by h5py's low-level calls: the same dataset
-    (contiguous, the array's type), made in a quarter of the time (the high-level call
-    builds and checks its property lists each time: about 0.25 ms a dataset here, and a
-    branch writes some fifty, 10-15% of `rotating_arm -j 1`'s time with its final copy)."""
+    (contiguous, the array's type) in about a third of the time (the high-level call builds
+    and checks its property lists each time; a branch writes some fifty datasets, and
+    saving was 10% of `rotating_arm -j 1`)."""
     data = np.ascontiguousarray(data)
     dset = h5py.h5d.create(g.id, name.encode(), h5py.h5t.py_create(data.dtype),
                            h5py.h5s.create_simple(data.shape))
