@@ -174,7 +174,10 @@ class Branch:
     def transition(self, point: Point) -> str:
         """``"1 -> 0"``: the index before and after a labelled point, in the direction of
         travel ('' where unknown)."""
-        return self._transition(next(k for k, p in enumerate(self.points) if p is point))
+        for k, p in enumerate(self.points):
+            if p is point:
+                return self._transition(k)
+        raise ValueError("the point is not on this branch")
 
     def _transition(self, k: int) -> str:
         """`transition` of the k-th point (found by position: ``points.index`` compares
