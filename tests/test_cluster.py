@@ -783,7 +783,7 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
     0``: the branch before it is out), or the wanted scans of one saved (``held = 1``).
     Without that this process waits and the worker is released only by its time-out. The
     scans kept are those `enumerate_equilibria` gives (at the parameters of the first
-    branch to want each key), and the branches those of jobs = 1."""
+    branch to want each key), each computed once, and the branches those of jobs = 1."""
     import threading
 
     from elastica_auto.analysis import snaps
@@ -792,16 +792,20 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
     from elastica_auto.execution import runfile
     from elastica_auto.execution.run import RunResult, _Alongside, execute, start_job
     from helpers import WorkingBackground, elastica_run_file
+    # two arm lengths: no scan key of one branch is the other's (as both directions' are,
+    # by the mirror image), so each guess computed here is the scan its branch keeps
     path = elastica_run_file(tmp_path / "two.toml", eps="0.5", P="9*pi^2/4",
-                             bounds=("-6*pi", "6*pi"), mirror=False)
+                             directions="forward", bounds=("-6*pi", "6*pi"), mirror=False)
+    path.write_text(path.read_text().replace("eps = '0.5'", "eps = [0.5, 0.45]"))
     one = execute(runfile.load(path), tmp_path / "one", jobs=1)
     plan = runfile.load(path)
     mine = snaps.scans(plan.problem, one.branches[1 - held])
-    here, released, timed_out = [], threading.Event(), []
+    here, released, timed_out, computed = [], threading.Event(), [], []
     enumerate_ = run_module.enumerate_equilibria
 
     def enumerated(problem, params):
         out = enumerate_(problem, params)
+        computed.append(scan_key(params))
         if threading.current_thread() is threading.main_thread() and not released.is_set():
             here.append(scan_key(params))
             if set(here) >= mine.keys():
@@ -838,6 +842,9 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
     for a, b in zip(result.branches, one.branches):
         np.testing.assert_array_equal(a.column("psi"), b.column("psi"))
     assert mine.keys() <= pool.scans.keys()
+    # each computed once, by whoever: a guess computed here is kept, not computed again
+    assert not mine.keys() & snaps.scans(plan.problem, one.branches[held]).keys()
+    assert all(computed.count(key) == 1 for key in mine)
     for key in mine:    # at the parameters of the first branch to want the key
         params, got = pool.scans[key]
         again = enumerate_(plan.problem, params)
