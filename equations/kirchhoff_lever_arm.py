@@ -277,7 +277,7 @@ def _curvature(mb, p):
 @functools.lru_cache(maxsize=64)
 def _constitutive(b2, c, u1, u2, u3):
     """(K as a column (3, 1), u_hat as a column), read-only: asked for at every call."""
-    out = (np.array((1.0, b2, c))[:, None], np.array((u1, u2, u3))[:, None])
+    out = (stiffness({"b2": b2, "c": c})[:, None], np.array((u1, u2, u3))[:, None])
     for a in out:
         a.flags.writeable = False
     return out
