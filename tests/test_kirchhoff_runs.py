@@ -530,8 +530,14 @@ def test_draw_hook_draws_the_rod_in_space(arms, tmp_path):
                        .get_xydata().T, y[0:2])
     from elastica_auto.storage.store import BranchFile
     ea.save(list(rods)[:1], tmp_path / "arm.h5", problem=rod)
-    images = configuration_images(BranchFile(tmp_path / "arm.h5"), rod)
+    bf = BranchFile(tmp_path / "arm.h5")
+    images = configuration_images(bf, rod, workers=1)
     assert images and all(v.startswith("data:image/png;base64,") for v in images.values())
+    # the 3D axes are shared by the drawings: each image is the one drawn alone
+    for name in list(bf.labels)[:4]:
+        alone = BranchFile(tmp_path / "arm.h5")
+        alone.labels = {name: bf.labels[name]}
+        assert configuration_images(alone, rod, workers=1)[name] == images[name]
 
 
 

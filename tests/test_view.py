@@ -6,6 +6,7 @@ browser: tests/test_view_browser.py."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import time
 
@@ -104,7 +105,8 @@ def test_each_label_is_drawn_from_its_own_stored_profile(viewer_file, elastica):
             calls.append((profile.copy(), params))
             elastica.draw(ax, profile, params)
 
-    images = viewer.configuration_images(BranchFile(viewer_file), Recording())
+    # drawn here (workers=1): a forked process's calls would not reach this list
+    images = viewer.configuration_images(BranchFile(viewer_file), Recording(), workers=1)
     labels = stored(viewer_file)
     assert list(images) == list(labels) and len(calls) == len(labels)
     for (name, (_, _, params, profile)), (drawn, given) in zip(labels.items(), calls):
@@ -112,6 +114,51 @@ def test_each_label_is_drawn_from_its_own_stored_profile(viewer_file, elastica):
         assert given == params, name
         assert images[name].startswith("data:image/png;base64,")
     assert images["LP1"] != images["LP2"]      # mirror images (EP1 and EP3 are one rod)
+
+
+def test_images_drawn_by_forked_processes_are_those_drawn_here(viewer_file):
+    """The labels shared among three forked drawing processes (every third to each): the
+    same images, in the labels' order, as all drawn in this process."""
+    bf = BranchFile(viewer_file)
+    here = viewer.configuration_images(bf, workers=1)
+    forked = viewer.configuration_images(bf, workers=3)
+    assert len(here) == len(bf.labels) >= 6
+    assert list(forked) == list(here) and forked == here
+
+
+def test_each_drawing_on_shared_axes_is_the_one_drawn_alone(viewer_file, elastica):
+    """The images drawn one after another on one axes (the last drawing's artists removed)
+    equal each label drawn alone on a figure of its own: nothing of a drawing, its data
+    limits included, carries over to the next."""
+    bf = BranchFile(viewer_file)
+    shared = viewer.configuration_images(bf, workers=1)
+    for name in list(bf.labels)[:6]:
+        alone = BranchFile(viewer_file)
+        alone.labels = {name: bf.labels[name]}
+        assert viewer.configuration_images(alone, elastica, workers=1)[name] == shared[name]
+
+
+def test_drawing_workers():
+    """One per usable core, at most one per DRAWINGS_PER_WORKER drawings; this process alone
+    while another thread runs (a fork would copy the locks it holds) or off Linux."""
+    import sys
+    import threading
+
+    per = viewer.DRAWINGS_PER_WORKER
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    release = threading.Event()
+    helper = threading.Thread(target=release.wait)
+    alone = threading.active_count() == 1
+    if alone and sys.platform.startswith("linux"):
+        assert viewer.drawing_workers(per - 1) == 1
+        assert viewer.drawing_workers(2 * per) == min(cores, 2)
+        assert viewer.drawing_workers(1000 * per) == cores
+    helper.start()
+    try:
+        assert viewer.drawing_workers(1000 * per) == 1
+    finally:
+        release.set()
+        helper.join()
 
 
 def test_view_from_python_and_inline(viewer_file, elastica, tmp_path):

@@ -20,7 +20,9 @@ import json
 import math
 import os
 import re
+import sys
 import tempfile
+import threading
 from importlib.resources import files
 from pathlib import Path
 
@@ -70,14 +72,16 @@ def _png(fig) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
+def configuration_images(bf: BranchFile, problem=None, workers: int | None = None
+                         ) -> dict[str, str]:
     """One PNG data URI per label of ``bf``: its stored profile drawn by the ``draw`` hook of
     ``problem`` (default: the equation module the file names), filling a square image.
-    Empty if the module cannot be loaded or has no ``draw`` hook."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    Empty if the module cannot be loaded or has no ``draw`` hook.
 
-    from .layout import data_box, equation_problem
+    ``workers``: processes that draw (each a fork of this one, given every ``workers``-th
+    label); default `drawing_workers` of the labels' count. The images are the same
+    whichever process drew them."""
+    from .layout import equation_problem
     if problem is None:
         try:
             problem = equation_problem(bf.equation)
@@ -86,23 +90,55 @@ def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
     if not problem.has_draw or not bf.labels:
         return {}
     by_number = {b.number: b for b in bf.branches}
-    points = {name: (by_number[br], pt - 1) for name, (br, pt) in bf.labels.items()}
+    # what each drawing needs, read here: a drawing process reads no file
+    drawings = []
+    for name, (br, pt) in bf.labels.items():
+        b = by_number[br]
+        drawings.append((b.profiles[pt - 1],
+                         {q: float(b.columns[q][pt - 1]) for q in bf.parameters}))
+    workers = drawing_workers(len(drawings)) if workers is None else workers
+    if workers > 1:
+        images = _draw_forked(problem, drawings, workers)
+    else:
+        images = _draw(problem, drawings)
+    return dict(zip(bf.labels, images))
+
+
+#: Drawings per process below which `drawing_workers` adds no process: a fork and its
+#: results cost about what a dozen drawings do (10-20 ms each).
+DRAWINGS_PER_WORKER = 32
+
+
+def drawing_workers(count: int) -> int:
+    """How many processes draw ``count`` configurations: one per core this process may use,
+    at most one per DRAWINGS_PER_WORKER drawings, and 1 (this process) unless it runs on
+    Linux with no other thread (a forked child inherits only the forking thread, and a lock
+    another thread held stays held in it: a notebook's kernel, a Dask client)."""
+    if not sys.platform.startswith("linux") or threading.active_count() > 1:
+        return 1
+    return max(1, min(len(os.sched_getaffinity(0)), count // DRAWINGS_PER_WORKER))
+
+
+def _draw(problem, drawings) -> list[str]:
+    """The images of ``drawings`` ((profile, parameters) pairs) by ``problem``'s draw hook,
+    in order, on one figure."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .layout import data_box
     fig = Figure(figsize=(IMAGE_INCHES, IMAGE_INCHES), dpi=IMAGE_DPI)
     FigureCanvasAgg(fig)
     ax = fig.add_axes((0, 0, 1, 1), projection=getattr(problem, "draw_projection", None))
     ax.set_axis_off()
-
-    out = {}
-    for name, (b, i) in points.items():
-        if ax.name == "3d":        # 3D axes keep their data limits: a fresh one per drawing
-            fig.clear()
-            ax = fig.add_axes((0, 0, 1, 1), projection="3d")
-            ax.set_axis_off()
-        # removing the last drawing's artists is 50x faster than clearing the axes
+    out = []
+    for profile, params in drawings:
+        # removing the last drawing's artists is 50x faster than clearing the axes; the data
+        # limits then start afresh (2D: by the flag; 3D: each plot call starts them anew on
+        # axes without data)
         for artist in [*ax.lines, *ax.patches, *ax.texts, *ax.collections, *ax.images]:
             artist.remove()
         ax.ignore_existing_data_limits = True
-        problem.draw(ax, b.profiles[i], {q: float(b.columns[q][i]) for q in bf.parameters})
+        problem.draw(ax, profile, params)
         box = data_box(ax)
         if np.all(np.isfinite(box)):
             # a square (cube) around the drawing, 8% margin each side: one scale for all
@@ -114,7 +150,41 @@ def configuration_images(bf: BranchFile, problem=None) -> dict[str, str]:
                 set_lim(centre[k] - half, centre[k] + half)
             if ax.name == "3d":
                 ax.set_box_aspect((1, 1, 1))
-        out[name] = _png(fig)
+        out.append(_png(fig))
+    return out
+
+
+#: What the forked drawing processes draw: (problem, drawings, workers), set while they run.
+_FORKED = None
+
+
+def _draw_share(k: int) -> list[str]:
+    """In drawing process ``k``: its share of the drawings, every ``workers``-th from the
+    k-th (alternate ones, so that slow stretches of a branch are shared)."""
+    problem, drawings, workers = _FORKED
+    return _draw(problem, drawings[k::workers])
+
+
+def _draw_forked(problem, drawings, workers: int) -> list[str]:
+    """`_draw` shared among ``workers`` forked processes, which inherit the problem and the
+    drawings (nothing pickled but the images); drawn here if a process fails to start or
+    dies."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    global _FORKED
+    _FORKED = (problem, drawings, workers)
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+            shares = list(pool.map(_draw_share, range(workers)))
+    except (BrokenProcessPool, OSError):
+        return _draw(problem, drawings)
+    finally:
+        _FORKED = None
+    out = [None] * len(drawings)
+    for k, share in enumerate(shares):
+        out[k::workers] = share
     return out
 
 
