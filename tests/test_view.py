@@ -126,6 +126,24 @@ def test_images_drawn_by_forked_processes_are_those_drawn_here(viewer_file):
     assert list(forked) == list(here) and forked == here
 
 
+def test_images_are_drawn_here_when_a_drawing_process_dies(viewer_file, elastica):
+    """A draw hook that ends any process but this one (as a crash in compiled code would):
+    the pool breaks, and every image is drawn here instead, the same as without forks."""
+    here = os.getpid()
+
+    class Fatal:
+        has_draw = True
+
+        def draw(self, ax, profile, params):
+            if os.getpid() != here:
+                os._exit(3)
+            elastica.draw(ax, profile, params)
+
+    bf = BranchFile(viewer_file)
+    assert viewer.configuration_images(bf, Fatal(), workers=2) == \
+        viewer.configuration_images(bf, elastica, workers=1)
+
+
 def test_each_drawing_on_shared_axes_is_the_one_drawn_alone(viewer_file, elastica):
     """The images drawn one after another on one axes (the last drawing's artists removed)
     equal each label drawn alone on a figure of its own: nothing of a drawing, its data
