@@ -156,21 +156,32 @@ def test_each_drawing_on_shared_axes_is_the_one_drawn_alone(viewer_file, elastic
         assert viewer.configuration_images(alone, elastica, workers=1)[name] == shared[name]
 
 
-def test_drawing_workers():
-    """One per usable core, at most one per DRAWINGS_PER_WORKER drawings; this process alone
-    while another thread runs (a fork would copy the locks it holds) or off Linux."""
-    import sys
+def test_drawing_workers(monkeypatch):
+    """One per usable core, at most one per DRAWINGS_PER_WORKER drawings and
+    MAX_DRAWING_WORKERS in all; this process alone while another thread runs (a fork would
+    copy the locks it holds) or off Linux."""
     import threading
 
-    per = viewer.DRAWINGS_PER_WORKER
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    per, most = viewer.DRAWINGS_PER_WORKER, viewer.MAX_DRAWING_WORKERS
+    monkeypatch.setattr(viewer.sys, "platform", "linux")
+    monkeypatch.setattr(viewer.threading, "active_count", lambda: 1)
+    monkeypatch.setattr(viewer.os, "sched_getaffinity", lambda pid: set(range(4)),
+                        raising=False)
+    assert viewer.drawing_workers(per - 1) == 1
+    assert viewer.drawing_workers(3 * per) == 3
+    assert viewer.drawing_workers(1000 * per) == 4
+    monkeypatch.setattr(viewer.os, "sched_getaffinity", lambda pid: set(range(64)),
+                        raising=False)
+    assert viewer.drawing_workers(1000 * per) == most < 64
+    monkeypatch.setattr(viewer.threading, "active_count", lambda: 2)
+    assert viewer.drawing_workers(1000 * per) == 1
+    monkeypatch.setattr(viewer.threading, "active_count", lambda: 1)
+    monkeypatch.setattr(viewer.sys, "platform", "darwin")
+    assert viewer.drawing_workers(1000 * per) == 1
+    monkeypatch.undo()
+    # and, unpatched, a thread of this process's own
     release = threading.Event()
     helper = threading.Thread(target=release.wait)
-    alone = threading.active_count() == 1
-    if alone and sys.platform.startswith("linux"):
-        assert viewer.drawing_workers(per - 1) == 1
-        assert viewer.drawing_workers(2 * per) == min(cores, 2)
-        assert viewer.drawing_workers(1000 * per) == cores
     helper.start()
     try:
         assert viewer.drawing_workers(1000 * per) == 1

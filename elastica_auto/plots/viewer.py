@@ -108,16 +108,22 @@ def configuration_images(bf: BranchFile, problem=None, workers: int | None = Non
 #: one costs about 25 ms here, five of the elastica's drawings (two of the spatial rod's);
 #: 16 labels drew in 0.060 s on two processes against 0.078 s on one.
 DRAWINGS_PER_WORKER = 16
+#: At most this many drawing processes: each holds about 100 MB resident (matplotlib and
+#: its figure; rotating_arm_3d's), and past a few the page's other work (about 1 s of
+#: imports and data for that file) is most of what is left.
+MAX_DRAWING_WORKERS = 8
 
 
 def drawing_workers(count: int) -> int:
     """How many processes draw ``count`` configurations: one per core this process may use,
-    at most one per DRAWINGS_PER_WORKER drawings, and 1 (this process) unless it runs on
-    Linux with no other thread (a forked child inherits only the forking thread, and a lock
-    another thread held stays held in it: a notebook's kernel, a Dask client)."""
+    at most one per DRAWINGS_PER_WORKER drawings and MAX_DRAWING_WORKERS in all, and 1 (this
+    process) unless it runs on Linux with no other thread (a forked child inherits only the
+    forking thread, and a lock another thread held stays held in it: a notebook's kernel, a
+    Dask client)."""
     if not sys.platform.startswith("linux") or threading.active_count() > 1:
         return 1
-    return max(1, min(len(os.sched_getaffinity(0)), count // DRAWINGS_PER_WORKER))
+    return max(1, min(len(os.sched_getaffinity(0)), count // DRAWINGS_PER_WORKER,
+                      MAX_DRAWING_WORKERS))
 
 
 def _draw(problem, drawings) -> list[str]:
