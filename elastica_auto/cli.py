@@ -15,8 +15,8 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .core.errors import USER_ERRORS, RunFileError, StoreError
-EXIT_USER, EXIT_BRANCH_FAILED, EXIT_INTERRUPTED = 2, 1, 130
+from .core.errors import (EXIT_BRANCH_FAILED, EXIT_INTERRUPTED, EXIT_USER, USER_ERRORS,
+                          RunFileError, StoreError)
 
 
 def _fail(msg: str, code: int = EXIT_USER):

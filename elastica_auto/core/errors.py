@@ -38,6 +38,56 @@ class StartError(RuntimeError):
 USER_ERRORS = (RunFileError, StoreError, ProblemError, PlanError, ClusterError)
 
 
+class WriteError(RuntimeError):
+    """A file that could not be written once a command was under way: the disk full, a
+    read-only file system, a file-size limit. One line and its own exit status
+    (`EXIT_WRITE`); no file is left half-written (an earlier file stands, a run's branches
+    so far are kept where they could be written)."""
+
+
+class ClusterLost(RuntimeError):
+    """The Dask cluster of a run had no worker for longer than the run's ``worker_timeout``:
+    the run ends with the branches computed so far saved (`EXIT_CLUSTER_LOST`)."""
+
+
+#: The command line's exit statuses (docs/cli.md#exit-status; a test keeps the two in step).
+#: Where several apply, the first of `EXIT_PRECEDENCE` is the one given.
+EXIT_OK = 0
+EXIT_BRANCH_FAILED = 1
+EXIT_USER = 2
+EXIT_ANALYSIS_FAILED = 3
+EXIT_INTERNAL = 4
+EXIT_WRITE = 5
+EXIT_CLUSTER_LOST = 6
+EXIT_INTERRUPTED = 130
+EXIT_STATUSES = {
+    EXIT_OK: "success",
+    EXIT_BRANCH_FAILED: "a branch failed (MX): the corrector, or the equation module raising "
+                        "or exiting inside it",
+    EXIT_USER: "user error: one line, nothing computed",
+    EXIT_ANALYSIS_FAILED: "an analysis after the branches failed (snap-back scan, landings, "
+                          "stability maps): the file is written and says what is missing",
+    EXIT_INTERNAL: "internal error: an exception from the engine itself (a bug), its "
+                   "traceback kept in the file; --debug re-raises it",
+    EXIT_WRITE: "a file could not be written (disk full, read-only, too large): one line",
+    EXIT_CLUSTER_LOST: "the cluster had no worker for worker_timeout seconds: the branches "
+                       "computed so far are saved",
+    EXIT_INTERRUPTED: "interrupted (Ctrl-C, SIGTERM): what was computed is saved",
+}
+EXIT_PRECEDENCE = (EXIT_INTERRUPTED, EXIT_WRITE, EXIT_CLUSTER_LOST, EXIT_INTERNAL,
+                   EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_OK)
+
+#: Set (to "1") by ``elastica-auto --debug``: an internal error is raised with its traceback
+#: instead of being recorded. An environment variable, so that local workers inherit it.
+DEBUG_ENV = "ELASTICA_AUTO_DEBUG"
+
+
+def debugging() -> bool:
+    """Whether ``--debug`` is on (`DEBUG_ENV`)."""
+    import os
+    return os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
 def error_text(exc: BaseException) -> str:
     """``exc``'s message on one line (white space collapsed), or its type's name if it has
     none: for a line that says what failed already."""
