@@ -8,6 +8,8 @@ interrupted run saves what it computed and exits with status 130.
 from __future__ import annotations
 
 import importlib.resources
+import json
+import os
 import signal
 import sys
 from pathlib import Path
@@ -15,8 +17,9 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .core.errors import (EXIT_BRANCH_FAILED, EXIT_INTERRUPTED, EXIT_USER, USER_ERRORS,
-                          RunFileError, StoreError)
+from .core.errors import (DEBUG_ENV, EXIT_CLUSTER_LOST, EXIT_INTERNAL, EXIT_INTERRUPTED,
+                          EXIT_OK, EXIT_USER, EXIT_WRITE, USER_ERRORS, ClusterLost, RunFileError,
+                          StoreError, WriteError, debugging)
 
 
 def _fail(msg: str, code: int = EXIT_USER):
@@ -48,8 +51,26 @@ def resolve_run(name_or_path: str) -> Path:
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="elastica-auto")
-def main():
+@click.option("--debug", is_flag=True,
+              help="Raise an internal error (a bug of the engine) with its traceback, instead "
+                   "of recording it and exiting with status 4.")
+def main(debug):
     """AUTO-07p-style continuation of boundary value problems, with stability labels."""
+    if debug:   # an environment variable: the local workers of a run inherit it
+        os.environ[DEBUG_ENV] = "1"
+
+
+def _internal(exc: BaseException, what: str):
+    """An exception that escaped the engine (a bug): the traceback on stderr under one line
+    saying so, exit status 4; with --debug, Python's own report."""
+    if debugging():
+        raise exc
+    import traceback
+    click.echo(f"elastica-auto: internal error in {what}: {type(exc).__name__}: "
+               + " ".join(str(exc).split()) + " (a bug: please report it with the traceback "
+               "below; --debug raises it)", err=True)
+    click.echo("".join(traceback.format_exception(exc)).rstrip(), err=True)
+    sys.exit(EXIT_INTERNAL)
 
 
 def restart_files(doc: dict) -> list[str]:
@@ -156,9 +177,15 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         _fail(str(exc))
     except USER_ERRORS as exc:
         _fail(str(exc))
+    except WriteError as exc:
+        _fail(str(exc), EXIT_WRITE)
+    except ClusterLost as exc:
+        _fail(str(exc), EXIT_CLUSTER_LOST)
     except KeyboardInterrupt:  # execute stops its own interruptions once the output is open
         click.echo("\ninterrupted before the first branch: nothing written", err=True)
         sys.exit(EXIT_INTERRUPTED)
+    except (Exception, SystemExit) as exc:  # escaped the engine before its file was opened
+        _internal(exc, f"run {plan.name}")
     if resume and result.kept and not result.branches and not result.interrupted:
         click.echo(f"{plan.name}: every cell is in {result.path} already "
                    f"({result.kept} branches); nothing to compute")
@@ -177,7 +204,19 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
     _report_run(plan, result)
     if result.failed:
         click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
-        sys.exit(EXIT_BRANCH_FAILED)
+    for m in result.missing:
+        click.echo(f"missing: {m['what']}: {m['message']}", err=True)
+    if result.internal:
+        click.echo(f"internal errors (a bug: please report them; the tracebacks are in "
+                   f"{result.path}, `elastica-auto show` prints them; --debug raises them): "
+                   f"{', '.join(result.internal)}", err=True)
+    if result.stopped:
+        out = out_dir / plan.output_name
+        kept = f"; the earlier {out} is unchanged" if result.path != out else ""
+        click.echo(f"stopped: {len(result.branches)} branches saved to {result.path}{kept}",
+                   err=True)
+    if result.status != EXIT_OK:
+        sys.exit(result.status)
 
 
 def _report_branch(number: str, br, varying):
@@ -249,8 +288,11 @@ def _open(path):
 @main.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--all", "all_points", is_flag=True, help="Every point, not only labelled ones.")
-def show(file, all_points):
-    """Print an AUTO-like table of the labelled points of FILE.h5."""
+@click.option("--tracebacks", is_flag=True,
+              help="Also print the tracebacks of the internal errors stored in the file.")
+def show(file, all_points, tracebacks):
+    """Print an AUTO-like table of the labelled points of FILE.h5, then the branches that
+    ended MX or have warnings, and what the run could not make."""
     from .storage.store import rows
     bf = _open(file)
     cols = bf.parameters + bf.ordinates
@@ -261,9 +303,22 @@ def show(file, all_points):
         click.echo(f"{r['branch']:>3} {r['pt']:>5} {r['type']:>2} {r['label']:>6} "
                    + " ".join(f"{r[c]:>14.7g}" for c in cols)
                    + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
+    internal = []
     for b in bf.branches:
         if b.attrs["end"] == "MX" or b.attrs.get("warnings", "[]") != "[]":
             click.echo(f"branch {b.number}: {b.attrs['end']}: {b.attrs['message']}")
+        diagnostics = json.loads(b.attrs.get("diagnostics", "{}") or "{}")
+        if diagnostics.get("kind") == "engine":
+            internal.append((f"branch {b.number}", diagnostics.get("text", "")))
+    for m in bf.missing:
+        click.echo(f"missing: {m['what']}: {m.get('message', '')}")
+        if m.get("kind") == "engine":
+            internal.append((m["what"], m.get("text", "")))
+    if internal and not tracebacks:
+        click.echo(f"internal errors (a bug): {', '.join(w for w, _ in internal)}; "
+                   "--tracebacks prints their tracebacks")
+    for what, text in internal if tracebacks else ():
+        click.echo(f"traceback of the internal error in {what}:\n{text.rstrip()}")
 
 
 @main.command()

@@ -227,27 +227,46 @@ def test_a_module_failing_in_its_exact_start_is_one_line(tmp_path, cli_exe):
     (tmp_path / "mine.toml").write_text(RUN)
     proc = run_cli(cli_exe, "run", tmp_path / "mine.toml", "--out", tmp_path / "out")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    line = (tmp_path / "mine.py").read_text().splitlines().index(
+        '    raise RuntimeError("no start today")') + 1
     assert proc.stderr.strip().splitlines() == [
-        "elastica-auto: error: trivial: RuntimeError: no start today"]
+        f"elastica-auto: error: trivial: RuntimeError: no start today (mine.py:{line} in "
+        "exact_start)"]
 
 
 
 
+@pytest.mark.parametrize("jobs", ["1", "0"])
 @pytest.mark.parametrize("damped", [False, True])
-def test_a_module_failing_in_the_snap_scan_keeps_the_branches(tmp_path, cli_exe, damped):
+def test_a_module_failing_in_the_snap_scan_keeps_the_branches(tmp_path, cli_exe, damped, jobs):
     """The scan runs after the branches (the run has a fold ending a stable segment): a
-    ``shooting`` hook that raises costs the snap-back targets only, with a warning; and,
-    with ``damping``, the damped landings, with another."""
+    ``shooting`` hook that raises costs the snap-back targets only, and, with ``damping``,
+    the damped landings; but the run says so: exit status 3 (not 0, issue 45 item 2), a
+    ``missing:`` line naming each analysis, and the file's ``missing`` records, which
+    ``show`` prints. In the default run (``-j 0``: two branches, so that a cluster may help)
+    the command computes scans itself while it waits (`_scan_here`): no traceback there
+    either."""
     _module(tmp_path, ELASTICA, "def shooting(p):\n", 'raise ValueError("no shooting")\n')
-    (tmp_path / "mine.toml").write_text(PSI_RUN.format(directions="+") + (
+    (tmp_path / "mine.toml").write_text(PSI_RUN.format(directions="both") + (
         "landing = true\ndamping = [1.0]\n" if damped else ""))
-    proc = run_cli(cli_exe, "run", tmp_path / "mine.toml", "--out", tmp_path / "out")
-    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
-    assert "warning: snap-back scan failed: ValueError: no shooting" in proc.stdout
-    assert ("warning: damped landings failed: ValueError: no shooting" in proc.stdout) == damped
+    proc = run_cli(cli_exe, "run", tmp_path / "mine.toml", "--out", tmp_path / "out", "-j",
+                   jobs)
+    assert proc.returncode == 3 and "Traceback" not in proc.stderr, proc.stderr
+    line = (tmp_path / "mine.py").read_text().splitlines().index(
+        '    raise ValueError("no shooting")') + 1
+    where = f"(mine.py:{line} in shooting)"
+    missing = [ln for ln in proc.stderr.splitlines() if ln.startswith("missing: ")]
+    assert missing == [f"missing: snaps: snap-back scan failed: ValueError: no shooting {where}"]\
+        + ([f"missing: landings: damped landings failed: ValueError: no shooting {where}"]
+           if damped else [])
     bf = BranchFile(tmp_path / "out" / "mine.h5")
-    assert len(bf.branches) == 1 and bf.branches[0].attrs["end"] == "EP"
+    assert len(bf.branches) == 2 and all(b.attrs["end"] == "EP" for b in bf.branches)
     assert any(n.startswith("LP") for n in bf.labels) and bf.snaps == [] and bf.landings == []
+    assert [(m["what"], m["kind"], m["exception"]) for m in bf.missing] == \
+        [("snaps", "module", "ValueError")] + ([("landings", "module", "ValueError")]
+                                               if damped else [])
+    shown = run_cli(cli_exe, "show", tmp_path / "out" / "mine.h5").stdout
+    assert missing[0] in [f"missing: {ln[len('missing: '):]}" for ln in shown.splitlines()]
 
 
 def test_a_module_failing_at_a_stored_branch_point_is_one_line(tmp_path, cli_exe):
@@ -274,8 +293,11 @@ def test_a_module_failing_at_a_stored_branch_point_is_one_line(tmp_path, cli_exe
                                           '[continuation]\nparameter = "P"\n')
     proc = run_cli(cli_exe, "run", tmp_path / "second.toml", "--out", out)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    line = next(i for i, text in enumerate((tmp_path / "mine.py").read_text().splitlines(), 1)
+                if 'raise ArithmeticError("no Jacobian today")' in text)
     assert proc.stderr.strip().splitlines() == [
-        "elastica-auto: error: switch at first.h5:BP1: ArithmeticError: no Jacobian today"]
+        "elastica-auto: error: switch at first.h5:BP1: ArithmeticError: no Jacobian today "
+        f"(mine.py:{line} in rhs_jac)"]
 
 
 # -- the snap-back scan meets an exact zero of the shooting residual ------------------------------

@@ -40,7 +40,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.errors import one_line
+from ..core.errors import ENGINE, failure_record
 
 #: Intervals of the uniform grid of the method of lines (the discrete equilibria are within
 #: O(h^2) of the BVP's; tests/test_landing.py measures the order).
@@ -252,8 +252,8 @@ def _damped(flow, u0, damping: float, barrier: float):
 
 
 def damping_sweep(problem, branches, damping, folds=None, warnings: list | None = None,
-                  on_landing: Callable | None = None, mapper: Callable | None = None
-                  ) -> list[dict]:
+                  on_landing: Callable | None = None, mapper: Callable | None = None,
+                  failures: list | None = None) -> list[dict]:
     """Where the damped model lands from folds of ``branches``, for each ``c`` in
     ``damping``: one row per (fold, c), in fold then ``damping`` order.
 
@@ -263,7 +263,8 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
     (1 if the end is a stable equilibrium at the fold's parameters, found by the shooting
     scan; else 0, a line in ``warnings`` and NaN below), that equilibrium's ``k``,
     ``target_<ordinate>`` values and ``energy_released``, and the ``transit_time``.
-    ``on_landing(done, total, row)`` is called after each landing.
+    ``on_landing(done, total, row)`` is called after each landing. A landing whose dynamics
+    failed (`landing_task`) is also added to ``failures`` (a list, if given).
 
     The landings are independent tasks (`landing_task`): ``mapper(function, args_list,
     on_done)`` computes them (default one after the other here; a default run's
@@ -297,8 +298,11 @@ def damping_sweep(problem, branches, damping, folds=None, warnings: list | None 
                "damping": c, "landed": 0, "k": np.nan,
                **{f"target_{o}": np.nan for o in problem.ordinate_names},
                "energy_released": np.nan, "transit_time": np.nan}
-        if isinstance(result, str):
-            lines[i].append(f"{p.name}, damping {c:g}: the dynamics failed: {result}")
+        if isinstance(result, dict):
+            lines[i].append(f"{p.name}, damping {c:g}: the dynamics failed: "
+                            f"{result['message']}")
+            if failures is not None:
+                failures.append({**result, "message": lines[i][-1]})
         elif result.target is None:
             lines[i].append(f"{p.name}, damping {c:g}: the dynamics ended at no enumerated "
                             f"stable equilibrium (the nearest is {result.distance:.3g} away)")
@@ -327,10 +331,18 @@ def one_by_one(function, args_list, on_done) -> list:
     return out
 
 
-def landing_task(problem, state, null, equilibria, parameter, beyond, damping) -> Landing | str:
-    """`land` with ``damping``, as a task of `damping_sweep`: the `Landing`, or the one-line
-    message of the module's hook failing (that landing only)."""
+def landing_task(problem, state, null, equilibria, parameter, beyond, damping
+                 ) -> Landing | dict:
+    """`land` with ``damping``, as a task of `damping_sweep`: the `Landing`, or, where the
+    module's hook fails (or the dynamics fail numerically), that landing only, the failure
+    (`elastica_auto.core.errors.failure_record`, with its one-line ``message``). An internal
+    error of the engine is raised: the landings as a whole have failed."""
     try:
         return land(problem, state, null, equilibria, parameter, beyond, damping=damping)
-    except Exception as exc:  # the module's hook failing: this landing only
-        return one_line(exc)
+    except (Exception, SystemExit) as exc:
+        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        if record["kind"] == ENGINE:
+            raise
+        record["message"] = (f"{record['exception']}: " + " ".join(record["error"].split())
+                             + f" ({record['where']})")
+        return record

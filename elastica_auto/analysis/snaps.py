@@ -87,7 +87,7 @@ def mark_subcritical(problem, branch) -> None:
                 said = {True: "subcritical: the branches born here are unstable (a snap)",
                         False: "supercritical: a stable branch is born here (no snap)",
                         None: "born branches not found (no snap reported)"}[p.subcritical]
-            except Exception as exc:  # the module failing on a born branch: no decision
+            except (Exception, SystemExit) as exc:  # the module failing on a born branch
                 said = f"born branches failed ({type(exc).__name__}: {exc}); no snap reported"
             decided.append((key, p.state.y, p.subcritical, said))
         p.note = "; ".join(filter(None, (p.note, said)))
@@ -240,7 +240,8 @@ def scans(problem, branch) -> dict[tuple, dict]:
 
 def snap_targets(problem, branches, warnings: list | None = None,
                  landing: bool = False, cache: dict | None = None,
-                 mapper: Callable | None = None, mirror: bool = True) -> list[dict]:
+                 mapper: Callable | None = None, mirror: bool = True,
+                 failures: list | None = None) -> list[dict]:
     """Rows: for every LP, and every subcritical BP, bounding a stable segment
     (`snap_points`), every stable equilibrium at its parameter values (excluding the point's
     own solution), with the branch that passes through it.
@@ -248,9 +249,9 @@ def snap_targets(problem, branches, warnings: list | None = None,
     With ``landing`` (and the module's ``gradient_flow`` hook), the row of the equilibrium
     the rod's overdamped dynamics reach from the fold (`elastica_auto.analysis.landing`) has
     ``landed = 1`` and the energy released and transit time; the other rows ``landed = 0``
-    and NaN. A fold whose dynamics
-    fail, or end at none of them, has ``landed = 0`` on every row, and ``warnings`` (a list)
-    gets a line saying why. The landings are tasks (`landing.landing_task`), computed by
+    and NaN. A fold whose dynamics fail, or end at none of them, has ``landed = 0`` on
+    every row, and ``warnings`` (a list) gets a line saying why (a failure is also added to
+    ``failures``, if given). The landings are tasks (`landing.landing_task`), computed by
     ``mapper`` as `landing.damping_sweep`'s are (default here, one after the other).
 
     ``cache``: enumerations computed already (elsewhere: on a cluster's workers, as the
@@ -302,7 +303,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
     ends = (mapper or one_by_one)(landing_task, tasks, lambda i, result: None)
     landings = {}
     for at, (i, lp, own) in where.items():
-        landings[at] = _landed(ends[i], lp, warnings)
+        landings[at] = _landed(ends[i], lp, warnings, failures)
         if landings[at] is not None and landings[at].target is not None:
             # the same equilibrium in the cached list: by its ordinates, which are physical
             # and so the same on every periodic copy
@@ -350,12 +351,14 @@ def snap_targets(problem, branches, warnings: list | None = None,
     return rows
 
 
-def _landed(end, lp: str, warnings: list):
+def _landed(end, lp: str, warnings: list, failures: list | None = None):
     """A fold's landing (`landing.landing_task`'s result), or None with a line in
-    ``warnings``: a failure of the module's dynamics costs the fold its landing, not the run
-    its snap-back table."""
-    if isinstance(end, str):
-        warnings.append(f"{lp}: the dynamics from the fold failed: {end}")
+    ``warnings`` (and the failure in ``failures``, if given): a failure of the module's
+    dynamics costs the fold its landing, not the run its snap-back table."""
+    if isinstance(end, dict):
+        warnings.append(f"{lp}: the dynamics from the fold failed: {end['message']}")
+        if failures is not None:
+            failures.append({**end, "message": warnings[-1]})
         return None
     if end.target is None:
         warnings.append(f"{lp}: the dynamics from the fold ended at no enumerated "

@@ -150,6 +150,12 @@ class Branch:
     #: (`elastica_auto.branches.mirror.set_aside`); not saved.
     mirror_points: list[Point] = field(default_factory=list)
 
+    @property
+    def internal_error(self) -> bool:
+        """Whether the branch ended on an internal error of the engine (a bug, not a hard
+        problem: `elastica_auto.core.errors.failure_kind`)."""
+        return self.diagnostics.get("kind") == "engine"
+
     @classmethod
     def of(cls, problem, parameter: str, direction: int, start: str, options: dict,
            **fields) -> "Branch":

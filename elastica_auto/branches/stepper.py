@@ -31,9 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import traceback
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -45,6 +43,7 @@ from .events import (Located, Placed, Step, UserValues, crossings, is_user_value
                      locate_value, pair_suspected, place_symmetric_branch_point,
                      tangent_between)
 from ..numerics.newton import Row
+from ..core.errors import ENGINE, debugging, failure_record
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
@@ -260,9 +259,13 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
     ``branch``.
 
     Points are added as they are accepted. Nothing escapes: Ctrl-C, or an exception (the
-    equation module raising, or returning what the engine cannot use), ends the branch at its
-    last accepted point, labelled MX, with ``branch.interrupted`` set or the exception's type,
-    message and place in ``branch.message`` and ``branch.diagnostics``.
+    equation module raising, exiting or returning what the engine cannot use, a numerical
+    failure, or an internal error of the engine), ends the branch at its last accepted
+    point, labelled MX, with ``branch.interrupted`` set or the exception's type, message,
+    place and kind (`elastica_auto.core.errors.failure_record`; an internal error's message
+    starts "internal error:" and its diagnostics keep the whole traceback) in
+    ``branch.message`` and ``branch.diagnostics``. With ``--debug`` an internal error is
+    raised instead.
 
     Where the module declares a symmetry that moves the start (a circle of solutions), the
     branch is continued with a phase condition and an unfolding parameter
@@ -298,22 +301,19 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
     except KeyboardInterrupt:
         branch.interrupted = True
         _end_early(branch, problem, walk, origin, INTERRUPTED)
-    except Exception as exc:  # whatever fails (the module, the engine) fails this branch only
-        frames = traceback.extract_tb(exc.__traceback__)
-        # the module's own line if it raised, else where the engine met what it returned
-        module_file = getattr(problem.module, "__file__", None)
-        at = next((f for f in reversed(frames) if f.filename == module_file), frames[-1])
-        where = f"{Path(at.filename).name}:{at.lineno} in {at.name}"
-        error = " ".join(str(exc).split())  # one line, as every message of a branch
+    except (Exception, SystemExit) as exc:   # whatever fails fails this branch only
+        # (SystemExit: the module calling sys.exit, which would end the command with status 0)
+        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        if record["kind"] == ENGINE and debugging():
+            raise
+        error = " ".join(record["error"].split())  # one line, as every message of a branch
         last = walk.a.state if walk is not None and walk.a is not None else origin.state
         when = f"after point {len(branch.points)}" if branch.points else "at the start"
+        internal = "internal error: " if record["kind"] == ENGINE else ""
         _end_early(branch, problem, walk, origin,
-                   f"{type(exc).__name__}: {error} ({where}) {when} "
+                   f"{internal}{record['exception']}: {error} ({record['where']}) {when} "
                    f"({course.parameter} = {last.params[course.parameter]:g})")
-        branch.diagnostics = {"exception": type(exc).__name__, "error": str(exc),
-                              "where": where, "step": len(branch.points),
-                              "traceback": [f"{f.filename}:{f.lineno} in {f.name}"
-                                            for f in frames]}
+        branch.diagnostics = {**record, "step": len(branch.points)}
     return branch
 
 

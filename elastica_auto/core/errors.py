@@ -1,8 +1,12 @@
-"""User errors: each is reported as one line (the message) with exit status 2.
+"""Errors and how a failure is told: user errors (each reported as one line, the message,
+with exit status 2), the other exit statuses, and who failed (`failure_kind`).
 
-They live in this module, which imports nothing, so that the command line can catch them
-without importing numpy or the engine (``elastica-auto --version`` stays instant).
+They live in this module, which imports nothing but ``os``, so that the command line can
+catch them without importing numpy or the engine (``elastica-auto --version`` stays
+instant).
 """
+
+import os
 
 
 class ProblemError(ValueError):
@@ -29,6 +33,12 @@ class PlanError(ValueError):
 class ClusterError(RuntimeError):
     """A Dask scheduler that cannot be used: unreachable, without workers, or with workers
     that cannot run this package."""
+
+
+class NumericalFailure(RuntimeError):
+    """A computation that did not succeed for numerical reasons (a corrector that did not
+    converge, say): the problem is hard there, the engine is not at fault. The correctors'
+    failures derive from it (`failure_kind`)."""
 
 
 class StartError(RuntimeError):
@@ -84,7 +94,6 @@ DEBUG_ENV = "ELASTICA_AUTO_DEBUG"
 
 def debugging() -> bool:
     """Whether ``--debug`` is on (`DEBUG_ENV`)."""
-    import os
     return os.environ.get(DEBUG_ENV, "") not in ("", "0")
 
 
@@ -92,6 +101,63 @@ def error_text(exc: BaseException) -> str:
     """``exc``'s message on one line (white space collapsed), or its type's name if it has
     none: for a line that says what failed already."""
     return " ".join(str(exc).split()) or type(exc).__name__
+
+
+#: Who failed, as `failure_kind` tells it: what a branch's diagnostics and a run's ``missing``
+#: record under "kind".
+MODULE, NUMERICAL, ENGINE = "module", "numerical", "engine"
+
+
+def failure_kind(exc: BaseException, module_file: str | None) -> str:
+    """Who raised ``exc``: `MODULE`, the equation module (a frame of ``module_file`` is on
+    the traceback, or the engine refused what the module returned: ProblemError, or the
+    module called ``sys.exit``); `NUMERICAL`, a computation that failed for numerical
+    reasons (`NumericalFailure`, LAPACK's LinAlgError, a floating-point trap, memory
+    exhausted by the size of the problem); else `ENGINE`, the engine's own code raising,
+    which is a bug: the command reports it apart (`EXIT_INTERNAL`) rather than as a hard
+    problem."""
+    import traceback
+    if isinstance(exc, (ProblemError, SystemExit)):
+        return MODULE
+    if module_file is not None:
+        for frame in traceback.extract_tb(exc.__traceback__):
+            if frame.filename == module_file:
+                return MODULE
+    if isinstance(exc, (NumericalFailure, FloatingPointError, MemoryError)):
+        return NUMERICAL
+    if type(exc).__name__ == "LinAlgError":        # numpy's or scipy's: no import here
+        return NUMERICAL
+    return ENGINE
+
+
+def failure_record(exc: BaseException, module_file: str | None) -> dict:
+    """What is kept of a failure (a branch's ``diagnostics``, a run's ``missing``): the
+    exception's type and message, ``kind`` (`failure_kind`), ``where`` (the module's line
+    if it raised, named with the hook the engine called, else the innermost frame),
+    ``traceback`` (the frames, one line each) and, for an internal error, ``text``: the
+    whole traceback as Python prints it."""
+    import traceback
+    frames = traceback.extract_tb(exc.__traceback__)
+    kind = failure_kind(exc, module_file)
+    own = [f for f in frames if f.filename == module_file]
+    if own:   # the innermost line of the module, and the hook the engine called
+        at = own[-1]
+        hook = "" if own[0].name == at.name else f", called from {own[0].name}"
+        where = f"{os.path.basename(at.filename)}:{at.lineno} in {at.name}{hook}"
+    elif frames:
+        at = frames[-1]
+        where = f"{os.path.basename(at.filename)}:{at.lineno} in {at.name}"
+    else:
+        where = "?"
+    if isinstance(exc, SystemExit):
+        error = f"the equation module called sys.exit({exc.code!r})"
+    else:
+        error = str(exc)
+    out = {"exception": type(exc).__name__, "error": error, "where": where, "kind": kind,
+           "traceback": [f"{f.filename}:{f.lineno} in {f.name}" for f in frames]}
+    if kind == ENGINE:
+        out["text"] = "".join(traceback.format_exception(exc))
+    return out
 
 
 def one_line(exc: BaseException) -> str:

@@ -7,6 +7,7 @@ the plan (`new_branch`) ending MX.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
 from ..branches.stepper import Origin, continue_branch
+from ..core.errors import ENGINE, debugging, failure_record
 from ..core.interrupts import Interruptions
 from ..numerics.stability import label_stability
 from .plan import BranchSpec, Plan
@@ -106,17 +108,38 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
         except KeyboardInterrupt:  # after the continuation's own handling: the branch is whole
             pass
         late.raising = False
-        if plan.curve == "fold":
-            codim2.label_fold_curve(br, plan.problem, plan.base)
-        label_stability(br, plan.problem)
-        if job.mirrored:
-            set_aside(br, plan.course)
-        if plan.problem.has_second_variation and plan.curve is None and not br.interrupted:
-            from ..analysis.snaps import mark_subcritical
-            mark_subcritical(plan.problem, br)
+        try:
+            if plan.curve == "fold":
+                codim2.label_fold_curve(br, plan.problem, plan.base)
+            label_stability(br, plan.problem)
+            if job.mirrored:
+                set_aside(br, plan.course)
+            if plan.problem.has_second_variation and plan.curve is None and not br.interrupted:
+                from ..analysis.snaps import mark_subcritical
+                mark_subcritical(plan.problem, br)
+        except (Exception, SystemExit) as exc:   # as a failure in the continuation would
+            _labelling_failed(br, plan.problem, exc)
     br.interrupted = br.interrupted or late.stop.is_set()
     br.seconds = time.perf_counter() - t0
     return br
+
+
+def _labelling_failed(br: Branch, problem, exc: BaseException):
+    """The labelling of the computed branch ``br`` failed (the module's second variation
+    raising, say): the branch ends MX there, its points kept, the failure recorded as a
+    failure in the continuation is (`elastica_auto.branches.stepper.continue_branch`); the
+    last point, if labelled already, is followed by an MX copy of itself (no module call)."""
+    record = failure_record(exc, getattr(problem.module, "__file__", None))
+    if record["kind"] == ENGINE and debugging():
+        raise exc
+    internal = "internal error: " if record["kind"] == ENGINE else ""
+    br.end = "MX"
+    br.message = (f"{internal}labelling the branch failed: {record['exception']}: "
+                  + " ".join(record["error"].split()) + f" ({record['where']})")
+    br.diagnostics = {**record, "step": len(br.points)}
+    last = br.points[-1] if br.points else None
+    if last is not None and last.type != "MX" and last.state is not None:
+        br.points.append(dataclasses.replace(last, type="MX", label=0, note=""))
 
 
 def mirrored_branch(plan: Plan, k: int, job: Job, source: Branch,

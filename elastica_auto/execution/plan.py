@@ -108,6 +108,32 @@ class Plan:
     def output_name(self) -> str:
         return f"{self.name}.h5"
 
+    def settings(self) -> dict:
+        """Everything of the plan that decides its branches but the cells (start, parameter
+        values, direction): the equation module (its source, and a digest of its text), the
+        continued and free parameters, the options, stops, UZ values and what is computed
+        after the branches. Stored with the branch file (attribute ``settings``), so that
+        ``--resume`` continues the same run only (`elastica_auto.execution.run`)."""
+        import hashlib
+        module = self.problem
+        while getattr(module, "_text", None) is None and getattr(module, "base", None):
+            module = module.base
+        text = getattr(module, "_text", None)
+        return {"equation": self.problem.source,
+                "module_sha256": (hashlib.sha256(text.encode()).hexdigest()
+                                  if text is not None else None),
+                "parameter": self.parameter, "curve": self.curve,
+                "free": list(getattr(self.problem, "free", ())),
+                "options": self.options.to_dict(),
+                "bounds": [self.stops.lower, self.stops.upper],
+                "stop": {"at_fold": self.stops.at_fold,
+                         "limits": [dataclasses.asdict(m) for m in self.stops.limits]},
+                "uz": [dataclasses.asdict(u) for u in self.user_values],
+                "switch": [self.switch_count, self.switch_depth],
+                "maps": self.maps, "landing": self.landing, "damping": list(self.damping),
+                "damping_folds": (list(self.damping_folds)
+                                  if self.damping_folds is not None else None)}
+
     @property
     def course(self) -> Course:
         return Course(self.parameter, self.options, self.stops, tuple(self.user_values),

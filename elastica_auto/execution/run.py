@@ -8,6 +8,8 @@ progress is kept up to its last point and ends with an MX label; on a Dask clust
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
 import threading
 import time
@@ -24,7 +26,9 @@ from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin, start_point
 from ..branches.switching import switch_direction
-from ..core.errors import USER_ERRORS, RunFileError, StartError, one_line
+from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
+                           EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
+                           StartError, WriteError, debugging, failure_record)
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, trapezoid_weights
 from ..model.augmented import Augmented
@@ -46,10 +50,33 @@ class RunResult:
     maps: list = field(default_factory=list)
     landings: list = field(default_factory=list)
     kept: int = 0
+    #: what the analysis after the branches could not make: one `failure_record` each, with
+    #: ``what`` ("snaps", "landings", "maps") and ``message`` (a line); stored in the file
+    missing: list = field(default_factory=list)
+    #: the run stopped before its end (`_stopped`): its file holds the branches so far
+    stopped: bool = False
 
     @property
     def failed(self) -> list[int]:
         return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
+
+    @property
+    def internal(self) -> list[str]:
+        """The internal errors of the run: its branches' (``branch N``) and its analyses'."""
+        return ([f"branch {k}" for k, b in enumerate(self.branches, 1) if b.internal_error]
+                + [m["what"] for m in self.missing if m["kind"] == ENGINE])
+
+    @property
+    def status(self) -> int:
+        """The exit status of the run (`elastica_auto.core.errors.EXIT_STATUSES`): the first of
+        interrupted, an internal error, an analysis missing, a failed branch, success."""
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        if self.internal:
+            return EXIT_INTERNAL
+        if self.missing:
+            return EXIT_ANALYSIS_FAILED
+        return EXIT_BRANCH_FAILED if self.failed else EXIT_OK
 
 
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
@@ -141,14 +168,20 @@ def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
 
 
 def start_job(plan: Plan, spec: BranchSpec) -> Job:
-    """:func:`build_start`, with the equation module failing there reported as a StartError
-    (one line) rather than a traceback."""
+    """:func:`build_start`, with the equation module failing there (raising or exiting, or a
+    numerical failure) reported as a StartError (one line) rather than a traceback; an
+    internal error of the engine is raised as it is."""
     try:
         return build_start(plan, spec)
     except (StartError, *USER_ERRORS):
         raise
-    except Exception as exc:
-        raise StartError(f"{spec.start}: {one_line(exc)}") from exc
+    except (Exception, SystemExit) as exc:
+        record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+        if record["kind"] == ENGINE:
+            raise
+        raise StartError(f"{spec.start}: {record['exception']}: "
+                         + " ".join(record["error"].split())
+                         + f" ({record['where']})") from exc
 
 
 def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
@@ -238,8 +271,13 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                 except StartError as exc:
                     warnings.append(str(exc))
                     continue
-                except Exception as exc:  # the module failing at the branch point
-                    warnings.append(f"switch at {p.name}: {one_line(exc)}")
+                except (Exception, SystemExit) as exc:  # the module failing at the BP
+                    record = failure_record(exc, getattr(plan.problem.module, "__file__",
+                                                         None))
+                    if record["kind"] == ENGINE:
+                        raise
+                    warnings.append(f"switch at {p.name}: {record['exception']}: "
+                                    + " ".join(record["error"].split()))
                     continue
                 if sources is not None:
                     sources.append(bp)
@@ -315,6 +353,7 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
     """
     out = Path(out_dir) / plan.output_name
     writer = store.Writer(out, plan.name, plan.problem, plan.text)
+    writer.extra["settings"] = json.dumps(plan.settings(), sort_keys=True)
     kept = _resumed(plan, writer) if resume else None
     for spec in plan.branches:
         # the start is read before the run writes, but the run would destroy its own input
@@ -333,6 +372,16 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
     done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
     first = [start_job(plan, spec) for spec in plan.branches if cell(spec) not in done]
     result = RunResult(writer.path, [], 0.0, kept=count)
+    if kept is not None:
+        # what the kept branches' analyses could not make is still missing from the file
+        result.missing = [m for m in kept.missing if m["what"] != "branches"]
+    if count:   # the branches are reported by their numbers in the file
+        callbacks = dataclasses.replace(
+            callbacks,
+            progress=callbacks.progress and (lambda k, *a, f=callbacks.progress: f(k + count,
+                                                                                   *a)),
+            on_branch=callbacks.on_branch and (lambda k, br, f=callbacks.on_branch: f(k + count,
+                                                                                      br)))
     if kept is not None and not first and count == len(kept.branches):  # all there already
         result.path, result.seconds = kept.path, time.perf_counter() - t_run
         return result
@@ -356,16 +405,42 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
                 compute(plan, first, result, save, callbacks, Workers(jobs, client=client),
                         kept)
                 if not result.interrupted:
+                    writer.extra["missing"] = json.dumps(result.missing)
                     writer.save(result.branches, result.snaps, result.maps, result.landings)
                     writer.finish()
             except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
                 result.interrupted = True
                 del result.branches[writer.written - result.kept:]
+            except (WriteError, ClusterLost, *USER_ERRORS):
+                raise
+            except (Exception, SystemExit) as exc:   # escaped: the branches so far are kept
+                _stopped(plan, result, writer, save, exc)
     finally:
         if client is not None:
             client.close()
     result.path, result.seconds = writer.path, time.perf_counter() - t_run
     return result
+
+
+def _stopped(plan: Plan, result: RunResult, writer, save: Callable[[], None],
+             exc: BaseException):
+    """An exception escaped the computation (an internal error, or the module failing
+    outside any branch): the branches computed so far are saved, with a record of what
+    stopped the run in the file's ``missing`` (as ``what = "branches"``), and the run ends
+    as an interrupted one does: an earlier ``<run>.h5`` is left as it was (`store.Writer`).
+    With ``--debug`` an internal error is raised once the branches are saved."""
+    record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+    internal = "internal error: " if record["kind"] == ENGINE else ""
+    record.update(what="branches", message=(
+        f"the run stopped: {internal}{record['exception']}: "
+        + " ".join(record["error"].split()) + f" ({record['where']}); "
+        f"{len(result.branches)} branches computed"))
+    result.missing.append(record)
+    result.stopped = True
+    writer.extra["missing"] = json.dumps(result.missing)
+    save()
+    if record["kind"] == ENGINE and debugging():
+        raise exc
 
 
 def _resumed(plan: Plan, writer) -> store.BranchFile | None:
@@ -382,7 +457,41 @@ def _resumed(plan: Plan, writer) -> store.BranchFile | None:
     if bf.run != plan.name or Path(bf.equation).stem != plan.problem.name:
         raise RunFileError(f"{source}: --resume: written by run {bf.run!r} of {bf.equation!r}, "
                            f"not {plan.name!r} of {plan.problem.source!r}")
+    differ = _settings_differ(plan, bf)
+    if differ:
+        raise RunFileError(f"{source}: --resume continues the same run only, and this one "
+                           f"differs from the run that wrote the file in {differ}; only the "
+                           "cells (starts, parameter values, directions) may change: run it "
+                           "without --resume, or write elsewhere (--out)")
     return bf
+
+
+def _settings_differ(plan: Plan, bf: store.BranchFile) -> str:
+    """What of ``plan``'s settings (`Plan.settings`) differs from those stored in ``bf``, as
+    ``"bounds, options.ds_max"`` ("" if nothing). A file written before the settings were
+    stored (version 0.1) has only its run file's text to compare: it must be the same."""
+    if "settings" not in bf.attrs:
+        return "" if bf.attrs.get("run_file", "") == plan.text else (
+            "its run file's text (the file was written by elastica-auto "
+            f"{bf.attrs.get('version', '?')}, which stored no more to compare)")
+    try:
+        stored = json.loads(bf.attrs["settings"])
+    except ValueError:
+        raise store.StoreError(f"{bf.path}: damaged branch file: attribute 'settings' is not "
+                               "JSON") from None
+    new = json.loads(json.dumps(plan.settings(), sort_keys=True))   # as stored: lists, not tuples
+    names = {"module_sha256": "the equation module's text",
+             "parameter": "the continued parameter", "stop": "stop"}
+    out = []
+    for key in sorted(set(stored) | set(new)):
+        a, b = stored.get(key), new.get(key)
+        if a == b:
+            continue
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += [f"{key}.{k}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        else:
+            out.append(names.get(key, key))
+    return ", ".join(out)
 
 
 def _label_counters(kept, count: int) -> dict[str, int]:
@@ -497,35 +606,59 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
              on_landing: Callable[[int, int, dict], None] | None, mapper=None):
     """The computed branches' snap-back targets, and as the plan asks, the damped model's
     landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
-    branches). A failure of the module in any of them is a warning: the branches stand.
+    branches). An analysis that fails (the module raising or exiting in it, a numerical
+    failure, an internal error) leaves the branches standing: it is recorded in
+    ``result.missing`` (and stored in the file), and the run's exit status says so.
     ``pool``: a default run's (`_Alongside`): its workers' equilibrium scans
     (`snap_targets`'s ``cache``). ``mapper``: computes the landings (overdamped and
     damped) and the maps' enumerations as tasks (the default run's `_Alongside.map`, a
     cluster's `cluster.map_tasks`; default here, one after the other)."""
     branches = result.branches
+
+    def failed(what: str, name: str, exc: BaseException):
+        record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+        if record["kind"] == ENGINE and debugging():
+            raise exc
+        internal = "internal error: " if record["kind"] == ENGINE else ""
+        record.update(what=what, message=f"{name} failed: {internal}{record['exception']}: "
+                      + " ".join(record["error"].split()) + f" ({record['where']})")
+        result.missing.append(record)
+        result.warnings.append(record["message"])
+
+    def partly(what: str, failures: list):   # the landings of some folds failed: the table
+        # stands without them
+        for record in failures:
+            result.missing.append({**record, "what": what})
+
+    failures: list[dict] = []
     try:
-        result.snaps = snap_targets(plan.problem, branches, result.warnings,
-                                    landing=plan.landing,
-                                    cache=pool.scans if pool is not None else None,
-                                    mapper=mapper, mirror=plan.options.mirror)
-        for row in result.snaps:           # numbered after the kept branches
+        snaps = snap_targets(plan.problem, branches, result.warnings, landing=plan.landing,
+                             cache=pool.scans if pool is not None else None,
+                             mapper=mapper, mirror=plan.options.mirror, failures=failures)
+        partly("snaps", failures)       # the overdamped landings of some folds
+    except (Exception, SystemExit) as exc:   # the module failing in the scan: keep the branches
+        failed("snaps", "snap-back scan", exc)
+    else:
+        for row in snaps:           # numbered after the kept branches
             row["branch"] += result.kept
             row["on_branch"] += result.kept if row["on_branch"] else 0
-        if kept is not None:
-            result.snaps = ([r for r in kept.snaps if r["branch"] <= result.kept]
-                            + result.snaps)
-    except Exception as exc:  # the module failing in the scan: keep the branches
-        result.warnings.append(f"snap-back scan failed: {one_line(exc)}")
+        result.snaps = snaps
+    if kept is not None:
+        result.snaps = [r for r in kept.snaps if r["branch"] <= result.kept] + result.snaps
     if plan.damping:
         from ..analysis.landing import damping_sweep
+        failures = []
         try:
-            result.landings = damping_sweep(plan.problem, branches, plan.damping,
-                                            plan.damping_folds, result.warnings, on_landing,
-                                            mapper=mapper)
-        except Exception as exc:  # the module failing in the scan: keep the branches
-            result.warnings.append(f"damped landings failed: {one_line(exc)}")
-        for row in result.landings:
-            row["branch"] += result.kept
+            landings = damping_sweep(plan.problem, branches, plan.damping, plan.damping_folds,
+                                     result.warnings, on_landing, mapper=mapper,
+                                     failures=failures)
+            partly("landings", failures)
+        except (Exception, SystemExit) as exc:
+            failed("landings", "damped landings", exc)
+        else:
+            for row in landings:
+                row["branch"] += result.kept
+            result.landings = landings
         if kept is not None:
             result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
                                + result.landings)
@@ -535,8 +668,8 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
             result.maps = stability_maps(plan.base, every, plan.problem.free[0],
                                          plan.parameter,
                                          (plan.stops.lower, plan.stops.upper), mapper=mapper)
-        except Exception as exc:  # as for the snap-back scan
-            result.warnings.append(f"stability map failed: {one_line(exc)}")
+        except (Exception, SystemExit) as exc:
+            failed("maps", "stability map", exc)
 
 
 def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alongside:
@@ -546,6 +679,7 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     from .cluster import Background
     with Interruptions() as signals:
         pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS)
+        interrupted = True        # until the branches are in: whatever escapes closes the pool
         try:
             interrupted = pool.run(first, result.branches, save, progress, on_branch,
                                    signals.stop)
@@ -988,8 +1122,13 @@ class _Alongside:
                 kind, (key, params) = "guess", self.early.pop(0)
             else:
                 return False
-        value = self._timed("scan", lambda: len(self.unsent) + len(self.early),
-                            enumerate_equilibria, self.plan.problem, params)
+        try:
+            value = self._timed("scan", lambda: len(self.unsent) + len(self.early),
+                                enumerate_equilibria, self.plan.problem, params)
+        except (Exception, SystemExit):
+            # the module failing in its scan: not kept, so that `snap_targets` computes it
+            # at the run's end, where the failure is recorded as the analysis's (`_analyse`)
+            return True
         with self.lock:
             if kind == "scan":
                 self.scans[key] = (params, value)

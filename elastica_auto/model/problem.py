@@ -644,38 +644,49 @@ class Problem:
                 raise ProblemError(f"{self.source}: {what} returned shape {arr.shape}; "
                                    f"expected {shape}")
 
+        calling = ["rhs"]      # the hook being called, for the message if it raises
+
+        def call(hook, fn, *args):
+            calling[0] = hook
+            return fn(*args)
+
         try:
-            check("rhs(s, y, p) with y of shape (n, 3)", self.rhs(s, y, p), (n, m))
-            g = self.bc(y[:, 0], y[:, -1], p)
+            check("rhs(s, y, p) with y of shape (n, 3)", call("rhs", self.rhs, s, y, p), (n, m))
+            g = call("bc", self.bc, y[:, 0], y[:, -1], p)
             if g.ndim != 1 or len(g) < n:
                 raise ProblemError(f"{self.source}: bc(ya, yb, p) returned shape {g.shape}; "
                                    f"expected ({n},), or more conditions than states")
             self.nbc = nbc = len(g)
             if self._integrals is not None:
-                check("integrals(s, y, p)", self.integrals(s, y, p),
+                check("integrals(s, y, p)", call("integrals", self.integrals, s, y, p),
                       (len(self.integral_names), m))
             if self._rhs_jac is not None:
-                check("rhs_jac(s, y, p)", self._rhs_jac(s, y, p), (n, n, m))
+                check("rhs_jac(s, y, p)", call("rhs_jac", self._rhs_jac, s, y, p), (n, n, m))
             if self._bc_jac is not None:
-                da, db = self._bc_jac(y[:, 0], y[:, -1], p)
+                da, db = call("bc_jac", self._bc_jac, y[:, 0], y[:, -1], p)
                 check("bc_jac(ya, yb, p)[0]", da, (nbc, n))
                 check("bc_jac(ya, yb, p)[1]", db, (nbc, n))
             for name in self.parameters:
                 if self._rhs_dp is not None:
-                    check(f"rhs_dp(s, y, p, {name!r})", self._rhs_dp(s, y, p, name), (n, m))
+                    check(f"rhs_dp(s, y, p, {name!r})",
+                          call("rhs_dp", self._rhs_dp, s, y, p, name), (n, m))
                 if self._bc_dp is not None:
-                    check(f"bc_dp(ya, yb, p, {name!r})", self._bc_dp(y[:, 0], y[:, -1], p, name),
-                          (nbc,))
+                    check(f"bc_dp(ya, yb, p, {name!r})",
+                          call("bc_dp", self._bc_dp, y[:, 0], y[:, -1], p, name), (nbc,))
             for o in self.ordinates.values():
-                v = o.fn(s, y, p)
+                v = call(f"ordinate {o.name!r}", o.fn, s, y, p)
                 if np.ndim(v) != 0:
                     raise ProblemError(f"{self.source}: ordinate {o.name!r} returned shape "
                                        f"{np.shape(v)}; expected a scalar")
         except ProblemError:
             raise
-        except Exception as exc:  # a user module raising on valid input is a module error
-            raise ProblemError(f"{self.source}: calling the module failed: "
-                               f"{type(exc).__name__}: {exc}") from exc
+        except (Exception, SystemExit) as exc:  # a user module raising on valid input
+            from ..core.errors import failure_record
+            record = failure_record(exc, getattr(self.module, "__file__", None))
+            raise ProblemError(f"{self.source}: calling {calling[0]} on a test state (the "
+                               f"defaults, y = 0.1) failed: {record['exception']}: "
+                               + " ".join(record["error"].split())
+                               + f" ({record['where']})") from exc
 
 
 def shipped_equations() -> list[str]:

@@ -28,6 +28,7 @@ from . import bordered
 from .collocation import Discretisation, equidistributed_mesh
 from .gauss import GaussDiscretisation
 from .newton import NEWTON_TOL, Linearization, Row, fold_newton, newton
+from ..core.errors import NumericalFailure
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, inner
 
@@ -54,7 +55,7 @@ def _tangent_row(disc, t: Tangent) -> Row:
     return Row(disc.weights * t.y, t.lam, 0.0)
 
 
-class CorrectorFailure(RuntimeError):
+class CorrectorFailure(NumericalFailure):
     """A solve that did not converge; the message says why, ``residual`` is the size of the
     last Newton correction (NaN where there was none)."""
 

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.errors import NumericalFailure
+
 C = np.array([0.0, 0.526001519587677318785587544488e-01, 0.789002279381515978178381316732e-01,
               0.118350341907227396726757197510, 0.281649658092772603273242802490,
               0.333333333333333333333333333333, 0.25, 0.307692307692307692307692307692,
@@ -87,7 +89,7 @@ E3[11] -= 0.220588235294117647058823529412e-1
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 
 
-class IntegrationError(RuntimeError):
+class IntegrationError(NumericalFailure):
     """The step size fell below rounding: the solution blows up or is not smooth."""
 
 

@@ -15,6 +15,7 @@ import tomllib
 from pathlib import Path
 
 from ..cli import restart_files
+from ..core.errors import StoreError
 from .paper import FIGURES, in_paper_order
 
 
@@ -52,7 +53,11 @@ def main(argv=None) -> int:
         return 2
     for n in names:
         t0 = time.perf_counter()
-        paths = FIGURES[n].draw(args.data, args.out)
+        try:
+            paths = FIGURES[n].draw(args.data, args.out)
+        except StoreError as exc:   # a missing, damaged or incomplete branch file
+            print(f"{n}: {exc}", file=sys.stderr)
+            return 2
         print(f"{n}: {', '.join(str(p) for p in paths)} ({time.perf_counter() - t0:.1f} s)")
     return 0
 

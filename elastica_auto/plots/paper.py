@@ -26,6 +26,7 @@ from matplotlib.patches import ConnectionPatch
 from matplotlib.ticker import MultipleLocator
 
 from ..equations.elastica_lever_arm import arm_end
+from ..core.errors import StoreError
 from ..storage.store import BranchFile, StoredBranch
 from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
                      draw_configurations, draw_panel, find_equilibrium, label_point,
@@ -79,7 +80,16 @@ def in_paper_order() -> list[PaperFigure]:
 
 
 def _open(data_dir, run) -> BranchFile:
-    return BranchFile(Path(data_dir) / f"{run}.h5")
+    """The branch file of ``run``; StoreError if its run left something out (an analysis
+    that failed, branches not computed: `BranchFile.missing`), which a figure would then be
+    drawn without, silently."""
+    bf = BranchFile(Path(data_dir) / f"{run}.h5")
+    if bf.missing:
+        raise StoreError(f"{bf.path}: incomplete: its run could not make "
+                         + "; ".join(f"{m['what']} ({m.get('message', '')})"
+                                     for m in bf.missing)
+                         + f"; run it again (make {bf.path}) before drawing the figure")
+    return bf
 
 
 # ----------------------------------------------------------------------------- tip traces

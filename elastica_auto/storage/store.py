@@ -176,6 +176,9 @@ class Writer:
         self._fd = -1
         self._created = datetime.now(timezone.utc).isoformat(timespec="seconds")
         self._tables: dict = {"snaps": None, "landings": None, "maps": None}
+        #: further attributes of the file's root, JSON text by name (``missing``, ``settings``:
+        #: docs/hdf5.md), written with the header of every save
+        self.extra: dict[str, str] = {}
 
     def __enter__(self) -> Writer:
         folder = self.target.parent
@@ -206,9 +209,9 @@ class Writer:
     def __exit__(self, *exc_info):
         from ..core.interrupts import Interruptions
         try:
-            if self.written:
-                with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
-                    _whole(self.path)
+            # (its folder too if no branch was saved: a run stopped at its first branch)
+            with Interruptions():    # the run is ending: a Ctrl-C now stops nothing
+                _whole(self.path)
         except (OSError, StoreError):  # the file stays as saved, its branches linked: the
             pass                         # next run writing it makes it whole
         finally:
@@ -320,7 +323,8 @@ class Writer:
                        ordinates=json.dumps(problem.ordinate_names),
                        tex=json.dumps(_tex_labels(problem)),
                        periods=json.dumps({k: q.period for k, q in problem.parameters.items()
-                                           if q.period is not None}))
+                                           if q.period is not None}),
+                       **self.extra)
         f["profile_grid"] = PROFILE_GRID
 
 
@@ -834,6 +838,21 @@ class BranchFile:
     @property
     def equation(self) -> str:
         return self.attrs["equation"]
+
+    @property
+    def missing(self) -> list[dict]:
+        """What the run that wrote the file could not make (its snap-back scan, landings or
+        stability maps failed): one record each, ``what`` ("snaps", "landings", "maps"),
+        ``message``, ``kind`` and the exception (`elastica_auto.core.errors.failure_record`);
+        empty if nothing is missing (and in files written before 0.2.0)."""
+        try:
+            out = json.loads(self.attrs.get("missing", "[]"))
+        except ValueError:
+            raise self._damaged("attribute 'missing' is not JSON") from None
+        if not isinstance(out, list) or not all(isinstance(m, dict) and "what" in m
+                                                for m in out):
+            raise self._damaged("attribute 'missing' is not a list of records")
+        return out
 
     def label_ranges(self) -> str:
         """The labels in the file, compactly: ``EP1-EP16, LP1-LP50, UZ1-UZ276``."""
