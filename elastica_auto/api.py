@@ -17,6 +17,7 @@ A run file is the same call written in TOML (:mod:`execution.runfile`); both go 
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 from typing import Iterable, Mapping
@@ -52,17 +53,23 @@ class Branches(list):
     landings : list of dict
         With ``damping``: where the damped model lands, a row per fold and damping value
         (`elastica_auto.analysis.landing.damping_sweep`).
+    missing : list of dict
+        What the analysis after the branches could not make (the snap-back scan, landings or
+        maps failed), one record each: ``what``, ``message``, ``kind`` ("module",
+        "numerical", "engine": an internal error, with its traceback in ``text``); empty if
+        nothing is missing. The command line's exit status 3 (docs/cli.md).
     seconds : float
         Wall-clock time of the whole computation.
     """
 
     def __init__(self, branches: Iterable[Branch] = (), problem: Problem | None = None,
                  snaps: Iterable[dict] = (), warnings: Iterable[str] = (), seconds: float = 0.0,
-                 maps: Iterable = (), landings: Iterable[dict] = ()):
+                 maps: Iterable = (), landings: Iterable[dict] = (),
+                 missing: Iterable[dict] = ()):
         super().__init__(branches)
         self.problem = problem
         self.snaps, self.warnings, self.seconds = list(snaps), list(warnings), seconds
-        self.maps, self.landings = list(maps), list(landings)
+        self.maps, self.landings, self.missing = list(maps), list(landings), list(missing)
 
     def __add__(self, other: Iterable[Branch]) -> Branches | list:
         """Branches of one problem put together (``arm + load``): still of that problem."""
@@ -201,7 +208,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         result.interrupted = True
     number_labels(result.branches)
     out = Branches(result.branches, plan.problem, result.snaps, result.warnings,
-                   time.perf_counter() - t0, result.maps, result.landings)
+                   time.perf_counter() - t0, result.maps, result.landings, result.missing)
     if result.interrupted:
         raise Interrupted(out)
     return out
@@ -216,8 +223,8 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     through the file in branch and point order (the branches keep their own numbering).
     ``problem``: the branches' (default: that of the :func:`continuation` they came from; a
     list put together from several needs it). ``run`` names the run in the file (default:
-    the file's stem). Snap-back targets, damped landings and stability maps are saved if
-    ``branches`` is one continuation's.
+    the file's stem). Snap-back targets, damped landings, stability maps and what the
+    analysis could not make (``missing``) are saved if ``branches`` is one continuation's.
     """
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
@@ -240,6 +247,8 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     snaps, maps, landings = ((given.snaps, given.maps, given.landings) if whole
                              else (None, None, None))
     writer = store.Writer(path, run or path.stem, problem)
+    if whole:
+        writer.extra["missing"] = json.dumps(given.missing)
     with writer:
         writer.save(copies, snaps, maps, landings)
         writer.finish()

@@ -336,3 +336,25 @@ def test_a_module_raising_at_load_names_the_hook(tmp_path):
     assert str(err.value).endswith(f"calling ordinate 'du0' on a test state (the defaults, "
                                    f"y = 0.1) failed: KeyError: 'qq' (mine.py:{line} in "
                                    "<lambda>)")
+
+
+def test_the_api_lists_what_is_missing_and_save_keeps_it(tmp_path):
+    """From Python: a shooting hook that raises leaves ``branches.missing`` saying so (not
+    only a warning), and ``ea.save`` writes it to the file."""
+    import importlib.resources
+    import math
+
+    import elastica_auto as ea
+    from elastica_auto.model.problem import load_problem
+    source = (importlib.resources.files("elastica_auto.equations")
+              / "elastica_lever_arm.py").read_text()
+    assert source.count("def shooting(p):\n") == 1
+    (tmp_path / "mine.py").write_text(source.replace(
+        "def shooting(p):\n", 'def shooting(p):\n    raise ValueError("no shooting")\n'))
+    problem = load_problem(tmp_path / "mine.py")
+    branches = ea.continuation(problem, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                               bounds=(-math.pi, math.pi))
+    assert [(m["what"], m["kind"], m["error"]) for m in branches.missing] == [
+        ("snaps", MODULE, "no shooting")]
+    bf = BranchFile(ea.save(branches, tmp_path / "mine.h5"))
+    assert [m["what"] for m in bf.missing] == ["snaps"]
