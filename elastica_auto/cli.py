@@ -49,7 +49,21 @@ def resolve_run(name_or_path: str) -> Path:
     raise RunFileError(f"{name_or_path}: no such run; shipped runs: {', '.join(sorted(runs))}")
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Commands(click.Group):
+    """The command group: an exception that escapes a command is an internal error (a bug):
+    one line saying so and its traceback, exit status 4 (`_internal`), not Python's report
+    with status 1, which reads as a failed branch."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.ClickException, click.Abort, KeyboardInterrupt):
+            raise
+        except Exception as exc:
+            _internal(exc, ctx.invoked_subcommand or "elastica-auto")
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="elastica-auto")
 @click.option("--debug", is_flag=True,
               help="Raise an internal error (a bug of the engine) with its traceback, instead "
@@ -473,6 +487,13 @@ def path(equation, at, to, ds_max):
         snaps, branches = snaps_along(problem, a, b, **options)
     except USER_ERRORS as exc:
         _fail(str(exc))
+    except (Exception, SystemExit) as exc:   # the module failing on the path: one line
+        from .core.errors import ENGINE, failure_record
+        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        if record["kind"] == ENGINE:
+            _internal(exc, "path")
+        _fail(f"{problem.source}: the path failed: {record['exception']}: "
+              + " ".join(record["error"].split()) + f" ({record['where']})")
     start = {**problem.defaults(), **a}
     moving = ", ".join(f"{k} {start[k]:.6g} -> {v:.6g}" for k, v in b.items())
     fixed = ", ".join(f"{k}={v:.6g}" for k, v in start.items() if k not in b)

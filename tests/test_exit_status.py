@@ -358,3 +358,34 @@ def test_the_api_lists_what_is_missing_and_save_keeps_it(tmp_path):
         ("snaps", MODULE, "no shooting")]
     bf = BranchFile(ea.save(branches, tmp_path / "mine.h5"))
     assert [m["what"] for m in bf.missing] == ["snaps"]
+
+
+def test_an_exception_escaping_any_command_is_an_internal_error(small_run, monkeypatch):
+    """Whatever command an engine exception escapes (here ``show``'s table), it is reported
+    as an internal error with its traceback and status 4, not Python's report with the
+    status 1 of a failed branch."""
+    import elastica_auto.storage.store as store
+    monkeypatch.setenv(errors.DEBUG_ENV, "0")
+
+    def rows(*args, **kwargs):
+        raise KeyError("index")
+
+    monkeypatch.setattr(store, "rows", rows)
+    result = CliRunner().invoke(main, ["show", str(small_run / "out" / "small.h5")])
+    assert result.exit_code == 4, result.output
+    assert "elastica-auto: internal error in show: KeyError: 'index'" in result.output
+    assert "Traceback (most recent call last)" in result.output
+
+
+def test_a_module_failing_on_a_path_is_one_line(tmp_path, cli_exe):
+    """``path`` with a module whose shooting hook exits: one line naming it, status 2."""
+    import importlib.resources
+    source = (importlib.resources.files("elastica_auto.equations")
+              / "elastica_lever_arm.py").read_text()
+    (tmp_path / "mine.py").write_text(source.replace(
+        "def shooting(p):\n", "def shooting(p):\n    raise SystemExit(0)\n"))
+    proc = run_cli(cli_exe, "path", tmp_path / "mine.py", "--at", "eps=0.25",
+                   "--at", "P=pi^2/4", "--to", "psi=3")
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    (line,) = proc.stderr.strip().splitlines()
+    assert "the path failed: SystemExit: the equation module called sys.exit(0)" in line
