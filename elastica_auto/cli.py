@@ -50,6 +50,11 @@ def resolve_run(name_or_path: str) -> Path:
 @click.version_option(__version__, prog_name="elastica-auto")
 def main():
     """AUTO-07p-style continuation of boundary value problems, with stability labels."""
+    import warnings
+    # An equation module that imports a name from its old place (docs/api.md, "Deprecated
+    # paths") gets a DeprecationWarning, which Python shows only for __main__: show the
+    # modules' own (each is executed as elastica_auto_eq_<stem>) once per line.
+    warnings.filterwarnings("default", category=DeprecationWarning, module="elastica_auto_eq_")
 
 
 def restart_files(doc: dict) -> list[str]:
