@@ -387,33 +387,45 @@ def _uz(uz, uz_period) -> tuple[tuple[float, ...], float | None]:
     return values, uz_period and float(uz_period)
 
 
+#: What a ``stop`` entry may be, for the messages that refuse one.
+STOP_FORMS = '"LPn" (such as "LP4"), "NAME > VALUE" or "NAME < VALUE"'
+
+
 def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
     """``stop = ["LP4", "u_max > 100"]``: the fold count at which a branch ends (the
-    smallest given), and the limits on ordinates or free parameters."""
+    smallest given), and the limits on ordinates or free parameters. A crossing has no
+    "or equal" (``>`` ends the branch where NAME = VALUE on the way up), so ``>=`` is refused
+    with the entry to write instead; every refusal names the forms a stop takes."""
     at, limits = None, []
     names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
     for item in stop:
         if not isinstance(item, str):
-            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
-                            f"got {item!r}")
-        op = ">" if ">" in item else "<" if "<" in item else None
-        if op is not None:
-            name, _, text = (x.strip() for x in item.partition(op))
+            raise PlanError("stop", f"expected {STOP_FORMS}, got {item!r}")
+        ops = re.findall(r"[=!]*[<>][<>=]*", item)  # each comparison, with any = or ! on it
+        if ops and ops[0] in (">=", "=>", "<=", "=<"):
+            op = ops[0].strip("=")
+            raise PlanError("stop", f"{item!r}: a stop has no \"or equal\" (the branch ends "
+                            f"where NAME = VALUE): write {item.replace(ops[0], op, 1)!r}; "
+                            f"expected {STOP_FORMS}")
+        if ops and ops[0] in (">", "<"):
+            if len(ops) > 1:
+                raise PlanError("stop", f"{item!r}: one comparison only; expected {STOP_FORMS}")
+            name, op, text = (x.strip() for x in re.split(r"([<>])", item))
             if name not in names:
                 raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
                                 f"parameter ({', '.join(names) or 'none'})")
             try:
                 value = evaluate(text)
             except ValueError as exc:
-                raise PlanError("stop", f"{item!r}: {exc}") from None
+                raise PlanError("stop", f"{item!r}: VALUE {exc}") from None
             limits.append(Limit(name, 1 if op == ">" else -1, value))
         # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
-        elif item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
+        elif not ops and item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
                 and int(item[2:]) > 0:
             at = min(int(item[2:]), at or math.inf)
         else:
-            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
-                            f"got {item!r}")
+            raise PlanError("stop", f"expected {STOP_FORMS} (NAME an ordinate or free "
+                            f"parameter), got {item!r}")
     return at, tuple(limits)
 
 
