@@ -50,7 +50,7 @@ from typing import Sequence
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions
-from .plan import BranchSpec, Plan, Request, Start, Switch, make_plan
+from .plan import MAX_BRANCHES, BranchSpec, Plan, Request, Start, Switch, make_plan
 from ..model.problem import Problem, ProblemError, load_problem
 from ..storage.store import BranchFile, StoredLabel
 
@@ -104,8 +104,8 @@ def _toml_key(key: str) -> str:
     """The run-file key of an argument of ``continuation()``."""
     if key in _CONT:
         return f"[continuation] {key}"
-    if key.startswith("params."):
-        return f"[parameters] {key[len('params.'):]}"
+    if key.startswith("params"):
+        return f"[parameters] {key[len('params.'):]}".rstrip()
     return "[options]" if key == "options" else key
 
 
@@ -334,6 +334,9 @@ class _Document:
         num = v["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             self.fail(f"{where}.num", f"expected a positive integer, got {num!r}")
+        if num > MAX_BRANCHES:  # before the values are listed
+            self.fail(f"{where}.num", f"{num:,} values; a plan has at most {MAX_BRANCHES:,} "
+                      "branches")
         a, b = self.number(f"{where}.from", v["from"]), self.number(f"{where}.to", v["to"])
         if num == 1:
             return [a]
