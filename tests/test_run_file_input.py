@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import resource
 import subprocess
+import tomllib
 import tracemalloc
 
 import pytest
@@ -197,3 +198,42 @@ def test_sizes_that_took_all_memory_are_one_line_in_a_small_process(tmp_path, cl
                                        (tmp_path / "stderr").read_text())
     one_line_error(done, "m2.toml", "at most 100,000")
     assert usage.ru_maxrss < 500_000     # kB
+
+
+# -- what the command line records (hostile L3) ---------------------------------------------------
+
+@pytest.mark.parametrize("value", ["eps=0.3\n[options]\nds_max=0.01", "eps=0.3\r\nds=0.1",
+                                   "eps=0.3\n", "eps=0.3\u2028ds=0.1"])
+def test_a_set_value_over_several_lines_is_refused(tmp_path, value):
+    """``--set $'eps=0.3\\n[options]\\nds_max=0.01'`` applied eps = 0.3, dropped ds_max
+    silently, and stored the rest as a live [options] table under ``# command line:``."""
+    message = _refused(tmp_path, SMALL, value)
+    assert message == f"--set {value!r}: a value cannot span lines; give each setting its " \
+                      "own --set"
+
+
+def test_a_set_value_over_several_lines_is_one_line_from_the_command_line(tmp_path, cli_exe):
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL)
+    proc = run_cli(cli_exe, "run", path, "--out", tmp_path / "out", "-j", "1",
+                   "--set", "eps=0.3\n[options]\nds_max=0.01")
+    one_line_error(proc, "--set 'eps=0.3\\n[options]\\nds_max=0.01': a value cannot span "
+                         "lines")
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_command_line_is_recorded_as_comments_only(tmp_path):
+    """Whatever a --from path holds (a line break, a control character), the record under
+    ``# command line:`` is comments: the stored text reads as the run file plus nothing, and
+    each --set or --from is one line."""
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL)
+    doc = runfile._Document(path, None)
+    restart = "x\n[options]\nds_max = 0.01\n\x1c\u2028/f.h5:UZ1"
+    runfile.apply_overrides(doc, ["ds=0.1"], restart)
+    record = doc.text[len(SMALL):]
+    assert tomllib.loads(doc.text) == tomllib.loads(SMALL)
+    assert record.splitlines() == [
+        "", "# command line:",
+        "#   --from x\\n[options]\\nds_max = 0.01\\n\\x1c\\u2028/f.h5:UZ1",
+        "#   --set options.ds=0.1"]

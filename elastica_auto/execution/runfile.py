@@ -129,6 +129,9 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
         doc.doc.pop("parameters", None)  # the label's own; --set may change them
         notes.append(f"--from {restart}")
     for item in overrides:
+        if item and item.splitlines() != [item]:  # TOML would read the lines after the first
+            raise RunFileError(f"--set {item!r}: a value cannot span lines; give each "
+                               "setting its own --set")
         name, eq, text = item.partition("=")
         name = name.strip()
         if not eq or not name:
@@ -158,7 +161,15 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
         section[key] = value
         notes.append(f"--set {table}.{key}={text.strip()}")
     if notes:
-        doc.text += "\n# command line:\n" + "".join(f"#   {n}\n" for n in notes)
+        doc.text += "\n# command line:\n" + "".join(f"#   {_comment(n)}\n" for n in notes)
+
+
+def _comment(text: str) -> str:
+    """``text`` for one comment line of the stored run file: each character that is not
+    printable written as its escape (``\\n``), since a line break would end the comment and
+    make the rest live TOML, and TOML allows no other control character in a comment."""
+    return "".join(c if c.isprintable() or c == "\t" else c.encode("unicode_escape").decode()
+                   for c in text)
 
 
 class _Document:
