@@ -237,3 +237,27 @@ def test_the_command_line_is_recorded_as_comments_only(tmp_path):
         "", "# command line:",
         "#   --from x\\n[options]\\nds_max = 0.01\\n\\x1c\\u2028/f.h5:UZ1",
         "#   --set options.ds=0.1"]
+
+
+# -- a byte-order mark (hostile L15) --------------------------------------------------------------
+
+def test_a_run_file_with_a_byte_order_mark_reads_as_without(tmp_path, cli_exe):
+    """Windows editors may start a UTF-8 file with a BOM, which TOML's parser reported as
+    "Invalid statement (at line 1, column 1)". The mark says only that the file is UTF-8: the
+    run file is read as without it, and the stored text has none."""
+    plain, marked = tmp_path / "plain.toml", tmp_path / "marked.toml"
+    plain.write_text(SMALL)
+    marked.write_bytes(b"\xef\xbb\xbf" + SMALL.encode())
+    a, b = runfile.load(plain), runfile.load(marked)
+    assert b.text == a.text == SMALL
+    assert (b.branches, b.parameter, b.stops) == (a.branches, a.parameter, a.stops)
+    proc = run_cli(cli_exe, "run", marked, "--out", tmp_path / "out", "-q", "-j", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert ea.BranchFile(tmp_path / "out" / "marked.h5").attrs["run_file"] == SMALL
+
+
+def test_other_encodings_are_still_refused(tmp_path):
+    path = tmp_path / "utf16.toml"
+    path.write_bytes(SMALL.encode("utf-16"))
+    with pytest.raises(RunFileError, match="not UTF-8 text"):
+        runfile.load(path)

@@ -184,6 +184,9 @@ class _Document:
         except UnicodeDecodeError as exc:
             raise RunFileError(f"{path}: not UTF-8 text (byte {exc.start}); "
                                "save the run file as UTF-8") from exc
+        # A byte-order mark says only that the file is UTF-8 (some Windows editors write
+        # one), which TOML takes for a stray character: dropped, here and in the stored text.
+        self.text = self.text.removeprefix("\ufeff")
         try:
             self.doc = tomllib.loads(self.text)
         except tomllib.TOMLDecodeError as exc:
