@@ -10,11 +10,10 @@ are looked up here, each with a DeprecationWarning that names its new place.
 
 `MOVED` was built from the history: for each removed module, every public top-level name of
 its last version, the names it defined and the names of the package it imported (both were
-importable from it), plus the names earlier docs imported from it that the last version no
-longer had (``stability.nodes_and_midpoints``, ``snaps.scan_box``, ``landing.damping_sweep``).
-Each name maps to the module that defines it now. `REMOVED` and `REMOVED_MODULES` hold what
-has no new place, with the reason given instead. Nothing here imports anything: the table is
-read only when an old path is imported.
+importable from it), plus a name earlier docs imported that the last version no longer had
+(``stability.nodes_and_midpoints``). Each name maps to the module that defines it now.
+`REMOVED` and `REMOVED_MODULES` hold what has no new place, with the reason given instead.
+Nothing here imports anything: the table is read only when an old path is imported.
 """
 
 #: The version whose import paths these are (the flat layout), and the first that warns.
