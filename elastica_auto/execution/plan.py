@@ -280,6 +280,7 @@ def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:
             specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
     return specs
 
+
 def _check_branch_count(starts, grid: dict, directions: str):
     """Refuse a plan of more than `MAX_BRANCHES` branches, counted as `_specs` would list
     them, before it lists any."""
