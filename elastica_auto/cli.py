@@ -72,6 +72,11 @@ def main(debug):
     """AUTO-07p-style continuation of boundary value problems, with stability labels."""
     if debug:   # an environment variable: the local workers of a run inherit it
         os.environ[DEBUG_ENV] = "1"
+    import warnings
+    # An equation module that imports a name from its old place (docs/api.md, "Deprecated
+    # paths") gets a DeprecationWarning, which Python shows only for __main__: show the
+    # modules' own (each is executed as elastica_auto_eq_<stem>) once per line.
+    warnings.filterwarnings("default", category=DeprecationWarning, module="elastica_auto_eq_")
 
 
 def _internal(exc: BaseException, what: str):

@@ -36,14 +36,28 @@ def evaluate(text: str) -> float:
         if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
                 and node.func.id in _FUNCS and len(node.args) == 1 and not node.keywords):
             return float(_FUNCS[node.func.id](ev(node.args[0])))
-        raise ValueError(f"not allowed in an expression: {ast.dump(node)[:40]}")
+        raise ValueError(_not_allowed(node))
 
     try:
         value = ev(ast.parse(str(text).replace("^", "**"), mode="eval"))
-    except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+    except SyntaxError as exc:  # its own text names the parser's "<unknown>" file and line
+        raise ValueError(f"cannot evaluate {text!r}: {exc.msg}") from exc
+    except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
         raise ValueError(f"cannot evaluate {text!r}: {exc}") from exc
     except (RecursionError, MemoryError) as exc:  # the parser's or ev's stack, nested too deep
         raise ValueError(f"cannot evaluate {str(text)[:20]!r}...: nested too deeply") from exc
     if isinstance(value, complex) or not math.isfinite(value):
         raise ValueError(f"{text!r} is not a finite real number")
     return float(value)
+
+
+def _not_allowed(node: ast.AST) -> str:
+    """What is wrong with a node `evaluate` does not take, in the terms of its docstring."""
+    if isinstance(node, ast.Name):
+        return f"unknown name {node.id!r} (the constants are {', '.join(_CONSTS)})"
+    if isinstance(node, ast.Call):
+        return f"not one of the functions {', '.join(_FUNCS)} of one argument"
+    if isinstance(node, ast.Constant):
+        return f"{node.value!r} is not a real number"
+    return f"{type(node).__name__.lower()} not allowed (numbers, pi, e, + - * / ^ and " \
+           "functions only)"

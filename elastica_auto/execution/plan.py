@@ -32,6 +32,22 @@ from ..storage.store import StoredLabel
 #: ``directions``: the signs of the steps from each start.
 DIRECTIONS = {"both": (1, -1), "+": (1,), "-": (-1,), "forward": (1,), "backward": (-1,)}
 
+#: The most branches a plan may have (the cells of ``params`` times the starts times the
+#: directions), and so the most values of one range in a run file. Each branch is a task, a
+#: group of its file (tens of kilobytes at the least) and a second or more of computing: 1e5
+#: is a day on a few cores and gigabytes of file, far beyond the shipped runs (tens), and
+#: well below what a typo makes (a range of 1e9 values, or two of 1e4, took all memory
+#: building the plan's list). Checked before anything is listed.
+MAX_BRANCHES = 100_000
+
+#: The most user points one branch may meet: ``uz``'s values, each every ``uz_period``,
+#: over the span of ``bounds`` (or, without bounds, ``max_points * ds_max``, as far as the
+#: parameter can move in a branch: a step moves it by at most about ``ds_max``). Each is a
+#: labelled point whose solution is kept (about 11 kB for the elastica on its usual meshes):
+#: 1e5 of them are a gigabyte of memory and of file; ``uz_period = 1e-300`` listed the
+#: crossings of a single step until memory ran out.
+MAX_USER_POINTS = 100_000
+
 
 @dataclass(frozen=True)
 class Switch:
@@ -253,8 +269,10 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
         raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
                         "continue in another one")
     opts = _options(options)
+    _check_user_points(request, opts)
     grid = _grid(problem, request.params)
     starts = _starts if _starts is not None else _parse_starts(problem, start)
+    _check_branch_count(starts, grid, request.directions)
     specs = _specs(starts, grid, request.directions)
     at_fold, limits = _stops(problem, request.stop)
     return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
@@ -287,6 +305,43 @@ def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:
                                 "in params")
             specs += [BranchSpec(st, {**given, **values}, d) for d in DIRECTIONS[directions]]
     return specs
+
+
+def _check_branch_count(starts, grid: dict, directions: str):
+    """Refuse a plan of more than `MAX_BRANCHES` branches, counted as `_specs` would list
+    them, before it lists any."""
+    switched = sum(st.kind == "switch" for st, _ in starts)
+    others = len(starts) - switched
+    cells = math.prod(len(v) for v in grid.values())
+    count = 2 * switched + cells * others * len(DIRECTIONS[directions])
+    if count > MAX_BRANCHES:
+        sizes = " x ".join(f"{len(v)} {k}" for k, v in grid.items()) or "1 cell"
+        raise PlanError("params", f"{sizes} x {others} start(s) x "
+                        f"{len(DIRECTIONS[directions])} direction(s) is {count:,} branches; a "
+                        f"plan has at most {MAX_BRANCHES:,}: split the run")
+
+
+def _check_user_points(request: Request, options: ContinuationOptions):
+    """Refuse ``uz`` and ``uz_period`` that put more than `MAX_USER_POINTS` user points
+    within a branch's reach: the span of the bounds, or without bounds as far as
+    ``max_points`` steps of at most ``ds_max`` go."""
+    if request.uz_period is None:
+        if len(request.uz) > MAX_USER_POINTS:
+            raise PlanError("uz", f"{len(request.uz):,} values; a branch meets at most "
+                            f"{MAX_USER_POINTS:,} user points")
+        return
+    if request.bounds is not None:
+        reach = request.bounds[1] - request.bounds[0]
+        where, remedy = f"the bounds' span {reach:g}", "narrow the bounds"
+    else:
+        reach = options.max_points * options.ds_max
+        where, remedy = f"max_points x ds_max = {reach:g} (no bounds)", "give bounds"
+    count = len(request.uz) * (reach / request.uz_period + 1)
+    if count > MAX_USER_POINTS:
+        raise PlanError("uz_period", f"{request.uz_period:g} puts {count:.3g} user points "
+                        f"within {where}, {len(request.uz)} uz value(s); a branch meets at "
+                        f"most {MAX_USER_POINTS:,}: raise uz_period or {remedy}")
+
 
 def _damping(damping, folds, landing: bool):
     """The checked ``damping`` values (positive, finite) and fold labels (``LP<n>``)."""
@@ -413,33 +468,45 @@ def _uz(uz, uz_period) -> tuple[tuple[float, ...], float | None]:
     return values, uz_period and float(uz_period)
 
 
+#: What a ``stop`` entry may be, for the messages that refuse one.
+STOP_FORMS = '"LPn" (such as "LP4"), "NAME > VALUE" or "NAME < VALUE"'
+
+
 def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
     """``stop = ["LP4", "u_max > 100"]``: the fold count at which a branch ends (the
-    smallest given), and the limits on ordinates or free parameters."""
+    smallest given), and the limits on ordinates or free parameters. A crossing has no
+    "or equal" (``>`` ends the branch where NAME = VALUE on the way up), so ``>=`` is refused
+    with the entry to write instead; every refusal names the forms a stop takes."""
     at, limits = None, []
     names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
     for item in stop:
         if not isinstance(item, str):
-            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
-                            f"got {item!r}")
-        op = ">" if ">" in item else "<" if "<" in item else None
-        if op is not None:
-            name, _, text = (x.strip() for x in item.partition(op))
+            raise PlanError("stop", f"expected {STOP_FORMS}, got {item!r}")
+        ops = re.findall(r"[=!]*[<>][<>=]*", item)  # each comparison, with any = or ! on it
+        if ops and ops[0] in (">=", "=>", "<=", "=<"):
+            op = ops[0].strip("=")
+            raise PlanError("stop", f"{item!r}: a stop has no \"or equal\" (the branch ends "
+                            f"where NAME = VALUE): write {item.replace(ops[0], op, 1)!r}; "
+                            f"expected {STOP_FORMS}")
+        if ops and ops[0] in (">", "<"):
+            if len(ops) > 1:
+                raise PlanError("stop", f"{item!r}: one comparison only; expected {STOP_FORMS}")
+            name, op, text = (x.strip() for x in re.split(r"([<>])", item))
             if name not in names:
                 raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
                                 f"parameter ({', '.join(names) or 'none'})")
             try:
                 value = evaluate(text)
             except ValueError as exc:
-                raise PlanError("stop", f"{item!r}: {exc}") from None
+                raise PlanError("stop", f"{item!r}: VALUE {exc}") from None
             limits.append(Limit(name, 1 if op == ">" else -1, value))
         # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
-        elif item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
+        elif not ops and item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
                 and int(item[2:]) > 0:
             at = min(int(item[2:]), at or math.inf)
         else:
-            raise PlanError("stop", f"expected entries like \"LP4\" or \"NAME > VALUE\", "
-                            f"got {item!r}")
+            raise PlanError("stop", f"expected {STOP_FORMS} (NAME an ordinate or free "
+                            f"parameter), got {item!r}")
     return at, tuple(limits)
 
 

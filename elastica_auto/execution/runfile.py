@@ -50,7 +50,7 @@ from typing import Sequence
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions
-from .plan import BranchSpec, Plan, Request, Start, Switch, make_plan
+from .plan import MAX_BRANCHES, BranchSpec, Plan, Request, Start, Switch, make_plan
 from ..model.problem import Problem, ProblemError, load_problem
 from ..storage.store import BranchFile, StoredLabel
 
@@ -104,8 +104,8 @@ def _toml_key(key: str) -> str:
     """The run-file key of an argument of ``continuation()``."""
     if key in _CONT:
         return f"[continuation] {key}"
-    if key.startswith("params."):
-        return f"[parameters] {key[len('params.'):]}"
+    if key.startswith("params"):
+        return f"[parameters] {key[len('params.'):]}".rstrip()
     return "[options]" if key == "options" else key
 
 
@@ -129,6 +129,9 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
         doc.doc.pop("parameters", None)  # the label's own; --set may change them
         notes.append(f"--from {restart}")
     for item in overrides:
+        if item and item.splitlines() != [item]:  # TOML would read the lines after the first
+            raise RunFileError(f"--set {item!r}: a value cannot span lines; give each "
+                               "setting its own --set")
         name, eq, text = item.partition("=")
         name = name.strip()
         if not eq or not name:
@@ -158,7 +161,15 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
         section[key] = value
         notes.append(f"--set {table}.{key}={text.strip()}")
     if notes:
-        doc.text += "\n# command line:\n" + "".join(f"#   {n}\n" for n in notes)
+        doc.text += "\n# command line:\n" + "".join(f"#   {_comment(n)}\n" for n in notes)
+
+
+def _comment(text: str) -> str:
+    """``text`` for one comment line of the stored run file: each character that is not
+    printable written as its escape (``\\n``), since a line break would end the comment and
+    make the rest live TOML, and TOML allows no other control character in a comment."""
+    return "".join(c if c.isprintable() or c == "\t" else c.encode("unicode_escape").decode()
+                   for c in text)
 
 
 class _Document:
@@ -173,6 +184,9 @@ class _Document:
         except UnicodeDecodeError as exc:
             raise RunFileError(f"{path}: not UTF-8 text (byte {exc.start}); "
                                "save the run file as UTF-8") from exc
+        # A byte-order mark says only that the file is UTF-8 (some Windows editors write
+        # one), which TOML takes for a stray character: dropped, here and in the stored text.
+        self.text = self.text.removeprefix("\ufeff")
         try:
             self.doc = tomllib.loads(self.text)
         except tomllib.TOMLDecodeError as exc:
@@ -334,6 +348,9 @@ class _Document:
         num = v["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             self.fail(f"{where}.num", f"expected a positive integer, got {num!r}")
+        if num > MAX_BRANCHES:  # before the values are listed
+            self.fail(f"{where}.num", f"{num:,} values; a plan has at most {MAX_BRANCHES:,} "
+                      "branches")
         a, b = self.number(f"{where}.from", v["from"]), self.number(f"{where}.to", v["to"])
         if num == 1:
             return [a]

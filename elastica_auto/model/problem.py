@@ -93,6 +93,7 @@ import math
 import numbers
 import os
 import types
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -769,7 +770,9 @@ def _from_text(source: str, filename: str, text: str) -> Problem:
     """
     module = types.ModuleType(f"elastica_auto_eq_{Path(filename).stem}")
     module.__file__ = filename
-    exec(compile(text, filename, "exec"), module.__dict__)
+    with warnings.catch_warnings():  # the command that sent it has shown them once already
+        warnings.simplefilter("ignore", DeprecationWarning)
+        exec(compile(text, filename, "exec"), module.__dict__)
     problem = Problem(module, source)
     problem._text = text
     return problem
