@@ -220,3 +220,31 @@ def test_the_files_tex_is_never_given_to_tex(viewer_file, monkeypatch):
     fig = diagram_figure(BranchFile(viewer_file))
     texts = [fig.axes[0].xaxis.label, fig._supylabel, fig._suptitle]
     assert texts and not any(t.get_usetex() for t in texts)
+
+
+def test_the_paper_figures_report_a_raising_draw_hook(rotating_arm, tmp_path, monkeypatch,
+                                                       capsys, elastica):
+    """Hostile turn 5, M8, for the figures: a draw hook that raises leaves those
+    configurations blank, the figure is written, one line names the error and the command
+    exits 3 (EXIT_ANALYSIS_FAILED)."""
+    from elastica_auto.plots import __main__ as figures
+    from elastica_auto.plots import layout
+
+    class Raising:            # the shipped elastica, its draw hook raising
+        module, has_draw, draw_projection = elastica.module, True, None
+
+        def draw(self, ax, profile, params):
+            raise RuntimeError("broken hook")
+
+    monkeypatch.setattr(layout, "equation_problem", lambda equation: Raising())
+    data = tmp_path / "data"
+    data.mkdir()
+    shutil.copy(rotating_arm.result.path, data / "rotating_arm.h5")
+    status = figures.main(["rotating-arm-long", "--data", str(data), "--out",
+                           str(tmp_path / "fig")])
+    err = capsys.readouterr().err
+    assert status == 3
+    assert err.splitlines() == ["rotating-arm-long: draw hook failed: RuntimeError: broken "
+                                f"hook at {__file__.rsplit('/', 1)[1]}:"
+                                f"{Raising.draw.__code__.co_firstlineno + 1} in draw"]
+    assert (tmp_path / "fig" / "rotating_arm_long.png").is_file()
