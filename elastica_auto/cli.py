@@ -17,9 +17,9 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .core.errors import (DEBUG_ENV, EXIT_CLUSTER_LOST, EXIT_INTERNAL, EXIT_INTERRUPTED,
-                          EXIT_OK, EXIT_USER, EXIT_WRITE, USER_ERRORS, ClusterLost, RunFileError,
-                          StoreError, WriteError, debugging)
+from .core.errors import (DEBUG_ENV, EXIT_ANALYSIS_FAILED, EXIT_CLUSTER_LOST, EXIT_INTERNAL,
+                          EXIT_INTERRUPTED, EXIT_OK, EXIT_USER, EXIT_WRITE, USER_ERRORS,
+                          ClusterLost, RunFileError, StoreError, WriteError, debugging)
 
 
 def _fail(msg: str, code: int = EXIT_USER):
@@ -390,12 +390,15 @@ def snaps(file):
               help="CSV file to write.")
 def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
+    from .storage.outputs import check_output
     from .storage.store import export_csv
     bf = _open(file)
     try:
-        path = export_csv(bf, Path(output))
+        path = export_csv(bf, check_output(output, bf.path, "the CSV", "exported"))
     except StoreError as exc:
         _fail(str(exc))
+    except WriteError as exc:      # the write's OSError, as one line
+        _fail(str(exc), EXIT_WRITE)
     n = sum(len(b) for b in bf.branches)
     click.echo(f"{n} points of {len(bf.branches)} branches -> {path}")
 
@@ -414,17 +417,17 @@ def plot(file, xname, yname, output, fold):
     parameters fixed along its branches (reads the file, computes nothing)."""
     bf = _open(file)
     from .plots import bifurcation_diagram
-    period = None
-    if fold:
-        x = xname or (bf.branches[0].parameter if bf.branches else "")
-        if x not in bf.periods:
-            _fail(f"--fold: {x!r} is not a periodic parameter of {file} "
-                  f"(periodic: {', '.join(bf.periods) or 'none'})")
-        period = bf.periods[x]
+    from .plots.diagram import period_of
     try:
+        period = None
+        if fold:
+            period = period_of(bf, xname or (bf.branches[0].parameter if bf.branches else ""),
+                               "--fold")
         path = bifurcation_diagram(bf, Path(output), xname, yname, period=period)
-    except ValueError as exc:
+    except (ValueError, StoreError) as exc:
         _fail(str(exc))
+    except WriteError as exc:      # the write's OSError, as one line
+        _fail(str(exc), EXIT_WRITE)
     click.echo(f"wrote {path}")
 
 
@@ -439,19 +442,41 @@ def plot(file, xname, yname, output, fold):
                    "ordinate).")
 @click.option("--fold/--no-fold", "fold", default=False,
               help="Fold a periodic abscissa into [0, period) at first (the page toggles it).")
-def view(file, output, xname, yname, fold):
+@click.option("--equation", "equation", default=None, metavar="PATH",
+              help="Draw the configurations with this equation module (a .py file, which is "
+                   "run, or a shipped name). Default: the shipped module the file names; a "
+                   "file that names a module by a path gets no configurations (docs/trust.md).")
+def view(file, output, xname, yname, fold, equation):
     """Write an interactive bifurcation diagram of FILE.h5: one self-contained HTML page (no
     network access) showing the configuration of the point under the mouse beside the
-    diagram (reads the file, computes nothing)."""
+    diagram (reads the file, computes nothing, and runs no code it names)."""
     bf = _open(file)
-    from .plots.viewer import check_output, page, write_page
+    from .plots.viewer import check_output, equation_module, page_data, render, write_page
+    # SIGTERM (a batch system's, an IDE's, timeout's) ends the drawing like Ctrl-C: the
+    # drawing processes are ended with the command, no page is written
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         output = check_output(output or Path(file).with_suffix(".html"), bf.path)
-        text = page(bf, xname, yname, fold)
+        problem = equation_module(equation, bf) if equation is not None else None
+        data = page_data(bf, xname, yname, fold, problem=problem)
+        text = render(data)
         path = write_page(text, output, bf.path)
-    except (ValueError, StoreError) as exc:
+    except (ValueError, StoreError) as exc:      # the ProblemErrors of --equation too
         _fail(str(exc))
+    except WriteError as exc:      # the write's OSError, as one line
+        _fail(str(exc), EXIT_WRITE)
+    except KeyboardInterrupt:
+        click.echo("\ninterrupted: no page written", err=True)
+        sys.exit(EXIT_INTERRUPTED)
     click.echo(f"wrote {path} ({len(text.encode()) / 1e6:.1f} MB)")
+    images = data["images"]
+    if images.untrusted:     # as documented: not a failure, the page says so too
+        click.echo(f"elastica-auto: configurations not drawn: {images.reason}; pass "
+                   "--equation PATH to trust it", err=True)
+    if images.failed:        # part of the page could not be made
+        click.echo(f"elastica-auto: error: configurations not drawn for "
+                   f"{images.failure_line()}", err=True)
+        sys.exit(EXIT_ANALYSIS_FAILED)
 
 
 def _values(option: str, items) -> dict[str, float]:

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 import elastica_auto as ea
 from elastica_auto.core.errors import ProblemError
 from elastica_auto.plots.diagram import diagram_figure, panel_groups, value_tex
-from elastica_auto.plots.layout import Inset, Panel, Pt, draw_panel, equation_problem
+from elastica_auto.plots.layout import Inset, Panel, Pt, draw_panel
 from elastica_auto.storage.store import BranchFile
 from helpers import EXAMPLES
 
@@ -100,7 +100,9 @@ def draw(ax, profile, p):
 
 @pytest.fixture(scope="module")
 def bratu_files(tmp_path_factory):
-    """One Bratu branch saved with a module that has a draw hook and one that has none."""
+    """One Bratu branch saved with a module that has a draw hook and one that has none:
+    {name: (file, problem)} (the files name their module by its path: a figure of them
+    draws configurations with the problem given, docs/trust.md)."""
     root = tmp_path_factory.mktemp("bratu_draw")
     text = (EXAMPLES / "bratu.py").read_text()
     files = {}
@@ -110,14 +112,14 @@ def bratu_files(tmp_path_factory):
         problem = ea.load_problem(str(module))
         branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
                                    max_points=40)
-        files[name] = BranchFile(ea.save(branches, root / f"{name}.h5"))
+        files[name] = BranchFile(ea.save(branches, root / f"{name}.h5")), problem
     return files
 
 
-def _panel(bf):
+def _panel(bf, problem):
     br = bf.branches[0]
     rows = [i for i, t in enumerate(br.columns["type"]) if t == "UZ"]
-    insets = [Inset(str(k + 1), Pt(bf, br, i).configuration(),
+    insets = [Inset(str(k + 1), Pt(bf, br, i).configuration(problem=problem),
                     (float(br.columns["lam"][i]), float(br.columns["du0"][i])))
               for k, i in enumerate(rows)]
     assert len(insets) >= 3
@@ -125,12 +127,12 @@ def _panel(bf):
 
 
 def test_the_draw_hook_gets_each_configuration_on_the_profile_grid(bratu_files):
-    bf = bratu_files["with_draw"]
-    module = equation_problem(bf.equation).module
+    bf, problem = bratu_files["with_draw"]
+    module = problem.module
     module.CALLS.clear()
     fig = Figure(layout="constrained")
-    draw_panel(fig, _panel(bf))
-    n = len(_panel(bf).insets)
+    draw_panel(fig, _panel(bf, problem))
+    n = len(_panel(bf, problem).insets)
     assert len(fig.axes) == n + 1                  # the configurations and the diagram
     assert [shape for shape, _ in module.CALLS] == [(2, len(bf.profile_grid))] * n
     uz = [i for i, t in enumerate(bf.branches[0].columns["type"]) if t == "UZ"]
@@ -139,10 +141,10 @@ def test_the_draw_hook_gets_each_configuration_on_the_profile_grid(bratu_files):
 
 
 def test_a_module_without_draw_gives_the_diagram_alone(bratu_files):
-    bf = bratu_files["without_draw"]
-    assert not equation_problem(bf.equation).has_draw
+    bf, problem = bratu_files["without_draw"]
+    assert not problem.has_draw
     fig = Figure(layout="constrained")
-    ax = draw_panel(fig, _panel(bf))
+    ax = draw_panel(fig, _panel(bf, problem))
     assert fig.axes == [ax]
     assert len(ax.lines) > 1                        # branch and markers, no numbered points
     assert not any(t.get_text() in ("1", "2", "3") for t in ax.texts)
@@ -153,8 +155,113 @@ def test_draw_must_be_a_function_and_gets_a_profile_of_the_states(tmp_path, brat
     bad.write_text((EXAMPLES / "bratu.py").read_text() + "\ndraw = 3\n")
     with pytest.raises(ProblemError, match="draw must be a function"):
         ea.load_problem(str(bad))
-    problem = equation_problem(bratu_files["with_draw"].equation)
+    problem = bratu_files["with_draw"][1]
     fig = Figure()
     with pytest.raises(ProblemError, match=r"profile of shape \(2, len\(grid\)\)"):
         problem.draw(fig.add_subplot(), np.zeros((4, 10)), {"lam": 1.0})
 
+
+
+# ------------------------------------------------- messages that name their cause (L14)
+def _with_tex(source, target, **tex):
+    import json
+    import shutil
+
+    import h5py
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        f.attrs["tex"] = json.dumps({**json.loads(f.attrs["tex"]), **tex})
+    return target
+
+
+@pytest.mark.parametrize("name, kind", [("m1", "ordinate"), ("psi", "parameter"),
+                                        ("P", "parameter")])
+def test_a_bad_tex_label_is_one_line_naming_it(viewer_file, cli_exe, tmp_path, name, kind):
+    """Hostile turn 5, L14: an invalid TeX label made `plot` print four lines of parser
+    output naming neither the module nor the column. One line now, naming both and the
+    label; m1 is the ordinate drawn, psi the abscissa, P a value in the figure's title."""
+    from helpers import run_cli
+    bad = r"$\undefinedcommand{x}$"
+    h5 = _with_tex(viewer_file, tmp_path / "tex.h5", **{name: bad})
+    proc = run_cli(cli_exe, "plot", h5, "-o", tmp_path / "x.png")
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert proc.stderr.startswith(f"elastica-auto: error: {BranchFile(h5).equation}: {kind} "
+                                  f"{name!r}: its TeX label {bad} cannot be typeset (")
+    assert r"\undefinedcommand" in proc.stderr.split("cannot be typeset")[1]
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("column", ["type", "label", "note", "transition"])
+def test_a_text_column_is_not_an_axis(viewer_file, cli_exe, tmp_path, column):
+    """Hostile turn 5, L14: `plot -x type` said "could not convert string to float: 'EP'".
+    One line now naming the column and listing the numeric ones (read with h5py)."""
+    import h5py
+
+    from helpers import run_cli
+    with h5py.File(viewer_file, "r") as f:
+        g = f["branches/001/columns"]
+        numeric = {k for k, d in g.items() if d.dtype.kind in "iuf"} - {"label"}
+    for option in ("-x", "-y"):
+        proc = run_cli(cli_exe, "plot", viewer_file, option, column, "-o", tmp_path / "x.png")
+        assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+        head, _, listed = proc.stderr.strip().partition("; numeric columns: ")
+        assert head.endswith(f"{column!r} is not a numeric column of {viewer_file}")
+        assert numeric <= set(listed.split(", ")) and column not in listed.split(", ")
+
+
+# ------------------------------------- the line style changes at the fold (issue 45, item 8)
+def _style_of(line):
+    """The (colour, dash) of a drawn line, to compare with `style.index_style`'s."""
+    from matplotlib.colors import to_hex
+    return to_hex(line.get_color()), line.get_linestyle()
+
+
+def _expected_style(k):
+    from matplotlib.lines import Line2D
+
+    from elastica_auto.plots.style import index_style
+    color, dash, lw = index_style(k)
+    return _style_of(Line2D([], [], color=color, ls=dash, lw=lw))
+
+
+def _folds(path):
+    """(x, y, index before, index after) of each fold of the file, in point order, read with
+    h5py: psi and m1 at the LP, the index of the points on either side."""
+    import h5py
+    out = []
+    with h5py.File(path, "r") as f:
+        for g in f["branches"].values():
+            c = {k: g[f"columns/{k}"][()] for k in ("psi", "m1", "index", "type")}
+            for i in np.flatnonzero(c["type"] == b"LP"):
+                out.append((c["psi"][i], c["m1"][i], int(c["index"][i - 1]),
+                            int(c["index"][i + 1])))
+    return out
+
+
+def _check_style_changes_at_the_folds(lines, folds):
+    ends = [(ln.get_xydata()[0], ln.get_xydata()[-1], _style_of(ln)) for ln in lines
+            if len(ln.get_xydata()) > 1]
+    assert folds and all(a != b for _, _, a, b in folds)
+    for x, y, before, after in folds:
+        assert any(np.array_equal(last, (x, y)) and style == _expected_style(before)
+                   for _, last, style in ends), (x, y, before)
+        assert any(np.array_equal(first, (x, y)) and style == _expected_style(after)
+                   for first, _, style in ends), (x, y, after)
+
+
+def test_plot_changes_the_line_style_at_the_fold(viewer_file):
+    """Issue 45, item 8: the style changed one segment after the fold's circle. Each fold is
+    the last point of a line in the style of the index before it and the first of a line in
+    the style of the index after it."""
+    fig = diagram_figure(BranchFile(viewer_file))
+    _check_style_changes_at_the_folds(fig.axes[0].lines, _folds(viewer_file))
+
+
+def test_the_figures_change_the_line_style_at_the_fold(viewer_file):
+    """The same for the paper's diagrams (`layout.draw_branches`, smoothed lines through
+    every point)."""
+    from elastica_auto.plots.layout import draw_branches
+    bf = BranchFile(viewer_file)
+    ax = Figure().add_subplot()
+    draw_branches(ax, [(bf, b) for b in bf.branches], "psi", "m1")
+    _check_style_changes_at_the_folds(ax.lines, _folds(viewer_file))

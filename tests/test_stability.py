@@ -767,3 +767,22 @@ def test_where_the_rule_cannot_apply_it_restarts_past_a_following_fold_too():
         assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 1) == 0
         assert stability.fold_sign("free", np.array(lam), np.array(ordinate), 2) == -1
         assert stability.fold_rule(branch, problem, 4)[2:] == [5, 4, 4], lp_count
+
+
+def test_a_form_without_legendre_names_its_module_once():
+    """Hostile turn 5, L14: the spatial rod's own counts (count_form without a module's name)
+    failed with "second_variation: second_variation: A is not positive definite". The
+    name is given once, or not at all."""
+    from elastica_auto import SecondVariation
+    from elastica_auto.numerics.stability import LegendreError, count_form
+    mesh = np.linspace(0, 1, 11)
+
+    def form(pts):              # A = -1 + 2 s: negative on [0, 1/2)
+        return SecondVariation(-1 + 2 * pts, 0.0, fixed0=[0], fixed1=[0])
+
+    with pytest.raises(LegendreError) as bare:
+        count_form(form, mesh)
+    assert str(bare.value).startswith("second_variation: A is not positive definite at s = 0")
+    with pytest.raises(LegendreError) as named:
+        count_form(form, mesh, source="mod")
+    assert str(named.value) == "mod: " + str(bare.value)

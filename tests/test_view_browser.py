@@ -39,7 +39,8 @@ PIXEL = """([x, y]) => {
 #: The traces Plotly holds: branch, kind (legend, line, LP, ...), points, rows, visibility.
 TRACES = """() => document.getElementById("plot")._fullData.map((t) => ({
   branch: t.meta.branch, kind: t.meta.kind, uid: t.uid, visible: t.visible,
-  x: t._input.x, y: t._input.y, rows: t._input.customdata}))"""
+  x: t._input.x, y: t._input.y, rows: t._input.customdata,
+  line: t._input.line && {color: t._input.line.color, dash: t._input.line.dash}}))"""
 #: Points drawn per trace: the vertices of its line, or its marker symbols.
 DRAWN = """(uid) => {
   const g = document.querySelector(`.scatterlayer .trace${uid}`);
@@ -61,7 +62,7 @@ def _missing() -> str:
 
 
 @pytest.fixture(scope="module")
-def browser():
+def playwright():
     reason = _missing()
     if reason and os.environ.get("CI") == "true":
         pytest.fail(f"CI=true, but the browser tests cannot run: {reason}")
@@ -69,9 +70,14 @@ def browser():
         pytest.skip(reason)
     from playwright.sync_api import sync_playwright
     with sync_playwright() as p:
-        chromium = p.chromium.launch(executable_path=str(CHROMIUM))
-        yield chromium
-        chromium.close()
+        yield p
+
+
+@pytest.fixture(scope="module")
+def browser(playwright):
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM))
+    yield chromium
+    chromium.close()
 
 
 def stored(path) -> dict:
@@ -91,9 +97,10 @@ class Viewer:
     """A page of the viewer open in a new browser context, every request refused but the
     page's own file; JS errors and refused requests are collected."""
 
-    def __init__(self, browser, html: Path, data: dict, ready: str | None = "#info tr"):
+    def __init__(self, browser, html: Path, data: dict, ready: str | None = "#info tr",
+                 viewport: dict = VIEWPORT):
         self.data, self.requests, self.errors = data, [], []
-        self.context = browser.new_context(viewport=VIEWPORT)
+        self.context = browser.new_context(viewport=viewport)
         url = html.as_uri()
 
         def route(r):
@@ -163,21 +170,50 @@ def test_no_errors_and_no_requests(page):
     assert page.errors == [] and page.requests == []
 
 
+def line_index(c) -> np.ndarray:
+    """The index that styles the line at each point: the point's own, but at a fold or a
+    branch point (where the index changes) the next point's: the style changes at the
+    point itself (issue 45, item 8)."""
+    k = np.array(c["index"], int)
+    turn = np.flatnonzero(np.isin(c["type"][:-1], (b"LP", b"BP")))
+    k[turn] = k[turn + 1]
+    return k
+
+
 def test_every_point_is_drawn_where_the_file_has_it(page):
-    """Per branch, the line traces hold each row once (twice where the index changes), of one
-    index each, at the file's (psi, m1), and each of their points is a vertex of a drawn
-    path."""
+    """Per branch, the line traces hold each row once (twice where the line's index
+    changes), of one index each, at the file's (psi, m1), and each of their points is a
+    vertex of a drawn path."""
     for br, c in page.data.items():
         lines = page.traces(br, "line")
         rows = sorted({r for t in lines for r in t["rows"]})
         assert rows == list(range(len(c["psi"])))
+        k = line_index(c)
         for t in lines:
             np.testing.assert_array_equal(t["x"], c["psi"][t["rows"]])
             np.testing.assert_array_equal(t["y"], c["m1"][t["rows"]])
             assert page.page.evaluate(DRAWN, t["uid"]) == len(t["rows"])
-            assert len(set(c["index"][t["rows"][:-1]])) == 1    # one index (the last: shared)
+            assert len(set(k[t["rows"][:-1]])) == 1    # one index (the last point: shared)
         shared = sum(len(t["rows"]) for t in lines) - len(rows)
-        assert shared == np.count_nonzero(np.diff(c["index"]))
+        assert shared == np.count_nonzero(np.diff(k))
+
+
+def test_the_line_style_changes_at_the_fold(page):
+    """Issue 45, item 8: the style changed one segment after the fold. Each fold's row ends
+    a line in the style of the index before it and starts one in the style of the index
+    after it."""
+    folds = 0
+    for br, c in page.data.items():
+        lines = page.traces(br, "line")
+        for f in np.flatnonzero(c["type"] == b"LP"):
+            before, after = (viewer._style(int(c["index"][i])) for i in (f - 1, f + 1))
+            assert before != after
+            assert any(t["rows"][-1] == f and t["line"]["color"] == before["color"]
+                       and t["line"]["dash"] == before["dash"] for t in lines)
+            assert any(t["rows"][0] == f and t["line"]["color"] == after["color"]
+                       and t["line"]["dash"] == after["dash"] for t in lines)
+            folds += 1
+    assert folds == 2
 
 
 def test_the_fold_markers_are_the_files_folds(page):
@@ -340,6 +376,95 @@ def test_rotating_arm_panels_and_fold(browser, rotating_arm, tmp_path):
         for t in v.traces(kind="line"):
             psi = data[t["branch"]]["psi"][t["rows"]]
             np.testing.assert_allclose(t["x"], np.mod(psi, 2 * np.pi), rtol=0, atol=1e-12)
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+# -- what a page shows whatever the file holds (hostile turn 5, M1 and M8) --------------------
+
+def test_a_name_with_script_markup_leaves_the_page_working(browser, viewer_file, tmp_path):
+    """Hostile M1's reproduction: a branch file named "<!--<script>.h5" gave a blank page
+    (the data's script element swallowed the viewer's). The page works now."""
+    h5 = tmp_path / "<!--<script>.h5"
+    h5.write_bytes(viewer_file.read_bytes())
+    v = Viewer(browser, ea.view(h5, tmp_path / "page.html").path, stored(h5), ready=None)
+    try:          # the page's scripts have run once it is loaded: nothing to wait for
+        assert v.page.eval_on_selector_all("#panel option", "o => o.length") == 1
+        assert v.page.eval_on_selector_all("#info tr", "r => r.length") > 0
+        assert v.page.eval_on_selector_all("script", "s => s.length") == 3
+        assert v.page.input_value("#restart").startswith(f"--from {h5}:")
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+def test_a_label_whose_drawing_failed_says_so(browser, tmp_path):
+    """Hostile M8: a label whose draw hook raised has no image, and the side panel says so
+    with the hook's error; the labels drawn show theirs."""
+    from test_view import RAISING_DRAW
+
+    from helpers import EXAMPLES
+    module = tmp_path / "bratu_draw.py"
+    module.write_text((EXAMPLES / "bratu.py").read_text() + RAISING_DRAW)
+    problem = ea.load_problem(str(module))
+    h5 = ea.save(ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4),
+                                 uz=[1.5, 2.5, 3.4], max_points=60), tmp_path / "b.h5")
+    with pytest.warns(Warning, match="draw hook failed"):
+        html = ea.view(h5, tmp_path / "b.html", equation=problem).path
+    data = stored(h5)
+    v = Viewer(browser, html, data)
+    try:
+        for label, fails in (("UZ3", True), ("UZ1", False)):
+            br, row = v.where(label)
+            assert (data[br]["lam"][row] > 2) == fails          # the hook raises above 2
+            v.hover(label)
+            caption = v.page.inner_text("#caption")
+            if fails:
+                assert caption.startswith("no configuration: draw hook failed (KeyError: "
+                                          "'no such thing' at bratu_draw.py:")
+                assert not v.page.get_attribute("#config", "src")
+            else:
+                assert caption == f"{label}: its configuration"
+    finally:
+        v.close()
+    assert not v.errors and not v.requests
+
+
+# -- the layout with scroll bars (issue 45, item 8) --------------------------------------------
+
+@pytest.fixture(scope="module")
+def browser_with_scrollbars(playwright):
+    """Chromium as a user sees it: with scroll bars (Playwright hides them by default in a
+    headless browser, and a page that scrolls is then as wide as the window)."""
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM),
+                                          ignore_default_args=["--hide-scrollbars"])
+    yield chromium
+    chromium.close()
+
+
+def test_the_diagram_stays_left_of_the_side_panel_with_scroll_bars(browser_with_scrollbars,
+                                                                  arm):
+    """Issue 45, item 8: where the page scrolls vertically (here a window lower than the
+    diagram's least height and the header), the scroll bar narrows the page after the
+    diagram was sized, and the diagram covered the side panel's left edge. Its right edge is
+    left of the side panel's now, once the page has settled (the same layout twice in a
+    row), with the scroll bar there."""
+    html, data = arm[:2]
+    v = Viewer(browser_with_scrollbars, html, data, viewport={"width": 1200, "height": 500})
+    try:
+        assert v.page.evaluate("document.documentElement.scrollHeight > innerHeight")
+        assert v.page.evaluate("innerWidth - document.documentElement.clientWidth") > 0
+        edges = """() => [document.querySelector('#plot .main-svg').getBoundingClientRect()
+                          .right, document.querySelector('aside').getBoundingClientRect().left]"""
+        v.page.wait_for_function(f"""() => {{
+          const [right, left] = ({edges})();
+          const settled = window.lastEdges && window.lastEdges[0] === right;
+          window.lastEdges = [right, left];
+          return settled && right <= left;
+        }}""", polling=100, timeout=10_000)
+        right, left = v.page.evaluate(edges)
+        assert right <= left
     finally:
         v.close()
     assert not v.errors and not v.requests

@@ -97,8 +97,8 @@ def _on_state(problem, state):
 
 
 def _source(problem) -> str:
-    """The module's name for messages."""
-    return getattr(problem, "source", "second_variation")
+    """The module's name for messages ("" if it has none)."""
+    return getattr(problem, "source", "")
 
 
 def count(problem, state) -> Count:
@@ -186,8 +186,7 @@ def _wavenumber(a_min, b, c):
     return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
 
 
-def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_variation"
-               ) -> Count:
+def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "") -> Count:
     """The number of negative eigenvalues of the form ``evaluate(pts)`` (a
     `SecondVariation` with its coefficients on the points ``pts``) less ``shift`` times the
     L2 inner product, on its admissible space; ``mesh`` the nodes of the elements.
@@ -203,7 +202,8 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "second_vari
     A pivot with an eigenvalue zero to working precision (a fold, a branch point, an
     unconstrained symmetry) gives index -1 and says so: its sign would be a guess.
     LegendreError (a ProblemError) where A is not positive definite (the Legendre
-    condition); :func:`count` turns it into index -1 with that one-line reason.
+    condition), its message starting with ``source`` (the module's name) if given;
+    :func:`count` turns it into index -1 with that one-line reason.
 
     A form with ``parts`` that decouples along them (`SecondVariation.split`) is counted part
     by part, its index their sum (-1 if a part's is), the count of each in ``parts``: the
@@ -285,9 +285,12 @@ def _evaluate(evaluate, pts, shift, source):
     a_min = _min_eig(a)
     if not np.all(a_min > 0):
         j = int(np.argmin(a_min))
-        raise LegendreError(f"{source}: second_variation: A is not positive definite at s = "
-                           f"{pts[j]:.6g} (smallest eigenvalue {a_min[j]:.3g}): the Legendre "
-                           "condition fails there and the stability index is not defined")
+        # "module: second_variation: ...", or without a module's name (a module counting a
+        # form of its own calls count_form without one)
+        raise LegendreError(f"{source + ': ' if source else ''}second_variation: A is not "
+                           f"positive definite at s = {pts[j]:.6g} (smallest eigenvalue "
+                           f"{a_min[j]:.3g}): the Legendre condition fails there and the "
+                           "stability index is not defined")
     return form, (a, b, c, a_min, g)
 
 

@@ -1,9 +1,13 @@
 """Draw the paper's figures: ``python -m elastica_auto.plots [NAME ...] --data out --out figures``.
 
 Without names, lists the figures (name, paper figure, branch files read). ``all`` draws every
-one. Figures read the branch files only. ``--gallery DIR`` writes reduced copies of the PNGs in
-``--out`` to DIR (for docs/figures.md). ``--make-rules`` prints the Makefile's rules for the
-figures and runs, from the figure registry and the restarts of the run files in ``--runs``.
+one. Figures read the branch files only: configurations are drawn by the shipped equation
+modules the files name, never by a module a file names by a path (docs/trust.md); each
+figure whose configurations could not all be drawn says so in a line on stderr, and the
+exit status is then 3 if a ``draw`` hook raised. ``--gallery DIR`` writes reduced copies of
+the PNGs in ``--out`` to DIR (for docs/figures.md). ``--make-rules`` prints the Makefile's
+rules for the figures and runs, from the figure registry and the restarts of the run files
+in ``--runs``.
 """
 
 from __future__ import annotations
@@ -12,10 +16,12 @@ import argparse
 import sys
 import time
 import tomllib
+import warnings
 from pathlib import Path
 
 from ..cli import restart_files
-from ..core.errors import StoreError
+from ..core.errors import EXIT_ANALYSIS_FAILED, StoreError
+from .layout import NotDrawn
 from .paper import FIGURES, in_paper_order
 
 
@@ -51,15 +57,28 @@ def main(argv=None) -> int:
         print(f"unknown figure(s): {', '.join(unknown)}; known: {', '.join(FIGURES)}",
               file=sys.stderr)
         return 2
+    failed = False
     for n in names:
         t0 = time.perf_counter()
-        try:
-            paths = FIGURES[n].draw(args.data, args.out)
-        except StoreError as exc:   # a missing, damaged or incomplete branch file
-            print(f"{n}: {exc}", file=sys.stderr)
-            return 2
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", NotDrawn)
+            try:
+                paths = FIGURES[n].draw(args.data, args.out)
+            except StoreError as exc:   # a missing, damaged or incomplete branch file
+                print(f"{n}: {exc}", file=sys.stderr)
+                return 2
         print(f"{n}: {', '.join(str(p) for p in paths)} ({time.perf_counter() - t0:.1f} s)")
-    return 0
+        lines = {}
+        for w in caught:
+            if not issubclass(w.category, NotDrawn):      # not ours to report: as it came
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+                continue
+            failed |= bool(w.message.failed)
+            hint = "" if w.message.failed else "; the figures import no module named by a path"
+            lines[f"{n}: {w.message}{hint}"] = None
+        for line in lines:
+            print(line, file=sys.stderr)
+    return EXIT_ANALYSIS_FAILED if failed else 0
 
 
 def make_rules(runs_dir) -> str:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..storage.outputs import check_output, write_output
 from ..storage.store import BranchFile
 from .style import RC, index_label, index_style, marker_style
 
@@ -30,9 +31,25 @@ MARKER_TEXT = {"LP": "fold (LP)", "LP?": "fold not located", "BP": "branch point
 FONTSIZE = 7.0
 
 
+#: Labelled points where the stability index changes: a line's style changes at the point.
+TURNS = ("LP", "BP")
+
+
+def line_index(index, types) -> np.ndarray:
+    """The index that styles the line at each point: its own, but at a fold or branch point
+    (`TURNS`) the index of the point after it. The index stored at such a point is that of
+    one side (the count there has a zero eigenvalue); the line leaving it is on the side of
+    the next point, so the style changes at the point itself, not one segment later."""
+    out = np.array(index, dtype=int)
+    turn = np.flatnonzero(np.isin(np.asarray(types)[:-1], TURNS))
+    out[turn] = out[turn + 1]
+    return out
+
+
 def index_runs(x, y, index, period):
     """Split a branch into runs of equal index (joined at the change) and, when x is folded
-    into [0, period), break it where x wraps around."""
+    into [0, period), break it where x wraps around. ``index`` styles the lines: see
+    `line_index`."""
     if period is not None:
         x = np.mod(x, period)
     wrap = np.abs(np.diff(x)) > period / 2 if period else np.zeros(len(x) - 1, bool)
@@ -98,8 +115,9 @@ def value_tex(v: float) -> str:
 
 
 def values_tex(bf: BranchFile, values: dict) -> str:
-    """Parameter values as a panel title: ``$name=value$`` in the file's TeX names."""
-    return ", ".join(rf"${bf.tex.get(q, q).strip('$')}={value_tex(v)}$"
+    """Parameter values as a panel title: ``$name=value$`` in the file's TeX names (each
+    checked: `checked_tex`)."""
+    return ", ".join(checked_tex(bf, q, rf"${bf.tex.get(q, q).strip('$')}={value_tex(v)}$")
                      for q, v in values.items())
 
 
@@ -121,7 +139,8 @@ def _draw_panel(ax, branches, xname, yname, period, index_column="index"):
     indices, kinds, names = set(), set(), []
     for b in branches:
         x, y = b.columns[xname].astype(float), b.columns[yname].astype(float)
-        for xs, ys, k in index_runs(x, y, b.columns[index_column], period):
+        styled = line_index(b.columns[index_column], b.columns["type"])
+        for xs, ys, k in index_runs(x, y, styled, period):
             color, dash, lw = index_style(k)
             ax.plot(xs, ys, color=color, ls=dash, lw=lw, solid_capstyle="round",
                     dash_capstyle="butt", zorder=3 if k == 0 else 2)
@@ -164,11 +183,16 @@ def _name_points(ax, names):
         ann.set_in_layout(False)
 
 
+def _numeric(values) -> bool:
+    return np.asarray(values).dtype.kind in "iuf"
+
+
 def default_columns(bf: BranchFile, xname: str | None = None,
                     yname: str | None = None) -> tuple[str, str]:
     """The columns of a diagram of ``bf``: ``xname`` and ``yname`` if given, checked (a
-    ValueError names the columns there are); by default the first branch's continued
-    parameter against its distinguished ordinate."""
+    ValueError names the columns there are, or the numeric ones for a column of text such
+    as ``type``); by default the first branch's continued parameter against its
+    distinguished ordinate."""
     if not bf.branches:
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
@@ -181,7 +205,51 @@ def default_columns(bf: BranchFile, xname: str | None = None,
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
                              f"{', '.join(bf.parameters + bf.ordinates)}")
+        if not _numeric(b0.columns[name]):
+            numeric = [q for q, v in b0.columns.items() if _numeric(v)]
+            raise ValueError(f"{name!r} is not a numeric column of {bf.path}; numeric "
+                             f"columns: {', '.join(numeric)}")
     return xname, yname
+
+
+def period_of(bf: BranchFile, name: str, option: str = "") -> float:
+    """The period of parameter ``name`` of ``bf``. ValueError (one line, starting with
+    ``option`` if given) if it has none, or if the file's is not a positive finite number
+    (a damaged or edited file: a fold into it would put every point nowhere)."""
+    where = f"{option}: " if option else ""
+    if name not in bf.periods:
+        raise ValueError(f"{where}{name!r} is not a periodic parameter of {bf.path} "
+                         f"(periodic: {', '.join(bf.periods) or 'none'})")
+    period = bf.periods[name]
+    if isinstance(period, bool) or not isinstance(period, (int, float)) \
+            or not math.isfinite(period) or period <= 0:
+        raise ValueError(f"{where}{bf.path}: the period of parameter {name!r} is {period!r}, "
+                         "not a positive finite number (a damaged or edited file)")
+    return float(period)
+
+
+def checked_tex(bf: BranchFile, name: str, text: str) -> str:
+    """``text``, the TeX of column ``name`` (its label, or a title with its value), if
+    matplotlib can typeset it: else a ValueError of one line naming the column, its label
+    and the module, found before anything is drawn (matplotlib's own error is a few lines
+    of parser output at the save, naming neither)."""
+    from matplotlib import cbook
+    from matplotlib.mathtext import MathTextParser
+    if not cbook.is_math_text(text):
+        return text
+    try:
+        MathTextParser("path").parse(text)
+    except ValueError as exc:
+        kind = ("parameter" if name in bf.parameters else
+                "ordinate" if name in bf.ordinates else "column")
+        # the parser's last line says what it met ("ParseFatalException: Unknown symbol:
+        # \\foo, found ..."); the lines before repeat the text with a caret under it
+        why = next((line.strip() for line in reversed(str(exc).splitlines())
+                    if line.strip()), type(exc).__name__).removeprefix("ParseFatalException: ")
+        label = " ".join(bf.tex.get(name, name).split())
+        raise ValueError(f"{bf.equation}: {kind} {name!r}: its TeX label {label} cannot be "
+                         f"typeset ({why})") from None
+    return text
 
 
 def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
@@ -198,6 +266,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     xname, yname = default_columns(bf, xname, yname)
+    xlabel, ylabel = (checked_tex(bf, q, bf.tex.get(q, q)) for q in (xname, yname))
     b0 = bf.branches[0]
     varying, groups = panel_groups(bf, xname)
     if not groups:
@@ -225,8 +294,8 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                 ax.remove()
             elif j + ncols >= len(groups):    # no panel below: this one shows the x axis
                 ax.xaxis.set_tick_params(labelbottom=True)
-                ax.set_xlabel(bf.tex.get(xname, xname))
-        fig.supylabel(bf.tex.get(yname, yname))
+                ax.set_xlabel(xlabel)
+        fig.supylabel(ylabel)
         count = f"{len(bf.branches)} branch{'es' if len(bf.branches) != 1 else ''}"
         fig.suptitle(f"{bf.run}: {count}" + (f"; {values_tex(bf, common)}" if common else ""),
                      fontsize=10)
@@ -248,11 +317,37 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
 
 def bifurcation_diagram(bf: BranchFile, output: Path, xname: str | None = None,
                         yname: str | None = None, period: float | None = None) -> Path:
-    """Draw `diagram_figure` and save it to ``output`` (.png, .pdf, .svg)."""
+    """Draw `diagram_figure` and save it to ``output`` (.png, .pdf, .svg), through a
+    temporary file renamed over it (`save_figure`)."""
+    output = check_output(output, bf.path, "the figure", "plotted")
+    return save_figure(diagram_figure(bf, xname, yname, period), output, dpi=150)
+
+
+def save_figure(fig, output: Path, **kwargs) -> Path:
+    """``fig.savefig(output, **kwargs)`` in the format of ``output``'s suffix, written to a
+    temporary file beside it and renamed over it: a failed save leaves an earlier figure as
+    it was (a figure truncated by a full disk would be newer than its sources for make).
+    ValueError for a format matplotlib does not write, StoreError for an output refused
+    (`storage.outputs.check_output`), WriteError if it cannot be written."""
     import matplotlib
-    fig = diagram_figure(bf, xname, yname, period)
     output = Path(output)
-    output.parent.mkdir(parents=True, exist_ok=True)
+    fmt = output.suffix[1:].lower() or matplotlib.rcParams["savefig.format"]
+    supported = fig.canvas.get_supported_filetypes()
+    if fmt not in supported:
+        raise ValueError(f"{output}: matplotlib writes no {fmt!r} figures; use one of "
+                         f"{', '.join('.' + f for f in supported)}")
+    def write(tmp):
+        try:
+            fig.savefig(tmp, format=fmt, **kwargs)
+        except Exception as exc:
+            # matplotlib's PDF writer, cleaning up after a failed write, raises an error of
+            # its own (AttributeError) with the OSError as its context: that is what failed
+            failed = exc
+            while failed is not None and not isinstance(failed, OSError):
+                failed = failed.__context__
+            if failed is None:
+                raise
+            raise failed from None
+
     with matplotlib.rc_context(RC):
-        fig.savefig(output, dpi=150)
-    return output
+        return write_output(output, write, what="the figure")

@@ -7,14 +7,21 @@ along the top, and the snap-back arrows with their before/after configurations a
 interpolate and place what the files hold; nothing is solved.
 
 Configurations are drawn by the ``draw(ax, profile, params)`` hook of the equation module that
-the branch file names (its ``equation`` attribute), loaded when a configuration is drawn; a
-module without the hook gets diagrams without configurations. Nothing here knows the problem.
+the branch file names (its ``equation`` attribute), loaded when a configuration is drawn, if
+it is a shipped module (loaded by name from the package); a file that names any other module
+(a path to a ``.py`` file) gets diagrams without configurations unless the caller passes the
+problem itself: reading a file never executes code the user did not name (docs/trust.md). A
+module without the hook gets diagrams without configurations too, and a configuration whose
+drawing raises is left blank. Each configuration not drawn is reported as a `NotDrawn`
+warning. Nothing here knows the problem.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import traceback
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -24,9 +31,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
 
-from ..model.problem import Problem, load_problem
+from ..core.errors import ProblemError
+from ..model.problem import Problem, load_problem, shipped_equations
 from ..storage.store import BranchFile, StoredBranch
-from .diagram import same_value
+from .diagram import line_index, same_value, save_figure
 from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
 
 TWO_PI = 2 * math.pi
@@ -35,31 +43,73 @@ TWO_PI = 2 * math.pi
 # ----------------------------------------------------------------------------------- data
 @dataclass
 class Configuration:
-    """A solution to draw with the ``draw`` hook of the module ``equation`` (a branch file's
-    ``equation`` attribute): ``profile`` (states, profile grid) at parameter values ``params``;
-    ``extra(ax)`` draws more in its axes (e.g. the path some point took to get there)."""
+    """A solution to draw with the ``draw`` hook of ``equation``: a problem, or the name a
+    branch file's ``equation`` attribute gives (see `equation_problem`); ``profile`` (states,
+    profile grid) at parameter values ``params``; ``extra(ax)`` draws more in its axes (e.g.
+    the path some point took to get there)."""
 
-    equation: str
+    equation: str | Problem
     profile: np.ndarray
     params: dict
     extra: Callable | None = None
 
 
+class UntrustedEquation(ProblemError):
+    """A branch file names an equation module that is not shipped (a path to a ``.py``
+    file): reading the file does not import it."""
+
+
+class NotDrawn(UserWarning):
+    """A configuration that was not drawn, and why: its module is not shipped and was not
+    given, or its ``draw`` hook raised (``failed``: the hook's error, on one line)."""
+
+    def __init__(self, message: str, failed: str = ""):
+        super().__init__(message)
+        self.failed = failed
+
+
+def equation_problem(equation: str | Problem) -> Problem:
+    """The problem that draws configurations of a branch file whose ``equation`` attribute is
+    ``equation``: ``equation`` itself if it is a problem (one the caller loaded), else the
+    shipped module of that name; UntrustedEquation for any other name. A branch file can
+    come from anyone, and the module it names would run as soon as it is imported."""
+    if isinstance(equation, Problem):
+        return equation
+    return _shipped_problem(equation)
+
+
 @functools.lru_cache(maxsize=None)
-def equation_problem(equation: str) -> Problem:
-    """The problem of the equation module a branch file names, loaded once."""
-    return load_problem(equation)
+def _shipped_problem(name: str) -> Problem:
+    """The shipped equation module ``name``, loaded once (by name, from the package)."""
+    if name not in shipped_equations():
+        raise UntrustedEquation(f"the file names equation module {name!r}, which is not "
+                                "shipped")
+    return load_problem(name)
+
+
+def _trusted(c: Configuration | None) -> Problem | None:
+    """``c``'s problem, or None (with a `NotDrawn` warning) if its module is not trusted."""
+    if c is None:
+        return None
+    try:
+        return equation_problem(c.equation)
+    except UntrustedEquation as exc:
+        warnings.warn(NotDrawn(f"configurations not drawn: {exc}"), stacklevel=3)
+        return None
 
 
 def can_draw(c: Configuration | None) -> bool:
-    """Whether ``c``'s equation module draws configurations (has the ``draw`` hook)."""
-    return c is not None and equation_problem(c.equation).has_draw
+    """Whether ``c``'s equation module is trusted and draws configurations (has the
+    ``draw`` hook)."""
+    problem = _trusted(c)
+    return problem is not None and problem.has_draw
 
 
 def projection(c: Configuration | None) -> str | None:
     """The matplotlib projection of the axes ``c``'s module draws on (its
     ``DRAW_PROJECTION``: None for plain axes, ``"3d"`` for a spatial configuration)."""
-    return None if c is None else equation_problem(c.equation).draw_projection
+    problem = _trusted(c)
+    return None if problem is None else problem.draw_projection
 
 
 def configuration_axes(fig, spec, c: Configuration | None):
@@ -81,10 +131,17 @@ def draw_configurations(axes, configurations, margin=0.08):
     """Draw each configuration in its axes, all at one scale: the limits of each axes are
     centred on its drawing and fit the widest and the tallest one (and on 3D axes the
     deepest), plus ``margin`` of the largest extent on every side; equal aspect, no ticks,
-    no frame."""
+    no frame. A configuration that is not drawn (see `_draw_one`) leaves its axes empty but
+    for a line saying why."""
     boxes = []
     for ax, c in zip(axes, configurations):
-        equation_problem(c.equation).draw(ax, c.profile, c.params)
+        why = _draw_one(ax, c)
+        if why:
+            ax.set_axis_off()
+            ax.text(0.5, 0.5, f"no configuration:\n{why}", ha="center", va="center",
+                    fontsize=6, wrap=True, transform=ax.transAxes)
+            boxes.append(np.full((2, 2), np.nan))
+            continue
         if c.extra is not None:
             c.extra(ax)
         boxes.append(data_box(ax))
@@ -115,6 +172,39 @@ def draw_configurations(axes, configurations, margin=0.08):
             sp.set_visible(False)
 
 
+def hook_error(exc: BaseException, problem: Problem) -> str:
+    """``exc``, raised by ``problem``'s hook, on one line with where it was raised: the
+    module's own line if it raised there, else the last line of the traceback
+    (``KeyError: 'x' at draw.py:12 in draw``)."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    module_file = getattr(problem.module, "__file__", None)
+    at = next((f for f in reversed(frames) if f.filename == module_file),
+              frames[-1] if frames else None)
+    message = " ".join(str(exc).split())
+    text = f"{type(exc).__name__}: {message}" if message else type(exc).__name__
+    return text + (f" at {Path(at.filename).name}:{at.lineno} in {at.name}" if at else "")
+
+
+def _draw_one(ax, c: Configuration) -> str:
+    """Draw ``c`` on ``ax`` with its module's ``draw`` hook; why it was not drawn ("" if it
+    was): its module is not trusted, has no hook, or the hook raised (a `NotDrawn` warning
+    says which)."""
+    problem = _trusted(c)
+    if problem is None:
+        return "module not shipped"
+    if not problem.has_draw:
+        return "no draw hook"
+    try:
+        problem.draw(ax, c.profile, c.params)
+    except (Exception, SystemExit) as exc:    # the module's code: it fails this drawing only
+        for artist in [*ax.lines, *ax.patches, *ax.texts, *ax.collections, *ax.images]:
+            artist.remove()        # what it drew before it raised
+        error = hook_error(exc, problem)
+        warnings.warn(NotDrawn(f"draw hook failed: {error}", failed=error), stacklevel=3)
+        return "draw hook failed"
+    return ""
+
+
 @dataclass(frozen=True)
 class Pt:
     """One stored point: file, branch, row."""
@@ -138,9 +228,12 @@ class Pt:
     def label(self) -> str:
         return self.br.label_names()[self.i]
 
-    def configuration(self, extra: Callable | None = None) -> Configuration:
-        """The stored solution of this point, to draw (``extra``: see `Configuration`)."""
-        return Configuration(self.bf.equation, self.br.profiles[self.i], self.params, extra)
+    def configuration(self, extra: Callable | None = None,
+                      problem: Problem | None = None) -> Configuration:
+        """The stored solution of this point, to draw (``extra``: see `Configuration`) by
+        ``problem`` (default: the module the file names, if it is shipped)."""
+        return Configuration(problem or self.bf.equation, self.br.profiles[self.i],
+                             self.params, extra)
 
 
 def label_point(bf: BranchFile, name: str) -> Pt:
@@ -375,7 +468,7 @@ def _branch_data(items, xname, yname, period):
         # coincide in all of them, distinct equilibria that look alike in one do not
         names = [yname] + [o for o in bf.ordinates if o != yname]
         F = np.array([br.columns[o].astype(float) for o in names])
-        index = np.asarray(br.columns["index"])
+        index = line_index(br.columns["index"], br.columns["type"])
         if period:
             x, F, index, wrap = _fold(x, F, index, period)
         else:
@@ -686,9 +779,10 @@ def save(fig, out_dir, name) -> list:
     configuration insets is about a third of its drawing time, and solving it again for the
     second file would only move the axes by rounding."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / f"{name}.png", out_dir / f"{name}.pdf"]
-    fig.savefig(paths[0], dpi=200)
+    # each through a temporary file (`diagram.save_figure`): a figure cut short by a full
+    # disk would otherwise be newer than its runs, and make would keep it
+    save_figure(fig, paths[0], dpi=200)
     fig.set_layout_engine("none")
-    fig.savefig(paths[1])
+    save_figure(fig, paths[1])
     return paths

@@ -839,7 +839,8 @@ def fig_configurations_3d(data_dir, out_dir):
             p = by_b2[min(by_b2)]
             c = p.configuration()
             ax = configuration_axes(fig, gs[j // ncol, j % ncol], c)
-            ax.view_init(elev=22, azim=-60)
+            if ax.name == "3d":         # plain axes where the module is not drawn
+                ax.view_init(elev=22, azim=-60)
             split = ", ".join(f"$b_2={b:g}$: {int(q['index_in'])} + {int(q['index_out'])}"
                               for b, q in sorted(by_b2.items()))
             ax.set_title(rf"$\mathbf{{m}}(0)\cdot\mathbf{{e}}_z={m0:.2f}$" + "\n" + split,

@@ -39,6 +39,9 @@ MARKERS = {
 }
 
 RC = {
+    # a branch file's TeX labels (its "tex" attribute) are typeset by matplotlib's own parser,
+    # never handed to a TeX installation, whatever a user's matplotlibrc says (docs/trust.md)
+    "text.usetex": False,
     "font.family": "DejaVu Serif",
     "mathtext.fontset": "dejavuserif",
     "font.size": 9.0,

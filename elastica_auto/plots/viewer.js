@@ -27,12 +27,20 @@
     return p ? x.map((v) => (v === null ? null : ((v % p) + p) % p)) : x;
   }
 
+  // The index that styles the line at each point of branch b, as diagram.line_index gives
+  // it: its own, but at a fold or branch point the next point's (the style changes at the
+  // point itself, where its marker is, not one segment later).
+  function lineIndex(b) {
+    const turns = new Set(["LP", "LP?", "BP"].flatMap((kind) => b.marks[kind] || []));
+    return b.index.map((k, i) => (turns.has(i) && i + 1 < b.index.length ? b.index[i + 1] : k));
+  }
+
   // The traces of branch b: its legend entry (no points), a line per run of equal stability
   // index (neighbouring runs share the point where the index changes), broken where a folded
   // x wraps around, as diagram.index_runs splits them, then a marker trace per kind of
   // labelled point. All in the branch's legend group: its legend entry hides the branch.
   function traces(b) {
-    const x = xs(b), y = b.columns[state.y], p = period();
+    const x = xs(b), y = b.columns[state.y], p = period(), index = lineIndex(b);
     const out = [{type: "scatter", mode: "lines", x: [null], y: [null], name: b.name,
                   legendgroup: String(b.number), line: {color: "#555", width: 2},
                   hoverinfo: "skip", meta: {branch: b.number, kind: "legend"}}];
@@ -45,9 +53,9 @@
     for (let i = 0; i < x.length; i++) {
       const last = i === x.length - 1;
       const wrap = !last && p !== undefined && Math.abs(x[i + 1] - x[i]) > p / 2;
-      if (!last && !wrap && b.index[i + 1] === b.index[i]) continue;
+      if (!last && !wrap && index[i + 1] === index[i]) continue;
       const stop = last || wrap ? i + 1 : i + 2;
-      const s = D.styles[b.index[start]];
+      const s = D.styles[index[start]];
       const rows = Array.from({length: stop - start}, (_, k) => start + k);
       // every point drawn: Plotly would otherwise drop points of nearly straight stretches
       out.push({...common(rows), type: "scatter", mode: "lines", showlegend: false,
@@ -106,7 +114,8 @@
     img.src = D.images[stored] || "";
     img.dataset.label = stored;
     $("caption").textContent = !D.images[stored]
-      ? "no configuration (the equation module has no draw hook)"
+      ? `no configuration: ${!stored ? "no labelled point on this branch"
+                             : D.missing[stored] || D.no_images || "not drawn"}`
       : label ? `${label}: its configuration`
       : `nearest stored configuration: ${stored} (point ${near + 1}; this is point ${i + 1})`;
     $("restart").value = stored ? `--from ${D.file}:${stored}` : "";
@@ -133,6 +142,10 @@
   }
 
   draw();
+  // Plotly's responsive option follows the window's size only: the diagram keeps its width
+  // when its box narrows without the window changing (a vertical scroll bar appearing as
+  // the side panel fills, say), and would then cover the side panel's left edge
+  new ResizeObserver(() => Plotly.Plots.resize(gd)).observe(gd);
   // at first, the panel's first labelled point
   const first = branch[D.panels[0].branches[0]];
   show(first, Math.max(0, first.labels.findIndex((name) => name)));

@@ -4,33 +4,41 @@ self-contained HTML page (Plotly's JavaScript embedded: it works offline and can
 
 The page holds the file's columns (every parameter and ordinate of every point, the index,
 the labels and their index transitions), one PNG per labelled point drawn by the equation
-module's ``draw`` hook, and the snap-back table. Plotly draws, zooms, pans, toggles branches
-from the legend and finds the point under the mouse; the page's own script (`viewer.js`
-beside this module) only builds the traces of the chosen panel and columns, in the styles of
-``elastica-auto plot`` (`style`), and links a point to the side panel. Nothing is computed
-but pictures of stored profiles.
+module's ``draw`` hook, and the snap-back table. The module is the shipped one the file names,
+or one the caller gives: a module the file names by a path is not imported
+(`layout.equation_problem`; docs/trust.md), and the page says why it has no configurations.
+Plotly draws, zooms, pans, toggles branches from the legend and finds the point under the
+mouse; the page's own script (`viewer.js` beside this module) only builds the traces of the
+chosen panel and columns, in the styles of ``elastica-auto plot`` (`style`), and links a
+point to the side panel. Nothing is computed but pictures of stored profiles.
 """
 
 from __future__ import annotations
 
 import base64
+import ctypes
 import html
 import io
 import json
 import math
 import os
 import re
+import signal
 import sys
 import tempfile
 import threading
+import warnings
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import USER_ERRORS, StoreError
-from ..storage.store import BranchFile, same_file, write_atomically
-from .diagram import MARKED, MARKER_TEXT, default_columns, fixed_parameters, panel_groups
+from ..core.errors import USER_ERRORS
+from ..storage.outputs import check_output as _check_output
+from ..storage.outputs import write_output
+from ..storage.store import BranchFile
+from .diagram import (MARKED, MARKER_TEXT, default_columns, fixed_parameters, panel_groups,
+                      period_of)
 from .style import MARKERS, SNAP_COLOR, index_label, index_style
 
 #: Size of a configuration image: inches at dots per inch (the side panel shows it at 240 px).
@@ -45,12 +53,14 @@ NOTEBOOK_HEIGHT = 760
 
 
 class View:
-    """A viewer page: ``html`` (the whole document) and the ``path`` it was written to, if
-    any. In a Jupyter notebook the object shows the page inline (in an iframe, so that the
-    page's script and ids stay its own)."""
+    """A viewer page: ``html`` (the whole document), the ``path`` it was written to, if any,
+    and its ``images`` (`Images`: what was drawn, and what is missing). In a Jupyter notebook
+    the object shows the page inline (in an iframe, so that the page's script and ids stay
+    its own)."""
 
-    def __init__(self, html_text: str, path: Path | None = None):
+    def __init__(self, html_text: str, path: Path | None = None, images: Images | None = None):
         self.html, self.path = html_text, path
+        self.images = images if images is not None else Images()
 
     def _repr_html_(self) -> str:
         return (f'<iframe srcdoc="{html.escape(self.html)}" style="width:100%; '
@@ -72,23 +82,66 @@ def _png(fig) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def configuration_images(bf: BranchFile, problem=None, workers: int | None = None
-                         ) -> dict[str, str]:
+class Images(dict):
+    """Label -> PNG data URI of each configuration drawn, and what is missing: ``failed``
+    {label: the ``draw`` hook's error, on one line} for the labels whose drawing raised, and
+    ``reason``, why there are none at all ("" where the module draws); ``untrusted``: the
+    reason is that the file names a module that is not shipped (and none was given)."""
+
+    def __init__(self, images=(), failed: dict | None = None, reason: str = "",
+                 untrusted: bool = False):
+        super().__init__(images)
+        self.failed, self.reason, self.untrusted = failed or {}, reason, untrusted
+
+    def failure_line(self) -> str:
+        """The labels whose drawing raised and the hook's errors, on one line ("" if none)."""
+        by_error: dict[str, list[str]] = {}
+        for label, error in self.failed.items():
+            by_error.setdefault(error, []).append(label)
+        return "; ".join(f"{_label_list(sorted(labels, key=_label_order))}: draw hook "
+                         f"failed ({error})" for error, labels in by_error.items())
+
+
+def _label_order(label: str) -> tuple:
+    """A label's place among labels: by type, then number (``UZ2`` before ``UZ10``)."""
+    number = label[2:]
+    return (label[:2], int(number) if number.isdigit() else -1, label)
+
+
+def _label_list(labels) -> str:
+    """Labels compactly, runs of consecutive numbers of one type as ranges: ``UZ1-UZ3, LP2``."""
+    runs: list[list] = []       # [first, last, type, number of the last]
+    for label in labels:
+        kind, number = label[:2], int(label[2:]) if label[2:].isdigit() else None
+        if runs and number is not None and runs[-1][2:] == [kind, number - 1]:
+            runs[-1][1], runs[-1][3] = label, number
+        else:
+            runs.append([label, label, kind, number])
+    return ", ".join(first if first == last else f"{first}-{last}" for first, last, *_ in runs)
+
+
+def configuration_images(bf: BranchFile, problem=None, workers: int | None = None) -> Images:
     """One PNG data URI per label of ``bf``: its stored profile drawn by the ``draw`` hook of
-    ``problem`` (default: the equation module the file names), filling a square image.
-    Empty if the module cannot be loaded or has no ``draw`` hook.
+    ``problem`` (default: the shipped equation module the file names; a module it names by a
+    path is not imported), filling a square image. A label whose drawing raises gets none
+    (`Images.failed`); none at all if the module is not shipped and not given, or has no
+    ``draw`` hook (`Images.reason`).
 
     ``workers``: processes that draw (each a fork of this one, given every ``workers``-th
     label); default `drawing_workers` of the labels' count. The images are the same
     whichever process drew them."""
-    from .layout import equation_problem
+    from .layout import UntrustedEquation, equation_problem
     if problem is None:
         try:
             problem = equation_problem(bf.equation)
-        except USER_ERRORS:
-            return {}
-    if not problem.has_draw or not bf.labels:
-        return {}
+        except UntrustedEquation as exc:
+            return Images(reason=str(exc), untrusted=True)
+        except USER_ERRORS as exc:
+            return Images(reason=str(exc))
+    if not problem.has_draw:
+        return Images(reason="the equation module has no draw hook")
+    if not bf.labels:
+        return Images()
     by_number = {b.number: b for b in bf.branches}
     # what each drawing needs, read here: a drawing process reads no file
     drawings = []
@@ -98,10 +151,11 @@ def configuration_images(bf: BranchFile, problem=None, workers: int | None = Non
                          {q: float(b.columns[q][pt - 1]) for q in bf.parameters}))
     workers = drawing_workers(len(drawings)) if workers is None else workers
     if workers > 1:
-        images = _draw_forked(problem, drawings, workers)
+        drawn = _draw_forked(problem, drawings, workers)
     else:
-        images = _draw(problem, drawings)
-    return dict(zip(bf.labels, images))
+        drawn = _draw(problem, drawings)
+    return Images({name: image for name, (image, _) in zip(bf.labels, drawn) if image},
+                  {name: error for name, (_, error) in zip(bf.labels, drawn) if error})
 
 
 #: Drawings per process below which `drawing_workers` adds no process: starting and ending
@@ -126,13 +180,13 @@ def drawing_workers(count: int) -> int:
                       MAX_DRAWING_WORKERS))
 
 
-def _draw(problem, drawings) -> list[str]:
-    """The images of ``drawings`` ((profile, parameters) pairs) by ``problem``'s draw hook,
-    in order, on one figure."""
+def _draw(problem, drawings) -> list[tuple[str, str]]:
+    """(image, "") of each of ``drawings`` ((profile, parameters) pairs) by ``problem``'s
+    draw hook, in order, on one figure; ("", the hook's error) where the hook raised."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .layout import data_box
+    from .layout import data_box, hook_error
     fig = Figure(figsize=(IMAGE_INCHES, IMAGE_INCHES), dpi=IMAGE_DPI)
     FigureCanvasAgg(fig)
     ax = fig.add_axes((0, 0, 1, 1), projection=getattr(problem, "draw_projection", None))
@@ -145,7 +199,11 @@ def _draw(problem, drawings) -> list[str]:
         for artist in [*ax.lines, *ax.patches, *ax.texts, *ax.collections, *ax.images]:
             artist.remove()
         ax.ignore_existing_data_limits = True
-        problem.draw(ax, profile, params)
+        try:
+            problem.draw(ax, profile, params)
+        except (Exception, SystemExit) as exc:   # the module's: this label gets no image
+            out.append(("", hook_error(exc, problem)))
+            continue
         box = data_box(ax)
         if np.all(np.isfinite(box)):
             # a square (cube) around the drawing, 8% margin each side: one scale for all
@@ -157,7 +215,7 @@ def _draw(problem, drawings) -> list[str]:
                 set_lim(centre[k] - half, centre[k] + half)
             if ax.name == "3d":
                 ax.set_box_aspect((1, 1, 1))
-        out.append(_png(fig))
+        out.append((_png(fig), ""))
     return out
 
 
@@ -165,30 +223,63 @@ def _draw(problem, drawings) -> list[str]:
 _FORKED = None
 
 
-def _draw_share(k: int) -> list[str]:
+def _draw_share(k: int) -> list[tuple[str, str]]:
     """In drawing process ``k``: its share of the drawings, every ``workers``-th from the
     k-th (alternate ones, so that slow stretches of a branch are shared)."""
     problem, drawings, workers = _FORKED
     return _draw(problem, drawings[k::workers])
 
 
-def _draw_forked(problem, drawings, workers: int) -> list[str]:
+#: prctl(2)'s option that sends the calling process a signal when its parent ends.
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with(parent: int):
+    """In a drawing process, first: end when ``parent`` (the command) ends, however it ends.
+    A drawing process blocks on its pipe to a parent that is gone, and a SIGKILLed command
+    runs no code that could end it: the kernel sends it SIGKILL then (Linux, where the
+    processes are forked at all; `drawing_workers`). If the parent ended before that was
+    set, this process ends at once. Ctrl-C and SIGTERM are the parent's to act on (it ends
+    these processes), not each drawing process's."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    libc = ctypes.CDLL(None)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _draw_forked(problem, drawings, workers: int) -> list[tuple[str, str]]:
     """`_draw` shared among ``workers`` forked processes, which inherit the problem and the
     drawings (nothing pickled but the images); drawn here if a process fails to start or
-    dies."""
+    dies. Interrupted (Ctrl-C, or SIGTERM where the command raises KeyboardInterrupt for
+    it), the drawing processes are ended at once, not waited for."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
     global _FORKED
-    _FORKED = (problem, drawings, workers)
+    _FORKED, pool = (problem, drawings, workers), None
     try:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
-            shares = list(pool.map(_draw_share, range(workers)))
-    except (BrokenProcessPool, OSError):
-        return _draw(problem, drawings)
+        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                                   initializer=_die_with, initargs=(os.getpid(),))
+        shares = list(pool.map(_draw_share, range(workers)))
+    except BaseException as exc:
+        broken = isinstance(exc, (BrokenProcessPool, OSError))
+        if pool is not None and not broken:
+            # each process holds a share of every drawing: waiting for them would take as
+            # long as the drawing itself (no public way to end them before Python 3.14)
+            for process in list((getattr(pool, "_processes", None) or {}).values()):
+                process.kill()
+        if not broken:
+            raise
+        shares = None
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
         _FORKED = None
+    if shares is None:
+        return _draw(problem, drawings)
     out = [None] * len(drawings)
     for k, share in enumerate(shares):
         out[k::workers] = share
@@ -231,14 +322,18 @@ def _nearest_labelled(arclength: np.ndarray, labelled: np.ndarray) -> list[int]:
 
 
 def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None,
-              fold: bool = False, file_name: str | None = None) -> dict:
+              fold: bool = False, file_name: str | None = None, problem=None) -> dict:
     """What the page shows, as JSON-ready data: the columns and labels of every branch, the
-    panels (`diagram.panel_groups`), the styles, the snap-back table and the configurations.
-    ``file_name``: the branch file as the restart strings name it (default: ``bf.path``)."""
+    panels (`diagram.panel_groups`), the styles, the snap-back table and the configurations
+    (``images``, an `Images`, drawn by ``problem``: see `configuration_images`) with, for
+    each label without one, why (``missing``, and ``no_images`` for all of them).
+    ``file_name``: the branch file as the restart strings name it (default: ``bf.path``).
+    ValueError (one line) for a column the file lacks or that is not numeric, and for a
+    period that is not a positive finite number."""
     xname, yname = default_columns(bf, xname, yname)
-    if fold and xname not in bf.periods:
-        raise ValueError(f"--fold: {xname!r} is not a periodic parameter of {bf.path} "
-                         f"(periodic: {', '.join(bf.periods) or 'none'})")
+    periods = {q: period_of(bf, q) for q in bf.periods}     # each checked: the page folds any
+    if fold:
+        period_of(bf, xname, "--fold")
     varying, groups = panel_groups(bf, xname)
     # any other column asked for (arclength, say) is shown too
     columns = [*bf.parameters, *bf.ordinates,
@@ -275,33 +370,53 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
                                   for q in [*varying, *fixed]),
                "branches": [b.number for b in members]} for _, members in groups]
     snaps = [{"lp": r["lp"], "branch": int(r["branch"]),
-              "target": {o: float(r["target_" + o]) for o in bf.ordinates
+              "target": {o: _numbers([r["target_" + o]])[0] for o in bf.ordinates
                          if "target_" + o in r}}
              for r in bf.snaps]
+    images = configuration_images(bf, problem)
+    if images.untrusted:
+        no_images = (f"{images.reason}; pass the module to draw them (elastica-auto view "
+                     "--equation PATH)")
+    else:
+        no_images = images.reason
     return {
         "title": f"{bf.run}: {len(branches)} branch{'es' if len(branches) != 1 else ''} "
                  f"of {Path(bf.equation).name}",
         "file": str(file_name or bf.path),
         "parameters": bf.parameters, "ordinates": bf.ordinates, "columns": columns,
-        "x": xname, "y": yname, "fold": fold, "periods": bf.periods,
+        "x": xname, "y": yname, "fold": fold, "periods": periods,
         "panels": panels, "branches": branches,
         "labels": {name: list(where) for name, where in bf.labels.items()},
         "styles": {str(k): _style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
         "markers": {kind: _marker(kind) for kind in MARKERS},
         "snaps": snaps, "snap_color": SNAP_COLOR,
-        "images": configuration_images(bf),
+        "images": images,
+        "missing": {label: f"draw hook failed ({error})" for label, error in images.failed.items()},
+        "no_images": no_images,
     }
 
 
+#: What `_script_json` escapes: "<" (so that neither "</script" nor "<!--" can change how
+#: the HTML parser reads the element: "<!--<script" anywhere puts it in a state where the
+#: next "</script>" does not end it, and the viewer's own script is swallowed), and ">" and
+#: "&" with it, so that no text of the data is markup in any context. JSON.parse reads the
+#: escapes back as the characters.
+SCRIPT_ESCAPES = {ord("<"): "\\u003c", ord(">"): "\\u003e", ord("&"): "\\u0026"}
+
+
 def _script_json(data) -> str:
-    """JSON to put inside a <script> element: no "</" to end it early."""
-    return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    """JSON to put inside a <script> element: no "<", ">" or "&" (`SCRIPT_ESCAPES`)."""
+    return json.dumps(data, separators=(",", ":"), allow_nan=False).translate(SCRIPT_ESCAPES)
 
 
 def page(bf: BranchFile, xname: str | None = None, yname: str | None = None,
-         fold: bool = False, file_name: str | None = None) -> str:
+         fold: bool = False, file_name: str | None = None, problem=None) -> str:
     """The viewer's HTML document for ``bf`` (see `page_data` for the arguments)."""
-    data = page_data(bf, xname, yname, fold, file_name)
+    return render(page_data(bf, xname, yname, fold, file_name, problem))
+
+
+def render(data: dict) -> str:
+    """The viewer's HTML document of `page_data`'s ``data``."""
     from plotly.offline import get_plotlyjs     # after page_data has checked the columns
     here = files(__package__)
     parts = {"TITLE": html.escape(data["title"]), "PLOTLY": get_plotlyjs(),
@@ -312,25 +427,34 @@ def page(bf: BranchFile, xname: str | None = None, yname: str | None = None,
 
 
 def check_output(output, source: Path | None) -> Path:
-    """``output`` as a Path; StoreError if it is the branch file ``source`` (checked before
-    the page is made, and again as it is written)."""
-    output = Path(output)
-    if source is not None and same_file(source, output):
-        raise StoreError(f"{output} is the branch file being viewed; choose another name for "
-                         "the page")
-    return output
+    """``output`` as a Path; StoreError if it is the branch file ``source``, a folder or an
+    HDF5 file (`storage.outputs.check_output`; checked before the page is made, and again as
+    it is written)."""
+    return _check_output(output, source, "the page", "viewed")
 
 
 def write_page(text: str, output: Path, source: Path | None = None) -> Path:
     """Write ``text`` to ``output`` through a temporary file renamed over it, so that a failed
-    write leaves ``output`` as it was. StoreError if ``output`` is the branch file ``source``
-    or cannot be written."""
-    output = check_output(output, source)
-    return write_atomically(output, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    write leaves ``output`` as it was. StoreError if ``output`` is refused (`check_output`),
+    WriteError if it cannot be written."""
+    return write_output(output, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"),
+                        source, "the page", "viewed")
+
+
+def equation_module(equation, bf: BranchFile | None = None):
+    """The problem ``equation`` names (a problem, a shipped name or a ``.py`` path, which is
+    imported: the caller trusts it), checked to be the module of ``bf`` by its file name, as
+    for a restart (before it is imported). ProblemError (one line) otherwise."""
+    from ..core.errors import ProblemError
+    from ..model.problem import Problem, load_problem
+    given = equation.source if isinstance(equation, Problem) else os.fspath(equation)
+    if bf is not None and Path(bf.equation).stem != Path(given).stem:
+        raise ProblemError(f"{bf.path} was computed with {bf.equation!r}, not {given!r}")
+    return equation if isinstance(equation, Problem) else load_problem(equation)
 
 
 def view(branches_or_file, path: str | os.PathLike | None = None, *, x: str | None = None,
-         y: str | None = None, fold: bool = False) -> View:
+         y: str | None = None, fold: bool = False, equation=None) -> View:
     """The interactive viewer of a branch file or of branches computed in this session.
 
     Parameters
@@ -344,11 +468,20 @@ def view(branches_or_file, path: str | os.PathLike | None = None, *, x: str | No
         The columns shown first (default: as ``elastica-auto plot``); the page switches them.
     fold : bool
         Fold a periodic x into [0, period) at first (the page toggles it).
+    equation : Problem, str or Path, optional
+        The equation module whose ``draw`` hook draws the configurations: a problem, a
+        shipped module's name or a ``.py`` file (imported, so give only one you trust).
+        Default: the branches' own problem, or for a file the shipped module it names; a
+        file that names another module (by a path) is not imported, and its page has no
+        configurations (docs/trust.md).
 
     Returns
     -------
     View
-        The page; a notebook cell that ends with it shows it inline.
+        The page; a notebook cell that ends with it shows it inline. Configurations that
+        could not be drawn (the module not given, a ``draw`` hook that raised) are missing
+        from it, each case a `~elastica_auto.plots.layout.NotDrawn` warning; ``View.images``
+        says which.
     """
     source = branches_or_file
     if isinstance(source, (str, os.PathLike)):
@@ -357,9 +490,36 @@ def view(branches_or_file, path: str | os.PathLike | None = None, *, x: str | No
         bf = source
     else:
         from ..api import save
+        problem = equation_module(equation) if equation is not None else \
+            getattr(source, "problem", None)
         with tempfile.TemporaryDirectory() as tmp:
-            text = page(BranchFile(save(source, Path(tmp) / "branches.h5")), x, y, fold,
-                        file_name="FILE.h5")       # not saved: the restarts name FILE.h5
-        return View(text, write_page(text, Path(path)) if path else None)
-    text = page(bf, x, y, fold)
-    return View(text, write_page(text, Path(path), bf.path) if path else None)
+            data = page_data(BranchFile(save(source, Path(tmp) / "branches.h5")), x, y,
+                             fold, "FILE.h5", problem)     # not saved: the restarts name FILE.h5
+        return _viewed(data, Path(path) if path else None, None)
+    problem = equation_module(equation, bf) if equation is not None else None
+    if path:
+        check_output(path, bf.path)          # before the page is made
+    return _viewed(page_data(bf, x, y, fold, problem=problem), Path(path) if path else None,
+                   bf.path)
+
+
+def _viewed(data: dict, path: Path | None, source: Path | None) -> View:
+    """The page of ``data``, written to ``path`` if given; a `NotDrawn` warning for each
+    case of configurations missing."""
+    from .layout import NotDrawn
+    text = render(data)
+    page = View(text, write_page(text, path, source) if path else None, data["images"])
+    for line in not_drawn(page.images, "pass equation=PATH (or the problem) to trust it"):
+        warnings.warn(NotDrawn(line), stacklevel=3)
+    return page
+
+
+def not_drawn(images: Images, hint: str) -> list[str]:
+    """What is missing from a page's configurations, a line per case ([] if nothing):
+    ``hint`` says how to give the module where the file names one that is not shipped."""
+    lines = []
+    if images.untrusted:
+        lines.append(f"configurations not drawn: {images.reason}; {hint}")
+    if images.failed:
+        lines.append(f"configurations not drawn for {images.failure_line()}")
+    return lines
