@@ -118,7 +118,7 @@ def lookup_energy(ekey: str) -> tuple[str, Path] | None:
     return None if code is None else (code, path)
 
 
-def _write(path: Path, text: str) -> bool:
+def write_text(path: Path, text: str) -> bool:
     """Write ``text`` to ``path`` atomically; False (nothing written) where it cannot."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -139,7 +139,7 @@ def store(tkey: str, ekey: str, code: str | None) -> Path | None:
     """Keep ``code`` as the generated module of E (unless None: already there) and T -> E.
     The code's path, or None where the folder cannot be written."""
     path = code_path(ekey)
-    if code is not None and not _write(path, code):
+    if code is not None and not write_text(path, code):
         return None
-    _write(folder() / f"text-{tkey}", ekey + "\n")
+    write_text(folder() / f"text-{tkey}", ekey + "\n")
     return path

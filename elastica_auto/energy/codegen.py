@@ -162,6 +162,11 @@ class Module:
         self.emit("", "", f"def {signature}:", *_docstring(doc), *before,
                   *block.lines(unpack), *after)
 
+    def alias(self, name):
+        """``_derived_<name> = <name>``: the derived function that the module's own helpers
+        use, whichever the module defines by hand (`loader.printed` renames it)."""
+        self.emit("", "", f"{PREFIX}{name} = {name}  # what the derived ordinates use")
+
     def text(self) -> str:
         d = self.d
         self.header()
@@ -205,19 +210,22 @@ class Module:
                 parts.append(f"int_0^1 ({u(o['sign'] * o['integrand'])}) ds")
             if o["ends"] != 0:
                 parts.append(u(o["sign"] * o["ends"]))
-            lines.append(f"  {o['name']} = {' + '.join(parts) or '0'}")
+            lines.append(f"  {o['name']} = " + " + ".join(parts).replace("+ -", "- ")
+                         if parts else f"  {o['name']} = 0")
         lines += ["", "second variation, d2E[h] = int (h'.A h' + 2 h'.C h + h.B h) ds "
                   "+ h(0).E0 h(0) + h(1).E1 h(1):"]
         for name, m in (("A", d.A), ("C", d.C), ("B", d.B), ("E0", d.E0), ("E1", d.E1)):
-            lines.append(f"  {name} = {u(sp.Matrix(m)) if self.k > 1 else u(m[0][0])}")
+            lines.append(f"  {name} = {u(m) if self.k > 1 else u(m[0][0])}")
         for end, fixed in ((0, d.fixed0), (1, d.fixed1)):
             if fixed:
                 lines.append(f"  h({end}) = 0 in " + ", ".join(d.coordinates[i] for i in fixed))
         for fld, gv in d.constraints:
-            lines.append(f"  constraint: int ({u(sp.Matrix(fld).T)}).h ds"
-                         + ("" if all(e == 0 for e in gv) else
-                            f" - g_v(0).h(0) + g_v(1).h(1) = 0, g_v = {u(sp.Matrix(gv).T)}"))
-        self.emit(*(("# " + line).rstrip() for line in lines))
+            lines.append(f"  constraint: int ({u(fld)}).h ds"
+                         + (" = 0" if all(e == 0 for e in gv) else
+                            f" - g_v(0).h(0) + g_v(1).h(1) = 0, g_v = {u(gv)}"))
+        # one comment line per line, whatever sympy prints (a line break would end it)
+        self.emit(*(("# " + piece).rstrip() for line in lines
+                    for piece in (line.splitlines() or [""])))
         self.emit("", "import numpy", "",
                   "from elastica_auto import Constraint, Ordinate, Parameter, SecondVariation",
                   f"from elastica_auto.energy import runtime as {PREFIX}runtime")
@@ -252,6 +260,7 @@ class Module:
         self.function("rhs(s, y, p)", "zeta' = V(zeta, m), m' = dL/dzeta, x' = g (the "
                       "Euler-Lagrange equations in the states).", block, unpack,
                       before=["    out = numpy.empty(y.shape)"], after=["    return out"])
+        self.alias("rhs")
         states = [*d.Z, *d.M, *d.X]
         block = Block(names)
         for i, e in enumerate(d.rhs):
@@ -311,6 +320,7 @@ class Module:
                   f"    _, Lz, _, _, _, _ = {PREFIX}density(s, z, v, p)",
                   f"    g, _, _ = {PREFIX}rates(s, z, v, p)",
                   "    return numpy.concatenate((v, Lz, g))",
+                  "", "", f"{PREFIX}rhs = rhs  # what the derived ordinates use",
                   "", "",
                   "def rhs_jac(s, y, p):",
                   *_docstring('df/dy by the implicit function theorem: dv/dm = A^-1, dv/dzeta = '
@@ -529,6 +539,7 @@ class Module:
                               "d2L/dv dz, B = d2L/dz2, E0 = d2B0/dz2, E1 = d2B1/dz2 "
                               "(docs/energy.md)."),
                   *before, *body, *after)
+        self.alias("second_variation")
         if uses_w and not d.linear:
             names, unpack = self._kernel()
             block = Block(names)
@@ -556,8 +567,8 @@ class Module:
                       *_docstring("The integrals of the ordinates at the solution y "
                                   "(Simpson's rule on its Hermite cubics; one pass for all "
                                   "of them)."),
-                      f"    return {PREFIX}runtime.integrals(s, y, p, rhs, {PREFIX}velocity, "
-                      f"{PREFIX}integrands, {k})")
+                      f"    return {PREFIX}runtime.integrals(s, y, p, {PREFIX}rhs, "
+                      f"{PREFIX}velocity, {PREFIX}integrands, {k})")
         names, unpack = self._solution_ends()
         entries = []
         for i, o in enumerate(d.ordinates):
@@ -573,8 +584,8 @@ class Module:
                            f"{o['parameter']!r}, {o['doc']!r}),")
         for name in d.parts:
             entries.append(f"    Ordinate({name!r}, {name!r}, {PREFIX}runtime.part_count("
-                           f"second_variation, rhs, {name!r}), None, 'the index of the second "
-                           f"variation\\'s part {name}'),")
+                           f"{PREFIX}second_variation, {PREFIX}rhs, {name!r}), None, "
+                           f"{'the index of the part ' + name + ' of the second variation'!r}),")
         self.emit("", "", "ORDINATES = [", *entries, "]")
 
 

@@ -329,7 +329,9 @@ class _Names:
         back.update({y: sp.Symbol(f"{c}(0)") for y, c in zip(self.YA, states)})
         back.update({y: sp.Symbol(f"{c}(1)") for y, c in zip(self.YB, states)})
         back.update({w: sp.Symbol(c + "''") for w, c in zip(self.W, self.coordinates)})
-        return sp.sstr(sp.sympify(expr).xreplace(back))
+        if isinstance(expr, (list, tuple)):
+            return "[" + ", ".join(self.user(e) for e in expr) + "]"
+        return " ".join(sp.sstr(sp.sympify(expr).xreplace(back)).split())
 
 
 def _gradient(expr, symbols):
@@ -709,7 +711,8 @@ def _summary(nm, d, L, B0, B1, rates, initial, final, essential, multipliers) ->
             lines.append(f"{nm.coordinates[i]}({end}) = {u(e)} (essential)")
     lines.append("momenta: " + ", ".join(f"{m} = dL/d{c}'" for c, m in
                                          zip(nm.coordinates, nm.momenta))
-                 + (" (L with the quadratures' multipliers)" if d.lagrangian != L else ""))
+                 + (" (of L + lam.g: the quadratures' terms of B1 and their constraints' "
+                    "multipliers)" if d.lagrangian != L else ""))
     if d.linear:
         lines.append("Legendre inverse (linear solve): " + ", ".join(
             f"{c}' = {u(v)}" for c, v in zip(nm.coordinates, d.velocity)))

@@ -23,6 +23,7 @@ the worker executes it with `merge`, and never derives.
 from __future__ import annotations
 
 import ast
+import re
 import types
 from pathlib import Path
 
@@ -227,23 +228,30 @@ def printed(path, cache: bool = True) -> str:
     tree = ast.parse(code)
     bound = _bound_names(tree)
     left_out = {dep for name, deps in DEPENDENTS.items() if name in user for dep in deps}
-    drop = []
+    edits = [(*_lines(tree.body[0]), [])]               # the generated module's docstring
     for name in DERIVED:
-        if name in bound and (name in user or name in left_out) and name != "ORDINATES":
-            drop.append(_lines(bound[name]))
-    doc = tree.body[0]
-    drop.append(_lines(doc))
-    for a, b in sorted(drop, reverse=True):
-        generated[a:b] = []
-    out = "\n".join(generated)
-    if "ORDINATES" in user:
-        out = out.replace("\nORDINATES = [\n",
-                          f"\nORDINATES = {PREFIX}runtime.merged_ordinates(ORDINATES, [\n")
-        out = out.rstrip("\n")
-        assert out.endswith("]")
-        out += ")"
-    while lines and not lines[-1].strip():
-        lines.pop()
-    return ("\n".join(lines) + "\n\n\n# " + "-" * 96 + "\n# Derived from ENERGY() by "
-            "`elastica-auto derive`: the definitions below are those the hand-written ones "
-            "above\n# do not replace (docs/energy.md).\n" + out.strip("\n") + "\n")
+        if name not in bound:
+            continue
+        a, b = _lines(bound[name])
+        if name == "ORDINATES" and name in user:        # hand-written ones merged in
+            merged = generated[a:b]
+            assert merged[0] == "ORDINATES = [" and merged[-1] == "]"
+            merged[0] = f"ORDINATES = {PREFIX}runtime.merged_ordinates(ORDINATES, ["
+            merged[-1] = "])"
+            edits.append((a, b, merged))
+        elif name in ("rhs", "second_variation") and name in user:
+            # kept under its alias's name, which the derived ordinates call
+            renamed = generated[a:b]
+            assert renamed[0].startswith(f"def {name}(")
+            renamed[0] = renamed[0].replace(f"def {name}(", f"def {PREFIX}{name}(", 1)
+            edits.append((a, b, renamed))
+            edits.append((*_lines(bound[PREFIX + name]), []))
+        elif name in user or name in left_out:
+            edits.append((a, b, []))
+    for a, b, new in sorted(edits, key=lambda e: e[0], reverse=True):
+        generated[a:b] = new
+    out = re.sub(r"\n{4,}", "\n\n\n", "\n".join(generated))
+    head = re.sub(r"\n{4,}", "\n\n\n", "\n".join(lines).rstrip("\n"))
+    return (head + "\n\n\n# " + "-" * 94 + "\n# Derived from ENERGY() by `elastica-auto "
+            "derive`: what the hand-written definitions above do\n# not replace "
+            "(docs/energy.md).\n#\n" + out.strip("\n") + "\n")
