@@ -13,7 +13,8 @@ free end's natural condition kappa(1) + eps P sin(psi + alpha - theta(1)) = 0, t
 variation, and the distinguished ordinates (named as in the paper): dE/dpsi = m1, dE/deps =
 beta, dE/dalpha = mA, dE/dP = gamma and the clamp's reaction -dE/dtheta0 = m0. P and alpha
 enter only the end term (``"free"``), theta0 only the essential value (``"fixed"``). By hand:
-the straight start, the mirror x -> -x and the drawing (the shipped module's).
+the straight start, the mirror x -> -x, the drawing and the shooting scan (the shipped
+module's).
 """
 
 import math
@@ -21,7 +22,7 @@ import math
 import numpy as np
 
 from elastica_auto import Mirror
-from elastica_auto.equations.elastica_lever_arm import draw  # noqa: F401  (a hook)
+from elastica_auto.equations.elastica_lever_arm import draw, shooting  # noqa: F401  (hooks)
 
 
 def ENERGY():
