@@ -16,6 +16,8 @@ in ``#`` comments (they are printable: no line breaks). Module-level helpers are
 
 from __future__ import annotations
 
+import re
+
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
@@ -78,7 +80,10 @@ class Block:
             try:
                 return printer.doprint(e)
             except Exception as exc:                # sympy's PrintMethodNotImplementedError
-                _fail(f"numpy cannot evaluate {e}: {' '.join(str(exc).split()[:8])}")
+                found = re.search(r":\s*(\w+)", str(exc))
+                what = found.group(1) if found else str(exc).split()[0]
+                _fail(f"numpy cannot evaluate the function {what}, which the derived "
+                      "expressions contain: write the energy with functions numpy has")
 
         for t, e in temps:
             out.append(f"{self.indent}{t} = {text(e)}")

@@ -586,8 +586,8 @@ def derive(energy: Energy) -> Derived:
     for item in [o["name"] for o in ordinates] + list(parts):
         if item in names:
             _fail(f"the name {item!r} is used twice ({names[item]} and ordinate)"
-                  + ("; the energy's ordinate is named E: rename the parameter"
-                     if item == "E" else ""))
+                  + (f"; the energy's ordinate is named E: rename the {names[item]}"
+                     if item == "E" else "; rename one of them (Param(ordinate=...))"))
         names[item] = "ordinate"
 
     ends = dict(B0=B0, B1=B1p, essential=essential,
