@@ -113,9 +113,12 @@ def lookup_text(tkey: str) -> tuple[str, Path] | None:
 
 def lookup_energy(ekey: str) -> tuple[str, Path] | None:
     """The generated code (and its file) of the energy with key E, or None."""
+    from .runtime import TRAILER
     path = code_path(ekey)
     code = _read(path)
-    return None if code is None else (code, path)
+    if code is None or not code.endswith(TRAILER + "\n"):
+        return None                      # missing, or cut short: derived again
+    return code, path
 
 
 def write_text(path: Path, text: str) -> bool:

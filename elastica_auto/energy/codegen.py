@@ -23,9 +23,7 @@ from sympy.printing.numpy import NumPyPrinter
 
 from ..core.errors import ProblemError
 from .derive import Derived
-
-#: The prefix of the generated module's own top-level helpers.
-PREFIX = "_derived_"
+from .runtime import PREFIX, TRAILER
 
 
 class _Printer(NumPyPrinter):
@@ -190,7 +188,7 @@ class Module:
                                   '(runtime.gradient_flow).'),
                       f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
                       f"{PREFIX}ends, {PREFIX}essential, {self.k})")
-        return "\n".join(self.lines) + "\n"
+        return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
 
     def header(self):
         d = self.d
@@ -253,6 +251,9 @@ class Module:
         if d.free:
             self.emit("", "# the multipliers of the isoperimetric constraints, solved for",
                       f"FREE = {d.free!r}")
+        self.emit("", "# the module's own symmetry(s, y, p) hook, if it has one (the loader sets "
+                  "it): where it", "# holds, its generator is a zero mode of the second "
+                  "variation, left out of the count", f"{PREFIX}symmetry = None")
 
     # -- the system ------------------------------------------------------------------------
     def linear_system(self):
@@ -538,7 +539,8 @@ class Module:
             parts = f", parts={ {name: comps for name, comps in d.parts.items()}!r}"
         after.append(f"    return SecondVariation({args[0]}, {args[1]}, {args[2]}, E0={args[3]}, "
                      f"E1={args[4]}, fixed0={d.fixed0!r}, fixed1={d.fixed1!r}, "
-                     f"constraints=[{', '.join(cons)}]{parts})")
+                     f"constraints=[{', '.join(cons)}] + {PREFIX}runtime.zero_modes("
+                     f"{PREFIX}symmetry, s, y, p, {k}){parts})")
         self.emit("", "", "def second_variation(s, y, p):",
                   *_docstring("The second variation at the solution y: A = d2L/dv2, C = "
                               "d2L/dv dz, B = d2L/dz2, E0 = d2B0/dz2, E1 = d2B1/dz2 "

@@ -13,6 +13,9 @@ define itself. The rules, the same in `printed` (``elastica-auto derive``):
 * a hand-written ``ORDINATES`` list is added to the derived one: an ordinate of the same
   name, or the distinguished ordinate of the same parameter, replaces the derived one
   (`merged_ordinates`);
+* a hand-written ``symmetry`` hook is also given to the derived second variation: where it
+  holds, its generator (the coordinates' rows) is a zero mode left out of the count
+  (`runtime.zero_modes`);
 * ``STATES``, ``PARAMETERS``, ``FREE`` and integral conditions are declared in the energy, and
   refused by hand; so is a name of the generated module's own helpers (``_derived_...``).
 
@@ -29,7 +32,7 @@ from pathlib import Path
 
 from ..core.errors import ProblemError
 from . import cache as _cache
-from .runtime import merged_ordinates
+from .runtime import PREFIX, merged_ordinates
 
 #: The protocol's names a generated module defines.
 DERIVED = ("STATES", "PARAMETERS", "FREE", "ORDINATES", "rhs", "rhs_jac", "rhs_dp", "bc",
@@ -57,7 +60,6 @@ def _check(module, source):
         if hasattr(module, name):
             raise ProblemError(f"{source}: a module with ENERGY cannot define {name}: "
                                f"{instead}")
-    from .codegen import PREFIX
     clash = sorted(n for n in vars(module) if n.startswith(PREFIX))
     if clash:
         raise ProblemError(f"{source}: {clash[0]} is a name of the generated code "
@@ -171,6 +173,8 @@ def merge(module, source: str, code: str, filename: str | None = None):
 
 
 def _give(module, derived):
+    if getattr(module, "symmetry", None) is not None:
+        derived._derived_symmetry = module.symmetry
     left_out = {dep for name, deps in DEPENDENTS.items() if hasattr(module, name)
                 for dep in deps}
     for name in DERIVED:
@@ -206,7 +210,6 @@ def printed(path, cache: bool = True) -> str:
     """The module ``path`` with its ENERGY replaced by the derived definitions it does not
     define itself (the rules of `merge`): a plain equation module, which loads without
     sympy and gives the same results (``elastica-auto derive``)."""
-    from .codegen import PREFIX
     from ..model.problem import load_problem
     problem = load_problem(path, cache=cache)
     code = getattr(problem, "_generated", None)
@@ -248,6 +251,9 @@ def printed(path, cache: bool = True) -> str:
             edits.append((*_lines(bound[PREFIX + name]), []))
         elif name in user or name in left_out:
             edits.append((a, b, []))
+    if "symmetry" in user:
+        a, b = _lines(bound[f"{PREFIX}symmetry"])
+        edits.append((a, b, [f"{PREFIX}symmetry = symmetry  # the hand-written hook above"]))
     for a, b, new in sorted(edits, key=lambda e: e[0], reverse=True):
         generated[a:b] = new
     out = re.sub(r"\n{4,}", "\n\n\n", "\n".join(generated))

@@ -23,6 +23,12 @@ import functools
 
 import numpy as np
 
+#: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
+#: a module with ENERGY may not define such names itself.
+PREFIX = "_derived_"
+#: The last line of every generated module: a cached file without it was cut short.
+TRAILER = "# (the end of the derived module)"
+
 #: Newton's method for the Legendre inverse stops at a point where |dL/dv - m| <= RESIDUAL
 #: (1 + |m|), or where its step is at rounding level; at most ITERATIONS steps, each with at
 #: most HALVINGS halvings of the line search. A point that does not converge is NaN: the
@@ -278,6 +284,20 @@ def gradient_flow(p, nodes, density, ends, essential, k):
     return Flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
                 jacobian)
 
+
+
+def zero_modes(symmetry, s, y, p, k) -> list:
+    """[Constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
+    coordinates' rows of its generator: the zero mode of the group in the perturbations),
+    else []: a derived second variation on a circle of solutions is counted on the
+    complement of its zero mode (docs/stability.md, "Continuous symmetry")."""
+    if symmetry is None:
+        return []
+    found = symmetry(s, y, p)
+    if found is None:
+        return []
+    from ..model.second_variation import Constraint
+    return [Constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
 
 
 def merged_ordinates(hand, derived) -> list:
