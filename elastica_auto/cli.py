@@ -448,8 +448,12 @@ def derive(module, output, no_cache):
     ENERGY replaced by the derived definitions it does not define itself, a plain module
     that loads without sympy and gives the same results (docs/energy.md)."""
     from .energy.loader import printed
+    from .model.problem import load_problem
     try:
-        text = printed(module, cache=not no_cache)
+        problem = load_problem(module, cache=not no_cache)
+        if problem.generated is None:
+            _fail(f"{module}: defines no ENERGY(); there is nothing to derive")
+        text = printed(Path(module).read_text(encoding="utf-8"), problem.generated)
     except USER_ERRORS as exc:
         _fail(str(exc))
     if output is None:

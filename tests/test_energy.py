@@ -284,7 +284,7 @@ def test_a_flipped_ordinate_makes_the_rule_disagree():
     (right,) = ea.continuation(derived, params, "psi", **options)
     assert right.points[0].index_direct == 1 and len(right.folds) >= 1
     assert not [p for p in right.points if "disagreement" in p.note]
-    code = derived._generated
+    code = derived.generated
     (k,) = re.findall(r"Ordinate\('m1', .*?_derived_ordinate(\d+), 'psi'", code)
     head = code.index(f"def _derived_ordinate{k}(")
     end = code.index("    return float(value)", head)
@@ -475,7 +475,7 @@ def test_the_second_variation_is_the_hessian_of_the_discretised_energy(tmp_path)
     ends; w essential at s = 0. At random smooth states, the derived A, B, C, E0, E1 give
     the finite-difference Hessian of the midpoint-rule energy in random perturbations."""
     problem = ea.load_problem(module_file(tmp_path, "two", TWO_COORDINATES))
-    assert "Newton" in problem._generated
+    assert "Newton" in problem.generated
     sv = as_second_variation(problem.second_variation(
         np.linspace(0, 1, 3), np.full((4, 3), 0.1), problem.defaults()), "")
     np.testing.assert_array_equal(sv.fixed0, [[0.0], [1.0]])
@@ -574,7 +574,7 @@ def test_a_constraint_whose_rate_contains_theta_prime(tmp_path, quartic):
     the reaction m0."""
     problem = ea.load_problem(module_file(tmp_path, "constrained",
                                           CONSTRAINED.format(quartic=quartic)))
-    assert ("Newton" in problem._generated) == bool(quartic)
+    assert ("Newton" in problem.generated) == bool(quartic)
     assert problem.free == ("Q",) and problem.parameters["theta0"].enters == "fixed"
     (br,) = ea.continuation(problem, {"theta0": 0.0}, "theta0", bounds=(-1, 0.6),
                             directions="+", ds=0.01, ds_max=0.01)

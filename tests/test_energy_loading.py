@@ -114,7 +114,7 @@ def test_a_damaged_cache_file_is_derived_again(tmp_path, own_cache):
     code.write_text(code.read_text()[:500])           # cut short
     problem = ea.load_problem(path)
     assert problem.rhs(np.linspace(0, 1, 3), np.zeros((2, 3)), {"q": 1.0}).shape == (2, 3)
-    assert code.read_text() == problem._generated
+    assert code.read_text() == problem.generated
 
 
 def test_a_problem_travels_with_its_generated_code(tmp_path):
@@ -152,7 +152,7 @@ def test_the_printed_module_loads_and_gives_the_same_results(tmp_path, cli_exe, 
     assert "def ENERGY" not in text and "# second variation" in text
     assert "# parameters (where each enters" in text
     printed, loaded = ea.load_problem(out), ea.load_problem(EXAMPLES / f"{name}.py")
-    assert printed._generated is None
+    assert printed.generated is None
     assert printed.states == loaded.states and printed.free == loaded.free
     assert list(printed.parameters.values()) == list(loaded.parameters.values())
     assert printed.ordinate_names == loaded.ordinate_names

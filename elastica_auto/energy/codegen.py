@@ -187,7 +187,7 @@ class Module:
                       *_docstring('The energy discretised on ``nodes`` and its overdamped dynamics '
                                   '(runtime.gradient_flow).'),
                       f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
-                      f"{PREFIX}ends, {PREFIX}essential, {self.k})")
+                      f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow)")
         return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
 
     def header(self):
@@ -230,8 +230,11 @@ class Module:
         self.emit(*(("# " + piece).rstrip() for line in lines
                     for piece in (line.splitlines() or [""])))
         self.emit("", "import numpy", "",
-                  "from elastica_auto import Constraint, Ordinate, Parameter, SecondVariation",
-                  f"from elastica_auto.energy import runtime as {PREFIX}runtime")
+                  "from elastica_auto import Constraint, Flow, Ordinate, Parameter, "
+                  "SecondVariation",
+                  f"from elastica_auto.energy import runtime as {PREFIX}runtime",
+                  *(["from elastica_auto.numerics.stability import count_form"]
+                    if d.parts else []))
 
     def declarations(self):
         d = self.d
@@ -540,7 +543,7 @@ class Module:
         after.append(f"    return SecondVariation({args[0]}, {args[1]}, {args[2]}, E0={args[3]}, "
                      f"E1={args[4]}, fixed0={d.fixed0!r}, fixed1={d.fixed1!r}, "
                      f"constraints=[{', '.join(cons)}] + {PREFIX}runtime.zero_modes("
-                     f"{PREFIX}symmetry, s, y, p, {k}){parts})")
+                     f"{PREFIX}symmetry, s, y, p, {k}, Constraint){parts})")
         self.emit("", "", "def second_variation(s, y, p):",
                   *_docstring("The second variation at the solution y: A = d2L/dv2, C = "
                               "d2L/dv dz, B = d2L/dz2, E0 = d2B0/dz2, E1 = d2B1/dz2 "
@@ -591,7 +594,8 @@ class Module:
                            f"{o['parameter']!r}, {o['doc']!r}),")
         for name in d.parts:
             entries.append(f"    Ordinate({name!r}, {name!r}, {PREFIX}runtime.part_count("
-                           f"{PREFIX}second_variation, {PREFIX}rhs, {name!r}), None, "
+                           f"{PREFIX}second_variation, {PREFIX}rhs, {name!r}, count_form), "
+                           "None, "
                            f"{'the index of the part ' + name + ' of the second variation'!r}),")
         self.emit("", "", "ORDINATES = [", *entries, "]")
 

@@ -206,16 +206,11 @@ def _lines(stmt) -> tuple[int, int]:
     return first - 1, stmt.end_lineno
 
 
-def printed(path, cache: bool = True) -> str:
-    """The module ``path`` with its ENERGY replaced by the derived definitions it does not
-    define itself (the rules of `merge`): a plain equation module, which loads without
-    sympy and gives the same results (``elastica-auto derive``)."""
-    from ..model.problem import load_problem
-    problem = load_problem(path, cache=cache)
-    code = getattr(problem, "_generated", None)
-    if code is None:
-        raise ProblemError(f"{path}: defines no ENERGY(); there is nothing to derive")
-    text = Path(path).read_text(encoding="utf-8")
+def printed(text: str, code: str) -> str:
+    """The module whose file's text is ``text`` with its ENERGY replaced by the derived
+    definitions (``code``, its generated module) that it does not define itself (the rules
+    of `merge`): a plain equation module, which loads without sympy and gives the same
+    results (``elastica-auto derive``)."""
     user = _bound_names(ast.parse(text))
     lines = text.splitlines()
     energy = user["ENERGY"]

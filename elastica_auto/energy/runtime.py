@@ -168,22 +168,22 @@ def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands, k):
     return out
 
 
-def part_count(second_variation, rhs, name):
+def part_count(second_variation, rhs, name, count_form):
     """An ordinate fn(s, y, p): the index of the part ``name`` of the second variation at the
-    solution (-1 where the form does not decouple or the part has a zero eigenvalue). The
-    engine fills these ordinates itself along a branch; this is for elsewhere (snap-back
-    targets, mirror images)."""
+    solution (-1 where the form does not decouple or the part has a zero eigenvalue), by the
+    engine's ``count_form`` (`elastica_auto.numerics.stability`, which the generated module
+    passes). The engine fills these ordinates itself along a branch; this is for elsewhere
+    (snap-back targets, mirror images)."""
     def fn(s, y, p):
         s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
         return _part_counts(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())),
-                            second_variation, rhs)[name]
+                            second_variation, rhs, count_form)[name]
     return fn
 
 
 @functools.lru_cache(maxsize=4)
-def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs):
+def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
     from ..core.solution import State
-    from ..numerics.stability import count_form
     s = np.frombuffer(s_bytes).copy()
     y = np.frombuffer(y_bytes).reshape(n, -1).copy()
     p = dict(items)
@@ -191,7 +191,7 @@ def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs):
     return count_form(lambda pts: second_variation(pts, state(pts), p), s).parts
 
 
-def gradient_flow(p, nodes, density, ends, essential, k):
+def gradient_flow(p, nodes, density, ends, essential, k, flow):
     """The energy at ``p`` discretised on ``nodes`` and its overdamped dynamics, as an
     `elastica_auto.analysis.landing.Flow`.
 
@@ -201,10 +201,10 @@ def gradient_flow(p, nodes, density, ends, essential, k):
     (second order; ``L`` with the quadratures' terms, ``c`` their constant), and
     ``u_t = -M^-1 grad E_h`` with M the lumped (trapezoidal) mass. Its Jacobian is the
     block-tridiagonal Hessian, assembled from each interval's (2k, 2k) block; k is the
-    number of coordinates."""
+    number of coordinates, ``flow`` the class `elastica_auto.Flow` (the generated module
+    passes it: this package sits below the analysis layer)."""
     from scipy.sparse import coo_matrix
 
-    from ..analysis.landing import Flow
     from ..core.solution import trapezoid_weights
     nodes = np.asarray(nodes, dtype=float)
     fixed0, fixed1, constant = essential(p)
@@ -281,23 +281,23 @@ def gradient_flow(p, nodes, density, ends, essential, k):
         from scipy.sparse import diags
         return (-diags(1.0 / mass) @ hessian(u)).tocsc()
 
-    return Flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
+    return flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
                 jacobian)
 
 
 
-def zero_modes(symmetry, s, y, p, k) -> list:
-    """[Constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
+def zero_modes(symmetry, s, y, p, k, constraint) -> list:
+    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
     coordinates' rows of its generator: the zero mode of the group in the perturbations),
     else []: a derived second variation on a circle of solutions is counted on the
-    complement of its zero mode (docs/stability.md, "Continuous symmetry")."""
+    complement of its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint``
+    is `elastica_auto.Constraint`, which the generated module passes."""
     if symmetry is None:
         return []
     found = symmetry(s, y, p)
     if found is None:
         return []
-    from ..model.second_variation import Constraint
-    return [Constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
+    return [constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
 
 
 def merged_ordinates(hand, derived) -> list:

@@ -249,6 +249,12 @@ class Problem:
     #: with the text, so that a Dask worker executes it and never derives.
     _generated: str | None = None
 
+    @property
+    def generated(self) -> str | None:
+        """The source of the module derived from the module's ENERGY (what the cache keeps
+        and ``elastica-auto derive`` prints from), or None for a module without one."""
+        return self._generated
+
     def __reduce_ex__(self, protocol):
         if self._text is None:
             return super().__reduce_ex__(protocol)
