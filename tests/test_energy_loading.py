@@ -431,3 +431,46 @@ def test_snaps_land_where_the_hand_written_flow_lands():
         assert (a["lp"], a["landed"], a["on_branch"]) == (b["lp"], b["landed"], b["on_branch"])
         if a["landed"]:
             assert a["energy_released"] == pytest.approx(b["energy_released"], rel=1e-3)
+
+
+# ---- named parts of the second variation --------------------------------------------------
+
+PARTS = '''
+import numpy as np
+
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy
+    s, P, c = sp.symbols("s P c", real=True)
+    u, w = sp.Function("u")(s), sp.Function("w")(s)
+    return Energy(density=u.diff(s)**2 / 2 + c * w.diff(s)**2 / 2 + P * (sp.cos(u) + sp.cos(w)),
+                  s=s, coordinates=[u, w], fixed0={u: 0, w: 0}, parameters={P: 0.0, c: 4.0},
+                  parts={"index_u": [u], "index_w": [w]})
+
+
+def exact_start(s, p):
+    return np.zeros((4, len(s)))
+'''
+
+
+def test_named_parts_are_counted_each_on_its_own(tmp_path):
+    """Energy(parts=...) names groups of coordinates: the derived second variation carries
+    them and each is an ordinate. Two uncoupled clamped-free columns of stiffness 1 and c =
+    4: on the straight state the index of u counts the ((2n - 1) pi / 2)^2 below P, that of
+    w the c ((2n - 1) pi / 2)^2, as the engine counts along a branch and the ordinates
+    themselves elsewhere."""
+    problem = ea.load_problem(write(tmp_path, "parts", PARTS))
+    assert problem.ordinate_names[-2:] == ["index_u", "index_w"]
+    (br,) = ea.continuation(problem, {"P": 0.0, "c": 4.0}, "P", bounds=(-1, 30), directions="+")
+    loads = [((2 * n - 1) * math.pi / 2) ** 2 for n in range(1, 4)]
+    for p in br.points:
+        if p.type in ("LP", "BP"):
+            continue
+        count_u = sum(c < p.params["P"] for c in loads)
+        count_w = sum(4 * c < p.params["P"] for c in loads)
+        assert (p.ordinates["index_u"], p.ordinates["index_w"]) == (count_u, count_w)
+        assert p.index == count_u + count_w
+    end = br.points[-1]
+    assert [problem.ordinates[k].fn(end.state.s, end.state.y, end.params)
+            for k in ("index_u", "index_w")] == [2, 1]
