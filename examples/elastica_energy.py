@@ -65,6 +65,7 @@ def exact_start(s, p):
     return np.vstack((np.full_like(s, t), np.zeros_like(s), -s * math.sin(t), s * math.cos(t)))
 
 
-#: The reflection x -> -x of the plane (as the shipped module's).
+#: The reflection x -> -x of the plane (as the shipped module's): the moments m1, mA, m0
+#: change sign, and so does the shooting unknown theta'(0).
 MIRROR = Mirror({"theta": "-theta", "kappa": "-kappa", "x": "-x"}, ("psi", "alpha", "theta0"),
-                ("m1", "mA", "m0"))
+                ("m1", "mA", "m0"), shooting=(-1,))
