@@ -273,6 +273,42 @@ def _assert_slope(xi, e, ordinate):
     assert checked >= 10
 
 
+BOTH_ENDS = """
+import numpy as np
+
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy
+    s, b = sp.symbols("s b", real=True)
+    theta = sp.Function("theta")(s)
+    return Energy(density=theta.diff(s)**2 / 2 + theta**2 / 2 + s * theta, s=s,
+                  coordinates=[theta], end0=b * (theta - 1)**2 / 2,
+                  end1=b * (theta + 1)**2 / 2 + b**2 * theta, parameters={b: 0.0})
+
+
+def exact_start(s, p):
+    if p["b"] != 0:
+        return None
+    # theta'' = theta + s with theta'(0) = theta'(1) = 0
+    c = np.array([[np.sinh(0.0), np.cosh(0.0)], [np.sinh(1.0), np.cosh(1.0)]])
+    a, d = np.linalg.solve(c, [1.0, 1.0])
+    return np.vstack((a * np.cosh(s) + d * np.sinh(s) - s, a * np.sinh(s) + d * np.cosh(s) - 1))
+"""
+
+
+def test_the_ordinate_of_a_parameter_in_both_end_terms(tmp_path):
+    """b in B0 (at theta(0)) and in B1 (at theta(1)): dE/db takes each end term at its own
+    end, as the slope of E along the branch in b shows."""
+    problem = ea.load_problem(module_file(tmp_path, "ends", BOTH_ENDS))
+    assert problem.parameters["b"].enters == "free"
+    (br,) = ea.continuation(problem, {"b": 0.0}, "b", bounds=(-1, 2), directions="+", ds=0.01,
+                            ds_max=0.01, max_points=60)
+    _assert_slope(np.array([p.params["b"] for p in br.points]),
+                  np.array([p.ordinates["E"] for p in br.points]),
+                  np.array([p.ordinates["dE_db"] for p in br.points]))
+
+
 def test_a_flipped_ordinate_makes_the_rule_disagree():
     """Teeth: the derived m1 with its sign flipped, on a branch from an index-1 start (the
     straight rod at P = 6 > pi^2/4, eps = 0.5), makes the fold rule disagree with the direct count;

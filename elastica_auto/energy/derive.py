@@ -441,11 +441,7 @@ def derive(energy: Energy) -> Derived:
     velocity = None
     if linear:
         b = [lv.xreplace({v: 0 for v in V}) for lv in Lv]
-        Am = sp.Matrix(A)
-        if sp.simplify(Am.det()) == 0:
-            _fail("the Legendre transform has no unique inverse: the Hessian of the density "
-                  f"in ({', '.join(c + chr(39) for c in nm.coordinates)}) is singular at "
-                  "every state")
+        Am = sp.Matrix(A)          # positive definite at the samples (_check_convex)
         rhs_vec = sp.Matrix([M[i] - b[i] for i in range(k)])
         sol = [rhs_vec[0] / Am[0, 0]] if k == 1 else list(Am.LUsolve(rhs_vec))
         velocity = [sp.factor_terms(sp.cancel(v)) if v.is_rational_function(*M) else v
@@ -538,15 +534,14 @@ def derive(energy: Energy) -> Derived:
         info.enters, info.where = enters, where
         integrand = sp.diff(L, p) + sum((lam[j] * sp.diff(rates[j], p) for j in lam),
                                         sp.Integer(0))
-        ends = sp.diff(B0, p) + sp.diff(B1, p)
+        # each end term at its own end's values (x(1) in B1_xi: the state's end value)
+        ends = sp.diff(B0, p).xreplace(at0) + sp.diff(B1, p).xreplace(at1)
         ends += sum((lam[j] * sp.diff(initial[j], p) for j in lam), sp.Integer(0))
         ends -= sum((mu[j] * sp.diff(final[j], p) for j in final), sp.Integer(0))
-        ends = ends.xreplace(at1)                  # x(1) in B1_xi: the state's end value
         ends -= sum((YA[k + i] * sp.diff(e, p) for i, e in essential[0].items()),
                     sp.Integer(0))
         ends += sum((YB[k + i] * sp.diff(e, p) for i, e in essential[1].items()),
                     sp.Integer(0))
-        ends = ends.xreplace(at0)
         if integrand == 0 and ends == 0:
             parameters.append(info)
             continue
