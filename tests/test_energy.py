@@ -309,6 +309,41 @@ def test_the_ordinate_of_a_parameter_in_both_end_terms(tmp_path):
                   np.array([p.ordinates["dE_db"] for p in br.points]))
 
 
+CONSTRAINT_VALUE = """
+import numpy as np
+
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy
+    s, P, Q, c = sp.symbols("s P Q c", real=True)
+    theta, x, y = (sp.Function(n)(s) for n in ("theta", "x", "y"))
+    return Energy(density=theta.diff(s)**2 / 2, end1=P * y, s=s, coordinates=[theta],
+                  quadratures={x: -sp.sin(theta), y: sp.cos(theta)},
+                  fixed0={theta: 0, x: 0, y: 0}, fixed1={x: c}, multipliers={x: Q},
+                  parameters={P: 1.0, Q: 0.0, c: 0.0})
+
+
+def exact_start(s, p):
+    return np.vstack((np.zeros((3, len(s))), s)) if p["c"] == 0 else None
+"""
+
+
+def test_the_ordinate_of_a_constraint_s_value(tmp_path):
+    """The tip of a column held at x(1) = c by the multiplier Q (E + Q (x(1) - c)): c enters
+    the constraint's value only (``"free"``), dE/dc = -Q, as the slope of E along the
+    branch in c shows."""
+    problem = ea.load_problem(module_file(tmp_path, "value", CONSTRAINT_VALUE))
+    assert problem.parameters["c"].enters == "free" and problem.free == ("Q",)
+    (br,) = ea.continuation(problem, {"c": 0.0, "P": 1.0}, "c", bounds=(-1, 0.5),
+                            directions="+", ds=0.01, ds_max=0.01, max_points=50)
+    dE_dc = np.array([p.ordinates["dE_dc"] for p in br.points])
+    np.testing.assert_allclose(dE_dc, [-p.params["Q"] for p in br.points], atol=1e-12)
+    assert abs(dE_dc).max() > 0.1
+    _assert_slope(np.array([p.params["c"] for p in br.points]),
+                  np.array([p.ordinates["E"] for p in br.points]), dE_dc)
+
+
 def test_a_flipped_ordinate_makes_the_rule_disagree():
     """Teeth: the derived m1 with its sign flipped, on a branch from an index-1 start (the
     straight rod at P = 6 > pi^2/4, eps = 0.5), makes the fold rule disagree with the direct count;
