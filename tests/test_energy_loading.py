@@ -399,19 +399,25 @@ def _b(y, lam):
 
 # ---- the gradient flow --------------------------------------------------------------------
 
-def test_the_derived_flow_is_the_gradient_of_its_energy():
-    """The derived gradient flow (midpoint rule) of the elastica: force = -grad E / mass and
-    its Jacobian against central differences of its energy."""
-    problem = ea.load_problem(EXAMPLES / "elastica_energy.py")
-    p = {**problem.defaults(), "P": 9 * math.pi ** 2 / 4, "eps": 0.5, "psi": 1.0, "theta0": 0.3}
+@pytest.mark.parametrize("name, params, size", [
+    ("elastica_energy", {"P": 9 * math.pi ** 2 / 4, "eps": 0.5, "psi": 1.0, "theta0": 0.3}, 40),
+    ("foundation_column", {"P": 30.0}, 2 * 41 - 2)])
+def test_the_derived_flow_is_the_gradient_of_its_energy(name, params, size):
+    """The derived gradient flow (midpoint rule) of the elastica (theta clamped at s = 0)
+    and of the foundation column (two coordinates, w held at both ends): force = -grad E /
+    mass and its Jacobian against central differences of its energy."""
+    problem = ea.load_problem(EXAMPLES / f"{name}.py")
+    p = {**problem.defaults(), **params}
     flow = problem.gradient_flow(p, np.linspace(0, 1, 41))
-    u = 0.3 + np.random.default_rng(1).normal(size=40)
+    assert len(flow.mass) == size
+    u = 0.3 + np.random.default_rng(1).normal(size=size)
     d = 1e-6
     grad = np.array([(flow.energy(u + d * e) - flow.energy(u - d * e)) / (2 * d)
-                     for e in np.eye(40)])
-    np.testing.assert_allclose(-flow.mass * flow.force(u), grad, atol=1e-6)
+                     for e in np.eye(size)])
+    np.testing.assert_allclose(-flow.mass * flow.force(u), grad,
+                               atol=1e-7 * (1 + np.abs(grad).max()))  # the differences' rounding
     jac = np.array([(flow.force(u + d * e) - flow.force(u - d * e)) / (2 * d)
-                    for e in np.eye(40)]).T
+                    for e in np.eye(size)]).T
     np.testing.assert_allclose(flow.jacobian(u).toarray(), jac, atol=1e-4 * np.abs(jac).max())
 
 
