@@ -43,6 +43,12 @@
 tol 1e-5 and 1e-7 for each ``ncol``: nodes and unknowns per point, the largest error of
 F'(0), G'(0) and the inflow at its UZ points against scipy's solve_bvp at tol 1e-10, seconds.
 
+9. Energy-first modules (``--energy`` prints only this): the planar elastica derived from
+   its energy (``examples/elastica_energy.py``) against ``elastica_lever_arm``, alternated:
+   one continuation step on a fixed mesh, the rotating_arm run in one process; the warm load
+   (cache filled, a fresh process) of it and of ``examples/bratu_energy.py`` against their
+   references; the cold derivation (``cache=False``), sympy's import separately.
+
 ``--memory``: the peak memory of one branch of 2500 and of 10^4 points. ``--saves``: the share
 of the rotating_arm run spent writing its branch file (also in ``main``). ``--fold-curve``:
 section 4's fold curve alone (wall and CPU milliseconds per point).
@@ -668,6 +674,93 @@ def saves(rounds=3):
           f"{best[1]:.2f} s ({100 * best[0] / best[1]:.1f}%), {best[2] / 1e6:.1f} MB")
 
 
+ENERGY_PAIRS = (("elastica_lever_arm", REPO / "examples" / "elastica_energy.py"),
+                ("examples/bratu.py", REPO / "examples" / "bratu_energy.py"))
+
+
+def energy():
+    """Section 9: modules derived from an energy side by side with their hand-written
+    references, alternated in one sitting: one continuation step on a fixed mesh of 100
+    intervals (as section 1), the rotating_arm run in one process, a warm load (the cache
+    filled; a fresh process, the load alone) and a cold derivation (sympy's import
+    separately)."""
+    import numpy as np
+
+    from elastica_auto.branches.stepper import start_solution
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State
+    from elastica_auto.model.problem import load_problem
+    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.numerics.stability import index
+
+    pair = ENERGY_PAIRS[0]
+    problems = [load_problem(name) for name in pair]
+    params = {**problems[0].defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    s = np.linspace(0.0, 1.0, 101)
+    times = {0: [], 1: []}
+    for _ in range(5):
+        for which, problem in enumerate(problems):
+            corr = Collocation(problem, "psi", ContinuationOptions(tol=0.99, ds_max=1.0))
+            a = start_solution(corr, State.from_values(problem, s, problem.exact_start(s, params),
+                                                       params), 1, None, False)
+            for _ in range(20):
+                t0 = time.perf_counter()
+                b = corr.step(a, 0.03)
+                index(problem, b.state)
+                times[which].append(time.perf_counter() - t0)
+                a = b
+    step = [1e3 * statistics.median(times[w]) for w in (0, 1)]
+    print("energy-first modules against their hand-written references (alternated):")
+    print(f"  one continuation step of the elastica (100 intervals): hand-written "
+          f"{step[0]:.2f} ms, derived {step[1]:.2f} ms ({step[1] / step[0]:.2f}x)")
+    import dataclasses
+
+    from elastica_auto.execution.run import execute
+    from elastica_auto.execution.runfile import load
+    runs = {0: [], 1: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        text = (REPO / "runs" / "rotating_arm.toml").read_text()
+        derived_run = Path(tmp) / "rotating_arm.toml"
+        derived_run.write_text(text.replace('equation = "elastica_lever_arm"',
+                                            f'equation = "{pair[1]}"'))
+        for _ in range(2):
+            for which, path in enumerate((REPO / "runs" / "rotating_arm.toml", derived_run)):
+                plan = load(path)
+                plan.options = dataclasses.replace(plan.options)
+                t0 = time.perf_counter()
+                execute(plan, Path(tmp) / f"out{which}", jobs=1)
+                runs[which].append(time.perf_counter() - t0)
+    run = [min(runs[w]) for w in (0, 1)]
+    print(f"  rotating_arm in one process (best of 2): hand-written {run[0]:.2f} s, derived "
+          f"{run[1]:.2f} s ({run[1] / run[0]:.2f}x)")
+    code = ("import sys, time; t0 = time.perf_counter(); "
+            "from elastica_auto.model.problem import load_problem; load_problem({!r}); "
+            "print(time.perf_counter() - t0, 'sympy' in sys.modules)")
+    for name, path in ENERGY_PAIRS:
+        load_problem(path)                                  # the cache filled
+        loads = {0: [], 1: []}
+        for _ in range(5):
+            for which, what in enumerate((name, str(path))):
+                out = subprocess.run([sys.executable, "-c", code.format(what)], cwd=REPO,
+                                     capture_output=True, text=True, check=True).stdout.split()
+                assert out[1] == "False"
+                loads[which].append(float(out[0]))
+        warm = [1e3 * statistics.median(loads[w]) for w in (0, 1)]
+        print(f"  warm load of {path.name} (fresh process, median of 5): hand-written "
+              f"{warm[0]:.1f} ms, derived {warm[1]:.1f} ms (+{warm[1] - warm[0]:.1f} ms), "
+              "no sympy")
+    cold = ("import time; t0 = time.perf_counter(); import sympy; t1 = time.perf_counter(); "
+            "from elastica_auto.model.problem import load_problem; "
+            "load_problem({!r}, cache=False); print(t1 - t0, time.perf_counter() - t1)")
+    for _, path in ENERGY_PAIRS:
+        out = [subprocess.run([sys.executable, "-c", cold.format(str(path))], cwd=REPO,
+                              capture_output=True, text=True, check=True).stdout.split()
+               for _ in range(3)]
+        print(f"  cold derivation of {path.name} (median of 3): import sympy "
+              f"{statistics.median(float(o[0]) for o in out):.2f} s, derivation, code and "
+              f"load {statistics.median(float(o[1]) for o in out):.2f} s")
+
+
 def main():
     step_cost()
     print()
@@ -692,12 +785,14 @@ def main():
     size_cost()
     print()
     saves()
+    print()
+    energy()
 
 
 #: The sections a flag runs alone; without one, `main`.
 SECTIONS = {"--memory": "memory", "--sweep": "sweep", "--landing": "landing",
             "--index": "index_cost", "--size": "size_cost", "--fold-curve": "fold_curve",
-            "--disk": "disk_unknowns", "--saves": "saves"}
+            "--disk": "disk_unknowns", "--saves": "saves", "--energy": "energy"}
 
 if __name__ == "__main__":
     if sys.argv[1:] and (len(sys.argv) > 2 or sys.argv[1] not in SECTIONS):

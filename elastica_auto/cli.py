@@ -1,4 +1,4 @@
-"""The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view.
+"""The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view, path, derive.
 
 User errors (a bad run file, a missing or foreign branch file) print one line and exit with
 status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
@@ -541,3 +541,32 @@ def path(equation, at, to, ds_max):
             on = f"on branch {r['on_branch']}" if r["on_branch"] else "on no branch followed"
             click.echo("    " + ", ".join(f"{o}={r['target_' + o]:.6g}" for o in ords[:2])
                        + f" ({on})")
+
+
+@main.command()
+@click.argument("module", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False),
+              help="Write the module to this file (atomically) instead of printing it.")
+@click.option("--no-cache", "no_cache", is_flag=True,
+              help="Derive afresh: neither read nor write the cache of generated code.")
+def derive(module, output, no_cache):
+    """Print the equation module derived from MODULE.py's ENERGY(): the module with its
+    ENERGY replaced by the derived definitions it does not define itself, a plain module
+    that loads without sympy and gives the same results (docs/energy.md)."""
+    from .energy.loader import printed
+    from .model.problem import load_problem
+    try:
+        problem = load_problem(module, cache=not no_cache)
+        if problem.generated is None:
+            _fail(f"{module}: defines no ENERGY(); there is nothing to derive")
+        text = printed(Path(module).read_text(encoding="utf-8"), problem.generated)
+    except USER_ERRORS as exc:
+        _fail(str(exc))
+    if output is None:
+        click.echo(text, nl=False)
+        return
+    from .energy.cache import write_text
+    if not write_text(Path(output), text):
+        from .core.errors import EXIT_WRITE
+        _fail(f"{output}: cannot write", EXIT_WRITE)
+    click.echo(f"wrote {output}", err=True)

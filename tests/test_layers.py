@@ -20,8 +20,10 @@ PACKAGE = Path(__file__).resolve().parent.parent / "elastica_auto"
 #: imported, and every module of the package imports it first). Then a subpackage of
 #: `elastica_auto` each, and on top the public API (`api`, `cli`, `path`), the figures
 #: (`plots`) and the equation modules (`elastica_auto.equations`, the paper's figures read one).
-LAYERS = ["package", "core", "model", "numerics", "branches", "analysis", "storage", "execution",
-          "top"]
+#: `energy` (modules derived from an energy) sits right above `core`: `load_problem` (model)
+#: calls its loader, and what its generated modules need from higher layers they pass in.
+LAYERS = ["package", "core", "energy", "model", "numerics", "branches", "analysis", "storage",
+          "execution", "top"]
 #: Folders of the source tree that are not the engine's (symlinks of a working tree).
 NOT_ENGINE = {"equations", "runs"}
 

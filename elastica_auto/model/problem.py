@@ -246,11 +246,20 @@ class Problem:
     #: The module's source text, if it was loaded from a file (`load_problem`): a problem
     #: pickles as that text (see `_from_text`), not as its module object.
     _text: str | None = None
+    #: The module derived from its ENERGY, if it has one (`elastica_auto.energy`): it travels
+    #: with the text, so that a Dask worker executes it and never derives.
+    _generated: str | None = None
+
+    @property
+    def generated(self) -> str | None:
+        """The source of the module derived from the module's ENERGY (what the cache keeps
+        and ``elastica-auto derive`` prints from), or None for a module without one."""
+        return self._generated
 
     def __reduce_ex__(self, protocol):
         if self._text is None:
             return super().__reduce_ex__(protocol)
-        return _from_text, (self.source, self.module.__file__, self._text)
+        return _from_text, (self.source, self.module.__file__, self._text, self._generated)
 
     def __init__(self, module, source: str):
         self.module = module
@@ -718,11 +727,14 @@ def periods_applied(problem, name: str, y, k: int, derivative: bool = False):
     return out
 
 
-def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) -> Problem:
+def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None, *,
+                 cache: bool = True) -> Problem:
     """Load an equation module by shipped name (``elastica_lever_arm``) or by ``.py`` path.
 
     Relative paths are resolved against ``base_dir`` (the run file's folder) first, then the
-    current directory.
+    current directory. A module that defines ``ENERGY()`` gets the names derived from its
+    energy that it does not define itself (`elastica_auto.energy`), from the cache of
+    generated code unless ``cache`` is False (or ``ELASTICA_AUTO_ENERGY_CACHE=off``).
     """
     if not isinstance(name_or_path, (str, os.PathLike)):
         raise ProblemError(f"load_problem: expected a module name or a path to a .py file, "
@@ -745,6 +757,7 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) 
         source = name_or_path
     spec = importlib.util.spec_from_file_location(f"elastica_auto_eq_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)
+    text = path.read_text(encoding="utf-8")
     try:
         spec.loader.exec_module(module)
     except Exception as exc:
@@ -753,16 +766,21 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None) 
     except SystemExit as exc:  # else the command would end, with status 0, having done nothing
         raise ProblemError(f"{source}: importing the module called sys.exit({exc.code!r}); "
                            "put script code under if __name__ == \"__main__\":") from exc
+    generated = None
+    if hasattr(module, "ENERGY"):
+        from ..energy.loader import attach
+        generated = attach(module, source, text, cache=cache)
     problem = Problem(module, source)
-    problem._text = path.read_text(encoding="utf-8")
+    problem._text, problem._generated = text, generated
     return problem
 
 
 @functools.lru_cache(maxsize=8)
-def _from_text(source: str, filename: str, text: str) -> Problem:
+def _from_text(source: str, filename: str, text: str, generated: str | None = None) -> Problem:
     """A problem from its module's source text (how a problem travels to a Dask worker): the
     module is executed under its own file name, so tracebacks and diagnostics name its lines
-    as on the machine it came from, whether or not the file exists here.
+    as on the machine it came from, whether or not the file exists here. ``generated``: the
+    module derived from its ENERGY, executed as it is (the worker does not derive).
 
     Cached: every task of a run carries the same text, and executing it again for each
     (3 ms for the elastica) was half the scheduling cost of a 0.1 s branch. A problem is not
@@ -773,7 +791,10 @@ def _from_text(source: str, filename: str, text: str) -> Problem:
     with warnings.catch_warnings():  # the command that sent it has shown them once already
         warnings.simplefilter("ignore", DeprecationWarning)
         exec(compile(text, filename, "exec"), module.__dict__)
+    if generated is not None:
+        from ..energy.loader import merge
+        merge(module, source, generated)
     problem = Problem(module, source)
-    problem._text = text
+    problem._text, problem._generated = text, generated
     return problem
 

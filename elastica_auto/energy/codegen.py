@@ -1,0 +1,605 @@
+"""The derived expressions (`elastica_auto.energy.derive`) as a plain equation module in numpy.
+
+The module printed is what the cache keeps, what `load_problem` executes and what
+``elastica-auto derive`` shows: the protocol's names (``STATES``, ``PARAMETERS``,
+``ORDINATES``, ``rhs``, ``bc``, their derivatives, ``second_variation``,
+``gradient_flow``) as formulas, after common subexpressions are taken out. Its header says
+what was derived, in the user's names: the energy, the Legendre inverse, where each
+parameter enters and its ordinate, the second variation.
+
+Safety of the text: the internal symbols print as ``s``, ``y3``, ``v0``, ``p2``, ``ya1``, ...
+(and ``t0``, ... for common subexpressions), names no user name can take, since every user
+symbol was replaced before printing. User names appear only as string literals (``repr``) and
+in ``#`` comments (they are printable: no line breaks). Module-level helpers are named
+``_derived_...``; a module that defines such a name itself is refused (`loader`).
+"""
+
+from __future__ import annotations
+
+import re
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+
+from ..core.errors import ProblemError
+from .derive import Derived
+from .runtime import PREFIX, TRAILER
+
+
+class _Printer(NumPyPrinter):
+    """numpy's printer, strict: a function numpy cannot evaluate is an error, not code that
+    fails when it runs."""
+
+
+def _fail(message):
+    raise ProblemError(f"ENERGY: {message}")
+
+
+def _docstring(doc: str, indent: str = "    ", width: int = 96) -> list[str]:
+    """A function's docstring lines, wrapped; a text with a user's name that would end the
+    literal or escape in it (three double quotes, a backslash) as one ``repr``."""
+    if '"""' in doc or "\\" in doc or doc.endswith('"'):
+        return [indent + repr(doc)]
+    words, lines, line = doc.split(), [], indent + '"""'
+    for word in words:
+        if len(line) + 1 + len(word) > width and line.strip() != '"""':
+            lines.append(line)
+            line = indent
+        line += ("" if line.endswith(('"""', " ")) else " ") + word
+    lines.append(line + '"""')
+    return lines
+
+
+class Block:
+    """Assignments of expressions to targets inside one function, with the common
+    subexpressions of all of them taken out once."""
+
+    def __init__(self, names: dict, indent: str = "    "):
+        self.names = names                  # internal symbol -> printed name
+        self.indent = indent
+        self.items = []                     # (target or None, expr)
+
+    def add(self, target, expr):
+        self.items.append((target, sp.sympify(expr)))
+
+    def lines(self, unpack) -> list[str]:
+        """The function body: ``unpack`` (symbol -> the line that defines it) for each input
+        used, the common subexpressions, then ``target = expr`` for each item."""
+        symbols = {k: sp.Symbol(v) for k, v in self.names.items()}
+        exprs = [e.xreplace(symbols) for _, e in self.items]
+        temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), order="none")
+        used = set()
+        for e in [*reduced, *(t for _, t in temps)]:
+            used |= {x.name for x in e.free_symbols}
+        printer = _Printer({"strict": True})
+        out = [self.indent + line for key, line in unpack if key in used]
+
+        def text(e):
+            try:
+                return printer.doprint(e)
+            except Exception as exc:                # sympy's PrintMethodNotImplementedError
+                found = re.search(r":\s*(\w+)", str(exc))
+                what = found.group(1) if found else str(exc).split()[0]
+                _fail(f"numpy cannot evaluate the function {what}, which the derived "
+                      "expressions contain: write the energy with functions numpy has")
+
+        for t, e in temps:
+            out.append(f"{self.indent}{t} = {text(e)}")
+        self.printed = []
+        for (target, _), e in zip(self.items, reduced):
+            code = text(e)
+            self.printed.append(code)
+            if target is not None:
+                out.append(f"{self.indent}{target} = {code}")
+        return out
+
+
+class Module:
+    """The text of the generated module of a `Derived`."""
+
+    def __init__(self, d: Derived):
+        self.d = d
+        self.k, self.nq = d.k, len(d.quadratures)
+        self.n = 2 * self.k + self.nq
+        self.pindex = {q.name: i for i, q in enumerate(d.parameters)}
+        self.lines: list[str] = []
+
+    # -- names of the inputs ---------------------------------------------------------------
+    def _params(self):
+        d = self.d
+        names = {d.P[q.name]: f"p{i}" for i, q in enumerate(d.parameters)}
+        unpack = [(f"p{i}", f"p{i} = p[{q.name!r}]") for i, q in enumerate(d.parameters)]
+        return names, unpack
+
+    def _states(self, with_v: bool):
+        """Names for a function of (s, y, p): Z, M, X as the rows of y, V as ``v``."""
+        d = self.d
+        names, unpack = self._params()
+        names[d.S] = "s"
+        states = [*d.Z, *d.M, *d.X]
+        labels = d.states
+        for i, x in enumerate(states):
+            names[x] = f"y{i}"
+        unpack = [(f"y{i}", f"y{i} = y[{i}]  # {labels[i]}") for i in range(self.n)] + unpack
+        if with_v:
+            for i, v in enumerate(d.V):
+                names[v] = f"v{i}"
+            unpack = [(f"v{i}", f"v{i} = v[{i}]  # {d.coordinates[i]}'")
+                      for i in range(self.k)] + unpack
+        return names, unpack
+
+    def _kernel(self):
+        """Names for a kernel of (s, z, v, p): Z as the rows of z, V of v."""
+        d = self.d
+        names, unpack = self._params()
+        names[d.S] = "s"
+        for i, (z, v) in enumerate(zip(d.Z, d.V)):
+            names[z], names[v] = f"z{i}", f"v{i}"
+        unpack = ([(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)]
+                  + [(f"v{i}", f"v{i} = v[{i}]  # {c}'") for i, c in enumerate(d.coordinates)]
+                  + unpack)
+        return names, unpack
+
+    def _ends(self):
+        d = self.d
+        names, unpack = self._params()
+        for i, (a, b) in enumerate(zip(d.YA, d.YB)):
+            names[a], names[b] = f"ya{i}", f"yb{i}"
+        unpack = ([(f"ya{i}", f"ya{i} = ya[{i}]  # {c}(0)") for i, c in enumerate(d.states)]
+                  + [(f"yb{i}", f"yb{i} = yb[{i}]  # {c}(1)") for i, c in enumerate(d.states)]
+                  + unpack)
+        return names, unpack
+
+    def _solution_ends(self):
+        """Names for the end values inside a function of (s, y, p)."""
+        names, unpack = self._ends()
+        unpack = [(key, line.replace(f"= ya[{key[2:]}]", f"= y[{key[2:]}, 0]")
+                   .replace(f"= yb[{key[2:]}]", f"= y[{key[2:]}, -1]")) for key, line in unpack]
+        return names, unpack
+
+    # -- output ----------------------------------------------------------------------------
+    def emit(self, *lines):
+        self.lines.extend(lines)
+
+    def function(self, signature, doc, block: Block, unpack, before=(), after=()):
+        self.emit("", "", f"def {signature}:", *_docstring(doc), *before,
+                  *block.lines(unpack), *after)
+
+    def alias(self, name):
+        """``_derived_<name> = <name>``: the derived function that the module's own helpers
+        use, whichever the module defines by hand (`loader.printed` renames it)."""
+        self.emit("", "", f"{PREFIX}{name} = {name}  # what the derived ordinates use")
+
+    def text(self) -> str:
+        d = self.d
+        self.header()
+        self.declarations()
+        if d.linear:
+            self.linear_system()
+        else:
+            self.newton_system()
+        self.boundary()
+        self.kernels()
+        self.second_variation()
+        self.ordinates()
+        if not d.free:
+            self.emit("", "", "def gradient_flow(p, nodes):",
+                      *_docstring('The energy discretised on ``nodes`` and its overdamped dynamics '
+                                  '(runtime.gradient_flow).'),
+                      f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
+                      f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow)")
+        return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
+
+    def header(self):
+        d = self.d
+        u = d.user
+        self.emit('"""An equation module derived from an energy by elastica-auto '
+                  '(docs/energy.md).', "",
+                  "Plain numpy: it needs neither sympy nor the module it was derived from. The "
+                  "derivation is",
+                  'summarised in the comments below, in the energy\'s own names."""', "")
+        lines = ["E = int_0^1 L ds + B0 + B1, with", *d.summary, ""]
+        lines.append("parameters (where each enters; its distinguished ordinate, which the "
+                     "fold rule reads):")
+        for q in d.parameters:
+            ordinate = ""
+            if q.ordinate:
+                ordinate = (f"; ordinate {q.ordinate} = " + ("-" if q.sign < 0 else "")
+                            + f"dE/d{q.name}")
+            lines.append(f"  {q.name}: enters {q.enters!r} ({q.where}){ordinate}")
+        for o in d.ordinates:
+            parts = []
+            if o["integrand"] != 0:
+                parts.append(f"int_0^1 ({u(o['sign'] * o['integrand'])}) ds")
+            if o["ends"] != 0:
+                parts.append(u(o["sign"] * o["ends"]))
+            lines.append(f"  {o['name']} = " + " + ".join(parts).replace("+ -", "- ")
+                         if parts else f"  {o['name']} = 0")
+        lines += ["", "second variation, d2E[h] = int (h'.A h' + 2 h'.C h + h.B h) ds "
+                  "+ h(0).E0 h(0) + h(1).E1 h(1):"]
+        for name, m in (("A", d.A), ("C", d.C), ("B", d.B), ("E0", d.E0), ("E1", d.E1)):
+            lines.append(f"  {name} = {u(m) if self.k > 1 else u(m[0][0])}")
+        for end, fixed in ((0, d.fixed0), (1, d.fixed1)):
+            if fixed:
+                lines.append(f"  h({end}) = 0 in " + ", ".join(d.coordinates[i] for i in fixed))
+        for fld, gv in d.constraints:
+            lines.append(f"  constraint: int ({u(fld)}).h ds"
+                         + (" = 0" if all(e == 0 for e in gv) else
+                            f" - g_v(0).h(0) + g_v(1).h(1) = 0, g_v = {u(gv)}"))
+        # one comment line per line, whatever sympy prints (a line break would end it)
+        self.emit(*(("# " + piece).rstrip() for line in lines
+                    for piece in (line.splitlines() or [""])))
+        self.emit("", "import numpy", "",
+                  "from elastica_auto import Constraint, Flow, Ordinate, Parameter, "
+                  "SecondVariation",
+                  f"from elastica_auto.energy import runtime as {PREFIX}runtime",
+                  *(["from elastica_auto.numerics.stability import count_form"]
+                    if d.parts else []))
+
+    def declarations(self):
+        d = self.d
+        self.emit("", f"STATES = {tuple(d.states)!r}", "", "PARAMETERS = [")
+        for q in d.parameters:
+            extra = ""
+            if q.period is not None:
+                extra += f", period={q.period!r}"
+            if q.period_shift:
+                extra += f", period_shift={q.period_shift!r}"
+            if q.period_flip:
+                extra += f", period_flip={q.period_flip!r}"
+            doc = q.doc or f"enters {q.where}"
+            self.emit(f"    Parameter({q.name!r}, {q.default!r}, {q.tex!r}, {q.enters!r}"
+                      f"{extra}, doc={doc!r}),")
+        self.emit("]")
+        if d.free:
+            self.emit("", "# the multipliers of the isoperimetric constraints, solved for",
+                      f"FREE = {d.free!r}")
+        self.emit("", "# the module's own symmetry(s, y, p) hook, if it has one (the loader sets "
+                  "it): where it", "# holds, its generator is a zero mode of the second "
+                  "variation, left out of the count", f"{PREFIX}symmetry = None")
+
+    # -- the system ------------------------------------------------------------------------
+    def linear_system(self):
+        d = self.d
+        n, k = self.n, self.k
+        names, unpack = self._states(False)
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            block.add(f"out[{i}]", e)
+        self.function("rhs(s, y, p)", "zeta' = V(zeta, m), m' = dL/dzeta, x' = g (the "
+                      "Euler-Lagrange equations in the states).", block, unpack,
+                      before=["    out = numpy.empty(y.shape)"], after=["    return out"])
+        self.alias("rhs")
+        states = [*d.Z, *d.M, *d.X]
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            for j, x in enumerate(states):
+                de = sp.diff(e, x)
+                if de != 0:
+                    block.add(f"jac[{i}, {j}]", de)
+        self.function("rhs_jac(s, y, p)", "df/dy, (n, n, m).", block, unpack,
+                      before=[f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))"],
+                      after=["    return jac"])
+        self._by_parameter("rhs_dp(s, y, p, name)", "df/dp[name], (n, m).", d.rhs, names,
+                           unpack, "    out = numpy.zeros(y.shape)", "out[{i}]")
+        block = Block(names)
+        for i, e in enumerate(d.velocity):
+            block.add(f"v[{i}]", e)
+        self.function(f"{PREFIX}velocity(s, y, p)", "zeta' from the momenta: the inverse of "
+                      "the Legendre map, (k, m).", block, unpack,
+                      before=[f"    v = numpy.empty(({k}, y.shape[1]))"], after=["    return v"])
+
+    def newton_system(self):
+        d = self.d
+        k, nq = self.k, self.nq
+        names, unpack = self._kernel()
+        block = Block(names)
+        block.add("L", d.lagrangian)
+        for i, v in enumerate(d.V):
+            block.add(f"Lv[{i}]", sp.diff(d.lagrangian, v))
+            for j, w in enumerate(d.V):
+                block.add(f"Lvv[{i}, {j}]", sp.diff(d.lagrangian, v, w))
+        self.function(f"{PREFIX}legendre(s, z, v, p)", "L, dL/dv (k, m), d2L/dv2 (k, k, m): "
+                      "what the Legendre inverse needs.", block, unpack,
+                      before=[f"    Lv = numpy.empty(({k}, z.shape[1]))",
+                              f"    Lvv = numpy.empty(({k}, {k}, z.shape[1]))"],
+                      after=["    return L, Lv, Lvv"])
+        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+                  *_docstring("zeta' from the momenta, by Newton's method on L - m.v "
+                              '(runtime.legendre_inverse).'),
+                  f"    return {PREFIX}runtime.legendre_inverse({PREFIX}legendre, s, y[:{k}], "
+                  f"y[{k}:{2 * k}], p)")
+        block = Block(names)
+        for j, g in enumerate(d.rates):
+            block.add(f"g[{j}]", g)
+            for i, z in enumerate(d.Z):
+                block.add(f"gz[{j}, {i}]", sp.diff(g, z))
+            for i, v in enumerate(d.V):
+                block.add(f"gv[{j}, {i}]", sp.diff(g, v))
+        self.function(f"{PREFIX}rates(s, z, v, p)", "The quadratures' rates g (nq, m) and "
+                      "their derivatives in z and v (nq, k, m).", block, unpack,
+                      before=[f"    g = numpy.empty(({nq}, z.shape[1]))",
+                              f"    gz = numpy.empty(({nq}, {k}, z.shape[1]))",
+                              f"    gv = numpy.empty(({nq}, {k}, z.shape[1]))"],
+                      after=["    return g, gz, gv"])
+        self.emit("", "", "def rhs(s, y, p):",
+                  *_docstring("zeta' = V(zeta, m), m' = dL/dzeta, x' = g."),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    z = y[:{k}]",
+                  f"    _, Lz, _, _, _, _ = {PREFIX}density(s, z, v, p)",
+                  f"    g, _, _ = {PREFIX}rates(s, z, v, p)",
+                  "    return numpy.concatenate((v, Lz, g))",
+                  "", "", f"{PREFIX}rhs = rhs  # what the derived ordinates use",
+                  "", "",
+                  "def rhs_jac(s, y, p):",
+                  *_docstring('df/dy by the implicit function theorem: dv/dm = A^-1, dv/dzeta = '
+                              '-A^-1 C (runtime.hamilton_jacobian).'),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    z = y[:{k}]",
+                  f"    _, _, _, Lzz, Lvz, Lvv = {PREFIX}density(s, z, v, p)",
+                  f"    _, gz, gv = {PREFIX}rates(s, z, v, p)",
+                  f"    return {PREFIX}runtime.hamilton_jacobian(Lvv, Lvz, Lzz, gz, gv)")
+        block = Block(names)
+        cases = []
+        for q in d.parameters:
+            p = d.P[q.name]
+            exprs = [sp.diff(d.lagrangian, z, p) for z in d.Z] + \
+                [sp.diff(d.lagrangian, v, p) for v in d.V] + [sp.diff(g, p) for g in d.rates]
+            if any(e != 0 for e in exprs):
+                cases.append((q.name, exprs))
+        self.emit("", "", f"def {PREFIX}dp(s, z, v, p, name):",
+                  *_docstring('d2L/dzeta dp, d2L/dv dp (k, m) and dg/dp (nq, m) for the parameter '
+                              'name.'),
+                  f"    Lzp = numpy.zeros(({k}, z.shape[1]))",
+                  f"    Lvp = numpy.zeros(({k}, z.shape[1]))",
+                  f"    gp = numpy.zeros(({nq}, z.shape[1]))")
+        for c, (name, exprs) in enumerate(cases):
+            block = Block(names, indent="        ")
+            for i, e in enumerate(exprs):
+                if e != 0:
+                    target = (f"Lzp[{i}]" if i < k else f"Lvp[{i - k}]" if i < 2 * k
+                              else f"gp[{i - 2 * k}]")
+                    block.add(target, e)
+            self.emit(f"    {'if' if c == 0 else 'elif'} name == {name!r}:",
+                      *block.lines(unpack))
+        self.emit("    return Lzp, Lvp, gp", "", "",
+                  "def rhs_dp(s, y, p, name):",
+                  *_docstring('df/dp[name] with dv/dp = -A^-1 d2L/dv dp.'),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    z = y[:{k}]",
+                  f"    _, _, _, _, Lvz, Lvv = {PREFIX}density(s, z, v, p)",
+                  f"    _, _, gv = {PREFIX}rates(s, z, v, p)",
+                  f"    Lzp, Lvp, gp = {PREFIX}dp(s, z, v, p, name)",
+                  f"    return {PREFIX}runtime.hamilton_dp(Lvv, Lvz, gv, Lzp, Lvp, gp)")
+
+    def _by_parameter(self, signature, doc, exprs, names, unpack, init, target, ret="out",
+                      symbols=None):
+        """A function dispatching on the parameter ``name``: the derivatives of ``exprs``
+        in each parameter that enters them."""
+        d = self.d
+        self.emit("", "", f"def {signature}:", *_docstring(doc), init)
+        first = True
+        for q in d.parameters:
+            p = d.P[q.name]
+            block = Block(names, indent="        ")
+            for i, e in enumerate(exprs):
+                de = sp.diff(e, p)
+                if de != 0:
+                    block.add(target.format(i=i), de)
+            if block.items:
+                self.emit(f"    {'if' if first else 'elif'} name == {q.name!r}:",
+                          *block.lines(unpack))
+                first = False
+        self.emit(f"    return {ret}")
+
+    def boundary(self):
+        d = self.d
+        n, nbc = self.n, len(d.bc)
+        names, unpack = self._ends()
+        block = Block(names)
+        for i, e in enumerate(d.bc):
+            block.add(f"out[{i}]", e)
+        self.function("bc(ya, yb, p)", "Essential values, natural conditions (-m(0) + "
+                      "dB0/dzeta, m(1) + dB1/dzeta), quadratures' starts, constraints.",
+                      block, unpack, before=[f"    out = numpy.empty({nbc})"],
+                      after=["    return out"])
+        block = Block(names)
+        for i, e in enumerate(d.bc):
+            for j in range(n):
+                for arr, y in (("da", d.YA[j]), ("db", d.YB[j])):
+                    de = sp.diff(e, y)
+                    if de != 0:
+                        block.add(f"{arr}[{i}, {j}]", de)
+        self.function("bc_jac(ya, yb, p)", "dbc/dya, dbc/dyb, each (nbc, n).", block, unpack,
+                      before=[f"    da = numpy.zeros(({nbc}, {n}))",
+                              f"    db = numpy.zeros(({nbc}, {n}))"],
+                      after=["    return da, db"])
+        self._by_parameter("bc_dp(ya, yb, p, name)", "dbc/dp[name], (nbc,).", d.bc, names,
+                           unpack, f"    out = numpy.zeros({nbc})", "out[{i}]")
+
+    def kernels(self):
+        """The density and end terms with their derivatives: the gradient flow's energy, and
+        the Newton case's system."""
+        d = self.d
+        k = self.k
+        names, unpack = self._kernel()
+        block = Block(names)
+        L = d.lagrangian
+        block.add("L", L)
+        for i, z in enumerate(d.Z):
+            block.add(f"Lz[{i}]", sp.diff(L, z))
+        for i, v in enumerate(d.V):
+            block.add(f"Lv[{i}]", sp.diff(L, v))
+        for i, a in enumerate(d.Z):
+            for j, b in enumerate(d.Z):
+                block.add(f"Lzz[{i}, {j}]", sp.diff(L, a, b))
+        for i, a in enumerate(d.V):
+            for j, b in enumerate(d.Z):
+                block.add(f"Lvz[{i}, {j}]", sp.diff(L, a, b))
+        for i, a in enumerate(d.V):
+            for j, b in enumerate(d.V):
+                block.add(f"Lvv[{i}, {j}]", sp.diff(L, a, b))
+        self.function(f"{PREFIX}density(s, z, v, p)", "The Lagrangian L (with the "
+                      "multipliers' terms) at (z, v = z', s) and its first and second "
+                      "derivatives.", block, unpack,
+                      before=["    m = z.shape[1]", f"    Lz = numpy.empty(({k}, m))",
+                              f"    Lv = numpy.empty(({k}, m))",
+                              f"    Lzz = numpy.empty(({k}, {k}, m))",
+                              f"    Lvz = numpy.empty(({k}, {k}, m))",
+                              f"    Lvv = numpy.empty(({k}, {k}, m))"],
+                      after=["    L = L + numpy.zeros(m)",
+                             "    return L, Lz, Lv, Lzz, Lvz, Lvv"])
+        names, unpack = self._params()
+        for i, (a, b) in enumerate(zip(d.YA[:k], d.YB[:k])):
+            names[d.Z[i]] = f"z{i}"
+        unpack = [(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)] \
+            + unpack
+        for end, B in ((0, d.ends["B0"]), (1, d.ends["B1"])):
+            block = Block(names)
+            block.add("B", B)
+            for i, z in enumerate(d.Z):
+                block.add(f"Bz[{i}]", sp.diff(B, z))
+                for j, w in enumerate(d.Z):
+                    block.add(f"Bzz[{i}, {j}]", sp.diff(B, z, w))
+            self.function(f"{PREFIX}end{end}(z, p)", f"B{end} at the end values z (k,), its "
+                          "gradient and Hessian" + (" (the quadratures' terms are in the "
+                                                     "density)" if end else "") + ".",
+                          block, unpack, before=[f"    Bz = numpy.empty({k})",
+                                                 f"    Bzz = numpy.empty(({k}, {k}))"],
+                          after=["    return float(B), Bz, Bzz"])
+        self.emit("", "", f"def {PREFIX}ends(za, zb, p):",
+                  *_docstring('B0 and B1, each (value, gradient, Hessian), at the end values.'),
+                  f"    return {PREFIX}end0(za, p), {PREFIX}end1(zb, p)")
+        names, unpack = self._params()
+        block = Block(names)
+        items = [(0, i, e) for i, e in d.ends["essential"][0].items()] + \
+                [(1, i, e) for i, e in d.ends["essential"][1].items()]
+        for end, i, e in items:
+            block.add(None, e)
+        block.add(None, d.ends["constant"])
+        body = block.lines(unpack)
+        values = block.printed
+        at0 = ", ".join(f"{i}: {v}" for (end, i, _), v in zip(items, values) if end == 0)
+        at1 = ", ".join(f"{i}: {v}" for (end, i, _), v in zip(items, values) if end == 1)
+        self.emit("", "", f"def {PREFIX}essential(p):",
+                  *_docstring("The essential end values {coordinate: value} at s = 0 and "
+                              "s = 1, and the energy's constant (the quadratures' starts in "
+                              "B1)."),
+                  *body, f"    return {{{at0}}}, {{{at1}}}, float({values[-1]})")
+
+    def second_variation(self):
+        d = self.d
+        k = self.k
+        constraints = d.constraints
+        uses_w = any(e.has(*d.W) for fld, _ in constraints for e in fld)
+        if d.linear:
+            names, unpack = self._states(False)
+            before = []
+        else:
+            names, unpack = self._states(True)
+            before = [f"    v = {PREFIX}velocity(s, y, p)"]
+            if uses_w:
+                for i, w in enumerate(d.W):
+                    names[w] = f"w{i}"
+                before += [f"    w = {PREFIX}runtime.acceleration({PREFIX}density, "
+                           f"{PREFIX}lvs, s, y[:{k}], v, p)"]
+                unpack = [(f"w{i}", f"w{i} = w[{i}]") for i in range(k)] + unpack
+        ends, end_unpack = self._solution_ends()
+        names.update(ends)
+        unpack = unpack + [u for u in end_unpack if u[0].startswith(("ya", "yb"))]
+        if k > 1 or constraints:
+            before += ["    m = y.shape[1]"]
+        block = Block(names)
+        for name, mat in (("A", d.A), ("B", d.B), ("C", d.C), ("E0", d.E0), ("E1", d.E1)):
+            for i in range(k):
+                for j in range(k):
+                    block.add(f"{name}{i}{j}" if k > 1 else name, mat[i][j])
+        for c, (fld, gv) in enumerate(constraints):
+            for i in range(k):
+                block.add(f"g{c}_{i}", fld[i])
+                block.add(f"d{c}_{i}", gv[i])
+        body = block.lines(unpack)
+        args = []
+        for name in ("A", "B", "C", "E0", "E1"):
+            if k == 1:
+                value = name
+            else:
+                rows = ", ".join("[" + ", ".join(f"{name}{i}{j}" for j in range(k)) + "]"
+                                 for i in range(k))
+                value = f"{PREFIX}runtime.field([{rows}], m)"
+            args.append(value)
+        after = []
+        cons = []
+        for c in range(len(constraints)):
+            g = ", ".join(f"g{c}_{i}" for i in range(k))
+            dv = ", ".join(f"d{c}_{i}" for i in range(k))
+            after.append(f"    gv = {PREFIX}runtime.field([[{dv}]], m)[0]")
+            cons.append(f"constraint{c}")
+            after.append(f"    constraint{c} = Constraint({PREFIX}runtime.field([[{g}]], m)[0], "
+                         f"{PREFIX}runtime.at_end(gv, -1), -{PREFIX}runtime.at_end(gv, 0))")
+        parts = ""
+        if d.parts:
+            parts = f", parts={ {name: comps for name, comps in d.parts.items()}!r}"
+        after.append(f"    return SecondVariation({args[0]}, {args[1]}, {args[2]}, E0={args[3]}, "
+                     f"E1={args[4]}, fixed0={d.fixed0!r}, fixed1={d.fixed1!r}, "
+                     f"constraints=[{', '.join(cons)}] + {PREFIX}runtime.zero_modes("
+                     f"{PREFIX}symmetry, s, y, p, {k}, Constraint){parts})")
+        self.emit("", "", "def second_variation(s, y, p):",
+                  *_docstring("The second variation at the solution y: A = d2L/dv2, C = "
+                              "d2L/dv dz, B = d2L/dz2, E0 = d2B0/dz2, E1 = d2B1/dz2 "
+                              "(docs/energy.md)."),
+                  *before, *body, *after)
+        self.alias("second_variation")
+        if uses_w and not d.linear:
+            names, unpack = self._kernel()
+            block = Block(names)
+            for i, v in enumerate(d.V):
+                block.add(f"out[{i}]", sp.diff(d.lagrangian, v, d.S))
+            self.function(f"{PREFIX}lvs(s, z, v, p)", "d2L/dv ds, (k, m).", block, unpack,
+                          before=[f"    out = numpy.empty(({k}, z.shape[1]))"],
+                          after=["    return out"])
+
+    def ordinates(self):
+        d = self.d
+        k = self.k
+        integrals = [o for o in d.ordinates if o["integrand"] != 0]
+        names, unpack = self._kernel()
+        block = Block(names)
+        for i, o in enumerate(integrals):
+            block.add(f"out[{i}]", o["sign"] * o["integrand"])
+        q = len(integrals)
+        if q:
+            self.function(f"{PREFIX}integrands(s, z, v, p)", "The integrands of the "
+                          "ordinates that are integrals, (q, m).", block, unpack,
+                          before=[f"    out = numpy.empty(({q}, z.shape[1]))"],
+                          after=["    return out"])
+            self.emit("", "", f"def {PREFIX}integrals(s, y, p):",
+                      *_docstring("The integrals of the ordinates at the solution y "
+                                  "(Simpson's rule on its Hermite cubics; one pass for all "
+                                  "of them)."),
+                      f"    return {PREFIX}runtime.integrals(s, y, p, {PREFIX}rhs, "
+                      f"{PREFIX}velocity, {PREFIX}integrands, {k})")
+        names, unpack = self._solution_ends()
+        entries = []
+        for i, o in enumerate(d.ordinates):
+            block = Block(names)
+            block.add("value", o["sign"] * o["ends"])
+            extra = []
+            if o["integrand"] != 0:
+                extra = [f"    value = value + {PREFIX}integrals(s, y, p)"
+                         f"[{integrals.index(o)}]"]
+            self.function(f"{PREFIX}ordinate{i}(s, y, p)", o["doc"], block, unpack,
+                          after=[*extra, "    return float(value)"])
+            entries.append(f"    Ordinate({o['name']!r}, {o['tex']!r}, {PREFIX}ordinate{i}, "
+                           f"{o['parameter']!r}, {o['doc']!r}),")
+        for name in d.parts:
+            entries.append(f"    Ordinate({name!r}, {name!r}, {PREFIX}runtime.part_count("
+                           f"{PREFIX}second_variation, {PREFIX}rhs, {name!r}, count_form), "
+                           "None, "
+                           f"{'the index of the part ' + name + ' of the second variation'!r}),")
+        self.emit("", "", "ORDINATES = [", *entries, "]")
+
+
+def generate(d: Derived) -> str:
+    """The generated module's text."""
+    return Module(d).text()

@@ -1,0 +1,320 @@
+"""The numerics that every module derived from an energy shares (numpy and scipy only).
+
+A generated module (`elastica_auto.energy.codegen`) writes its formulas out and calls these for
+what is not a formula:
+
+* :func:`legendre_inverse`: zeta' from the momenta where the density is not quadratic in
+  zeta', by Newton's method on the strictly convex ``phi(v) = L(zeta, v, s) - m.v`` (its
+  minimiser solves ``dL/dv = m``), with a backtracking line search, point by point;
+* :func:`hamilton_jacobian`, :func:`hamilton_dp`: the Jacobians of ``zeta' = V(zeta, m)``,
+  ``m' = L_zeta``, ``x' = g`` by the implicit function theorem (``dV/dm = A^-1``, ``dV/dzeta
+  = -A^-1 C``, ``dV/dp = -A^-1 L_vp``; ``A = L_vv``, ``C = L_vz``);
+* :func:`acceleration`: zeta'' along a solution, for a constraint whose rate contains zeta';
+* :func:`integrals`: the ordinates that are integrals, by Simpson's rule on the solution's
+  Hermite cubics (4th order, as the solution);
+* :func:`gradient_flow`: the energy discretised on a grid (midpoint rule) and its
+  overdamped dynamics, for where a snap lands (`elastica_auto.analysis.landing`);
+* :func:`part_count`: the index of a named part of the second variation, as an ordinate.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+#: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
+#: a module with ENERGY may not define such names itself.
+PREFIX = "_derived_"
+#: The last line of every generated module: a cached file without it was cut short.
+TRAILER = "# (the end of the derived module)"
+
+#: Newton's method for the Legendre inverse stops at a point where |dL/dv - m| <= RESIDUAL
+#: (1 + |m|), or where its step is at rounding level; at most ITERATIONS steps, each with at
+#: most HALVINGS halvings of the line search. A point that does not converge is NaN: the
+#: engine's corrector sees a non-finite residual and shortens its step.
+RESIDUAL = 1e-14
+ITERATIONS = 50
+HALVINGS = 40
+
+
+def _solve(a, b):
+    """a^-1 b for a (k, k, m) and b (k, m) or (k, j, m), point by point."""
+    if a.shape[0] == 1:
+        return b / a[0, 0] if b.ndim == 2 else b / a[0, 0][None, None]
+    am = np.moveaxis(a, -1, 0)
+    if b.ndim == 2:
+        return np.moveaxis(np.linalg.solve(am, np.moveaxis(b, -1, 0)[..., None])[..., 0], 0, -1)
+    return np.moveaxis(np.linalg.solve(am, np.moveaxis(b, -1, 0)), 0, -1)
+
+
+def legendre_inverse(legendre, s, z, m, p):
+    """v with dL/dv (z, v, s) = m at every point, (k, m'): ``legendre(s, z, v, p)`` returns
+    L (m'), dL/dv (k, m') and d2L/dv2 (k, k, m'). NaN where it does not converge or
+    d2L/dv2 is not positive definite (the derivation checked convexity at samples only)."""
+    z, m = np.asarray(z, dtype=float), np.asarray(m, dtype=float)
+    k, npts = m.shape
+    s = np.broadcast_to(np.asarray(s, dtype=float), (npts,))
+    v = np.zeros((k, npts))
+    L, Lv, Lvv = legendre(s, z, v, p)
+    phi = L - np.sum(m * v, axis=0)
+    done = np.zeros(npts, dtype=bool)
+    bad = np.zeros(npts, dtype=bool)
+    for _ in range(ITERATIONS):
+        r = Lv - m
+        with np.errstate(all="ignore"):
+            step = _solve(Lvv, r)
+        if k == 1:
+            bad |= ~(Lvv[0, 0] > 0)
+        big = np.max(np.abs(step), axis=0)
+        done |= (np.max(np.abs(r), axis=0) <= RESIDUAL * (1 + np.max(np.abs(m), axis=0))) \
+            | (big <= 1e-15 * (1 + np.max(np.abs(v), axis=0)))
+        done &= ~bad
+        if np.all(done | bad):
+            break
+        t = np.where(done | bad | ~np.isfinite(big), 0.0, 1.0)
+        slope = np.sum(r * step, axis=0)
+        for _ in range(HALVINGS):
+            trial = v - t * np.nan_to_num(step)
+            Lt, Lvt, Lvvt = legendre(s, z, trial, p)
+            phit = Lt - np.sum(m * trial, axis=0)
+            ok = (phit <= phi - 1e-4 * t * slope + 1e-14 * np.abs(phi)) | (t == 0.0) \
+                | (t * big <= 1e-10 * (1 + np.max(np.abs(v), axis=0)))
+            if np.all(ok):
+                break
+            t = np.where(ok, t, 0.5 * t)
+        v, L, Lv, Lvv, phi = trial, Lt, Lvt, Lvvt, phit
+    else:
+        r = Lv - m
+        done |= np.max(np.abs(r), axis=0) <= RESIDUAL * (1 + np.max(np.abs(m), axis=0))
+    v[:, ~done | bad] = np.nan
+    return v
+
+
+def hamilton_jacobian(A, C, B, gz, gv):
+    """df/dy (n, n, m) of zeta' = V, m' = L_z, x' = g with the states (zeta, m, x): A = L_vv,
+    C = L_vz (rows v, columns zeta), B = L_zz, each (k, k, m); gz, gv (nq, k, m)."""
+    k, _, npts = A.shape
+    nq = gz.shape[0]
+    n = 2 * k + nq
+    ainv = _solve(A, np.broadcast_to(np.eye(k)[:, :, None], (k, k, npts)))
+    dvdz = -np.einsum("ijm,jlm->ilm", ainv, C)
+    ct = C.transpose(1, 0, 2)
+    jac = np.zeros((n, n, npts))
+    jac[:k, :k] = dvdz
+    jac[:k, k:2 * k] = ainv
+    jac[k:2 * k, :k] = B + np.einsum("ijm,jlm->ilm", ct, dvdz)
+    jac[k:2 * k, k:2 * k] = np.einsum("ijm,jlm->ilm", ct, ainv)
+    if nq:
+        jac[2 * k:, :k] = gz + np.einsum("ijm,jlm->ilm", gv, dvdz)
+        jac[2 * k:, k:2 * k] = np.einsum("ijm,jlm->ilm", gv, ainv)
+    return jac
+
+
+def hamilton_dp(A, C, gv, Lzp, Lvp, gp):
+    """df/dp (n, m) of the same system: dV/dp = -A^-1 L_vp."""
+    dvdp = -_solve(A, Lvp)
+    return np.concatenate((dvdp, Lzp + np.einsum("jim,jm->im", C, dvdp),
+                           gp + np.einsum("qjm,jm->qm", gv, dvdp)))
+
+
+def acceleration(density, lvs, s, z, v, p):
+    """zeta'' along a solution (k, m): differentiating m = L_v(zeta, zeta', s) gives
+    m' = C zeta' + A zeta'' + L_vs, and m' = L_z, so zeta'' = A^-1 (L_z - C zeta' - L_vs)."""
+    _, Lz, _, _, Lvz, Lvv = density(s, z, v, p)
+    return _solve(Lvv, Lz - np.einsum("ijm,jm->im", Lvz, v) - lvs(s, z, v, p))
+
+
+def field(rows, m):
+    """A (k, k) matrix of entries that are numbers or arrays on m points: (k, k) where all
+    are numbers, else (k, k, m)."""
+    values = [[np.asarray(e, dtype=float) for e in row] for row in rows]
+    if all(v.ndim == 0 for row in values for v in row):
+        return np.array(values, dtype=float)
+    out = np.empty((len(values), len(values[0]), m))
+    for i, row in enumerate(values):
+        for j, v in enumerate(row):
+            out[i, j] = v
+    return out
+
+
+def at_end(g, j):
+    """A vector field (k,) or (k, m) at the point j."""
+    return g if g.ndim == 1 else g[:, j]
+
+
+def integrals(s, y, p, rhs, velocity, integrands, k):
+    """int_0^1 of each of ``integrands(s, z, v, p)`` (q, m) at the solution y on the nodes s:
+    Simpson's rule on each interval, the midpoint values from the Hermite cubic of the
+    solution (slopes rhs), zeta' from ``velocity``. Cached for the few ordinates asked for
+    one after the other at the same point."""
+    s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+    return _integrals(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())), rhs,
+                      velocity, integrands, k)
+
+
+@functools.lru_cache(maxsize=8)
+def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands, k):
+    from ..core.solution import at_fractions
+    s = np.frombuffer(s_bytes).copy()
+    y = np.frombuffer(y_bytes).reshape(n, -1).copy()
+    p = dict(items)
+    ym = at_fractions(s, y, rhs(s, y, p), (0.5,))[:, 0]
+    sm = 0.5 * (s[:-1] + s[1:])
+    f = integrands(s, y[:k], velocity(s, y, p), p)
+    fm = integrands(sm, ym[:k], velocity(sm, ym, p), p)
+    out = np.sum(np.diff(s) * (f[:, :-1] + 4 * fm + f[:, 1:]), axis=1) / 6
+    out.flags.writeable = False
+    return out
+
+
+def part_count(second_variation, rhs, name, count_form):
+    """An ordinate fn(s, y, p): the index of the part ``name`` of the second variation at the
+    solution (-1 where the form does not decouple or the part has a zero eigenvalue), by the
+    engine's ``count_form`` (`elastica_auto.numerics.stability`, which the generated module
+    passes). The engine fills these ordinates itself along a branch; this is for elsewhere
+    (snap-back targets, mirror images)."""
+    def fn(s, y, p):
+        s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+        return _part_counts(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())),
+                            second_variation, rhs, count_form)[name]
+    return fn
+
+
+@functools.lru_cache(maxsize=4)
+def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
+    from ..core.solution import State
+    s = np.frombuffer(s_bytes).copy()
+    y = np.frombuffer(y_bytes).reshape(n, -1).copy()
+    p = dict(items)
+    state = State(s, y, rhs(s, y, p), p)
+    return count_form(lambda pts: second_variation(pts, state(pts), p), s).parts
+
+
+def gradient_flow(p, nodes, density, ends, essential, k, flow):
+    """The energy at ``p`` discretised on ``nodes`` and its overdamped dynamics, as an
+    `elastica_auto.analysis.landing.Flow`.
+
+    u is the coordinates at the nodes, those held by an essential end value left out,
+    component after component. The energy is the midpoint rule on each interval,
+    ``E_h(u) = sum_j h_j L(zbar_j, (z_{j+1} - z_j) / h_j, sbar_j) + B0(z_0) + B1(z_N) + c``
+    (second order; ``L`` with the quadratures' terms, ``c`` their constant), and
+    ``u_t = -M^-1 grad E_h`` with M the lumped (trapezoidal) mass. Its Jacobian is the
+    block-tridiagonal Hessian, assembled from each interval's (2k, 2k) block; k is the
+    number of coordinates, ``flow`` the class `elastica_auto.Flow` (the generated module
+    passes it: this package sits below the analysis layer)."""
+    from scipy.sparse import coo_matrix
+
+    from ..core.solution import trapezoid_weights
+    nodes = np.asarray(nodes, dtype=float)
+    fixed0, fixed1, constant = essential(p)
+    npts = len(nodes)
+    h = np.diff(nodes)
+    sm = 0.5 * (nodes[:-1] + nodes[1:])
+    weights = trapezoid_weights(nodes)
+    keep = np.ones((k, npts), dtype=bool)
+    full = np.zeros((k, npts))
+    for i, value in fixed0.items():
+        keep[i, 0], full[i, 0] = False, value
+    for i, value in fixed1.items():
+        keep[i, -1], full[i, -1] = False, value
+    free = np.flatnonzero(keep.ravel())
+    mass = np.tile(weights, k)[free]
+
+    def configuration(u):
+        z = full.copy().ravel()
+        z[free] = u
+        return z.reshape(k, npts)
+
+    def pieces(u):
+        z = configuration(u)
+        zm, vm = 0.5 * (z[:, :-1] + z[:, 1:]), np.diff(z, axis=1) / h
+        return z, density(sm, zm, vm, p)
+
+    def energy(u):
+        z, (L, *_) = pieces(u)
+        (b0, _, _), (b1, _, _) = ends(z[:, 0], z[:, -1], p)
+        return float(np.sum(h * L) + b0 + b1 + constant)
+
+    def gradient(u):
+        z, (_, Lz, Lv, *_) = pieces(u)
+        g = np.zeros((k, npts))
+        g[:, :-1] += 0.5 * h * Lz - Lv
+        g[:, 1:] += 0.5 * h * Lz + Lv
+        (_, b0z, _), (_, b1z, _) = ends(z[:, 0], z[:, -1], p)
+        g[:, 0] += b0z
+        g[:, -1] += b1z
+        return g.ravel()[free]
+
+    def hessian(u):
+        z, (_, _, _, Lzz, Lvz, Lvv) = pieces(u)
+        Lzv = Lvz.transpose(1, 0, 2)
+        hq = h / 4 * Lzz
+        aa = hq - 0.5 * (Lzv + Lvz) + Lvv / h
+        bb = hq + 0.5 * (Lzv + Lvz) + Lvv / h
+        ab = hq + 0.5 * (Lzv - Lvz) - Lvv / h
+        j = np.arange(npts - 1)
+        rows, cols, vals = [], [], []
+        for a in range(k):
+            for b in range(k):
+                for block, ra, cb in ((aa, j, j), (bb, j + 1, j + 1), (ab, j, j + 1),
+                                      (ab.transpose(1, 0, 2), j + 1, j)):
+                    rows.append(a * npts + ra)
+                    cols.append(b * npts + cb)
+                    vals.append(block[a, b])
+        (_, _, b0zz), (_, _, b1zz) = ends(z[:, 0], z[:, -1], p)
+        for a in range(k):
+            for b in range(k):
+                rows += [np.array([a * npts]), np.array([a * npts + npts - 1])]
+                cols += [np.array([b * npts]), np.array([b * npts + npts - 1])]
+                vals += [np.array([b0zz[a, b]]), np.array([b1zz[a, b]])]
+        size = k * npts
+        full_h = coo_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                    np.concatenate(cols))),
+                            shape=(size, size)).tocsr()
+        return full_h[free][:, free]
+
+    def force(u):
+        return -gradient(u) / mass
+
+    def jacobian(u):
+        from scipy.sparse import diags
+        return (-diags(1.0 / mass) @ hessian(u)).tocsc()
+
+    return flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
+                jacobian)
+
+
+
+def zero_modes(symmetry, s, y, p, k, constraint) -> list:
+    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
+    coordinates' rows of its generator: the zero mode of the group in the perturbations),
+    else []: a derived second variation on a circle of solutions is counted on the
+    complement of its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint``
+    is `elastica_auto.Constraint`, which the generated module passes."""
+    if symmetry is None:
+        return []
+    found = symmetry(s, y, p)
+    if found is None:
+        return []
+    return [constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
+
+
+def merged_ordinates(hand, derived) -> list:
+    """The derived ordinates, each replaced by a hand-written one of the same name or the
+    same ``parameter``, then the other hand-written ones (a module's own ORDINATES with
+    ENERGY: `elastica_auto.energy.loader`)."""
+    if not isinstance(hand, (list, tuple)):
+        return hand                     # not a list: Problem says what is wrong with it
+    hand = list(hand)
+    used, out = set(), []
+    for o in derived:
+        mine = next((i for i, h in enumerate(hand) if getattr(h, "name", None) == o.name
+                     or (o.parameter is not None
+                         and getattr(h, "parameter", None) == o.parameter)), None)
+        if mine is None:
+            out.append(o)
+        elif mine not in used:
+            used.add(mine)
+            out.append(hand[mine])
+    return out + [h for i, h in enumerate(hand) if i not in used]
