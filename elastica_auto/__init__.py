@@ -14,7 +14,7 @@ line's ``--version``) does not import numpy and scipy.
 """
 
 __version__ = "0.1.0"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 #: Public name -> the module that defines it.
 _PUBLIC = {

@@ -1,12 +1,16 @@
 """The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view.
 
-User errors (a bad run file, a missing or foreign branch file) print one line and exit with
-status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
-interrupted run saves what it computed and exits with status 130.
+User errors (a bad run file, a missing, foreign or damaged branch file, a path too long for
+the file system) print one line and exit with status 2, without a traceback. A run in which
+a branch ended with MX exits with status 1; an interrupted run saves what it computed and
+exits with status 130. A file that cannot be written once a command is under way (the disk
+full, a read-only file system, a file-size limit) ends any command with one line and status
+5, no file half-written.
 """
 
 from __future__ import annotations
 
+import errno
 import importlib.resources
 import signal
 import sys
@@ -15,13 +19,29 @@ from pathlib import Path
 import click
 
 from . import __version__
-from .core.errors import (EXIT_BRANCH_FAILED, EXIT_INTERRUPTED, EXIT_USER, USER_ERRORS,
-                          RunFileError, StoreError)
+from .core.errors import (EXIT_BRANCH_FAILED, EXIT_INTERRUPTED, EXIT_USER, EXIT_WRITE,
+                          USER_ERRORS, RunFileError, StoreError, WriteError)
 
 
 def _fail(msg: str, code: int = EXIT_USER):
     click.echo(f"elastica-auto: error: {msg}", err=True)
     sys.exit(code)
+
+
+class _Commands(click.Group):
+    """The command group. What any command may meet when it writes or names a file ends it
+    with one line: a write that fails (`WriteError`) with status 5, a name longer than the
+    file system allows (ENAMETOOLONG, from any path argument or option) as a user error."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except WriteError as exc:
+            _fail(str(exc), EXIT_WRITE)
+        except OSError as exc:
+            if exc.errno != errno.ENAMETOOLONG:
+                raise
+            _fail(f"{exc.filename or 'a path'}: {exc.strerror}")
 
 
 def shipped_runs() -> dict[str, Path]:
@@ -46,7 +66,7 @@ def resolve_run(name_or_path: str) -> Path:
     raise RunFileError(f"{name_or_path}: no such run; shipped runs: {', '.join(sorted(runs))}")
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="elastica-auto")
 def main():
     """AUTO-07p-style continuation of boundary value problems, with stability labels."""
@@ -156,6 +176,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         _fail(str(exc))
     except USER_ERRORS as exc:
         _fail(str(exc))
+    except WriteError as exc:    # the disk full, say: the branches saved so far are kept
+        _fail(str(exc), EXIT_WRITE)
     except KeyboardInterrupt:  # execute stops its own interruptions once the output is open
         click.echo("\ninterrupted before the first branch: nothing written", err=True)
         sys.exit(EXIT_INTERRUPTED)
@@ -238,10 +260,10 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
-def _open(path):
+def _open(path, rows: bool = False):
     from .storage.store import BranchFile
     try:
-        return BranchFile(path)
+        return BranchFile(path, rows=rows)
     except StoreError as exc:
         _fail(str(exc))
 
@@ -252,12 +274,16 @@ def _open(path):
 def show(file, all_points):
     """Print an AUTO-like table of the labelled points of FILE.h5."""
     from .storage.store import rows
-    bf = _open(file)
+    bf = _open(file, rows=True)   # read in one opening: a run may replace the file meanwhile
     cols = bf.parameters + bf.ordinates
     head = f"{'BR':>3} {'PT':>5} {'TY':>2} {'LAB':>6} " + " ".join(f"{c:>14}" for c in cols) \
         + f" {'index':>5} {'rule':>4} {'direct':>6}"
+    try:
+        table = list(rows(bf, labelled_only=not all_points))
+    except StoreError as exc:   # read on opening already: only a lazy read could fail
+        _fail(str(exc))
     click.echo(head)
-    for r in rows(bf, labelled_only=not all_points):
+    for r in table:
         click.echo(f"{r['branch']:>3} {r['pt']:>5} {r['type']:>2} {r['label']:>6} "
                    + " ".join(f"{r[c]:>14.7g}" for c in cols)
                    + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
@@ -317,7 +343,7 @@ def snaps(file):
 def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
     from .storage.store import export_csv
-    bf = _open(file)
+    bf = _open(file, rows=True)
     try:
         path = export_csv(bf, Path(output))
     except StoreError as exc:

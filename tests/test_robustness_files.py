@@ -11,6 +11,7 @@ one line by every command that reads it.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import resource
@@ -24,6 +25,7 @@ import h5py
 import numpy as np
 import pytest
 
+from elastica_auto.core.errors import EXIT_WRITE
 from elastica_auto.storage.store import BranchFile
 from helpers import run_cli, signalling_elastica, wait_for
 from test_robustness import IN_BRANCH_2, LONG_MINE, SMALL, one_line_error
@@ -71,7 +73,7 @@ def test_a_failed_export_leaves_the_old_csv_and_no_partial_one(good_file, tmp_pa
 
     proc = subprocess.run([cli_exe, "export", str(good_file), "-o", str(csv)],
                           capture_output=True, text=True, timeout=300, preexec_fn=small_files)
-    one_line_error(proc, "small.csv", "cannot write")
+    one_line_write_error(proc, "small.csv", "cannot write (File too large)")
     assert csv.read_text() == "old\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.csv"]
 
@@ -437,3 +439,127 @@ def test_a_run_killed_at_any_stage_of_a_save_leaves_a_whole_file(tmp_path, whole
                    "-j", "1").returncode == 0
     assert sorted(p.name for p in out.iterdir()) == ["small.h5"]
     assert len(BranchFile(path).branches) == 2
+
+
+# -- 9. writes that fail once a command is under way -----------------------------------------------
+
+def one_line_write_error(proc, *needles):
+    """A write that failed under way: one line, exit status 5 (EXIT_WRITE), no traceback; the
+    line ends what the command wrote to stderr (a run's header line comes before it)."""
+    assert proc.returncode == EXIT_WRITE, (proc.returncode, proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    errors = [line for line in lines if line.startswith("elastica-auto: error: ")]
+    assert errors == lines[-1:], proc.stderr
+    err = errors[0]
+    for n in needles:
+        assert n in err, (n, err)
+    return err
+
+
+def leftovers(folder):
+    """Lock files and temporaries in ``folder`` and in its hidden branch folders."""
+    return sorted(p.name for p in folder.rglob(".*") if p.name.endswith((".lock", ".tmp")))
+
+
+@contextlib.contextmanager
+def disk_full_after(writes: int):
+    """``os.write`` to a temporary file of a save (``.<name>.XXXXXXXX.tmp``) fails with ENOSPC
+    from the ``writes + 1``-th such call on, as on a full disk; other writes go through."""
+    real, count = os.write, [0]
+
+    def write(fd, data):
+        try:
+            name = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            name = ""
+        if name.endswith(".tmp"):
+            count[0] += 1
+            if count[0] > writes:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(fd, data)
+
+    if not os.path.isdir("/proc/self/fd"):
+        pytest.skip("needs /proc/self/fd to tell a save's writes from others")
+    os.write = write
+    try:
+        yield
+    finally:
+        os.write = real
+
+
+def _run_in_process(toml, out):
+    """``elastica-auto run TOML --out OUT -j 1 -q`` in this process (CliRunner)."""
+    from click.testing import CliRunner
+
+    from elastica_auto.cli import main
+    handler = signal.getsignal(signal.SIGTERM)      # `run` sets its own
+    try:
+        result = CliRunner().invoke(main, ["run", str(toml), "--out", str(out), "-j", "1",
+                                           "-q"])
+    finally:
+        signal.signal(signal.SIGTERM, handler)
+    return subprocess.CompletedProcess(["run"], result.exit_code, result.stdout, result.stderr)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["new output", "rerun over a file"])
+def test_a_full_disk_during_a_run_is_one_line_with_status_5(tmp_path, earlier):
+    """Hostile H2: the disk fills up while a run saves its second branch (os.write raising
+    ENOSPC; the report's tmpfs segfaulted in h5py's File.close, exit 139, and a rerun over a
+    complete file ended in an h5py traceback, exit 1). Now: one line, exit 5, no lock or
+    temporary left; a new output holds the first branch, an earlier complete file is as it
+    was."""
+    toml, out = tmp_path / "small.toml", tmp_path / "out"
+    toml.write_text(SMALL)
+    path = out / "small.h5"
+    if earlier:
+        assert _run_in_process(toml, out).returncode == 0
+        before = path.read_bytes()
+    with disk_full_after(1):              # the first branch's file, not the file linking it
+        proc = _run_in_process(toml, out)
+    err = one_line_write_error(proc, "cannot write (No space left on device)")
+    assert leftovers(out) == []
+    if earlier:
+        assert path.read_bytes() == before
+        assert f"no branch saved; the earlier {path} is unchanged" in err
+    else:
+        assert err.endswith("no branch saved") and not path.exists()
+    with disk_full_after(2):              # the first branch saved (its file, then the link)
+        proc = _run_in_process(toml, out)
+    err = one_line_write_error(proc, "cannot write (No space left on device)")
+    assert leftovers(out) == []
+    if earlier:
+        assert path.read_bytes() == before
+        assert len(BranchFile(out / "small.partial.h5").branches) == 1
+    else:
+        assert f"{path} holds the 1 branch saved before it" in err
+        assert len(BranchFile(path).branches) == 1
+    assert _run_in_process(toml, out).returncode == 0      # room again: a whole file
+    assert sorted(p.name for p in out.iterdir()) == ["small.h5"]
+    assert len(BranchFile(path).branches) == 2
+
+
+def _file_size_limit(limit: int):
+    """For a subprocess: files at most ``limit`` bytes; a write beyond fails with EFBIG
+    (SIGXFSZ ignored, as Python does, so that the write returns the error)."""
+    def set_limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return set_limit
+
+
+def test_a_file_size_limit_during_a_run_is_one_line_with_status_5(good_file, tmp_path, cli_exe):
+    """Hostile L7: ``ulimit -f`` (EFBIG) during a run gave a traceback and exit 1. Now: one
+    line, exit 5, no lock or temporary left, an earlier complete file unchanged."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(good_file, out / "small.h5")
+    before = (out / "small.h5").read_bytes()
+    (tmp_path / "small.toml").write_text(SMALL)
+    # below the size of a branch's file: the run's first save fails
+    proc = subprocess.run([cli_exe, "run", str(tmp_path / "small.toml"), "--out", str(out),
+                           "-q", "-j", "1"], capture_output=True, text=True, timeout=300,
+                          preexec_fn=_file_size_limit(8192))
+    one_line_write_error(proc, "cannot write (File too large)", "is unchanged")
+    assert (out / "small.h5").read_bytes() == before
+    assert leftovers(out) == [] and sorted(p.name for p in out.iterdir()) == ["small.h5"]

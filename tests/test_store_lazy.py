@@ -69,7 +69,7 @@ def _eager(path, key: str) -> dict[str, np.ndarray]:
         for name, ds in f[f"branches/{key}/columns"].items():
             data = ds[()]
             out[name] = (np.array([x.decode() for x in data], dtype=object)
-                         if ds.dtype.kind == "O" else data)
+                         if ds.dtype.kind in "OS" else data)   # strings: format 3 / 1, 2
         return out | {"profiles": f[f"branches/{key}/profiles"][()]}
 
 
@@ -207,9 +207,10 @@ def _shorten(f):
 @pytest.mark.parametrize("edit", [_delete, _shorten])
 def test_a_read_of_a_file_damaged_in_place_raises_one_line(copy, edit):
     # room at the end (HDF5 ignores bytes past its end of file): an edit may need a few
-    # hundred bytes more, new object headers, and the file must keep its size
+    # hundred bytes more, new object headers, and the file must keep its size; the datasets
+    # it writes anew are not compressed, as the file's are: up to the file's size more
     with open(copy, "ab") as fh:
-        fh.write(bytes(4096))
+        fh.write(bytes(copy.stat().st_size + 4096))
     bf = BranchFile(copy)
     b = bf.branches[0]
     _in_place(copy, edit)
@@ -290,14 +291,14 @@ def test_a_file_of_format_1_still_reads(tmp_path):
     assert again.points[0].params["lam"] == bf.label("UZ1").state.params["lam"]
 
 
-def test_a_file_of_format_2_packs_its_solutions(bratu_file):
-    """A few datasets per branch, whatever its number of labels; each label reads back as
-    the continuation computed it (`Branches.label`, in memory), bit for bit."""
+def test_a_file_packs_its_solutions(bratu_file):
+    """A few datasets per branch, whatever its number of labels (formats 2 and 3); each label
+    reads back as the continuation computed it (`Branches.label`, in memory), bit for bit."""
     problem = ea.load_problem(str(BRATU))
     branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
                                directions="both", ds=0.05, ds_max=0.5, max_points=60)
     bf = BranchFile(bratu_file)
-    assert bf.attrs["format_version"] == 2 and len(bf.labels) > 4
+    assert bf.attrs["format_version"] == ea.FORMAT_VERSION == 3 and len(bf.labels) > 4
     with h5py.File(bratu_file, "r") as f:
         for key in f["branches"]:
             sols = f[f"branches/{key}/solutions"]
@@ -316,9 +317,11 @@ def test_a_file_of_format_2_packs_its_solutions(bratu_file):
 
 def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
     """`store._put` (a branch's numeric datasets, made by h5py's low-level calls): each
-    dataset has the type, shape, values and layout of the one h5py's ``g[name] = data``
-    makes, empty and non-contiguous arrays included."""
-    from elastica_auto.storage.store import _put
+    dataset has the type, shape, values, layout and filters of the one h5py's
+    ``create_dataset`` makes with the same chunks, shuffle, gzip at DEFLATE_LEVEL and
+    Fletcher32 (an empty one: contiguous, no filters), empty and non-contiguous arrays
+    included."""
+    from elastica_auto.storage.store import DEFLATE_LEVEL, _put
     arrays = {"f": np.linspace(0, 1, 7), "i32": np.arange(5, dtype=np.int32),
               "i64": np.arange(3, dtype=np.int64), "empty": np.zeros(0),
               "empty2": np.zeros((4, 0)), "nan": np.array([np.nan, 1.0]),
@@ -326,12 +329,18 @@ def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
               "transposed": np.arange(12.0).reshape(3, 4).T}
     with h5py.File(tmp_path / "x.h5", "w") as f:
         for name, data in arrays.items():
-            f[f"high/{name}"] = data
             _put(f.require_group("low"), name, data)
+            filters = ({"chunks": f[f"low/{name}"].chunks, "shuffle": True, "compression": "gzip",
+                        "compression_opts": DEFLATE_LEVEL, "fletcher32": True} if data.size
+                       else {})
+            f.create_dataset(f"high/{name}", data=data, **filters)
     with h5py.File(tmp_path / "x.h5", "r") as f:
         for name, data in arrays.items():
             high, low = f[f"high/{name}"], f[f"low/{name}"]
             assert (low.dtype, low.shape, low.chunks) == (high.dtype, high.shape, high.chunks)
             assert low.id.get_create_plist().get_layout() == high.id.get_create_plist().get_layout()
+            assert (low.compression, low.compression_opts, low.shuffle, low.fletcher32) == \
+                (high.compression, high.compression_opts, high.shuffle, high.fletcher32)
+            assert low.fletcher32 == bool(data.size)
             np.testing.assert_array_equal(low[()], data)
             np.testing.assert_array_equal(low[()], high[()])

@@ -546,7 +546,8 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     from .cluster import Background
     with Interruptions() as signals:
         pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS)
-        try:
+        interrupted = True      # until the branches are in: an exception (a save that
+        try:                    # failed, WriteError) ends the background cluster at once
             interrupted = pool.run(first, result.branches, save, progress, on_branch,
                                    signals.stop)
             if not interrupted and plan.switch_count:
