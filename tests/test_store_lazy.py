@@ -264,6 +264,9 @@ def test_a_run_file_opens_each_restart_file_once(bratu_file, tmp_path, monkeypat
 #: Written by the format-1 writer (commit 040d308, a group of six datasets per label): two Bratu
 #: branches, lam from 0 both ways (12 and 6 points; EP1, UZ1, UZ2, EP2, EP3, EP4).
 FORMAT1 = Path(__file__).parent / "data" / "bratu_format1.h5"
+#: Written by the code of format 2 (commit aff23cb): the same Bratu continuation, its labels
+#: packed, its datasets contiguous and unfiltered, its strings of variable length.
+FORMAT2 = Path(__file__).parent / "data" / "bratu_format2.h5"
 
 
 def test_a_file_of_format_1_still_reads(tmp_path):
@@ -289,6 +292,33 @@ def test_a_file_of_format_1_still_reads(tmp_path):
     problem = ea.load_problem(str(BRATU))
     (again,) = ea.continuation(problem, bf.label("UZ1"), "lam", bounds=(-1, 4), max_points=5)
     assert again.points[0].params["lam"] == bf.label("UZ1").state.params["lam"]
+
+
+def test_a_file_of_format_2_still_reads(tmp_path):
+    """Issue 45 item 7: format 3 compresses and checksums its datasets; a file of format 2
+    (no filters, variable-length strings) reads as h5py reads it, and a run restarts from
+    one of its labels, the stored solution checked as any."""
+    bf = BranchFile(FORMAT2)
+    assert bf.attrs["format_version"] == 2 and [len(b) for b in bf.branches] == [12, 8]
+    assert sorted(bf.labels) == ["EP1", "EP2", "EP3", "EP4", "UZ1", "UZ2"]
+    with h5py.File(FORMAT2, "r") as f:
+        assert not f["branches/001/columns/lam"].fletcher32
+        assert f["branches/001/columns/type"].dtype.kind == "O"
+        for b in bf.branches:
+            key = f"branches/{b.number:03d}"
+            np.testing.assert_array_equal(b.profiles, f[f"{key}/profiles"][()])
+            assert list(b.columns["type"]) == [x.decode() for x in f[f"{key}/columns/type"][()]]
+            np.testing.assert_array_equal(b.columns["lam"], f[f"{key}/columns/lam"][()])
+        for name, (br, pt) in bf.labels.items():
+            g = f[f"branches/{br:03d}/solutions"]
+            k = [x.decode() for x in g["label"][()]].index(name)
+            a, z = g["nodes"][k:k + 2]
+            label = bf.label(name)
+            np.testing.assert_array_equal(label.state.y, g["y"][:, a:z])
+            assert label.state.params == json.loads(g["params"][k])
+    problem = ea.load_problem(str(BRATU))
+    (again,) = ea.continuation(problem, bf.label("UZ2"), "lam", bounds=(-1, 4), max_points=5)
+    assert again.points[0].params["lam"] == bf.label("UZ2").state.params["lam"] == 2.0
 
 
 def test_a_file_packs_its_solutions(bratu_file):
@@ -344,3 +374,21 @@ def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
             assert low.fletcher32 == bool(data.size)
             np.testing.assert_array_equal(low[()], data)
             np.testing.assert_array_equal(low[()], high[()])
+
+
+def test_every_dataset_is_compressed_and_checksummed(good_file):
+    """Format 3 (hostile M5 a, issue 45 item 7): every dataset with data, the tables' too,
+    is stored in chunks through shuffle, gzip and Fletcher32; strings are of fixed length
+    (a variable-length string lives in a heap no checksum covers)."""
+    seen = []
+    with h5py.File(good_file, "r") as f:
+        assert f.attrs["format_version"] == 3 and "snaps" in f
+
+        def check(name, obj):
+            if isinstance(obj, h5py.Dataset) and obj.size:
+                seen.append(name)
+                assert (obj.shuffle, obj.compression, obj.fletcher32) == (True, "gzip", True), \
+                    name
+                assert obj.dtype.kind != "O", name
+        f.visititems(check)
+    assert any(n.startswith("snaps/") for n in seen) and "profile_grid" in seen
