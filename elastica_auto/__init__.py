@@ -30,7 +30,7 @@ _PUBLIC = {
     "BranchFile": "storage.store", "Branch": "branches.branch",
     "StoredLabel": "branches.branch",
     "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",
-    "RunFileError": "core.errors", "StartError": "core.errors",
+    "RunFileError": "core.errors", "StartError": "core.errors", "WriteError": "core.errors",
     "view": "plots.viewer",
 }
 

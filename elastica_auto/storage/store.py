@@ -204,7 +204,7 @@ def _clear_stale_locks(folder: Path):
 WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EIO})
 
 
-def cannot_write(path: Path, exc: OSError) -> WriteError | StoreError:
+def _cannot_write(path: Path, exc: OSError) -> WriteError | StoreError:
     """The one-line error of the failed write of ``path``: WriteError for `WRITE_ERRNOS`,
     else StoreError."""
     text = f"{path}: cannot write ({exc.strerror or exc})"
@@ -267,7 +267,7 @@ def write_h5(out: Path, build, stage: str = "") -> Path:
     try:
         _write_bytes(out, data, stage)
     except OSError as exc:
-        raise cannot_write(out, exc) from exc
+        raise _cannot_write(out, exc) from exc
     return out
 
 
@@ -373,7 +373,7 @@ class Writer:
         try:
             folder.mkdir(exist_ok=True)
         except OSError as exc:
-            raise cannot_write(folder, exc) from exc
+            raise _cannot_write(folder, exc) from exc
         try:
             with h5py.File(kept.path, "r") as f:
                 for b in kept.branches[:count]:
@@ -401,7 +401,7 @@ class Writer:
             try:
                 folder.mkdir(exist_ok=True)
             except OSError as exc:
-                raise cannot_write(folder, exc) from exc
+                raise _cannot_write(folder, exc) from exc
             for k in range(self.written + 1, self.kept + len(branches) + 1):
                 br = branches[k - self.kept - 1]
                 new.append(write_h5(
@@ -460,7 +460,7 @@ class Writer:
             with Interruptions():
                 _whole(self.path)
         except OSError as exc:
-            raise self._failed(cannot_write(self.path, exc)) from exc
+            raise self._failed(_cannot_write(self.path, exc)) from exc
         except (WriteError, StoreError) as exc:
             raise self._failed(exc) from exc
         if self.path != self.target:
@@ -516,7 +516,7 @@ def _whole(path: Path):
             try:
                 _write_bytes(path, data, "whole")
             except OSError as exc:
-                raise cannot_write(path, exc) from exc
+                raise _cannot_write(path, exc) from exc
     shutil.rmtree(folder)
 
 
@@ -600,8 +600,9 @@ _STR_COLUMNS = ("type", "note", "transition")
 #: mantissa bytes of neighbouring values are alike, and compress), deflate (gzip) at level
 #: DEFLATE_LEVEL, and Fletcher32: a checksum of each chunk as stored, which HDF5 checks on
 #: every read and `BranchFile` checks for every chunk on opening (`_checksum_failure`).
-#: Measured on rotating_arm_3d (docs/hdf5.md#compression): level 4 makes a file 1% smaller
-#: in 20% more time; lzf (faster, not in every HDF5) one 5% larger.
+#: Measured (docs/hdf5.md#compression): level 4 makes rotating_arm_3d's file 1% smaller in
+#: 20% more time; lzf (faster to read, but h5py's own: other HDF5 readers lack it) makes
+#: rotating_arm's 22% larger.
 DEFLATE_LEVEL = 1
 #: The size of a chunk before compression, at most: a read decompresses the whole chunks it
 #: touches, and HDF5 keeps those of at most 1 MiB in its cache. Whole datasets are read but
@@ -1307,7 +1308,7 @@ def write_atomically(out: Path, write, stage: str = "") -> Path:
             Path(tmp).unlink(missing_ok=True)
             raise
     except OSError as exc:
-        raise cannot_write(out, exc) from exc
+        raise _cannot_write(out, exc) from exc
     return out
 
 
