@@ -16,7 +16,7 @@ line's ``--version``) does not import numpy and scipy.
 import sys
 
 __version__ = "0.2.0"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 #: Public name -> the module that defines it.
 _PUBLIC = {
@@ -32,7 +32,7 @@ _PUBLIC = {
     "BranchFile": "storage.store", "Branch": "branches.branch",
     "StoredLabel": "branches.branch",
     "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",
-    "RunFileError": "core.errors", "StartError": "core.errors",
+    "RunFileError": "core.errors", "StartError": "core.errors", "WriteError": "core.errors",
     "view": "plots.viewer",
 }
 

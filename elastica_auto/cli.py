@@ -1,12 +1,16 @@
 """The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view, path, derive.
 
-User errors (a bad run file, a missing or foreign branch file) print one line and exit with
-status 2, without a traceback. A run in which a branch ended with MX exits with status 1; an
-interrupted run saves what it computed and exits with status 130.
+User errors (a bad run file, a missing, foreign or damaged branch file, a path too long for
+the file system) print one line and exit with status 2, without a traceback. A run in which
+a branch ended with MX exits with status 1; an interrupted run saves what it computed and
+exits with status 130. A file that cannot be written once a command is under way (the disk
+full, a read-only file system, a file-size limit) ends any command with one line and status
+5, no file half-written.
 """
 
 from __future__ import annotations
 
+import errno
 import importlib.resources
 import json
 import os
@@ -50,15 +54,24 @@ def resolve_run(name_or_path: str) -> Path:
 
 
 class _Commands(click.Group):
-    """The command group: an exception that escapes a command is an internal error (a bug):
-    one line saying so and its traceback, exit status 4 (`_internal`), not Python's report
-    with status 1, which reads as a failed branch."""
+    """The command group. What any command may meet ends it with one line: a write that
+    fails (`WriteError`) with status 5, a name longer than the file system allows
+    (ENAMETOOLONG, from any path argument or option) as a user error; and an exception that
+    escapes a command is an internal error (a bug): one line saying so and its traceback,
+    exit status 4 (`_internal`), not Python's report with status 1, which reads as a failed
+    branch."""
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort, KeyboardInterrupt):
             raise
+        except WriteError as exc:
+            _fail(str(exc), EXIT_WRITE)
+        except OSError as exc:
+            if exc.errno != errno.ENAMETOOLONG:
+                _internal(exc, ctx.invoked_subcommand or "elastica-auto")
+            _fail(f"{exc.filename or 'a path'}: {exc.strerror}")
         except Exception as exc:
             _internal(exc, ctx.invoked_subcommand or "elastica-auto")
 
@@ -296,10 +309,10 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
-def _open(path):
+def _open(path, rows: bool = False):
     from .storage.store import BranchFile
     try:
-        return BranchFile(path)
+        return BranchFile(path, rows=rows)
     except StoreError as exc:
         _fail(str(exc))
 
@@ -313,12 +326,16 @@ def show(file, all_points, tracebacks):
     """Print an AUTO-like table of the labelled points of FILE.h5, then the branches that
     ended MX or have warnings, and what the run could not make."""
     from .storage.store import rows
-    bf = _open(file)
+    bf = _open(file, rows=True)   # read in one opening: a run may replace the file meanwhile
     cols = bf.parameters + bf.ordinates
     head = f"{'BR':>3} {'PT':>5} {'TY':>2} {'LAB':>6} " + " ".join(f"{c:>14}" for c in cols) \
         + f" {'index':>5} {'rule':>4} {'direct':>6}"
+    try:
+        table = list(rows(bf, labelled_only=not all_points))
+    except StoreError as exc:   # read on opening already: only a lazy read could fail
+        _fail(str(exc))
     click.echo(head)
-    for r in rows(bf, labelled_only=not all_points):
+    for r in table:
         click.echo(f"{r['branch']:>3} {r['pt']:>5} {r['type']:>2} {r['label']:>6} "
                    + " ".join(f"{r[c]:>14.7g}" for c in cols)
                    + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
@@ -392,7 +409,7 @@ def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
     from .storage.outputs import check_output
     from .storage.store import export_csv
-    bf = _open(file)
+    bf = _open(file, rows=True)
     try:
         path = export_csv(bf, check_output(output, bf.path, "the CSV", "exported"))
     except StoreError as exc:

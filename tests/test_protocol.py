@@ -197,3 +197,21 @@ def test_protocol_mistakes_are_named_on_load(tmp_path, text, words):
     with pytest.raises(ea.ProblemError, match=words.replace("(", r"\(").replace(")", r"\)")
                        .replace("[", r"\[").replace("]", r"\]")):
         ea.load_problem(str(path))
+
+
+@pytest.mark.parametrize("text, words", [
+    ('PARAMETERS = [Parameter("lam", 2.0, "lam", "ode"), Parameter("a\\x00b", 1.0, "q", "ode")]\n',
+     "parameter name 'a\\x00b' cannot name a column"),
+    ('ORDINATES = [Ordinate("d\\x00u0", "du0", lambda s, y, p: y[1, 0], "lam")]\n',
+     "ordinate name 'd\\x00u0' cannot name a column"),
+    ('STATES = ("u", "v\\x00w")\n', "state name 'v\\x00w' contains a NUL"),
+])
+def test_a_nul_in_a_name_is_refused_on_load(tmp_path, text, words):
+    """Hostile L1: a NUL in a parameter, ordinate or state name is refused when the module is
+    loaded (HDF5 names and strings end at a NUL: the branch was lost at its save, or the
+    file read back as damaged), with the other names a branch file cannot hold."""
+    path = tmp_path / "nul.py"
+    path.write_text(GUESSING + text)
+    with pytest.raises(ea.ProblemError) as info:
+        ea.load_problem(str(path))
+    assert words in str(info.value), str(info.value)

@@ -3,6 +3,7 @@ parameter values or at changed ones."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -421,3 +422,150 @@ def test_restart_from_a_fold_at_changed_values_from_the_command_line(small_cli_r
             assert len(proc.stderr.strip().splitlines()) == 1
             assert f"psi = {value:.12g} not reached" in proc.stderr
             assert f"turns back at psi = {psi[pt - 1]:.12g} (a fold)" in proc.stderr
+
+
+# ---- a stored solution is checked before it becomes a start (hostile M5) -----------------------
+
+def _shifted(src, dst, label, state, shift):
+    """A copy ``dst`` of the branch file ``src`` whose stored solution of ``label`` has
+    ``shift`` added to the state ``state`` (row of y), rewritten by h5py as the report
+    edited it."""
+    import shutil
+
+    import h5py
+    shutil.copy(src, dst)
+    with h5py.File(dst, "r+") as f:
+        br, _ = json.loads(f.attrs["labels"])[label]
+        g = f[f"branches/{br:03d}/solutions"]
+        k = [x.decode() for x in g["label"][()]].index(label)
+        n = g["nodes"][()]
+        y = g["y"][()]
+        y[state, n[k]:n[k + 1]] += shift
+        g["y"][...] = y
+    return dst
+
+
+def test_a_restart_from_an_edited_solution_is_refused(small_cli_run, cli_exe, tmp_path):
+    """Hostile M5 (b): the report's edit, kappa of a stored solution shifted by 0.3, became
+    the new branch's first point (EP1 with m1 = 0.8638875, not a solution). The stored
+    solution is solved again at its own parameters first: it moves, and the restart is a
+    user error naming the label. The same file rewritten without a shift restarts."""
+    out, h5, _ = small_cli_run
+    toml = _restart_toml(tmp_path / "restart.toml", "edited.h5:UZ2")
+    _shifted(h5, out / "edited.h5", "UZ2", 1, 0.3)
+    proc = run_cli(cli_exe, "run", toml, "--out", out, "-j", "1")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and "edited.h5:UZ2: the stored solution of UZ2 does not solve the " \
+        "problem: solved again, it moves by" in err[0] and "most in kappa" in err[0], err
+    assert not (out / "restart.h5").exists()
+    _shifted(h5, out / "edited.h5", "UZ2", 1, 0.0)       # the same edit, shifting nothing
+    assert run_cli(cli_exe, "run", toml, "--out", out, "-j", "1").returncode == 0
+
+
+def test_check_stored_passes_every_label_of_a_run_and_refuses_a_moved_one(small_cli_run,
+                                                                        elastica):
+    """Every label a run stored (EP, UZ, LP, with or without a tangent) solves its problem
+    again in place; a solution moved by 1e-3 (100 times the tolerance) does not."""
+    from elastica_auto.branches import restart
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State
+    _, h5, _ = small_cli_run
+    bf = BranchFile(h5)
+    options = ContinuationOptions()
+    kinds = set()
+    for name in bf.labels:
+        label = bf.label(name)
+        restart.check_stored(elastica, label, "psi", options, name)
+        kinds.add((name[:2], label.tangent is not None))
+    assert {"EP", "UZ", "LP"} <= {k for k, _ in kinds}
+    label = bf.label(next(n for n in bf.labels if n.startswith("UZ")))
+    s = label.state
+    moved = State(s.s, s.y + 1e-3 * (1 + np.abs(s.y)), s.yp, s.params)
+    with pytest.raises(StartError, match="does not solve the problem"):
+        restart.check_stored(elastica, dataclasses.replace(label, state=moved), "psi", options,
+                             label.name)
+
+
+# ---- free parameters matched by name (issue 45 item 4) -----------------------------------------
+
+TWO_FREE = '''
+"""u'' = -lam exp(u) + a + b s on [0, 1] with u(0) = u(1) = 0, u'(0) = c, u'(1) = d: four
+conditions for two states, so the loads a and b are solved for (FREE)."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode"), Parameter("a", 0.0, "a", "ode"),
+              Parameter("b", 0.0, "b", "ode"), Parameter("c", 1.0, "c", "fixed"),
+              Parameter("d", 0.0, "d", "free")]
+FREE = ("a", "b")
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.exp(y[0]) + p["a"] + p["b"] * s))
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0], ya[1] - p["c"], yb[1] - p["d"]))
+def exact_start(s, p):
+    if p["lam"] != 0:
+        return None
+    # u = c s + a s^2 / 2 + b s^3 / 6 with u(1) = 0 and u'(1) = d
+    b = 6 * (p["d"] + p["c"])
+    a = -2 * p["c"] - b / 3
+    return np.vstack((p["c"] * s + a * s ** 2 / 2 + b * s ** 3 / 6,
+                      p["c"] + a * s + b * s ** 2 / 2))
+ORDINATES = [Ordinate("u_half", "u(1/2)", lambda s, y, p: float(np.interp(0.5, s, y[0])),
+                      "lam")]
+'''
+
+
+def _two_free_toml(path, module, free, start=None):
+    """lam continued from 0 (or from the label ``start``, at its values) to 0.5, a user point
+    at 0.3, the parameters ``free`` solved for."""
+    path.write_text((f'start = "{start}"\n' if start else "")
+                    + f'equation = "{module}"\n' + ("" if start else "[parameters]\nlam = 0\n")
+                    + f'[continuation]\nparameter = "lam"\ndirections = "+"\nbounds = [0, 0.5]\n'
+                    f'uz = [0.3]\nfree = {json.dumps(free)}\n')
+    return path
+
+
+def test_a_restart_with_the_free_list_reordered_takes_each_by_name(tmp_path, cli_exe):
+    """Issue 45 item 4: a restart whose run lists its free parameters in another order
+    started each at the other's stored value (they are states of the solution, in the
+    order of the run that found it), with no error. Each now starts at its own stored value,
+    as h5py reads it from the file, and the branch is continued from there."""
+    import h5py
+    module = tmp_path / "two_free.py"
+    module.write_text(TWO_FREE)
+    first = _two_free_toml(tmp_path / "first.toml", module, ["a", "b"])
+    assert run_cli(cli_exe, "run", first, "--out", tmp_path, "-j", "1").returncode == 0
+    with h5py.File(tmp_path / "first.h5", "r") as f:       # the stored label, read by h5py
+        br, pt = json.loads(f.attrs["labels"])["UZ1"]
+        g = f[f"branches/{br:03d}/solutions"]
+        k = [x.decode() for x in g["label"][()]].index("UZ1")
+        stored = json.loads(g["params"][k].decode())
+    assert stored["a"] != stored["b"] and stored["lam"] == 0.3
+    second = _two_free_toml(tmp_path / "second.toml", module, ["b", "a"], "first.h5:UZ1")
+    proc = run_cli(cli_exe, "run", second, "--out", tmp_path, "-j", "1")
+    assert proc.returncode == 0, proc.stderr
+    with h5py.File(tmp_path / "second.h5", "r") as f:
+        cols = f["branches/001/columns"]
+        start = {q: float(cols[q][0]) for q in ("lam", "a", "b")}
+        assert f["branches/001"].attrs["end"] == "EP" and cols["lam"][-1] == 0.5
+    assert start == {q: stored[q] for q in ("lam", "a", "b")}
+
+
+def test_a_restart_without_a_value_for_a_free_parameter_is_a_user_error(tmp_path, cli_exe):
+    """Issue 45 item 4: a free parameter of the restart that the label has no stored value
+    for cannot be matched: a user error naming it (PlanError, one line on the command line)."""
+    from elastica_auto.core.solution import State
+    module = tmp_path / "two_free.py"
+    module.write_text(TWO_FREE)
+    first = _two_free_toml(tmp_path / "first.toml", module, ["a", "b"])
+    assert run_cli(cli_exe, "run", first, "--out", tmp_path, "-j", "1").returncode == 0
+    label = BranchFile(tmp_path / "first.h5").label("UZ1")
+    keep = [i for i, name in enumerate(label.states) if name != "free:b"]
+    s = label.state
+    lost = dataclasses.replace(
+        label, states=tuple(label.states[i] for i in keep),
+        state=State(s.s, s.y[keep], s.yp[keep], {k: v for k, v in s.params.items() if k != "b"}))
+    problem = ea.load_problem(str(module))
+    with pytest.raises(ea.PlanError, match="UZ1: no stored value for the free parameter 'b'"):
+        ea.continuation(problem, lost, "lam", bounds=(0, 0.5), free=["b", "a"])

@@ -11,11 +11,14 @@ one line by every command that reads it.
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import json
 import os
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -24,6 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
+from elastica_auto.core.errors import EXIT_WRITE
 from elastica_auto.storage.store import BranchFile
 from helpers import run_cli, signalling_elastica, wait_for
 from test_robustness import IN_BRANCH_2, LONG_MINE, SMALL, one_line_error
@@ -71,7 +75,7 @@ def test_a_failed_export_leaves_the_old_csv_and_no_partial_one(good_file, tmp_pa
 
     proc = subprocess.run([cli_exe, "export", str(good_file), "-o", str(csv)],
                           capture_output=True, text=True, timeout=300, preexec_fn=small_files)
-    one_line_error(proc, "small.csv", "cannot write")
+    one_line_write_error(proc, "small.csv", "cannot write (File too large)")
     assert csv.read_text() == "old\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.csv"]
 
@@ -437,3 +441,330 @@ def test_a_run_killed_at_any_stage_of_a_save_leaves_a_whole_file(tmp_path, whole
                    "-j", "1").returncode == 0
     assert sorted(p.name for p in out.iterdir()) == ["small.h5"]
     assert len(BranchFile(path).branches) == 2
+
+
+# -- 9. writes that fail once a command is under way -----------------------------------------------
+
+def one_line_write_error(proc, *needles):
+    """A write that failed under way: one line, exit status 5 (EXIT_WRITE), no traceback; the
+    line ends what the command wrote to stderr (a run's header line comes before it)."""
+    assert proc.returncode == EXIT_WRITE, (proc.returncode, proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    errors = [line for line in lines if line.startswith("elastica-auto: error: ")]
+    assert errors == lines[-1:], proc.stderr
+    err = errors[0]
+    for n in needles:
+        assert n in err, (n, err)
+    return err
+
+
+def leftovers(folder):
+    """Lock files and temporaries in ``folder`` and in its hidden branch folders."""
+    return sorted(p.name for p in folder.rglob(".*") if p.name.endswith((".lock", ".tmp")))
+
+
+@contextlib.contextmanager
+def disk_full_after(writes: int):
+    """``os.write`` to a temporary file of a save (``.<name>.XXXXXXXX.tmp``) fails with ENOSPC
+    from the ``writes + 1``-th such call on, as on a full disk; other writes go through."""
+    real, count = os.write, [0]
+
+    def write(fd, data):
+        try:
+            name = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            name = ""
+        if name.endswith(".tmp"):
+            count[0] += 1
+            if count[0] > writes:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(fd, data)
+
+    if not os.path.isdir("/proc/self/fd"):
+        pytest.skip("needs /proc/self/fd to tell a save's writes from others")
+    os.write = write
+    try:
+        yield
+    finally:
+        os.write = real
+
+
+def _run_in_process(toml, out):
+    """``elastica-auto run TOML --out OUT -j 1 -q`` in this process (CliRunner)."""
+    from click.testing import CliRunner
+
+    from elastica_auto.cli import main
+    handler = signal.getsignal(signal.SIGTERM)      # `run` sets its own
+    try:
+        result = CliRunner().invoke(main, ["run", str(toml), "--out", str(out), "-j", "1",
+                                           "-q"])
+    finally:
+        signal.signal(signal.SIGTERM, handler)
+    return subprocess.CompletedProcess(["run"], result.exit_code, result.stdout, result.stderr)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["new output", "rerun over a file"])
+def test_a_full_disk_during_a_run_is_one_line_with_status_5(tmp_path, earlier):
+    """Hostile H2: the disk fills up while a run saves its second branch (os.write raising
+    ENOSPC; the report's tmpfs segfaulted in h5py's File.close, exit 139, and a rerun over a
+    complete file ended in an h5py traceback, exit 1). Now: one line, exit 5, no lock or
+    temporary left; a new output holds the first branch, an earlier complete file is as it
+    was."""
+    toml, out = tmp_path / "small.toml", tmp_path / "out"
+    toml.write_text(SMALL)
+    path = out / "small.h5"
+    if earlier:
+        assert _run_in_process(toml, out).returncode == 0
+        before = path.read_bytes()
+    with disk_full_after(1):              # the first branch's file, not the file linking it
+        proc = _run_in_process(toml, out)
+    err = one_line_write_error(proc, "cannot write (No space left on device)")
+    assert leftovers(out) == []
+    if earlier:
+        assert path.read_bytes() == before
+        assert f"no branch saved; the earlier {path} is unchanged" in err
+    else:
+        assert err.endswith("no branch saved") and not path.exists()
+    with disk_full_after(2):              # the first branch saved (its file, then the link)
+        proc = _run_in_process(toml, out)
+    err = one_line_write_error(proc, "cannot write (No space left on device)")
+    assert leftovers(out) == []
+    if earlier:
+        assert path.read_bytes() == before
+        assert len(BranchFile(out / "small.partial.h5").branches) == 1
+    else:
+        assert f"{path} holds the 1 branch saved before it" in err
+        assert len(BranchFile(path).branches) == 1
+    assert _run_in_process(toml, out).returncode == 0      # room again: a whole file
+    assert sorted(p.name for p in out.iterdir()) == ["small.h5"]
+    assert len(BranchFile(path).branches) == 2
+
+
+def _file_size_limit(limit: int):
+    """For a subprocess: files at most ``limit`` bytes; a write beyond fails with EFBIG
+    (SIGXFSZ ignored, as Python does, so that the write returns the error)."""
+    def set_limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return set_limit
+
+
+def test_a_file_size_limit_during_a_run_is_one_line_with_status_5(good_file, tmp_path, cli_exe):
+    """Hostile L7: ``ulimit -f`` (EFBIG) during a run gave a traceback and exit 1. Now: one
+    line, exit 5, no lock or temporary left, an earlier complete file unchanged."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(good_file, out / "small.h5")
+    before = (out / "small.h5").read_bytes()
+    (tmp_path / "small.toml").write_text(SMALL)
+    # below the size of a branch's file: the run's first save fails
+    proc = subprocess.run([cli_exe, "run", str(tmp_path / "small.toml"), "--out", str(out),
+                           "-q", "-j", "1"], capture_output=True, text=True, timeout=300,
+                          preexec_fn=_file_size_limit(8192))
+    one_line_write_error(proc, "cannot write (File too large)", "is unchanged")
+    assert (out / "small.h5").read_bytes() == before
+    assert leftovers(out) == [] and sorted(p.name for p in out.iterdir()) == ["small.h5"]
+
+
+# -- 10. damaged bytes; an empty branch; a file without its folder -------------------------------
+
+def _reading_commands(bad, tmp_path):
+    """Every command that reads the branch file ``bad``, with its arguments."""
+    return {"show": ["show", bad], "export": ["export", bad, "-o", tmp_path / "bad.csv"],
+            "snaps": ["snaps", bad], "plot": ["plot", bad, "-o", tmp_path / "bad.png"],
+            "view": ["view", bad, "-o", tmp_path / "bad.html"]}
+
+
+def _each_one_line(cli_exe, commands, *needles):
+    """Run ``commands`` (name -> arguments) at once; each gives one line, exit 2, with
+    ``needles``."""
+    procs = {cmd: subprocess.Popen([cli_exe, *map(str, args)], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+             for cmd, args in commands.items()}
+    for cmd, proc in procs.items():
+        out, err = proc.communicate(timeout=300)
+        try:
+            one_line_error(subprocess.CompletedProcess(commands[cmd], proc.returncode, out,
+                                                       err), *needles)
+        except AssertionError as exc:
+            raise AssertionError(f"{cmd}: {exc}") from None
+
+
+def test_damaged_bytes_are_a_checksum_mismatch_everywhere(good_file, tmp_path, cli_exe):
+    """Hostile M5 (a): random bytes written over branch 1's stored solutions (the report's 4 kB;
+    here as many as the first chunk of its ``y`` holds, to hit data, not metadata). Every
+    reader names the dataset (``checksum mismatch in /branches/001/solutions/y``), with one
+    line and exit 2 (``show``, ``plot``, ``export`` and ``view`` exited 0 on such a file),
+    and a restart from one of its labels is refused the same way."""
+    bad = tmp_path / "bad.h5"
+    shutil.copy(good_file, bad)
+    with h5py.File(bad, "r") as f:
+        chunk = f["branches/001/solutions/y"].id.get_chunk_info(0)
+        uz, _ = _first_uz(f)
+    assert chunk.size > 1000
+    with open(bad, "r+b") as fh:
+        fh.seek(chunk.byte_offset)
+        fh.write(np.random.default_rng(46).bytes(min(4096, chunk.size)))
+    commands = _reading_commands(bad, tmp_path)
+    commands["restart"] = ["run", tmp_path / "small.toml", "--from", f"{bad}:{uz}",
+                           "--out", tmp_path / "out"]
+    (tmp_path / "small.toml").write_text(SMALL)
+    _each_one_line(cli_exe, commands, str(bad),
+                   "damaged branch file: checksum mismatch in /branches/001/solutions/y")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.h5", "small.toml"]
+
+
+def _no_points(f):
+    """Branch 002 emptied: every column and its profiles of 0 rows, its labels gone."""
+    g = f["branches/002"]
+    for name in list(g["columns"]):
+        dtype = g["columns"][name].dtype
+        del g["columns"][name]
+        g["columns"].create_dataset(name, shape=(0,), dtype=dtype)
+    shape = g["profiles"].shape
+    del g["profiles"]
+    g.create_dataset("profiles", shape=(0, *shape[1:]), dtype=float)
+    f.attrs["labels"] = json.dumps({k: v for k, v in json.loads(f.attrs["labels"]).items()
+                                    if v[0] != 2})
+
+
+def test_a_branch_without_points_is_damaged_everywhere(good_file, tmp_path, cli_exe):
+    """Hostile L8: a crafted branch of 0 points; ``view`` wrote a blank page (a JavaScript
+    error in the browser) and exited 0. Every branch has its start at least, so every
+    reader calls such a file damaged: one line, exit 2, nothing written."""
+    bad = tmp_path / "bad.h5"
+    shutil.copy(good_file, bad)
+    with h5py.File(bad, "a") as f:
+        _no_points(f)
+    _each_one_line(cli_exe, _reading_commands(bad, tmp_path), str(bad),
+                   "damaged branch file: branch 002 has no points")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.h5"]
+
+
+def test_a_file_copied_without_its_branch_folder_says_where_they_are(tmp_path, cli_exe):
+    """Hostile L13: the file of a run killed while writing it links its branches from the
+    hidden folder ``.<run>.h5.branches`` beside it; copied without it, the readers said
+    ``unreadable branch file (... can't open file)``. Now one line says that the branches
+    are in that folder, which is missing, and that ``--resume`` in the file's folder makes
+    it whole; the file read in its own folder is the same as ever."""
+    import elastica_auto as ea
+    from elastica_auto.execution.run import number_labels
+    from elastica_auto.storage import store
+    from helpers import EXAMPLES
+    problem = ea.load_problem(str(EXAMPLES / "bratu.py"))
+    branches = list(ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1],
+                                    max_points=30))
+    number_labels(branches)
+    out, moved = tmp_path / "out", tmp_path / "moved"
+    moved.mkdir()
+    with store.Writer(out / "b.h5", "b", problem) as writer:
+        writer.save(branches)              # linked, as a killed run leaves its file
+        shutil.copy(out / "b.h5", moved / "b.h5")
+    assert len(BranchFile(out / "b.h5").branches) == len(branches)
+    _each_one_line(cli_exe, _reading_commands(moved / "b.h5", tmp_path),
+                   str(moved / "b.h5"), "hidden folder .b.h5.branches beside it, which is "
+                   "missing", "elastica-auto run b --resume")
+
+
+# -- 11. a file replaced while it is read; names too long; stale locks ---------------------------
+
+def _invoke(*args):
+    """``elastica-auto ARGS`` in this process (CliRunner): (exit status, stdout, stderr)."""
+    from click.testing import CliRunner
+
+    from elastica_auto.cli import main
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    return result.exit_code, result.stdout, result.stderr
+
+
+def test_show_reads_a_file_replaced_while_it_is_read_consistently(good_file, tmp_path,
+                                                                  monkeypatch):
+    """Hostile M4: a run replaced the file (an atomic rename) between ``show``'s opening and
+    its reads of the columns: a StoreError traceback, exit 1. The file is replaced here right
+    after every opening (a hook, not a race): ``show`` and ``export`` read what they print in
+    that one opening, and print the file they opened, as they do unreplaced; ``plot`` and
+    ``view``, which read more later, say in one line that it changed (exit 2)."""
+    from elastica_auto.storage import store
+    path, other = tmp_path / "small.h5", tmp_path / "other.h5"
+    shutil.copy(good_file, path)
+    with h5py.File(good_file, "r") as src, h5py.File(other, "w") as dst:
+        for name in src.attrs:                          # the same layout, other numbers
+            dst.attrs[name] = src.attrs[name]
+        for name in src:
+            src.copy(src[name], dst, name)
+        cols = dst["branches/001/columns"]
+        psi = cols["psi"][()] + 1.0
+        del cols["psi"]
+        cols["psi"] = psi
+    expected = {cmd: _invoke(cmd, path, *extra) for cmd, extra in
+                (("show", ["--all"]), ("export", ["-o", tmp_path / "expected.csv"]))}
+    opened = store.BranchFile.__init__
+
+    def replaced_after_opening(self, *args, **kwargs):
+        opened(self, *args, **kwargs)
+        fresh = tmp_path / ".fresh.h5"
+        shutil.copy(other, fresh)
+        os.replace(fresh, path)                 # as a run renames its new file into place
+
+    monkeypatch.setattr(store.BranchFile, "__init__", replaced_after_opening)
+    shutil.copy(good_file, path)
+    assert _invoke("show", "--all", path) == expected["show"]
+    assert expected["show"][0] == 0 and "Traceback" not in expected["show"][2]
+    shutil.copy(good_file, path)
+    status, out, err = _invoke("export", path, "-o", tmp_path / "got.csv")
+    assert status == 0 and (tmp_path / "got.csv").read_text() == \
+        (tmp_path / "expected.csv").read_text()
+    for args in (["plot", path, "-o", tmp_path / "x.png"],
+                 ["view", path, "-o", tmp_path / "x.html"]):
+        shutil.copy(good_file, path)
+        status, out, err = _invoke(*args)
+        assert status == 2 and len(err.strip().splitlines()) == 1, (args, status, err)
+        assert f"{path}: changed since it was opened" in err
+
+
+LONG = "x" * 300
+
+
+@pytest.mark.parametrize("args", [
+    ["run", LONG], ["show", LONG + ".h5"], ["run", "{toml}", "--from", LONG + ".h5:UZ1"],
+    ["path", LONG + ".py", "--to", "P=3"], ["plot", "{good}", "-o", LONG + ".png"],
+    ["export", "{good}", "-o", LONG + ".csv"], ["view", "{good}", "-o", LONG + ".html"],
+], ids=["run", "show", "from", "path", "plot", "export", "view"])
+def test_a_path_longer_than_the_file_system_allows_is_one_line(good_file, tmp_path, cli_exe,
+                                                                 args):
+    """Hostile L2: a path argument of 300 bytes (over the 255 a name may have) gave an
+    ``OSError: [Errno 36] File name too long`` traceback in run, show, --from, path and
+    plot -o; now one line, exit 2, as export gave."""
+    (tmp_path / "small.toml").write_text(SMALL)
+    args = [a.format(toml=tmp_path / "small.toml", good=good_file) for a in args]
+    proc = run_cli(cli_exe, *args, cwd=tmp_path)
+    one_line_error(proc, "too long")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.toml"]
+
+
+def test_a_stale_lock_is_cleared_and_a_held_one_names_its_holder(tmp_path, cli_exe):
+    """Hostile L10: a run killed (SIGKILL, a crash, a module's os._exit) leaves its lock file.
+    A later run writing any file of that folder removes the lock files no process holds, and
+    leaves a held one (a run that finds its own lock held names the holder's process and
+    host, which the holder wrote into it)."""
+    (tmp_path / "small.toml").write_text(SMALL)
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in (".small.h5.lock", ".killed.h5.lock"):     # no process holds them
+        (out / name).write_text("12345 elsewhere\n")
+    held = out / ".busy.h5.lock"
+    with open(held, "w") as fh:                           # a run of busy.h5, alive
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fh.write(f"{os.getpid()} {socket.gethostname()}\n")
+        fh.flush()
+        assert run_cli(cli_exe, "run", tmp_path / "small.toml", "--out", out,
+                       "-q").returncode == 0
+        assert hidden(out) == [".busy.h5.lock"]
+        (tmp_path / "busy.toml").write_text(SMALL)
+        proc = run_cli(cli_exe, "run", tmp_path / "busy.toml", "--out", out, "-q")
+        one_line_error(proc, "another run is writing it",
+                       f"process {os.getpid()} on {socket.gethostname()}")
+        assert hidden(out) == [".busy.h5.lock"]
+    assert run_cli(cli_exe, "run", tmp_path / "busy.toml", "--out", out, "-q").returncode == 0
+    assert hidden(out) == [] and sorted(p.name for p in out.iterdir()) == ["busy.h5", "small.h5"]

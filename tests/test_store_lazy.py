@@ -69,7 +69,7 @@ def _eager(path, key: str) -> dict[str, np.ndarray]:
         for name, ds in f[f"branches/{key}/columns"].items():
             data = ds[()]
             out[name] = (np.array([x.decode() for x in data], dtype=object)
-                         if ds.dtype.kind == "O" else data)
+                         if ds.dtype.kind in "OS" else data)   # strings: format 3 / 1, 2
         return out | {"profiles": f[f"branches/{key}/profiles"][()]}
 
 
@@ -207,9 +207,10 @@ def _shorten(f):
 @pytest.mark.parametrize("edit", [_delete, _shorten])
 def test_a_read_of_a_file_damaged_in_place_raises_one_line(copy, edit):
     # room at the end (HDF5 ignores bytes past its end of file): an edit may need a few
-    # hundred bytes more, new object headers, and the file must keep its size
+    # hundred bytes more, new object headers, and the file must keep its size; the datasets
+    # it writes anew are not compressed, as the file's are: up to the file's size more
     with open(copy, "ab") as fh:
-        fh.write(bytes(4096))
+        fh.write(bytes(copy.stat().st_size + 4096))
     bf = BranchFile(copy)
     b = bf.branches[0]
     _in_place(copy, edit)
@@ -263,6 +264,9 @@ def test_a_run_file_opens_each_restart_file_once(bratu_file, tmp_path, monkeypat
 #: Written by the format-1 writer (commit 040d308, a group of six datasets per label): two Bratu
 #: branches, lam from 0 both ways (12 and 6 points; EP1, UZ1, UZ2, EP2, EP3, EP4).
 FORMAT1 = Path(__file__).parent / "data" / "bratu_format1.h5"
+#: Written by the code of format 2 (commit aff23cb): the same Bratu continuation, its labels
+#: packed, its datasets contiguous and unfiltered, its strings of variable length.
+FORMAT2 = Path(__file__).parent / "data" / "bratu_format2.h5"
 
 
 def test_a_file_of_format_1_still_reads(tmp_path):
@@ -290,14 +294,41 @@ def test_a_file_of_format_1_still_reads(tmp_path):
     assert again.points[0].params["lam"] == bf.label("UZ1").state.params["lam"]
 
 
-def test_a_file_of_format_2_packs_its_solutions(bratu_file):
-    """A few datasets per branch, whatever its number of labels; each label reads back as
-    the continuation computed it (`Branches.label`, in memory), bit for bit."""
+def test_a_file_of_format_2_still_reads(tmp_path):
+    """Issue 45 item 7: format 3 compresses and checksums its datasets; a file of format 2
+    (no filters, variable-length strings) reads as h5py reads it, and a run restarts from
+    one of its labels, the stored solution checked as any."""
+    bf = BranchFile(FORMAT2)
+    assert bf.attrs["format_version"] == 2 and [len(b) for b in bf.branches] == [12, 8]
+    assert sorted(bf.labels) == ["EP1", "EP2", "EP3", "EP4", "UZ1", "UZ2"]
+    with h5py.File(FORMAT2, "r") as f:
+        assert not f["branches/001/columns/lam"].fletcher32
+        assert f["branches/001/columns/type"].dtype.kind == "O"
+        for b in bf.branches:
+            key = f"branches/{b.number:03d}"
+            np.testing.assert_array_equal(b.profiles, f[f"{key}/profiles"][()])
+            assert list(b.columns["type"]) == [x.decode() for x in f[f"{key}/columns/type"][()]]
+            np.testing.assert_array_equal(b.columns["lam"], f[f"{key}/columns/lam"][()])
+        for name, (br, pt) in bf.labels.items():
+            g = f[f"branches/{br:03d}/solutions"]
+            k = [x.decode() for x in g["label"][()]].index(name)
+            a, z = g["nodes"][k:k + 2]
+            label = bf.label(name)
+            np.testing.assert_array_equal(label.state.y, g["y"][:, a:z])
+            assert label.state.params == json.loads(g["params"][k])
+    problem = ea.load_problem(str(BRATU))
+    (again,) = ea.continuation(problem, bf.label("UZ2"), "lam", bounds=(-1, 4), max_points=5)
+    assert again.points[0].params["lam"] == bf.label("UZ2").state.params["lam"] == 2.0
+
+
+def test_a_file_packs_its_solutions(bratu_file):
+    """A few datasets per branch, whatever its number of labels (formats 2 and 3); each label
+    reads back as the continuation computed it (`Branches.label`, in memory), bit for bit."""
     problem = ea.load_problem(str(BRATU))
     branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1, 2, 3],
                                directions="both", ds=0.05, ds_max=0.5, max_points=60)
     bf = BranchFile(bratu_file)
-    assert bf.attrs["format_version"] == 2 and len(bf.labels) > 4
+    assert bf.attrs["format_version"] == ea.FORMAT_VERSION == 3 and len(bf.labels) > 4
     with h5py.File(bratu_file, "r") as f:
         for key in f["branches"]:
             sols = f[f"branches/{key}/solutions"]
@@ -316,9 +347,11 @@ def test_a_file_of_format_2_packs_its_solutions(bratu_file):
 
 def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
     """`store._put` (a branch's numeric datasets, made by h5py's low-level calls): each
-    dataset has the type, shape, values and layout of the one h5py's ``g[name] = data``
-    makes, empty and non-contiguous arrays included."""
-    from elastica_auto.storage.store import _put
+    dataset has the type, shape, values, layout and filters of the one h5py's
+    ``create_dataset`` makes with the same chunks, shuffle, gzip at DEFLATE_LEVEL and
+    Fletcher32 (an empty one: contiguous, no filters), empty and non-contiguous arrays
+    included."""
+    from elastica_auto.storage.store import DEFLATE_LEVEL, _put
     arrays = {"f": np.linspace(0, 1, 7), "i32": np.arange(5, dtype=np.int32),
               "i64": np.arange(3, dtype=np.int64), "empty": np.zeros(0),
               "empty2": np.zeros((4, 0)), "nan": np.array([np.nan, 1.0]),
@@ -326,12 +359,36 @@ def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
               "transposed": np.arange(12.0).reshape(3, 4).T}
     with h5py.File(tmp_path / "x.h5", "w") as f:
         for name, data in arrays.items():
-            f[f"high/{name}"] = data
             _put(f.require_group("low"), name, data)
+            filters = ({"chunks": f[f"low/{name}"].chunks, "shuffle": True, "compression": "gzip",
+                        "compression_opts": DEFLATE_LEVEL, "fletcher32": True} if data.size
+                       else {})
+            f.create_dataset(f"high/{name}", data=data, **filters)
     with h5py.File(tmp_path / "x.h5", "r") as f:
         for name, data in arrays.items():
             high, low = f[f"high/{name}"], f[f"low/{name}"]
             assert (low.dtype, low.shape, low.chunks) == (high.dtype, high.shape, high.chunks)
             assert low.id.get_create_plist().get_layout() == high.id.get_create_plist().get_layout()
+            assert (low.compression, low.compression_opts, low.shuffle, low.fletcher32) == \
+                (high.compression, high.compression_opts, high.shuffle, high.fletcher32)
+            assert low.fletcher32 == bool(data.size)
             np.testing.assert_array_equal(low[()], data)
             np.testing.assert_array_equal(low[()], high[()])
+
+
+def test_every_dataset_is_compressed_and_checksummed(good_file):
+    """Format 3 (hostile M5 a, issue 45 item 7): every dataset with data, the tables' too,
+    is stored in chunks through shuffle, gzip and Fletcher32; strings are of fixed length
+    (a variable-length string lives in a heap no checksum covers)."""
+    seen = []
+    with h5py.File(good_file, "r") as f:
+        assert f.attrs["format_version"] == 3 and "snaps" in f
+
+        def check(name, obj):
+            if isinstance(obj, h5py.Dataset) and obj.size:
+                seen.append(name)
+                assert (obj.shuffle, obj.compression, obj.fletcher32) == (True, "gzip", True), \
+                    name
+                assert obj.dtype.kind != "O", name
+        f.visititems(check)
+    assert any(n.startswith("snaps/") for n in seen) and "profile_grid" in seen

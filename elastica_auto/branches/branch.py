@@ -48,7 +48,10 @@ class StoredLabel:
 
     ``path`` and ``equation`` are the branch file's and the module's it was computed with
     (``path`` is None for a label of branches in memory); ``states`` names the rows of
-    ``state.y`` (the module's states, then those a two-parameter continuation adds)."""
+    ``state.y`` (the module's states, then those a two-parameter continuation adds).
+    ``options`` are those of the continuation that computed it (`ContinuationOptions`, as a
+    dict; empty if not known): its discretisation and tolerance, by which a restart checks
+    that the stored solution still solves its equations (`branches.restart.check_stored`)."""
 
     name: str
     branch: int
@@ -59,6 +62,7 @@ class StoredLabel:
     path: Path | None = None
     equation: str = ""
     states: tuple[str, ...] = ()
+    options: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -199,7 +203,7 @@ class Branch:
         for pt, p in enumerate(self.points, 1):
             if p.type and p.name == name:
                 return StoredLabel(name, self.number, pt, p.state, p.tangent, self.parameter,
-                                   None, self.equation, self.state_names)
+                                   None, self.equation, self.state_names, dict(self.options))
         names = [p.name for p in self.points if p.type]
         raise KeyError(f"no label {name!r} on this branch; labels: {', '.join(names) or 'none'}")
 

@@ -1,4 +1,11 @@
-"""A restart at changed parameter values: the labelled solution carried there by continuation.
+"""Restarts from stored labels: the stored solution checked, its states matched by name, and
+carried to changed parameter values by continuation.
+
+A stored solution becomes a start only once it is checked to solve its problem
+(:func:`check_stored`): a label read from a damaged or edited file would otherwise start a
+branch that is not one. Its states are those of the run that found it; a restart whose
+problem has other free parameters (or the same in another order) gets them by name
+(:func:`by_name`).
 
 A restart from a label at new values of some of its parameters needs the solution at those
 values. A Newton solve at the new, fixed values fails where a restart is most wanted: its
@@ -16,13 +23,129 @@ import math
 
 import numpy as np
 
-from .branch import Branch
+from .branch import Branch, StoredLabel
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
-from ..core.errors import StartError
-from ..core.options import ContinuationOptions
-from ..core.solution import State
+from ..numerics.newton import NEWTON_TOL, Row, newton
+from ..core.errors import PlanError, StartError
+from ..core.options import ContinuationOptions, OptionsError
+from ..core.solution import State, Tangent
 from .stepper import STATIONARY, Course, Origin, Stops, continue_branch
+
+
+def by_name(problem, label: StoredLabel) -> StoredLabel:
+    """``label`` with its solution's rows in the order of ``problem.states``, matched by name.
+
+    A label found with other free parameters than ``problem``'s (their states ``free:NAME``),
+    or with the same in another order, holds them in its own order: taken by position, a
+    parameter would start at another's value. Each state of ``problem`` is the label's state
+    of that name; a free parameter of ``problem`` that the label has no state for (one held
+    fixed where it was found) is its stored value, constant along s (its derivative 0), and
+    a free parameter of the label that ``problem`` holds fixed keeps its stored value among
+    the parameters. The tangent goes along where the states are the same ones reordered;
+    else it is dropped (another problem's tangent). PlanError (``start``) if a state cannot be
+    matched: a free parameter without a stored value, or a state of another name."""
+    names, have = tuple(problem.states), tuple(label.states)
+    if not have or have == names:
+        return label
+    rows = {name: i for i, name in enumerate(have)}
+    state, pick = label.state, []
+    for name in names:
+        if name in rows:
+            pick.append(rows[name])
+        elif name.startswith("free:") and name[5:] in problem.parameters:
+            value = state.params.get(name[5:])
+            if value is None:
+                raise PlanError("start", f"{label.name}: no stored value for the free "
+                                f"parameter {name[5:]!r} (its states: {', '.join(have)})")
+            pick.append(float(value))
+        else:
+            raise PlanError("start", f"{label.name} has no state {name!r} "
+                            f"(its states: {', '.join(have)}; {problem.source}'s: "
+                            f"{', '.join(names)})")
+    m = len(state.s)
+
+    def rows_of(y, derivative):
+        return np.array([y[k] if isinstance(k, int) else
+                         np.full(m, 0.0 if derivative else k) for k in pick])
+
+    moved = State(state.s, rows_of(state.y, False), rows_of(state.yp, True), state.params)
+    tangent, t = None, label.tangent
+    if t is not None and sorted(have) == sorted(names):
+        order = [rows[name] for name in names]
+        tangent = Tangent(t.s, t.y[order], t.yp[order], t.lam)
+    return dataclasses.replace(label, state=moved, tangent=tangent,
+                               tangent_parameter=label.tangent_parameter if tangent else None,
+                               states=names)
+
+
+def check_stored(problem, label: StoredLabel, parameter: str, options: ContinuationOptions,
+                 where: str):
+    """StartError unless the stored solution of ``label`` solves ``problem``: it must converge
+    to itself when it is solved again at its own parameters.
+
+    Newton on the label's own mesh, by the discretisation that computed it (its stored
+    options' ``ncol`` and ``corrector``; ``options``'s where not stored), from the solution
+    itself, with its parameters fixed; where a tangent is stored, on the hyperplane through
+    the solution normal to it instead (its parameter free): at a fold the parameter cannot
+    be held fixed. The solution passes if Newton converges and moves it by less than the
+    tolerance ``tol`` that computed it (Newton's own scaled measure, max |dy| / (1 + |y|)
+    and the same for the parameter): a solution solves its equations to about NEWTON_TOL,
+    far below ``tol``; a damaged or edited one is moved by its damage (the report's kappa
+    shifted by 0.3: by 0.29). ``parameter`` is the one Newton solves for where no tangent
+    is stored."""
+    state, tangent = label.state, label.tangent
+    own = _own_options(options, label.options)
+    why = _not_a_mesh(state)
+    if why is None:
+        name = (label.tangent_parameter if tangent is not None
+                and label.tangent_parameter in problem.parameters else parameter)
+        corrector = make_corrector(problem, name, own)
+        disc = corrector.disc(state.s)
+        lam = float(state.params[name])
+        row = (Row.hyperplane(disc, state, tangent, name, 0.0) if name == label.tangent_parameter
+               and tangent is not None else Row.value(disc, lam))
+        res = newton(disc, name, state.params, state.y, lam, row, None, corrector.split,
+                     tol=min(NEWTON_TOL, 1e-3 * own.tol))
+        moved = max(float(np.max(np.abs(res.Y - state.y) / (1.0 + np.abs(state.y)))),
+                    abs(res.lam - lam) / (1.0 + abs(lam)))
+        if not res.converged:
+            why = f"Newton from it does not converge ({res.message})"
+        elif not moved < own.tol:
+            why = (f"solved again, it moves by {moved:.3g} (its tolerance: {own.tol:g}), "
+                   f"{_where_most(res.Y - state.y, state.y, label.states)}")
+    if why is not None:
+        raise StartError(f"{where}: the stored solution of {label.name} does not solve the "
+                         f"problem: {why}")
+
+
+def _own_options(options: ContinuationOptions, stored: dict) -> ContinuationOptions:
+    """``options`` with the discretisation and tolerance of the run that computed a label
+    (its ``stored`` options), where they are valid ones."""
+    keys = ("tol", "ncol", "corrector")
+    try:
+        return dataclasses.replace(options, **{k: stored[k] for k in keys if k in stored})
+    except (OptionsError, TypeError, ValueError):
+        return options
+
+
+def _not_a_mesh(state: State) -> str | None:
+    """Why ``state`` is not a solution on a mesh of [0, 1] (None if it is one): its nodes
+    must increase from 0 to 1 and its values be finite."""
+    s = np.asarray(state.s)
+    if s.ndim != 1 or len(s) < 2 or s[0] != 0.0 or s[-1] != 1.0 \
+            or not np.all(np.diff(s) > 0):
+        return "its mesh is not one of [0, 1]"
+    if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
+            and all(math.isfinite(v) for v in state.params.values())):
+        return "it holds values that are not finite"
+    return None
+
+
+def _where_most(dy: np.ndarray, y: np.ndarray, names) -> str:
+    """"most in STATE": the state that the solve moved most (relative to 1 + |y|)."""
+    k = int(np.argmax(np.max(np.abs(dy) / (1.0 + np.abs(y)), axis=1)))
+    return f"most in {names[k] if k < len(names) else f'state {k + 1}'}"
 
 def move(problem, origin: Origin, targets: dict[str, float], options: ContinuationOptions, *,
          tangent_parameter: str | None = None, where: str = "") -> State:

@@ -20,6 +20,7 @@ from typing import Iterable, Mapping, Union
 import numpy as np
 
 from ..model.augmented import Augmented
+from ..branches import restart
 from ..core.errors import PlanError, ProblemError
 from ..branches.events import UserValues
 from ..core.expressions import evaluate
@@ -569,6 +570,8 @@ def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
     if len(label.state.y) > problem.n \
             and tuple(label.states[: problem.n]) == tuple(problem.states):
         label = _module_states(label, problem.n)
+    if isinstance(problem, Augmented):   # its free parameters by name, not by position
+        label = restart.by_name(problem, label)
     if len(label.state.y) != problem.n:
         raise PlanError("start", f"{label.name} has {len(label.state.y)} states, "
                         f"{problem.source} {problem.n}")

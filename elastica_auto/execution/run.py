@@ -80,14 +80,19 @@ class RunResult:
 
 
 def build_start(plan: Plan, spec: BranchSpec) -> Job:
-    """The start of a branch: an exact solution, a stored label (continued to the spec's
-    parameter values where they change its own, `branches.restart`), or the other branch
-    at a BP."""
+    """The start of a branch: an exact solution, a stored label (checked to solve the
+    problem, then continued to the spec's parameter values where they change its own,
+    `branches.restart`), or the other branch at a BP."""
     problem, opt = plan.problem, plan.options
     if spec.start.kind == "trivial":
         return _checked(plan, Job(spec, Origin(_from_values(plan, {**problem.defaults(),
                                                                    **spec.params}))))
     stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
+    # a damaged or edited stored solution would start a branch that is not one (hostile M5)
+    curve = spec.start.kind in ("fold", "bp")
+    restart.check_stored(plan.base if curve else problem, stored,
+                         (stored.tangent_parameter or plan.parameter) if curve else plan.parameter,
+                         opt, str(spec.start))
     state, tangent = stored.state, stored.tangent
     if spec.start.kind in ("fold", "bp"):
         return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))

@@ -13,7 +13,8 @@ An equation module is a plain Python file. It declares
 ``ORDINATES``
     list of :class:`Ordinate`: named output functionals ``fn(s, y, p) -> float`` of a solution.
     Parameter and ordinate names become columns of the branch files, so none may contain
-    ``/`` or be one of :data:`RESERVED_NAMES` (``index``, ``type``, ``label``, ...).
+    ``/`` or NUL or be one of :data:`RESERVED_NAMES` (``index``, ``type``, ``label``, ...);
+    no name (a state's either) may contain NUL.
 ``rhs(s, y, p)``
     vectorised right-hand side, ``s`` shape (m,), ``y`` shape (n, m), returns (n, m);
     ``p`` is a ``dict`` of parameter values by name.
@@ -281,13 +282,17 @@ class Problem:
                                    f"number, got {d!r}")
         for what, entries in (("parameter", parameters), ("ordinate", ordinates)):
             for x in entries:
-                # HDF5 reads '/' as a group separator and '.' as the group itself
+                # HDF5 reads '/' as a group separator and '.' as the group itself, and its
+                # names and strings end at a NUL
                 if not isinstance(x.name, str) or x.name in ("", ".") or "/" in x.name \
-                        or x.name in RESERVED_NAMES:
+                        or "\0" in x.name or x.name in RESERVED_NAMES:
                     raise ProblemError(
                         f"{source}: {what} name {x.name!r} cannot name a column of the branch "
-                        f"files; use a non-empty string other than '.', without '/', and none "
-                        f"of {', '.join(sorted(RESERVED_NAMES))}")
+                        f"files; use a non-empty string other than '.', without '/' or NUL, "
+                        f"and none of {', '.join(sorted(RESERVED_NAMES))}")
+        for x in self.states:
+            if "\0" in x:   # stored in the branch files' strings, which end at a NUL
+                raise ProblemError(f"{source}: state name {x!r} contains a NUL character")
         self.parameters = {q.name: q for q in parameters}
         if len(self.parameters) != len(parameters):
             raise ProblemError(f"{source}: duplicate parameter names in PARAMETERS")
@@ -329,6 +334,9 @@ class Problem:
         self._guess = getattr(module, "guess", None)
         self.integral_names = _sequence(source, "INTEGRALS", getattr(module, "INTEGRALS", ()),
                                         str)
+        for x in self.integral_names:
+            if "\0" in x:   # named in the states of a stored solution (int:NAME)
+                raise ProblemError(f"{source}: integral name {x!r} contains a NUL character")
         self._integrals = getattr(module, "integrals", None)
         self._integrals_jac = getattr(module, "integrals_jac", None)
         self._integrals_dp = getattr(module, "integrals_dp", None)
