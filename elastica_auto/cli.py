@@ -530,6 +530,9 @@ def path(equation, at, to, ds_max):
         _fail("--to: give at least one NAME=VALUE, the end of the path")
     try:
         problem = load_problem(equation)
+    except USER_ERRORS as exc:
+        _fail(str(exc))
+    try:
         options = {} if ds_max is None else {"ds_max": ds_max, "ds": min(0.05, ds_max)}
         snaps, branches = snaps_along(problem, a, b, **options)
     except USER_ERRORS as exc:
