@@ -116,7 +116,8 @@ def test_opening_reads_no_profile_and_only_the_label_columns(bratu_file, reads, 
     assert reads == ["/branches/001/columns/lam"]    # kept, or known from opening
     b.profiles
     b.profiles
-    assert reads[1:] == ["/branches/001/profiles"]
+    # format 3: the branch's distinct profiles, and the row of each point among them
+    assert sorted(reads[1:]) == ["/branches/001/profile_rows", "/branches/001/profiles"]
     del reads[:]
     bf.label("UZ1")
     assert reads and all(name.startswith("/branches/001/solutions/") for name in reads)
@@ -332,7 +333,7 @@ def test_a_file_packs_its_solutions(bratu_file):
     with h5py.File(bratu_file, "r") as f:
         for key in f["branches"]:
             sols = f[f"branches/{key}/solutions"]
-            assert all(isinstance(sols[k], h5py.Dataset) for k in sols) and len(sols) == 12
+            assert all(isinstance(sols[k], h5py.Dataset) for k in sols) and len(sols) == 14
     for name in bf.labels:
         mine, memory = bf.label(name), branches.label(name)
         for a, b in ((mine.state, memory.state), (mine.tangent, memory.tangent)):
@@ -392,3 +393,47 @@ def test_every_dataset_is_compressed_and_checksummed(good_file):
                 assert obj.dtype.kind != "O", name
         f.visititems(check)
     assert any(n.startswith("snaps/") for n in seen) and "profile_grid" in seen
+
+
+def test_a_solution_repeated_at_a_period_is_stored_once(tmp_path):
+    """Issue 45 item 7 (files a user can keep): a branch through several periods of psi
+    repeats its points exactly (the engine copies them a period on), and format 3 stores each
+    distinct profile and labelled solution once (``profile_rows``, ``mesh``,
+    ``tangent_mesh``). What reads back is every point's profile and every label's solution
+    and tangent as the continuation computed them, bit for bit; the file holds fewer
+    profiles than points and fewer meshes than labels."""
+    import math
+    problem = ea.load_problem("elastica_lever_arm")
+    branches = ea.continuation(problem, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                               bounds=(-4 * math.pi, 4 * math.pi), directions="both",
+                               uz=[math.pi / 6], uz_period=2 * math.pi)
+    path = ea.save(branches, tmp_path / "arm.h5")
+    bf = BranchFile(path)
+    with h5py.File(path, "r") as f:
+        stored = [(f[f"branches/{k}/profiles"].shape[0], len(f[f"branches/{k}/profile_rows"]),
+                   len(f[f"branches/{k}/solutions/nodes"]) - 1,
+                   len(f[f"branches/{k}/solutions/mesh"])) for k in f["branches"]]
+    assert all(distinct < points and meshes < labels
+               for distinct, points, meshes, labels in stored), stored
+    for mine, memory in zip(bf.branches, branches):
+        np.testing.assert_array_equal(mine.profiles, [p.profile for p in memory.points])
+    for name in bf.labels:
+        read, computed = bf.label(name), branches.label(name)
+        for a, b in ((read.state, computed.state), (read.tangent, computed.tangent)):
+            assert (a is None) == (b is None)
+            for q in ("s", "y", "yp") if a is not None else ():
+                np.testing.assert_array_equal(getattr(a, q), getattr(b, q), err_msg=name)
+
+
+def test_a_mesh_index_out_of_range_is_damage(copy):
+    """A label's ``mesh`` index past the stored solutions reads as a damaged file (one line),
+    not as an empty or shifted solution."""
+    with h5py.File(copy, "r+") as f:
+        mesh = f["branches/001/solutions/mesh"]
+        data = mesh[()]
+        del f["branches/001/solutions/mesh"]
+        f["branches/001/solutions/mesh"] = np.full_like(data, 10 ** 6)
+    bf = BranchFile(copy)
+    with pytest.raises(StoreError) as err:
+        bf.label(next(n for n, (br, _) in bf.labels.items() if br == 1))
+    assert "damaged" in str(err.value) and "\n" not in str(err.value)

@@ -12,11 +12,15 @@ Layout of ``out/<run>.h5``::
         columns/<name>      one row per point: every parameter and ordinate, arclength, ds,
                             niter, nodes, fold_residual, type, label, note, index,
                             index_rule, index_direct, transition ("1 -> 0" at LP and BP)
-        profiles            (points, states, grid): every state on /profile_grid
+        profiles            (distinct profiles, states, grid): every state on
+                            /profile_grid, each distinct profile once (`_distinct`)
+        profile_rows        (points,): each point's row of profiles (format 3; before,
+                            profiles had a row per point)
         solutions/          the exact collocation solutions of the labelled points, packed
-                            (`_write_solutions`): label, pt, params, nodes, s, y, yp,
-                            tangent_nodes, tangent_s, tangent_y, tangent_yp, tangent_lam;
-                            attr tangent_parameter (format 1: a group per label)
+                            (`_write_solutions`): label, pt, params, mesh, nodes, s, y, yp,
+                            tangent_mesh, tangent_nodes, tangent_s, tangent_y, tangent_yp,
+                            tangent_lam; attr tangent_parameter (format 1: a group per
+                            label)
 
     /snaps/                 snap-back targets, one row per (LP, stable equilibrium at its
                             parameters): lp, branch, parameter, value, stable_side, k,
@@ -665,19 +669,40 @@ def _write_branch(g, problem, br: Branch):
                                   else br.column(name), dtype=np.int32))
     for name in _STR_COLUMNS:
         _put_strings(cols, name, list(br.column(name)))
-    _put(g, "profiles", np.array([p.profile for p in br.points]))
+    distinct, rows = _distinct([p.profile for p in br.points])
+    _put(g, "profiles", np.array(distinct))
+    _put(g, "profile_rows", rows)
     _write_solutions(g.create_group("solutions"), br)
+
+
+def _distinct(arrays: list) -> tuple[list, np.ndarray]:
+    """The distinct arrays of ``arrays`` (equal bit for bit), in order of first appearance,
+    and for each array the index of its own among them. A branch through several periods of
+    a parameter repeats its points' profiles and solutions exactly at every period (the
+    engine copies them, `branches.stepper`): rotating_arm_3d holds 1712 distinct profiles
+    of 3682 and 384 distinct labelled solutions of 838, each stored once."""
+    index: dict[bytes, int] = {}
+    distinct, rows = [], np.empty(len(arrays), dtype=np.int32)
+    for i, a in enumerate(arrays):
+        key = a.tobytes() + repr(a.shape).encode()
+        if key not in index:
+            index[key] = len(distinct)
+            distinct.append(a)
+        rows[i] = index[key]
+    return distinct, rows
 
 
 def _write_solutions(g, br: Branch):
     """The labelled points' solutions of ``br`` in the group ``g``, packed (format 2 and
     later): one dataset per quantity, the labels' meshes one after the other.
 
-    ``label`` (names), ``pt``, ``params`` (JSON); ``nodes`` the offsets of each label's mesh
-    in ``s`` (nodes) and ``y``, ``yp`` (states, nodes); ``tangent_nodes``, ``tangent_s``,
-    ``tangent_y``, ``tangent_yp`` alike for the tangents (an empty range where a label has
-    none) and ``tangent_lam`` (NaN there); the attribute ``tangent_parameter``. The meshes'
-    datasets are chunked along the nodes in chunks of SOLUTION_CHUNK_BYTES: reading a label
+    ``label`` (names), ``pt``, ``params`` (JSON); ``mesh``, for each label the index of its
+    solution among the branch's distinct ones (`_distinct`: a solution repeated at a period
+    is stored once; format 3); ``nodes`` the offsets of each distinct solution's mesh in
+    ``s`` (nodes) and ``y``, ``yp`` (states, nodes); ``tangent_mesh`` (-1: no tangent),
+    ``tangent_nodes``, ``tangent_s``, ``tangent_y``, ``tangent_yp`` alike for the tangents,
+    and ``tangent_lam`` per label; the attribute ``tangent_parameter``. The meshes' datasets
+    are chunked along the nodes in chunks of SOLUTION_CHUNK_BYTES: reading a label
     decompresses a few small chunks, not the branch's every solution."""
     labelled = [(pt, p) for pt, p in enumerate(br.points, start=1) if p.type]
     n = len(br.state_names)
@@ -687,14 +712,19 @@ def _write_solutions(g, br: Branch):
     _put_strings(g, "params", [json.dumps(p.params) for _, p in labelled])
     tangents = [p.tangent for _, p in labelled]
     for prefix, parts in (("", [p.state for _, p in labelled]), ("tangent_", tangents)):
-        sizes = [len(x.s) if x is not None else 0 for x in parts]
-        parts = [x for x in parts if x is not None]
+        given = [x for x in parts if x is not None]
+        distinct, rows = _distinct([np.concatenate((x.s[None, :], x.y, x.yp))
+                                    for x in given])
+        mesh = np.full(len(parts), -1, dtype=np.int32)
+        mesh[[k for k, x in enumerate(parts) if x is not None]] = rows
+        _put(g, f"{prefix}mesh", mesh)
+        sizes = [a.shape[1] for a in distinct]
         _put(g, f"{prefix}nodes", np.concatenate(([0], np.cumsum(sizes, dtype=np.int64))))
-        _put(g, f"{prefix}s", np.concatenate([x.s for x in parts]) if parts else np.zeros(0),
-             chunk_bytes=SOLUTION_CHUNK_BYTES)
-        for q in ("y", "yp"):
-            _put(g, f"{prefix}{q}", (np.concatenate([getattr(x, q) for x in parts], axis=1)
-                                     if parts else np.zeros((n, 0))),
+        _put(g, f"{prefix}s", np.concatenate([a[0] for a in distinct]) if distinct
+             else np.zeros(0), chunk_bytes=SOLUTION_CHUNK_BYTES)
+        for q, part in (("y", slice(1, 1 + n)), ("yp", slice(1 + n, 1 + 2 * n))):
+            _put(g, f"{prefix}{q}", (np.concatenate([a[part] for a in distinct], axis=1)
+                                     if distinct else np.zeros((n, 0))),
                  axis=1, chunk_bytes=SOLUTION_CHUNK_BYTES)
     _put(g, "tangent_lam", np.array([x.lam if x is not None else np.nan for x in tangents],
                                     dtype=float))
@@ -712,16 +742,35 @@ def _read_solution(g, name: str, names: list[str]):
         return (*state, Tangent(h["tangent_s"][()], h["tangent_y"][()], h["tangent_yp"][()],
                                 float(h.attrs["tangent_lam"])), str(h.attrs["tangent_parameter"]))
     j = names.index(name)
-    a, b = (int(x) for x in g["nodes"][j:j + 2])
+    a, b = _mesh_range(g, "", j)
     params = g["params"][j]
     state = (json.loads(params.decode() if isinstance(params, bytes) else params),
              g["s"][a:b], g["y"][:, a:b], g["yp"][:, a:b])
-    ta, tb = (int(x) for x in g["tangent_nodes"][j:j + 2])
+    ta, tb = _mesh_range(g, "tangent_", j)
     if ta == tb:
         return (*state, None, None)
     return (*state, Tangent(g["tangent_s"][ta:tb], g["tangent_y"][:, ta:tb],
                             g["tangent_yp"][:, ta:tb], float(g["tangent_lam"][j])),
             str(g.attrs["tangent_parameter"]))
+
+
+def _mesh_range(g, prefix: str, j: int) -> tuple[int, int]:
+    """The nodes (a, b) of label number ``j``'s solution (``prefix`` "") or tangent
+    ("tangent_") in the packed group ``g``; (0, 0) for no tangent. Format 3 numbers the
+    distinct solutions (``mesh``); format 2 stored one per label, in order."""
+    offsets = g[f"{prefix}nodes"]
+    if f"{prefix}mesh" in g:
+        m = int(g[f"{prefix}mesh"][j])
+        if m < 0:
+            return 0, 0
+        if m + 1 >= len(offsets):
+            raise ValueError(f"{prefix}mesh names solution {m} of {len(offsets) - 1}")
+    else:
+        m = j
+    a, b = (int(x) for x in offsets[m:m + 2])
+    if not 0 <= a <= b <= len(g[f"{prefix}s"]):
+        raise ValueError(f"{prefix}nodes out of order at {m}")
+    return a, b
 
 
 def _solution_names(g) -> list[str] | None:
@@ -1030,9 +1079,19 @@ class StoredBranch:
     def profiles(self) -> np.ndarray:
         if self._profiles is None:
             key = f"{self.number:03d}"
-            self._profiles = self._source.read(
-                f"branch {key}: profiles",
-                lambda f: _dataset(f[f"branches/{key}"], "profiles", self._profiles_shape))
+
+            def read(f):
+                g = f[f"branches/{key}"]
+                if "profile_rows" not in g:    # before format 3: a profile per point
+                    return _dataset(g, "profiles", self._profiles_shape)
+                rows = g["profile_rows"][()]
+                distinct = g["profiles"][()]
+                if rows.shape != self._profiles_shape[:1] or len(rows) and not (
+                        0 <= rows.min() and rows.max() < len(distinct)):
+                    raise ValueError("profile_rows does not index the profiles")
+                return distinct[rows]
+
+            self._profiles = self._source.read(f"branch {key}: profiles", read)
         return self._profiles
 
     @property
@@ -1177,14 +1236,18 @@ class BranchFile:
         if not isinstance(profiles, h5py.Dataset) or profiles.ndim < 1:
             raise self._damaged(f"branch {key}: 'profiles' is not a dataset of one profile "
                                 "per point")
-        if profiles.shape[0] != n:
-            raise self._damaged(f"branch {key}: {profiles.shape[0]} profiles for {n} points")
         if n == 0:   # every branch has its start at least (an MX one, if all else failed)
             raise self._damaged(f"branch {key} has no points")
+        rows = g.get("profile_rows")     # format 3: the distinct profiles, and each point's
+        if rows is not None and not (isinstance(rows, h5py.Dataset) and rows.shape == (n,)):
+            raise self._damaged(f"branch {key}: 'profile_rows' is not a dataset of one row "
+                                f"per point ({n})")
+        if rows is None and profiles.shape[0] != n:
+            raise self._damaged(f"branch {key}: {profiles.shape[0]} profiles for {n} points")
         names = column_names(self.parameters, self.ordinates)
         names += [name for name in lengths if name not in names]
         return StoredBranch(self._source, int(key), dict(g.attrs),
-                            _Columns(self._source, key, names, n), profiles.shape)
+                            _Columns(self._source, key, names, n), (n, *profiles.shape[1:]))
 
     def _check_labels(self, f):
         """Each label names a point with that label, and its solution is stored: reads the
