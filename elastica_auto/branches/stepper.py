@@ -14,10 +14,12 @@ travel):
 2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
    the tangent turned by more than ``max_angle``, or the correction moved b farther than
    ``ds / 2`` from the predictor (it would have jumped to another branch);
-3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
+3. **detect** on one mesh: a fold where the tangent's parameter component changes sign (by
+   more than its accuracy: :func:`~elastica_auto.branches.events.parameter_turns`), a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
    parameter's slope dips inside the step (:func:`~elastica_auto.branches.events.pair_suspected`;
    the step is probed for the slope's minimum, and retried shorter if a fold is there);
+   either kind can be switched off (the option ``detect``, AUTO-07p's ILP and ISP);
 4. **locate** each, exactly (:mod:`elastica_auto.branches.events`); a fold or branch point that
    cannot be located, or a stability index at b that the fold rule does not predict,
    rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
@@ -42,8 +44,8 @@ from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
                      locate_branch_point, locate_fold, locate_index_change, locate_limit,
-                     locate_value, pair_suspected, place_symmetric_branch_point,
-                     tangent_between)
+                     locate_value, pair_suspected, parameter_turns,
+                     place_symmetric_branch_point, tangent_between)
 from ..numerics.newton import Row
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
@@ -377,6 +379,9 @@ class _Walk:
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
         self.all_folds, self.events = course.all_folds, course.events
+        # the kinds of special point looked for (the option ``detect``; none without events)
+        self.detect_lp = course.events and self.opt.detect["LP"]
+        self.detect_bp = course.events and self.opt.detect["BP"]
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None
@@ -424,6 +429,12 @@ class _Walk:
                     # which only the module's functions can make from a finite guess
                     why = (" (the equation module returned NaN or inf there)"
                            if math.isinf(rej.residual) else "")
+                    if any(h["nodes"] >= opt.max_nodes for h in history):
+                        # no mesh met tol: what is left of the residual is not the mesh's
+                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
+                        # the corrector's absolute accuracy and lam exp(u) is not small)
+                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
+                                "without meeting tol)")
                     self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
                                             f"after point {len(branch.points)} "
                                             f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
@@ -522,15 +533,16 @@ class _Walk:
         s = b.mesh
         skip = (self.first and self.singular_start) or not self.events
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
-        fold = a.tangent.lam * b.tangent.lam < 0 and not skip
-        bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+        fold = parameter_turns(a.tangent.lam, b.tangent.lam) and not skip and self.detect_lp
+        bp = (a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+              and self.detect_bp)
         counted = count(self.problem, b.state)
         index_a, index_b = self.base_point.index_direct, counted.index
         # retries for a fold that cannot be located or a fold rule that fails count until a
         # step with a fold is accepted: shorter steps that stop before the fold do not reset
         # them (they would approach the fold for ever)
         can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
-        if not (fold or bp) and can_retry and not skip:
+        if not (fold or bp) and can_retry and not skip and self.detect_lp:
             u = pair_suspected(step)
             if u is not None:
                 self._probe(step, u, ds, index_a)
@@ -543,7 +555,7 @@ class _Walk:
                 if can_retry:
                     self.event_retries += 1
                     raise _Reject(f"fold not located ({exc})", ds / 2) from None
-                if 0 <= index_a == index_b:
+                if 0 <= index_a == index_b and self.detect_bp:
                     # the parameter turns, the fold system is singular and no eigenvalue
                     # crossed zero: not a simple fold (where the index changes by one) but a
                     # pitchfork passed along its other branch
@@ -562,7 +574,9 @@ class _Walk:
                                 abs(located.value), note=note))
         if unlocated:
             self.branch.warnings.append(unlocated)
-        if index_a >= 0 and index_b >= 0 and not skip:
+        # the fold rule predicts b's index from the folds and branch points found: not where
+        # either kind is not looked for
+        if index_a >= 0 and index_b >= 0 and not skip and self.detect_lp and self.detect_bp:
             expected = self._rule(step, found, index_a)
             if (expected is not None and expected != index_b and not found and not can_retry
                     and (index_b - index_a) % 2 == 0):
