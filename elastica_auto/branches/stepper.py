@@ -246,7 +246,10 @@ class Course:
     ``events``: folds and branch points are located; False: the points alone, each with its
     directly counted index (what `analysis.snaps.subcritical` asks of the branches born at a
     branch point: on the isotropic rod's they keep the parameter constant, and every step
-    met a turn of its rounding that could not be located: 8% of a 3D run's time)."""
+    met a turn of its rounding that could not be located: 8% of a 3D run's time).
+    ``counted_values``: the UZ values whose points count toward ``max_points`` (None: all of
+    ``user_values``); the others are set aside for the branch's mirror image
+    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch."""
 
     parameter: str
     options: ContinuationOptions
@@ -254,6 +257,7 @@ class Course:
     user_values: tuple[UserValues, ...] = ()
     all_folds: bool = False
     events: bool = True
+    counted_values: tuple[UserValues, ...] | None = None
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -378,6 +382,8 @@ class _Walk:
     def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
+        self.counted_values = course.counted_values
+        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
         self.all_folds, self.events = course.all_folds, course.events
         # the kinds of special point looked for (the option ``detect``; none without events)
         self.detect_lp = course.events and self.opt.detect["LP"]
@@ -414,8 +420,9 @@ class _Walk:
         history = []
         retries = 0
         while True:
-            if len(branch.points) >= opt.max_points:
-                self.end_at_base("EP", f"reached max_points = {opt.max_points}")
+            # the branch ends at its last point, which an EP of its own follows if labelled
+            if self._room() <= (1 if self.base_point.type else 0):
+                self.end_at_base("EP", self._full())
                 return
             try:
                 ds_next, ended = self._step(ds, retries)
@@ -486,6 +493,30 @@ class _Walk:
         else:
             branch.relabel(self.base_point, kind, a.state, a.tangent)
         branch.end, branch.message = kind, message
+
+    def _counts(self, kind: str, params: dict) -> bool:
+        """Whether a point of this ``kind`` at parameters ``params`` counts toward
+        ``max_points``: all but UZ points at values set aside for the branch's mirror image
+        (not among ``counted_values``)."""
+        return (kind != "UZ" or self.counted_values is None
+                or is_user_value(params[self.name], self.counted_values))
+
+    def _room(self) -> int:
+        """``max_points`` less the points that count toward it."""
+        pts = self.branch.points
+        if self.counted_values is None:
+            return self.opt.max_points - len(pts)
+        # the points not counted, kept for the points checked so far while the branch only
+        # grows at its end (recounted where it changed before the last one checked)
+        n, aside, last = self._aside
+        if n > len(pts) or (n and pts[n - 1] is not last):
+            n, aside = 0, 0
+        aside += sum(1 for p in pts[n:] if not self._counts(p.type, p.params))
+        self._aside = (len(pts), aside, pts[-1] if pts else None)
+        return self.opt.max_points - len(pts) + aside
+
+    def _full(self) -> str:
+        return f"reached max_points = {self.opt.max_points}"
 
     def _step(self, ds: float, retries: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
@@ -704,7 +735,8 @@ class _Walk:
     def _refine(self, i: int) -> bool:
         """Walk the step from point i to point i+1 again with small steps, and put the points
         (and any folds, branch points, user points) it finds between them. False if it could
-        not be done (the two points could not be solved again from their profiles)."""
+        not be done (the two points could not be solved again from their profiles, or there
+        is no room for the new points within ``max_points``)."""
         pts, corr, name = self.branch.points, self.corr, self.name
         try:
             p, q = (self._resolve(pts[j]) for j in (i, i + 1))
@@ -734,6 +766,8 @@ class _Walk:
                          + (pt.params[name] - p.lam) * sec.lam)
 
         new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        if self._room() < len(new):      # the branch's points stay within max_points
+            return False
         total = sub.points[-1].arclength
         a0, a1 = pts[i].arclength, pts[i + 1].arclength
         for pt in new:
@@ -851,7 +885,13 @@ class _Walk:
         return "ended" if the branch ends in this step, "moved" if it came back to its start
         one period on and the walk moved past the translates of that period (:meth:`_repeat`),
         else "". Folds split the step: a value is solved between the two knots that bracket
-        it, so it cannot converge to the other side."""
+        it, so it cannot converge to the other side.
+
+        The points never exceed ``max_points``: an event is added while the points that
+        count (`_counts`) leave room for one more, the EP that ends the branch after it (or
+        while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
+        fold stop); where the step has more, the branch ends at the last one added, and the
+        UZ values past those the room can take are not solved for."""
         branch, name, stops = self.branch, self.name, self.stops
         inside = sorted((e for e in found if e.kind == "LP" and not e.note
                          and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
@@ -859,13 +899,20 @@ class _Walk:
                  + [(step.dist, step.b.state)])
         events = list(found)
         bound_hit = None
+        room = self._room()
+        # each spec's values come in the order of travel: past the first ``room`` that count,
+        # none could be added
+        solved = [0] * len(self.user_values)
         for (s0, x), (s1, y) in zip(knots, knots[1:]):
             lx, ly = x.params[name], y.params[name]
-            for spec in self.user_values:
+            for k, spec in enumerate(self.user_values):
                 for c in crossings(lx, ly, spec):
+                    if solved[k] >= room:
+                        break
                     ev = self._value_event(step, x, y, s0, s1, c, "UZ")
                     if ev is not None:
                         events.append(ev)
+                        solved[k] += self._counts("UZ", ev.state.params)
             bound = stops.upper if lx <= stops.upper < ly else \
                 stops.lower if ly < stops.lower <= lx else None
             if bound is not None:
@@ -882,11 +929,20 @@ class _Walk:
                       and not self._at_start(step, e, bound_hit)] + [bound_hit]
         events.sort(key=lambda e: e.sigma)
         nfolds = len(branch.folds)
+        last = None
         for e in events:
             if e.kind == PERIOD:
                 return self._repeat(step, e)
-            self._add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
-                      fold_residual=e.residual, note=e.note)
+            # room for the event, and for the EP after it unless it ends the branch (a point
+            # set aside for the mirror image takes none, but may be the last before that EP)
+            ends = e.kind == "EP" or (e.kind == "LP" and stops.at_fold is not None
+                                      and nfolds + 1 >= stops.at_fold)
+            need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
+            if self._room() < need:
+                self._end_full(last, e.kind)
+                return "ended"
+            last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
+                             tangent=e.tangent, fold_residual=e.residual, note=e.note)
             if e.kind == "LP":
                 nfolds += 1
                 if stops.at_fold is not None and nfolds >= stops.at_fold:
@@ -900,6 +956,21 @@ class _Walk:
                 branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
                 return "ended"
         return ""
+
+    def _end_full(self, last: Point | None, following: str = ""):
+        """End the branch at ``max_points`` inside a step: at the last point it added (a
+        labelled one, followed by an EP of its own), or at the step's start if none. Where
+        that leaves one point unused, the message says why: the ``following`` point (its
+        label) would have needed the EP after it as well."""
+        if last is None:
+            self.end_at_base("EP", self._full())
+        else:
+            self._add(last.state, type="EP", arclength=last.arclength, tangent=last.tangent,
+                      direct=last.index_direct)
+            self.branch.end, self.branch.message = "EP", self._full()
+        if following and self._room() > 0:
+            self.branch.message += (f" (the next point, {following}, and the EP after it would "
+                                    "exceed it)")
 
     def _limit_event(self, step: Step) -> _Event | None:
         """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
@@ -1044,12 +1115,16 @@ class _Walk:
         walk from the last copy that is not a fold or a branch point (solved again from its
         profile, or the last translate of the start, which is exact), for what remains.
         Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
-        at its next turn, as it would have there)."""
-        branch, name, opt, stops, problem = (self.branch, self.name, self.opt, self.stops,
-                                             self.problem)
+        at its next turn, as it would have there; a labelled copy is made only with room for
+        the EP after it), or "ended" where there is no room for the translate."""
+        branch, name, stops, problem = self.branch, self.name, self.stops, self.problem
         shift = hit.state.params[name] - self.start.lam
         turns = round(shift / self.period)      # the periods from the start to ``hit``
         uz = is_user_value(hit.state.params[name], self.user_values)
+        # room for the translate, and for the EP that follows it where it is labelled
+        if self._room() < (2 if uz else 1):
+            self._end_full(None, "UZ" if uz else "")
+            return "ended"
         translate = self._add(hit.state, type="UZ" if uz else "",
                               arclength=step.position(hit.sigma), tangent=hit.tangent,
                               direct=branch.points[0].index_direct)
@@ -1060,7 +1135,9 @@ class _Walk:
         while True:
             for p in period:
                 lam = p.params[name] + j * shift
-                if not stops.lower < lam < stops.upper or len(branch.points) >= opt.max_points:
+                counts = self._counts(p.type, {**p.params, name: lam})
+                if not stops.lower < lam < stops.upper or self._room() < (
+                        (2 if p.type else 1) if counts else 1):
                     return self._resume(exact)
                 k = j * turns
                 copy = dataclasses.replace(

@@ -41,7 +41,8 @@ class ContinuationOptions:
     growth : float
         Factor applied to |ds| after a step that converged on the first mesh (>= 1).
     max_points : int
-        Points per branch including the start (AUTO's NMX).
+        Points per branch including the start and the labelled points (AUTO's NMX): a
+        branch never has more (`elastica_auto.branches.stepper`).
     ntst : int
         Mesh intervals of the starting mesh, and the fewest a mesh is coarsened to.
     max_nodes : int
