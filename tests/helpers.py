@@ -257,7 +257,8 @@ def scaled_module(path: Path, scale: float, folder: Path) -> Path:
     """A module file in ``folder`` that is the module at ``path`` with its states multiplied
     by ``scale``: y = scale u, so y' = scale f(s, y / scale), its boundary conditions
     scale g(y(0) / scale, y(1) / scale), its exact start scale u0, and its ordinates and
-    second variation those of u = y / scale. Its solutions are the module's, scaled; a
+    second variation those of u = y / scale (its exact start and guess, scaled, where it has
+    them). Its solutions are the module's, scaled; a
     decision of the engine that does not depend on the units of the states (a fold, a branch
     point, a switch) is the same on both."""
     out = folder / f"{Path(path).stem}_scaled_{scale:g}.py".replace("-", "m").replace("+", "")
@@ -299,9 +300,14 @@ def scaled_module(path: Path, scale: float, folder: Path) -> Path:
                 return base.second_variation(s, y / C, p)
 
 
-        def exact_start(s, p):
-            y = base.exact_start(s, p)
-            return None if y is None else C * y
+        if hasattr(base, "exact_start"):
+            def exact_start(s, p):
+                y = base.exact_start(s, p)
+                return None if y is None else C * y
+        if hasattr(base, "guess"):
+            def guess(s, p):
+                y = base.guess(s, p)
+                return None if y is None else C * y
 
 
         ORDINATES = [Ordinate(o.name, o.tex, (lambda fn: lambda s, y, p: fn(s, y / C, p))(o.fn),
