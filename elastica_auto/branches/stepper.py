@@ -13,7 +13,9 @@ travel):
    if its error estimate exceeds ``tol``;
 2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
    the tangent turned by more than ``max_angle``, or the correction moved b farther than
-   ``ds / 2`` from the predictor (it would have jumped to another branch);
+   ``ds / 2`` from the predictor (it would have jumped to another branch), or, for a step
+   more than LONG_STEP times the last one accepted, the branch does not reach b along an
+   arc (checked halfway: :meth:`_Walk._arc_checked`);
 3. **detect** on one mesh: a fold where the tangent's parameter component changes sign (by
    more than its accuracy: :func:`~elastica_auto.branches.events.parameter_turns`), a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
@@ -21,8 +23,9 @@ travel):
    the step is probed for the slope's minimum, and retried shorter if a fold is there);
    either kind can be switched off (the option ``detect``, AUTO-07p's ILP and ISP);
 4. **locate** each, exactly (:mod:`elastica_auto.branches.events`); a fold or branch point that
-   cannot be located, or a stability index at b that the fold rule does not predict,
-   rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
+   cannot be located, or a stability index at b that the fold rule does not predict, or a
+   UZ value the ends bracket that no solution between them crosses, rejects the step (a
+   fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
 5. **accept**: the folds and branch points split the step into monotone pieces, on which user
    points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
@@ -52,7 +55,8 @@ from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
 from ..numerics.stability import Count, count, index_change, kernel_dimension
 
-#: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
+#: A step whose fold rule, fold or branch point or UZ value location fails is retried down to
+#: 1 / 2**RETRY_HALVINGS of the last step accepted (or of its own first length, if shorter).
 RETRY_HALVINGS = 6
 #: A fold and a branch point located in one step are one point (a pitchfork met along its
 #: bifurcating branch) where their secant coordinates differ by at most this fraction of
@@ -73,13 +77,21 @@ RISE_NOISE = 1e-10
 #: where the cubic model suspects a fold pair (`_Walk._probe`).
 PROBES = 4
 #: A branch is back at its start point (a closed loop) where the start lies within the next
-#: step along the tangent, or inside the step just taken along its secant, within this
-#: fraction of the step's length of that line: the chord of an arc that turns by at most
-#: ``max_angle`` (0.35 rad by default) stays within about ``max_angle / 8`` of the step's
-#: length of the arc.
+#: step along the tangent (within this fraction of its distance along the tangent from that
+#: line), or inside the step just taken along its secant (within this fraction of the step's
+#: length of the chord): the chord of an arc that turns by at most ``max_angle`` (0.35 rad by
+#: default) stays within about ``max_angle / 8`` of its length of the arc.
 CLOSED_LOOP = 0.2
 #: ... and the secant points the way the branch left its start: their cosine is at least this.
 CLOSED_LOOP_COS = 0.5
+#: A step longer than LONG_STEP times the last one accepted (one grown by ``growth`` > 1.5)
+#: has not been shown to stay on the branch at that length: a
+#: branch that lies near the tangent's line farther on (the rotating arm's translates by a
+#: period, the rod turned rigidly) can catch the corrector with every other check passed,
+#: the tangent turned by 12 degrees and b within a twentieth of ds of the predictor (hostile
+#: M9: ds grown by 100 from 0.16 to 7.8). Its arc is checked (`_Walk._arc_checked`). With
+#: growth <= 1.5 (the default 1.4) no step is: the check costs one solve where it is made.
+LONG_STEP = 1.5
 #: The kind of the event where a branch passes its start translated by whole periods of the
 #: parameter (`_Walk._period_event`), and the largest gap (in norm, relative) between the
 #: branch's solution there and the translate.
@@ -397,6 +409,10 @@ class _Walk:
         self.until = None   # (origin, unit direction, distance): end once past that hyperplane
         self.start = None   # the first solution: the branch ends where it comes back to it
         self.event_retries = 0
+        self.can_retry = True   # whether the step may still be retried for an event (_detect)
+        # the length of the last step accepted (inf before the first): the retries an event
+        # may take are halvings below it (`_walk`)
+        self.accepted_ds = math.inf
         # the period a branch may repeat with (:meth:`_period_event`), None where it may not
         self.period = self._repeat_period(course, singular_start)
 
@@ -418,18 +434,25 @@ class _Walk:
         self.curvature = None
         ds = abs(opt.ds)
         history = []
-        retries = 0
+        # the step's rejections, and those that left it shorter than the last step accepted:
+        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
+        # known to resolve, and its halvings down to it do not spend the retries that an
+        # event that cannot be located, or an index the fold rule does not give, may take
+        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
+        # with a warning, hostile M9). With growth < 2 every halving is below it.
+        retries = below = 0
         while True:
             # the branch ends at its last point, which an EP of its own follows if labelled
             if self._room() <= (1 if self.base_point.type else 0):
                 self.end_at_base("EP", self._full())
                 return
             try:
-                ds_next, ended = self._step(ds, retries)
+                ds_next, ended = self._step(ds, retries, below)
             except _Reject as rej:
                 history.append({"ds": ds, "residual": rej.residual,
                                 "nodes": len(self.a.mesh), "message": str(rej)})
                 retries += 1
+                below += rej.ds < self.accepted_ds
                 ds = rej.ds
                 if ds < opt.ds_min:
                     # an infinite residual is Newton's mark for residuals that are not finite,
@@ -452,7 +475,7 @@ class _Walk:
             if ended:
                 return
             history.clear()
-            retries = 0
+            retries = below = 0
             ds = ds_next
 
     def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
@@ -518,13 +541,14 @@ class _Walk:
     def _full(self) -> str:
         return f"reached max_points = {self.opt.max_points}"
 
-    def _step(self, ds: float, retries: int) -> tuple[float, bool]:
+    def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
-        raises _Reject to retry with a smaller ds."""
+        raises _Reject to retry with a smaller ds. ``retries``: the step's rejections so far,
+        ``below``: those that left it shorter than the last step accepted (`_walk`)."""
         if self._close_ahead(ds):
             return ds, True
         step, cos_turn = self._correct(ds)
-        found, counted = self._detect(step, retries)
+        found, counted = self._detect(step, below)
         return self._accept(step, found, counted, retries, cos_turn)
 
     def _correct(self, ds: float) -> tuple[Step, float]:
@@ -553,7 +577,39 @@ class _Walk:
             if jump > 0.5 * ds:
                 raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
                               f"(ds = {ds:.3g})", ds / 2)
+        if ds > LONG_STEP * self.accepted_ds:
+            self._arc_checked(a, b, sec, dist, ds)
         return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
+
+    def _arc_checked(self, a: Solution, b: Solution, sec: Tangent, dist: float, ds: float):
+        """Reject a long step (LONG_STEP) whose end the branch does not reach along an arc:
+        the solution on the hyperplane halfway along the chord, solved from the chord's
+        midpoint, must lie within ``dist tan(max_angle / 4)`` of it, and its tangent within
+        max_angle of the chord. An arc that turns by at most max_angle lies within
+        ``dist tan(turn / 4) / 2`` of its chord's midpoint (a circle's; twice that is allowed
+        for arcs that are not circles), where its tangent is parallel to the chord (a
+        circle's; within the turn, for others). Where b is on another branch, the branch from
+        a crosses that hyperplane elsewhere, or not at all, and what is found there is a
+        solution of yet another branch, crossing it at an angle (the straight rod, halfway
+        between a buckled rod and its mirror image, at the rotating arm's P = 9 pi^2 / 4)."""
+        name = self.name
+        try:
+            mid = self.corr.on_plane(a, sec, dist / 2, b.mesh, regrid=False)
+        except CorrectorFailure:
+            raise _Reject("the branch does not reach the step's end along an arc (no "
+                          "solution halfway)", ds / 2) from None
+        s = b.mesh
+        d = difference(mid.state, a.state, name, s)
+        off = norm(Tangent(s, d.y - dist / 2 * sec.y, d.yp - dist / 2 * sec.yp,
+                           d.lam - dist / 2 * sec.lam))
+        if off > dist * math.tan(self.opt.max_angle / 4):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"{off:.3g} from the chord, ds = {ds:.3g})", ds / 2)
+        cos_mid = inner(mid.tangent.on(s), sec, s)
+        if cos_mid < math.cos(self.opt.max_angle):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
+                          f"deg to the chord, ds = {ds:.3g})", ds / 2)
 
     def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
         """The folds and branch points in the step, located, and the index at b, checked
@@ -572,7 +628,7 @@ class _Walk:
         # retries for a fold that cannot be located or a fold rule that fails count until a
         # step with a fold is accepted: shorter steps that stop before the fold do not reset
         # them (they would approach the fold for ever)
-        can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
+        can_retry = self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
         if not (fold or bp) and can_retry and not skip and self.detect_lp:
             u = pair_suspected(step)
             if u is not None:
@@ -675,6 +731,7 @@ class _Walk:
         # the walk moves on to b in one statement that calls nothing (no signal lands inside)
         self.base_point, self.a, self.arclength, self.curvature, self.first = \
             point, b, arclength, curvature, False
+        self.accepted_ds = ds
         if self.progress is not None:
             self.progress(self.branch, b.lam)
         if self.until is not None:
@@ -995,10 +1052,12 @@ class _Walk:
 
     def _close_ahead(self, ds: float) -> bool:
         """End the branch at its start point, without a step, where the start lies within
-        the next step (ahead of a along its tangent by at most ds, within ``CLOSED_LOOP`` ds
-        of the tangent's line, the tangent pointing the way the branch left it): a step that
-        ends next to a singular start (a branch point it was switched from) would see the
-        start's own fold or branch point there, and fail to locate it."""
+        the next step (ahead of a along its tangent by sigma <= ds, within ``CLOSED_LOOP``
+        sigma of the tangent's line, the tangent pointing the way the branch left it): a step
+        that ends next to a singular start (a branch point it was switched from) would see
+        the start's own fold or branch point there, and fail to locate it. (Measured against
+        ds, which ``growth`` makes far longer than any step the branch has taken, the start
+        of the rotating arm was "ahead" of points a period away: hostile M9.)"""
         start, a = self.start, self.a
         if start is None or self.until is not None or self.first or self._far(a, ds):
             return False
@@ -1009,7 +1068,7 @@ class _Walk:
         if not 0.0 < sigma <= ds:
             return False
         off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
-        if norm(off) > CLOSED_LOOP * ds or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
+        if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
             return False
         self._add(start.state, type="EP", arclength=self.arclength + sigma,
                   tangent=start.tangent, direct=self.branch.points[0].index_direct)
@@ -1186,6 +1245,7 @@ class _Walk:
         self.period = None
         following = [p.ds for p in pts if p.ds > 0]
         self.resume_ds = min(following[-1] if following else abs(self.opt.ds), self.opt.ds_max)
+        self.accepted_ds = self.resume_ds
         if self.progress is not None:
             self.progress(branch, sol.lam)
         return "moved"
@@ -1204,10 +1264,19 @@ class _Walk:
         return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
     def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
+        """The UZ or bound EP point where the parameter is ``value`` between the knots x and
+        y of the step. Where it is not found there although the knots' values bracket it,
+        the branch does not pass from x to y through the solutions between them (a step that
+        jumped to another branch, hostile M9): the step is rejected, as for an event that
+        cannot be located (RETRY_HALVINGS), then accepted with a warning and no point."""
         try:
             state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
         except CorrectorFailure as exc:
             what = "user point" if kind == "UZ" else "bound"
+            if self.can_retry:
+                self.event_retries += 1
+                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
+                              step.ds / 2) from None
             self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
             return None
         return _Event(sigma, kind, state, tangent_between(step, sigma))
