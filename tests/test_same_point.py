@@ -108,8 +108,8 @@ def test_two_branch_points_one_unit_apart_are_both_switched_at(tmp_path):
 def test_the_switch_decisions_do_not_depend_on_the_states_scale(tmp_path, scale):
     """Issue 45 item 5's check: with the states multiplied by 1, 1e3 or 1e-3 the same branch
     points are found (lam = 0 and 1 exactly), every switch direction passes the kernel test
-    (switching.KERNEL_RTOL, relative to the linearisation's terms: an absolute 1e-6 would
-    refuse or accept them by the scale), and the same points are switched at: at the second
+    (switching.KERNEL_RTOL, relative to the linearisation's terms), and the same points are
+    switched at (SAME_POINT_RELATIVE, SAME_KERNEL): at the second
     level, the pure u-mode's branch points at lam = 1 (u = +-1), at the parameter value of
     u = v = 0's second one but not the same point, give the four mixed branches. (The states
     are solved to the corrector's accuracy, 1e-8 absolute where they are small: u = y / scale
