@@ -138,21 +138,23 @@ def test_the_bratu_branch_to_its_end(cli_exe, tmp_path):
     branch has no end: past its fold lam -> 0 like 8 z^2 exp(-z) while u(1/2) ~ z grows. It
     is followed against the closed form (lam to 1e-7 relative down to 1e-15, where lam exp(u)
     is still computed to the corrector's tolerance, and to 1e-5 after), with its one fold,
-    until lam ~ 1e-20, where lam is known only to the corrector's absolute accuracy and no
-    mesh meets tol: an MX that says so, without an exception."""
+    until lam ~ 1e-20, where lam is known only to the corrector's absolute accuracy: an MX
+    where the corrector gives up, without an exception."""
     out = run_cli(cli_exe, "run", EXAMPLES / "bratu.toml", "--set", "max_points=2000",
                   "--out", tmp_path, "-j", "1", "-q")
     assert out.returncode == 1, out.stderr
     assert "Error" not in out.stdout and "Traceback" not in out.stderr
     (br,) = ea.BranchFile(tmp_path / "bratu.h5").branches
     c = br.columns
-    assert c["type"][-1] == "MX" and "max_nodes = 5000 without meeting tol" in \
-        br.attrs["message"], br.attrs["message"]
+    # where the corrector gives up depends on rounding (lam ~ 1e-20 here, 1e-19 with another
+    # BLAS kernel; the meshes reach max_nodes on the way, or do not): a corrector failure
+    assert c["type"][-1] == "MX" and br.attrs["message"].startswith(
+        "corrector failed at ds < ds_min"), br.attrs["message"]
     assert list(c["type"]).count("LP") == 1
     assert c["lam"][list(c["type"]).index("LP")] == pytest.approx(LAM_FOLD, rel=1e-9)
     lam = c["lam"].astype(float)
     exact = np.array([_bratu_lam(d) for d in c["du0"].astype(float)])
-    assert lam.min() < 1e-19
+    assert lam.min() < 1e-18
     resolved = lam >= 1e-15
     np.testing.assert_allclose(lam[resolved], exact[resolved], rtol=1e-7)
     np.testing.assert_allclose(lam, exact, rtol=1e-5, atol=0)
