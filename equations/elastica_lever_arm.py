@@ -170,7 +170,7 @@ def shooting(p):
     """Equilibria are the roots k = theta'(0) of the free-end residual kappa(1) + eps P
     sin(psi + alpha - theta(1)). The first integral kappa^2/2 - P cos(theta - alpha) = const
     and |kappa(1)| <= |eps P| bound |k| <= sqrt((eps P)^2 + 4 |P|) (docs/design.md,
-    "Enumerating all equilibria")."""
+    "Searching for the equilibria")."""
     bound = math.sqrt((p["eps"] * p["P"]) ** 2 + 4 * abs(p["P"]))
 
     def initial(k):

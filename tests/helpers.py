@@ -251,3 +251,66 @@ class WorkingBackground:
 
     def close(self, wait=0.0):
         self.ready.clear()
+
+
+def scaled_module(path: Path, scale: float, folder: Path) -> Path:
+    """A module file in ``folder`` that is the module at ``path`` with its states multiplied
+    by ``scale``: y = scale u, so y' = scale f(s, y / scale), its boundary conditions
+    scale g(y(0) / scale, y(1) / scale), its exact start scale u0, and its ordinates and
+    second variation those of u = y / scale (its exact start and guess, scaled, where it has
+    them). Its solutions are the module's, scaled; a
+    decision of the engine that does not depend on the units of the states (a fold, a branch
+    point, a switch) is the same on both."""
+    out = folder / f"{Path(path).stem}_scaled_{scale:g}.py".replace("-", "m").replace("+", "")
+    out.write_text(textwrap.dedent(f'''\
+        """{Path(path).name} with its states multiplied by {scale!r}."""
+        import importlib.util
+
+        from elastica_auto import Ordinate
+
+        _spec = importlib.util.spec_from_file_location("_unscaled", {str(path)!r})
+        base = importlib.util.module_from_spec(_spec)
+        _spec.loader.exec_module(base)
+        C = {scale!r}
+        STATES, PARAMETERS = base.STATES, base.PARAMETERS
+
+
+        def rhs(s, y, p):
+            return C * base.rhs(s, y / C, p)
+
+
+        def bc(ya, yb, p):
+            return C * base.bc(ya / C, yb / C, p)
+
+
+        if hasattr(base, "rhs_jac"):
+            def rhs_jac(s, y, p):
+                return base.rhs_jac(s, y / C, p)
+        if hasattr(base, "rhs_dp"):
+            def rhs_dp(s, y, p, name):
+                return C * base.rhs_dp(s, y / C, p, name)
+        if hasattr(base, "bc_jac"):
+            def bc_jac(ya, yb, p):
+                return base.bc_jac(ya / C, yb / C, p)
+        if hasattr(base, "bc_dp"):
+            def bc_dp(ya, yb, p, name):
+                return C * base.bc_dp(ya / C, yb / C, p, name)
+        if hasattr(base, "second_variation"):
+            def second_variation(s, y, p):
+                return base.second_variation(s, y / C, p)
+
+
+        if hasattr(base, "exact_start"):
+            def exact_start(s, p):
+                y = base.exact_start(s, p)
+                return None if y is None else C * y
+        if hasattr(base, "guess"):
+            def guess(s, p):
+                y = base.guess(s, p)
+                return None if y is None else C * y
+
+
+        ORDINATES = [Ordinate(o.name, o.tex, (lambda fn: lambda s, y, p: fn(s, y / C, p))(o.fn),
+                              o.parameter, o.doc) for o in base.ORDINATES]
+        '''))
+    return out

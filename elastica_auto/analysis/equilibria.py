@@ -1,8 +1,9 @@
-"""All equilibria at given parameters, and the folds that end a stable stretch of a branch.
+"""The equilibria at given parameters, searched for on a grid, and the folds that end a stable
+stretch of a branch.
 
 What the snap-back targets (`snaps`), the snap's landing (`landing`), the stability maps
 (`maps`) and the snaps along a path (`elastica_auto.path`) share. The equilibria are found by
-a bounded shooting scan (docs/design.md, "Enumerating all equilibria"), through the optional
+a bounded shooting scan (docs/design.md, "Searching for the equilibria"), through the optional
 equation-module hook
 
 ``shooting(p) -> (k_lo, k_hi, initial, residual)``
@@ -22,7 +23,12 @@ The scan integrates all grid values of k at once (`elastica_auto.numerics.ode.do
 loose tolerance, the values near zero again at the tight one), brackets every sign change,
 refines all brackets together (Illinois regula falsi at the loose tolerance, then narrower
 brackets checked at the tight one: `_scan_line`), and computes each root's index by the
-direct count. With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
+direct count. It is a search with the grid's resolution, not a proof of completeness: a grid
+cell whose residual has one sign at both ends holds an even number of roots, and none of
+them is found (two equilibria within one cell of each other, as near a fold of the
+equilibria in the parameters, where they merge).
+
+With d >= 2 unknowns (`scan_box`): the residual on a grid of the box, a Newton
 solve (difference Jacobian, all candidates at once) from every grid cell whose
 neighbourhood holds both signs of every residual component or where |r| has a local minimum,
 and the distinct converged roots;
@@ -40,6 +46,10 @@ from ..core.solution import State
 from ..numerics.ode import dop853
 from ..numerics.stability import index
 
+#: The grid of the 1D scan: SCAN_POINTS values of k spanning [k_lo, k_hi], cells of
+#: (k_hi - k_lo) / 1200 (0.024 for the rotating arm at P = 9 pi^2/4, eps = 0.5). Two roots
+#: within one cell, with no grid value between them, are not found (tests/
+#: test_equilibria_scan.py); the grid costs one vectorised integration of its columns.
 SCAN_POINTS = 1201
 #: Grid points of the box scan (d >= 2 unknowns), about: BOX_POINTS ** (1/d) per axis.
 BOX_POINTS = 10201
@@ -94,9 +104,10 @@ def refine_brackets(r, a, b, fa, fb, max_iter: int = 60, xtol: float = 1e-13) ->
 
 
 def enumerate_equilibria(problem, params) -> list[Equilibrium]:
-    """Every equilibrium at ``params`` (a root of the shooting residual in the module's bounds),
-    sorted by k (lexicographically for d >= 2 unknowns, found by `scan_box`). Requires the
-    module hooks ``shooting`` and (for the index) ``second_variation``."""
+    """The equilibria at ``params`` that the scan finds (roots of the shooting residual in the
+    module's bounds, to the grid's resolution: SCAN_POINTS), sorted by k (lexicographically
+    for d >= 2 unknowns, found by `scan_box`). Requires the module hooks ``shooting`` and
+    (for the index) ``second_variation``."""
     lo, hi, initial, residual = problem.shooting(params)
 
     def r(k, tol=IVP_TOL):

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.values import same_value
+
 #: Cells across the plane (first parameter) and up it (second).
 NX, NY = 360, 240
 #: The smallest region that gets an enumeration (cells).
@@ -130,13 +132,13 @@ def regions(curves, extent, period=None, nx=NX, ny=NY):
 
 def plane_groups(branches, names, x: str, y: str) -> list[tuple[dict, list]]:
     """The branches (in memory or stored) grouped by the values of the parameters ``names``
-    other than ``x`` and ``y`` (at their first point), in order of first appearance."""
+    other than ``x`` and ``y`` (at their first point, the same by `core.values.same_value`,
+    as the diagram's panels), in order of first appearance."""
     groups: list[tuple[dict, list]] = []
     for b in branches:
         fixed = {k: float(b.columns[k][0]) for k in names if k not in (x, y)}
         for known, members in groups:
-            if all(math.isclose(known[k], fixed[k], rel_tol=1e-12, abs_tol=1e-12)
-                   for k in fixed):
+            if all(same_value(known[k], fixed[k]) for k in fixed):
                 members.append(b)
                 break
         else:

@@ -22,6 +22,7 @@ import numpy as np
 from ..branches.branch import PROFILE_GRID, Branch
 from ..core.options import ContinuationOptions
 from ..core.solution import State
+from ..core.values import same_value
 from .equilibria import (Equilibrium, beyond_fold, enumerate_equilibria, snap_lps,
                          stable_side)
 
@@ -121,8 +122,8 @@ def _on_branch(tracks: "_Tracks", parameter, period, target: Equilibrium, tol=0.
     value = target.state.params[parameter]
     want = np.array(list(target.ordinates.values()))
     for nb, (name, fixed, lam) in enumerate(tracks.branches(), start=1):
-        if name != parameter or any(abs(v - target.state.params[q]) > 1e-12
-                                    for q, v in fixed.items()):
+        if name != parameter or not all(same_value(v, target.state.params[q])
+                                        for q, v in fixed.items()):
             continue
         if period:
             lam = value + np.remainder(lam - value + period / 2, period) - period / 2

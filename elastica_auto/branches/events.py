@@ -3,7 +3,8 @@
 A step goes from a to b, both solutions with their unit tangents ``t`` (oriented along the
 direction of travel) and the sign of the determinant of their bordered Jacobians, on one mesh.
 
-* LP (fold): the parameter component of the tangent changes sign between a and b. Located by
+* LP (fold): the parameter component of the tangent changes sign between a and b, and is
+  larger than its own accuracy at one of them at least (:func:`parameter_turns`). Located by
   bordered Newton on the minimally augmented system (the corrector's ``fold``), started from
   the solution on the step where that component, interpolated linearly, vanishes.
 * BP (branch point): the determinant changes sign (it does not at a fold: AUTO-07p's test for
@@ -28,9 +29,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
-from ..numerics.newton import Linearization, Row, kernel
+from ..numerics.newton import NEWTON_TOL, Linearization, Row, kernel
 from ..core.solution import State, Tangent, difference, inner
 from ..model.symmetry import moves
+
+
+#: The accuracy of a unit tangent's parameter component. The tangent is the kernel of the
+#: Jacobian at a point the corrector solved to NEWTON_TOL (its last correction, scaled by
+#: 1 + |y|): a point off the branch by delta has a Jacobian whose kernel is off by about
+#: |F_yy| delta / sigma_min, of the order of delta where the step is resolved, and the solve
+#: adds rounding (eps times the condition number, far less on the shipped runs). So a
+#: component within NEWTON_TOL of zero has no sign to speak of: on a branch along which the
+#: parameter is constant (the other branch at a symmetric pitchfork) it is rounding, of
+#: either sign from point to point (1e-17 on tests/test_detection.py's vertical branch), and
+#: on the tail of the Bratu branch, where lam -> 0 like exp(-u(1/2)), it is below 1e-8
+#: from lam ~ 1e-9 on. A genuine fold leaves both ends of a step within it only if the step
+#: is shorter than 2 NEWTON_TOL / |d t_lam / ds|, the rate at which the component changes
+#: along the branch: 4e-8 at the Bratu fold (|d t_lam / ds| = 0.48), below ds_min. With the
+#: states scaled by c the rate is divided by c^2: 0.04 for c = 1e3, whose own steps are
+#: about 1e3 times longer (tests/test_detection.py).
+TURN_NOISE = NEWTON_TOL
+
+
+def parameter_turns(la: float, lb: float) -> bool:
+    """Whether the tangents' parameter components ``la`` at a and ``lb`` at b say that the
+    parameter turns between them (a fold): opposite signs, and one of them at least larger
+    than their accuracy TURN_NOISE. (Two within it: the parameter is stationary across the
+    step to first order, and the signs are rounding.)"""
+    return la * lb < 0 and max(abs(la), abs(lb)) > TURN_NOISE
 
 
 @dataclass(frozen=True)
@@ -414,9 +440,10 @@ def pair_suspected(step: Step, dip: float = 0.5) -> float | None:
     tangents' parameter components, per unit arclength) at a and b; its slope is then the
     quadratic ``q(u) = l_a + beta u + gamma u^2`` on u in [0, 1]. Suspected: q changes sign
     inside (two folds the end tests cannot see), or dips below ``dip`` times the smaller end
-    slope (a near-cusp, where a pair can be narrower than the model)."""
+    slope (a near-cusp, where a pair can be narrower than the model). Never where both end
+    slopes are within TURN_NOISE: their signs are rounding, and so would a dip be."""
     la, lb = step.a.tangent.lam, step.b.tangent.lam
-    if la == 0.0 or la * lb <= 0:
+    if la == 0.0 or la * lb <= 0 or max(abs(la), abs(lb)) <= TURN_NOISE:
         return None
     mean = (step.b.lam - step.a.lam) / step.dist
     gamma = 3.0 * (la + lb - 2.0 * mean)

@@ -82,10 +82,13 @@ def symmetric_course(course) -> bool:
 
 def mirror_course(course):
     """``course`` with the negative of each UZ value added: the ``+`` branch's, whose image
-    then has a point at each UZ value asked for."""
+    then has a point at each UZ value asked for. Their points do not count toward the
+    branch's ``max_points`` (``counted_values``): set aside, the branch has the points its
+    own course gives."""
     values = tuple(UserValues(tuple(sorted(set(u.values) | {-v for v in u.values})), u.period)
                    for u in course.user_values)
-    return dataclasses.replace(course, user_values=values)
+    # the added values' points are set aside (`set_aside`): not the branch's, nor counted
+    return dataclasses.replace(course, user_values=values, counted_values=course.user_values)
 
 
 def set_aside(branch: Branch, course) -> None:
@@ -121,6 +124,10 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
             new.points.append(_point_image(problem, p))
     for p in source.mirror_points:
         new.insert(_point_image(problem, p))
+    if len(new.points) > source.options["max_points"]:
+        # more UZ values on this side: the branch computed would end at max_points first
+        new.points.clear()
+        return None
     new.end = source.end
     new.message = (f"reached {name} = {new.points[-1].params[name]:g}" if at_bound
                    else source.message)

@@ -13,14 +13,19 @@ travel):
    if its error estimate exceeds ``tol``;
 2. **check** (a failed check halves ds and retries; below ``ds_min`` the branch ends MX):
    the tangent turned by more than ``max_angle``, or the correction moved b farther than
-   ``ds / 2`` from the predictor (it would have jumped to another branch);
-3. **detect** on one mesh: a fold where the tangent's parameter component changes sign, a
+   ``ds / 2`` from the predictor (it would have jumped to another branch), or, for a step
+   more than LONG_STEP times the last one accepted, the branch does not reach b along an
+   arc (checked halfway: :meth:`_Walk._arc_checked`);
+3. **detect** on one mesh: a fold where the tangent's parameter component changes sign (by
+   more than its accuracy: :func:`~elastica_auto.branches.events.parameter_turns`), a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
    parameter's slope dips inside the step (:func:`~elastica_auto.branches.events.pair_suspected`;
    the step is probed for the slope's minimum, and retried shorter if a fold is there);
+   either kind can be switched off (the option ``detect``, AUTO-07p's ILP and ISP);
 4. **locate** each, exactly (:mod:`elastica_auto.branches.events`); a fold or branch point that
-   cannot be located, or a stability index at b that the fold rule does not predict,
-   rejects the step (a fold pair or a jump to another branch), down to ds / 64 and then
+   cannot be located, or a stability index at b that the fold rule does not predict, or a
+   UZ value the ends bracket that no solution between them crosses, rejects the step (a
+   fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
 5. **accept**: the folds and branch points split the step into monotone pieces, on which user
    points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
@@ -40,8 +45,8 @@ from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
                      locate_branch_point, locate_fold, locate_index_change, locate_limit,
-                     locate_value, pair_suspected, place_symmetric_branch_point,
-                     tangent_between)
+                     locate_value, pair_suspected, parameter_turns,
+                     place_symmetric_branch_point, tangent_between)
 from ..numerics.newton import Row
 from ..core.errors import ENGINE, debugging, failure_record
 from ..core.options import ContinuationOptions
@@ -49,7 +54,8 @@ from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
 from ..numerics.stability import Count, count, index_change, kernel_dimension
 
-#: A step whose fold rule or fold location fails is retried down to ds / 2**RETRY_HALVINGS.
+#: A step whose fold rule, fold or branch point or UZ value location fails is retried down to
+#: 1 / 2**RETRY_HALVINGS of the last step accepted (or of its own first length, if shorter).
 RETRY_HALVINGS = 6
 #: A fold and a branch point located in one step are one point (a pitchfork met along its
 #: bifurcating branch) where their secant coordinates differ by at most this fraction of
@@ -70,13 +76,21 @@ RISE_NOISE = 1e-10
 #: where the cubic model suspects a fold pair (`_Walk._probe`).
 PROBES = 4
 #: A branch is back at its start point (a closed loop) where the start lies within the next
-#: step along the tangent, or inside the step just taken along its secant, within this
-#: fraction of the step's length of that line: the chord of an arc that turns by at most
-#: ``max_angle`` (0.35 rad by default) stays within about ``max_angle / 8`` of the step's
-#: length of the arc.
+#: step along the tangent (within this fraction of its distance along the tangent from that
+#: line), or inside the step just taken along its secant (within this fraction of the step's
+#: length of the chord): the chord of an arc that turns by at most ``max_angle`` (0.35 rad by
+#: default) stays within about ``max_angle / 8`` of its length of the arc.
 CLOSED_LOOP = 0.2
 #: ... and the secant points the way the branch left its start: their cosine is at least this.
 CLOSED_LOOP_COS = 0.5
+#: A step longer than LONG_STEP times the last one accepted (one grown by ``growth`` > 1.5)
+#: has not been shown to stay on the branch at that length: a
+#: branch that lies near the tangent's line farther on (the rotating arm's translates by a
+#: period, the rod turned rigidly) can catch the corrector with every other check passed,
+#: the tangent turned by 12 degrees and b within a twentieth of ds of the predictor (hostile
+#: M9: ds grown by 100 from 0.16 to 7.8). Its arc is checked (`_Walk._arc_checked`). With
+#: growth <= 1.5 (the default 1.4) no step is: the check costs one solve where it is made.
+LONG_STEP = 1.5
 #: The kind of the event where a branch passes its start translated by whole periods of the
 #: parameter (`_Walk._period_event`), and the largest gap (in norm, relative) between the
 #: branch's solution there and the translate.
@@ -243,7 +257,10 @@ class Course:
     ``events``: folds and branch points are located; False: the points alone, each with its
     directly counted index (what `analysis.snaps.subcritical` asks of the branches born at a
     branch point: on the isotropic rod's they keep the parameter constant, and every step
-    met a turn of its rounding that could not be located: 8% of a 3D run's time)."""
+    met a turn of its rounding that could not be located: 8% of a 3D run's time).
+    ``counted_values``: the UZ values whose points count toward ``max_points`` (None: all of
+    ``user_values``); the others are set aside for the branch's mirror image
+    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch."""
 
     parameter: str
     options: ContinuationOptions
@@ -251,6 +268,7 @@ class Course:
     user_values: tuple[UserValues, ...] = ()
     all_folds: bool = False
     events: bool = True
+    counted_values: tuple[UserValues, ...] | None = None
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -376,7 +394,12 @@ class _Walk:
     def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
+        self.counted_values = course.counted_values
+        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
         self.all_folds, self.events = course.all_folds, course.events
+        # the kinds of special point looked for (the option ``detect``; none without events)
+        self.detect_lp = course.events and self.opt.detect["LP"]
+        self.detect_bp = course.events and self.opt.detect["BP"]
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None
@@ -386,6 +409,10 @@ class _Walk:
         self.until = None   # (origin, unit direction, distance): end once past that hyperplane
         self.start = None   # the first solution: the branch ends where it comes back to it
         self.event_retries = 0
+        self.can_retry = True   # whether the step may still be retried for an event (_detect)
+        # the length of the last step accepted (inf before the first): the retries an event
+        # may take are halvings below it (`_walk`)
+        self.accepted_ds = math.inf
         # the period a branch may repeat with (:meth:`_period_event`), None where it may not
         self.period = self._repeat_period(course, singular_start)
 
@@ -407,23 +434,37 @@ class _Walk:
         self.curvature = None
         ds = abs(opt.ds)
         history = []
-        retries = 0
+        # the step's rejections, and those that left it shorter than the last step accepted:
+        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
+        # known to resolve, and its halvings down to it do not spend the retries that an
+        # event that cannot be located, or an index the fold rule does not give, may take
+        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
+        # with a warning, hostile M9). With growth < 2 every halving is below it.
+        retries = below = 0
         while True:
-            if len(branch.points) >= opt.max_points:
-                self.end_at_base("EP", f"reached max_points = {opt.max_points}")
+            # the branch ends at its last point, which an EP of its own follows if labelled
+            if self._room() <= (1 if self.base_point.type else 0):
+                self.end_at_base("EP", self._full())
                 return
             try:
-                ds_next, ended = self._step(ds, retries)
+                ds_next, ended = self._step(ds, retries, below)
             except _Reject as rej:
                 history.append({"ds": ds, "residual": rej.residual,
                                 "nodes": len(self.a.mesh), "message": str(rej)})
                 retries += 1
+                below += rej.ds < self.accepted_ds
                 ds = rej.ds
                 if ds < opt.ds_min:
                     # an infinite residual is Newton's mark for residuals that are not finite,
                     # which only the module's functions can make from a finite guess
                     why = (" (the equation module returned NaN or inf there)"
                            if math.isinf(rej.residual) else "")
+                    if any(h["nodes"] >= opt.max_nodes for h in history):
+                        # no mesh met tol: what is left of the residual is not the mesh's
+                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
+                        # the corrector's absolute accuracy and lam exp(u) is not small)
+                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
+                                "without meeting tol)")
                     self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
                                             f"after point {len(branch.points)} "
                                             f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
@@ -434,7 +475,7 @@ class _Walk:
             if ended:
                 return
             history.clear()
-            retries = 0
+            retries = below = 0
             ds = ds_next
 
     def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
@@ -476,13 +517,38 @@ class _Walk:
             branch.relabel(self.base_point, kind, a.state, a.tangent)
         branch.end, branch.message = kind, message
 
-    def _step(self, ds: float, retries: int) -> tuple[float, bool]:
+    def _counts(self, kind: str, params: dict) -> bool:
+        """Whether a point of this ``kind`` at parameters ``params`` counts toward
+        ``max_points``: all but UZ points at values set aside for the branch's mirror image
+        (not among ``counted_values``)."""
+        return (kind != "UZ" or self.counted_values is None
+                or is_user_value(params[self.name], self.counted_values))
+
+    def _room(self) -> int:
+        """``max_points`` less the points that count toward it."""
+        pts = self.branch.points
+        if self.counted_values is None:
+            return self.opt.max_points - len(pts)
+        # the points not counted, kept for the points checked so far while the branch only
+        # grows at its end (recounted where it changed before the last one checked)
+        n, aside, last = self._aside
+        if n > len(pts) or (n and pts[n - 1] is not last):
+            n, aside = 0, 0
+        aside += sum(1 for p in pts[n:] if not self._counts(p.type, p.params))
+        self._aside = (len(pts), aside, pts[-1] if pts else None)
+        return self.opt.max_points - len(pts) + aside
+
+    def _full(self) -> str:
+        return f"reached max_points = {self.opt.max_points}"
+
+    def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
-        raises _Reject to retry with a smaller ds."""
+        raises _Reject to retry with a smaller ds. ``retries``: the step's rejections so far,
+        ``below``: those that left it shorter than the last step accepted (`_walk`)."""
         if self._close_ahead(ds):
             return ds, True
         step, cos_turn = self._correct(ds)
-        found, counted = self._detect(step, retries)
+        found, counted = self._detect(step, below)
         return self._accept(step, found, counted, retries, cos_turn)
 
     def _correct(self, ds: float) -> tuple[Step, float]:
@@ -511,7 +577,39 @@ class _Walk:
             if jump > 0.5 * ds:
                 raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
                               f"(ds = {ds:.3g})", ds / 2)
+        if ds > LONG_STEP * self.accepted_ds:
+            self._arc_checked(a, b, sec, dist, ds)
         return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
+
+    def _arc_checked(self, a: Solution, b: Solution, sec: Tangent, dist: float, ds: float):
+        """Reject a long step (LONG_STEP) whose end the branch does not reach along an arc:
+        the solution on the hyperplane halfway along the chord, solved from the chord's
+        midpoint, must lie within ``dist tan(max_angle / 4)`` of it, and its tangent within
+        max_angle of the chord. An arc that turns by at most max_angle lies within
+        ``dist tan(turn / 4) / 2`` of its chord's midpoint (a circle's; twice that is allowed
+        for arcs that are not circles), where its tangent is parallel to the chord (a
+        circle's; within the turn, for others). Where b is on another branch, the branch from
+        a crosses that hyperplane elsewhere, or not at all, and what is found there is a
+        solution of yet another branch, crossing it at an angle (the straight rod, halfway
+        between a buckled rod and its mirror image, at the rotating arm's P = 9 pi^2 / 4)."""
+        name = self.name
+        try:
+            mid = self.corr.on_plane(a, sec, dist / 2, b.mesh, regrid=False)
+        except CorrectorFailure:
+            raise _Reject("the branch does not reach the step's end along an arc (no "
+                          "solution halfway)", ds / 2) from None
+        s = b.mesh
+        d = difference(mid.state, a.state, name, s)
+        off = norm(Tangent(s, d.y - dist / 2 * sec.y, d.yp - dist / 2 * sec.yp,
+                           d.lam - dist / 2 * sec.lam))
+        if off > dist * math.tan(self.opt.max_angle / 4):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"{off:.3g} from the chord, ds = {ds:.3g})", ds / 2)
+        cos_mid = inner(mid.tangent.on(s), sec, s)
+        if cos_mid < math.cos(self.opt.max_angle):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
+                          f"deg to the chord, ds = {ds:.3g})", ds / 2)
 
     def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
         """The folds and branch points in the step, located, and the index at b, checked
@@ -522,15 +620,16 @@ class _Walk:
         s = b.mesh
         skip = (self.first and self.singular_start) or not self.events
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
-        fold = a.tangent.lam * b.tangent.lam < 0 and not skip
-        bp = a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+        fold = parameter_turns(a.tangent.lam, b.tangent.lam) and not skip and self.detect_lp
+        bp = (a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+              and self.detect_bp)
         counted = count(self.problem, b.state)
         index_a, index_b = self.base_point.index_direct, counted.index
         # retries for a fold that cannot be located or a fold rule that fails count until a
         # step with a fold is accepted: shorter steps that stop before the fold do not reset
         # them (they would approach the fold for ever)
-        can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
-        if not (fold or bp) and can_retry and not skip:
+        can_retry = self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
+        if not (fold or bp) and can_retry and not skip and self.detect_lp:
             u = pair_suspected(step)
             if u is not None:
                 self._probe(step, u, ds, index_a)
@@ -543,7 +642,7 @@ class _Walk:
                 if can_retry:
                     self.event_retries += 1
                     raise _Reject(f"fold not located ({exc})", ds / 2) from None
-                if 0 <= index_a == index_b:
+                if 0 <= index_a == index_b and self.detect_bp:
                     # the parameter turns, the fold system is singular and no eigenvalue
                     # crossed zero: not a simple fold (where the index changes by one) but a
                     # pitchfork passed along its other branch
@@ -562,7 +661,9 @@ class _Walk:
                                 abs(located.value), note=note))
         if unlocated:
             self.branch.warnings.append(unlocated)
-        if index_a >= 0 and index_b >= 0 and not skip:
+        # the fold rule predicts b's index from the folds and branch points found: not where
+        # either kind is not looked for
+        if index_a >= 0 and index_b >= 0 and not skip and self.detect_lp and self.detect_bp:
             expected = self._rule(step, found, index_a)
             if (expected is not None and expected != index_b and not found and not can_retry
                     and (index_b - index_a) % 2 == 0):
@@ -630,6 +731,7 @@ class _Walk:
         # the walk moves on to b in one statement that calls nothing (no signal lands inside)
         self.base_point, self.a, self.arclength, self.curvature, self.first = \
             point, b, arclength, curvature, False
+        self.accepted_ds = ds
         if self.progress is not None:
             self.progress(self.branch, b.lam)
         if self.until is not None:
@@ -690,7 +792,8 @@ class _Walk:
     def _refine(self, i: int) -> bool:
         """Walk the step from point i to point i+1 again with small steps, and put the points
         (and any folds, branch points, user points) it finds between them. False if it could
-        not be done (the two points could not be solved again from their profiles)."""
+        not be done (the two points could not be solved again from their profiles, or there
+        is no room for the new points within ``max_points``)."""
         pts, corr, name = self.branch.points, self.corr, self.name
         try:
             p, q = (self._resolve(pts[j]) for j in (i, i + 1))
@@ -720,6 +823,8 @@ class _Walk:
                          + (pt.params[name] - p.lam) * sec.lam)
 
         new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        if self._room() < len(new):      # the branch's points stay within max_points
+            return False
         total = sub.points[-1].arclength
         a0, a1 = pts[i].arclength, pts[i + 1].arclength
         for pt in new:
@@ -837,7 +942,13 @@ class _Walk:
         return "ended" if the branch ends in this step, "moved" if it came back to its start
         one period on and the walk moved past the translates of that period (:meth:`_repeat`),
         else "". Folds split the step: a value is solved between the two knots that bracket
-        it, so it cannot converge to the other side."""
+        it, so it cannot converge to the other side.
+
+        The points never exceed ``max_points``: an event is added while the points that
+        count (`_counts`) leave room for one more, the EP that ends the branch after it (or
+        while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
+        fold stop); where the step has more, the branch ends at the last one added, and the
+        UZ values past those the room can take are not solved for."""
         branch, name, stops = self.branch, self.name, self.stops
         inside = sorted((e for e in found if e.kind == "LP" and not e.note
                          and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
@@ -845,13 +956,20 @@ class _Walk:
                  + [(step.dist, step.b.state)])
         events = list(found)
         bound_hit = None
+        room = self._room()
+        # each spec's values come in the order of travel: past the first ``room`` that count,
+        # none could be added
+        solved = [0] * len(self.user_values)
         for (s0, x), (s1, y) in zip(knots, knots[1:]):
             lx, ly = x.params[name], y.params[name]
-            for spec in self.user_values:
+            for k, spec in enumerate(self.user_values):
                 for c in crossings(lx, ly, spec):
+                    if solved[k] >= room:
+                        break
                     ev = self._value_event(step, x, y, s0, s1, c, "UZ")
                     if ev is not None:
                         events.append(ev)
+                        solved[k] += self._counts("UZ", ev.state.params)
             bound = stops.upper if lx <= stops.upper < ly else \
                 stops.lower if ly < stops.lower <= lx else None
             if bound is not None:
@@ -868,11 +986,20 @@ class _Walk:
                       and not self._at_start(step, e, bound_hit)] + [bound_hit]
         events.sort(key=lambda e: e.sigma)
         nfolds = len(branch.folds)
+        last = None
         for e in events:
             if e.kind == PERIOD:
                 return self._repeat(step, e)
-            self._add(e.state, type=e.kind, arclength=step.position(e.sigma), tangent=e.tangent,
-                      fold_residual=e.residual, note=e.note)
+            # room for the event, and for the EP after it unless it ends the branch (a point
+            # set aside for the mirror image takes none, but may be the last before that EP)
+            ends = e.kind == "EP" or (e.kind == "LP" and stops.at_fold is not None
+                                      and nfolds + 1 >= stops.at_fold)
+            need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
+            if self._room() < need:
+                self._end_full(last, e.kind)
+                return "ended"
+            last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
+                             tangent=e.tangent, fold_residual=e.residual, note=e.note)
             if e.kind == "LP":
                 nfolds += 1
                 if stops.at_fold is not None and nfolds >= stops.at_fold:
@@ -886,6 +1013,21 @@ class _Walk:
                 branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
                 return "ended"
         return ""
+
+    def _end_full(self, last: Point | None, following: str = ""):
+        """End the branch at ``max_points`` inside a step: at the last point it added (a
+        labelled one, followed by an EP of its own), or at the step's start if none. Where
+        that leaves one point unused, the message says why: the ``following`` point (its
+        label) would have needed the EP after it as well."""
+        if last is None:
+            self.end_at_base("EP", self._full())
+        else:
+            self._add(last.state, type="EP", arclength=last.arclength, tangent=last.tangent,
+                      direct=last.index_direct)
+            self.branch.end, self.branch.message = "EP", self._full()
+        if following and self._room() > 0:
+            self.branch.message += (f" (the next point, {following}, and the EP after it would "
+                                    "exceed it)")
 
     def _limit_event(self, step: Step) -> _Event | None:
         """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
@@ -910,10 +1052,12 @@ class _Walk:
 
     def _close_ahead(self, ds: float) -> bool:
         """End the branch at its start point, without a step, where the start lies within
-        the next step (ahead of a along its tangent by at most ds, within ``CLOSED_LOOP`` ds
-        of the tangent's line, the tangent pointing the way the branch left it): a step that
-        ends next to a singular start (a branch point it was switched from) would see the
-        start's own fold or branch point there, and fail to locate it."""
+        the next step (ahead of a along its tangent by sigma <= ds, within ``CLOSED_LOOP``
+        sigma of the tangent's line, the tangent pointing the way the branch left it): a step
+        that ends next to a singular start (a branch point it was switched from) would see
+        the start's own fold or branch point there, and fail to locate it. (Measured against
+        ds, which ``growth`` makes far longer than any step the branch has taken, the start
+        of the rotating arm was "ahead" of points a period away: hostile M9.)"""
         start, a = self.start, self.a
         if start is None or self.until is not None or self.first or self._far(a, ds):
             return False
@@ -924,7 +1068,7 @@ class _Walk:
         if not 0.0 < sigma <= ds:
             return False
         off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
-        if norm(off) > CLOSED_LOOP * ds or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
+        if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
             return False
         self._add(start.state, type="EP", arclength=self.arclength + sigma,
                   tangent=start.tangent, direct=self.branch.points[0].index_direct)
@@ -1030,12 +1174,16 @@ class _Walk:
         walk from the last copy that is not a fold or a branch point (solved again from its
         profile, or the last translate of the start, which is exact), for what remains.
         Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
-        at its next turn, as it would have there)."""
-        branch, name, opt, stops, problem = (self.branch, self.name, self.opt, self.stops,
-                                             self.problem)
+        at its next turn, as it would have there; a labelled copy is made only with room for
+        the EP after it), or "ended" where there is no room for the translate."""
+        branch, name, stops, problem = self.branch, self.name, self.stops, self.problem
         shift = hit.state.params[name] - self.start.lam
         turns = round(shift / self.period)      # the periods from the start to ``hit``
         uz = is_user_value(hit.state.params[name], self.user_values)
+        # room for the translate, and for the EP that follows it where it is labelled
+        if self._room() < (2 if uz else 1):
+            self._end_full(None, "UZ" if uz else "")
+            return "ended"
         translate = self._add(hit.state, type="UZ" if uz else "",
                               arclength=step.position(hit.sigma), tangent=hit.tangent,
                               direct=branch.points[0].index_direct)
@@ -1046,7 +1194,9 @@ class _Walk:
         while True:
             for p in period:
                 lam = p.params[name] + j * shift
-                if not stops.lower < lam < stops.upper or len(branch.points) >= opt.max_points:
+                counts = self._counts(p.type, {**p.params, name: lam})
+                if not stops.lower < lam < stops.upper or self._room() < (
+                        (2 if p.type else 1) if counts else 1):
                     return self._resume(exact)
                 k = j * turns
                 copy = dataclasses.replace(
@@ -1095,6 +1245,7 @@ class _Walk:
         self.period = None
         following = [p.ds for p in pts if p.ds > 0]
         self.resume_ds = min(following[-1] if following else abs(self.opt.ds), self.opt.ds_max)
+        self.accepted_ds = self.resume_ds
         if self.progress is not None:
             self.progress(branch, sol.lam)
         return "moved"
@@ -1113,10 +1264,19 @@ class _Walk:
         return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
     def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
+        """The UZ or bound EP point where the parameter is ``value`` between the knots x and
+        y of the step. Where it is not found there although the knots' values bracket it,
+        the branch does not pass from x to y through the solutions between them (a step that
+        jumped to another branch, hostile M9): the step is rejected, as for an event that
+        cannot be located (RETRY_HALVINGS), then accepted with a warning and no point."""
         try:
             state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
         except CorrectorFailure as exc:
             what = "user point" if kind == "UZ" else "bound"
+            if self.can_retry:
+                self.event_retries += 1
+                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
+                              step.ds / 2) from None
             self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
             return None
         return _Event(sigma, kind, state, tangent_between(step, sigma))

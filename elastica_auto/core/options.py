@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 
 #: The correctors (:mod:`elastica_auto.numerics.correctors`).
@@ -18,6 +18,9 @@ NCOL_RANGE = (2, 7)
 #: in the millions wants rescaling, not steps of millions (1e300 even overflows to inf once
 #: squared in the norms).
 MAX_STEP = 1e3
+#: The kinds of special point whose detection a run can switch off (the option ``detect``):
+#: folds and branch points, AUTO-07p's ILP and ISP.
+DETECTABLE = ("LP", "BP")
 
 
 class OptionsError(ValueError):
@@ -38,7 +41,8 @@ class ContinuationOptions:
     growth : float
         Factor applied to |ds| after a step that converged on the first mesh (>= 1).
     max_points : int
-        Points per branch including the start (AUTO's NMX).
+        Points per branch including the start and the labelled points (AUTO's NMX): a
+        branch never has more (`elastica_auto.branches.stepper`).
     ntst : int
         Mesh intervals of the starting mesh, and the fewest a mesh is coarsened to.
     max_nodes : int
@@ -70,6 +74,14 @@ class ContinuationOptions:
         to itself and the continued parameter to its negative, computes the ``+`` branch and
         takes its mirror image as the ``-`` one (`elastica_auto.branches.mirror`); False
         computes both (to compare them, say).
+    detect : dict
+        Which special points are looked for along a branch: ``{"LP": bool, "BP": bool}``,
+        both true by default (kinds left out stay true). ``{"LP": False}`` labels no fold
+        (AUTO-07p's ILP = 0), ``{"BP": False}`` no branch point (ISP = 0); the points are
+        otherwise those of a run that looks for them, but where the folds or branch points
+        would have been located (the steps near them are not retried for them, and the
+        index is not checked against the fold rule, which reads them). Unknown kinds are an
+        OptionsError.
     """
 
     ds: float = 0.05
@@ -85,6 +97,7 @@ class ContinuationOptions:
     corrector: str = "collocation"
     ncol: int = 0
     mirror: bool = True
+    detect: dict = field(default_factory=lambda: dict.fromkeys(DETECTABLE, True))
 
     def __post_init__(self):
         if self.corrector not in CORRECTORS:
@@ -93,7 +106,7 @@ class ContinuationOptions:
         if not isinstance(self.mirror, bool):
             raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
         for f in fields(self):
-            if f.name in ("corrector", "mirror"):
+            if f.name in ("corrector", "mirror", "detect"):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -120,6 +133,25 @@ class ContinuationOptions:
                 raise OptionsError(f"{name} must be in (0, 1), got {getattr(self, name)}")
         if not 0 < self.max_angle < math.pi / 2:
             raise OptionsError(f"max_angle must be in (0, pi/2) radians, got {self.max_angle}")
+        # every kind present, as a dict of its own (a frozen instance's field, set once here)
+        object.__setattr__(self, "detect", _detect(self.detect))
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _detect(value) -> dict:
+    """The option ``detect`` checked: a mapping of kinds of special point (DETECTABLE) to true
+    or false, completed with true for the kinds it leaves out."""
+    if not hasattr(value, "items"):
+        raise OptionsError(f"detect must be a table of kinds such as {{LP = false}}, "
+                           f"got {value!r}")
+    out = dict.fromkeys(DETECTABLE, True)
+    for kind, on in value.items():
+        if kind not in DETECTABLE:
+            raise OptionsError(f"detect: unknown kind {kind!r}; the kinds are "
+                               f"{', '.join(DETECTABLE)}")
+        if not isinstance(on, bool):
+            raise OptionsError(f"detect.{kind} must be true or false, got {on!r}")
+        out[kind] = on
+    return out

@@ -276,11 +276,22 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     _check_branch_count(starts, grid, request.directions)
     specs = _specs(starts, grid, request.directions)
     at_fold, limits = _stops(problem, request.stop)
+    _detected(opts, at_fold, request.switch)
     return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
                 request.user_values, specs, varying=[k for k, v in grid.items() if len(v) > 1],
                 switch_count=request.switch, switch_depth=request.switch_depth,
                 landing=request.landing, damping=request.damping,
                 damping_folds=request.damping_folds)
+
+
+def _detected(opts: ContinuationOptions, at_fold: int | None, switch: int):
+    """A fold stop needs the folds looked for, and ``switch = N`` the branch points."""
+    if at_fold is not None and not opts.detect["LP"]:
+        raise PlanError("stop", f"LP{at_fold} counts folds, which detect.LP = false does not "
+                        "look for")
+    if switch and not opts.detect["BP"]:
+        raise PlanError("switch", f"switch = {switch} switches at the branch points found, "
+                        "which detect.BP = false does not look for")
 
 
 def _specs(starts, grid: dict, directions: str) -> list[BranchSpec]:

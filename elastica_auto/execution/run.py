@@ -25,12 +25,13 @@ from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
 from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin, start_point
-from ..branches.switching import switch_direction
+from ..branches.switching import kernel_plane, switch_direction
 from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
                            EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
                            StartError, WriteError, debugging, failure_record)
 from ..core.interrupts import Interruptions
-from ..core.solution import State, Tangent, trapezoid_weights
+from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
+from ..core.values import same_value
 from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
@@ -220,55 +221,143 @@ def number_labels(branches: list[Branch], first: int = 1, counters: dict | None 
                 p.label = counters[p.type]
 
 
-#: Two branch points are the same point where their distance sqrt(|dy|^2 + dlam^2) (the
-#: continuation's norm, `core.solution.inner`) is below this fraction of the larger step
-#: around them, or below SAME_POINT_RELATIVE of the solution's size. A branch point
-#: located exactly is within ~1e-7 of the true one; one labelled at a step's turning point
-#: (a branch point passed along the branch born there) only to that step.
-SAME_POINT_STEP = 1.0
+#: A branch point located exactly (where the determinant changes sign, or placed where the
+#: module's symmetry holds, or where the index changes) is a solution to fold_tol on its
+#: mesh: two located at one point on different branches (on different meshes, interpolated
+#: onto one) agree to far better than SAME_POINT_RELATIVE of the solution's size (1 + its
+#: norm, the measure of the corrector's tolerances), within which each counts as known.
 SAME_POINT_RELATIVE = 1e-6
+#: A branch point labelled where the parameter turns on a branch born at it ("turning point
+#: without index change": a pitchfork passed along its other branch) is where the fold system
+#: converged, which at a branch point is singular, or only the end of the step that passed
+#: it where that system failed: it is known only to that step (its length), and its kernel
+#: only through its tangent, which lies within that step's turn (at most max_angle) of the
+#: branch point's kernel plane.
+TURNING = "turning point without index change"
+#: Two located branch points have the same kernel (the plane of the two branches' directions
+#: there, from `switching.kernel_plane`) where the planes' largest principal angle is below
+#: this (its sine): their kernels are computed to about the accuracy of the points.
+SAME_KERNEL = 1e-3
 
 
-def _branch_points(br: Branch) -> list[tuple]:
-    """The BPs of ``br`` in order, each with the larger step of its neighbours (a labelled
-    point's own ``ds`` is not a step)."""
-    pts = br.points
-    return [(p, max(pts[j].ds for j in (i - 1, i + 1) if 0 <= j < len(pts)))
-            for i, p in enumerate(pts) if p.type == "BP"]
+@dataclass
+class _Site:
+    """A branch point as `switch_jobs` compares it: the point, the distance within which it
+    is known (``accuracy``), and, once computed, the directions of its kernel (``kernel``:
+    an orthonormal pair, or for a turning-point BP its tangent alone; None where unknown)."""
+
+    point: object
+    accuracy: float
+    located: bool
+    kernel: list | None = None
+    computed: bool = False
 
 
-def _same_point(plan: Plan, one: tuple, other: tuple) -> bool:
-    """Two (branch point, step) pairs are the same point (see SAME_POINT_STEP): at the same
-    values of the parameters held fixed, and close in the states and the continued one."""
-    (p, step_p), (q, step_q) = one, other
-    pp, qp, parameter = p.params, q.params, plan.parameter
+def _size(state, parameter: str) -> float:
+    """1 + the norm of the solution in (y, lam), the scale of the corrector's tolerances."""
+    w = trapezoid_weights(state.s)
+    return 1.0 + float(np.sqrt(np.sum(w * np.sum(state.y * state.y, axis=0))
+                               + state.params[parameter] ** 2))
+
+
+def _site(plan: Plan, pts, i: int) -> _Site:
+    """The branch point ``pts[i]`` as a `_Site`: located to SAME_POINT_RELATIVE of its size,
+    or, labelled at a turning point (TURNING), to the step that reached it (the step of the
+    first point after it that ends one, else of the one before)."""
+    p = pts[i]
+    if not p.note.startswith(TURNING):
+        return _Site(p, SAME_POINT_RELATIVE * _size(p.state, plan.parameter), True)
+    after = [q.ds for q in pts[i + 1:] if q.ds > 0][:1]
+    before = [q.ds for q in pts[i - 1::-1] if q.ds > 0][:1] if i else []
+    return _Site(p, (after or before or [0.0])[0], False)
+
+
+def _branch_points(plan: Plan, br: Branch) -> list[_Site]:
+    """The BPs of ``br`` in order, as `_Site`s."""
+    return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type == "BP"]
+
+
+def _kernel(plan: Plan, site: _Site) -> list | None:
+    """The directions of the site's kernel (computed once): the plane of a located branch
+    point, the tangent of a turning-point one; None where they cannot be had."""
+    if not site.computed:
+        p, site.computed = site.point, True
+        if p.state is not None and p.tangent is not None:
+            if site.located:
+                site.kernel = kernel_plane(plan.problem, p.state, p.tangent, plan.parameter,
+                                           plan.options)
+            else:
+                site.kernel = [p.tangent]
+    return site.kernel
+
+
+def _same_kernel(plan: Plan, one: _Site, other: _Site, s) -> bool:
+    """Whether the kernels of two sites at one place agree, on the mesh ``s``: two planes
+    within SAME_KERNEL of each other; a turning point's tangent within max_angle of a plane;
+    where either is unknown, or both are turning points' tangents (two directions of one
+    plane, which need not be parallel), their places decide alone."""
+    ka, kb = _kernel(plan, one), _kernel(plan, other)
+    if ka is None or kb is None or (len(ka) == 1 and len(kb) == 1):
+        return True
+    if len(ka) == 1:
+        ka, kb = kb, ka
+    basis = _orthonormal(ka, s)
+    if len(kb) == 1:
+        t = _orthonormal(kb, s)[0]
+        along = np.hypot(inner(t, basis[0], s), inner(t, basis[1], s))
+        return along >= np.cos(plan.options.max_angle)
+    gram = np.array([[inner(e, f, s) for f in _orthonormal(kb, s)] for e in basis])
+    cos_largest = float(np.linalg.svd(gram, compute_uv=False).min())
+    return np.sqrt(max(1.0 - cos_largest ** 2, 0.0)) <= SAME_KERNEL
+
+
+def _orthonormal(directions, s) -> list[Tangent]:
+    """``directions`` on the mesh ``s``, made orthonormal there (Gram-Schmidt in the
+    continuation's inner product)."""
+    out = []
+    for d in directions:
+        v = d.on(s)
+        for e in out:
+            v = Tangent(s, v.y - inner(v, e, s) * e.y, v.yp - inner(v, e, s) * e.yp,
+                        v.lam - inner(v, e, s) * e.lam)
+        out.append(v.scaled(1.0 / norm(v, s)))
+    return out
+
+
+def _same_point(plan: Plan, one: _Site, other: _Site) -> bool:
+    """Two branch points are the same point: at the same values of the parameters held fixed
+    (`core.values.same_value`), within the sum of their accuracies of each other in the
+    continuation's norm (sqrt(|dy|^2 + dlam^2)), and with the same kernel (`_same_kernel`).
+    Never by step length alone: two branch points of one branch one step apart are two."""
+    p, q, parameter = one.point, other.point, plan.parameter
     solved = (parameter, *getattr(plan.problem, "free", ()))
-    if any(pp[k] != qp[k] for k in pp if k not in solved):
+    periods = {k: v.period for k, v in plan.problem.parameters.items()}
+    if not all(same_value(p.params[k], q.params[k], periods.get(k)) for k in p.params
+               if k not in solved):
         return False
     a, b = p.state, q.state
     dy = a.y - b(a.s)
-    dist2 = float(np.sum(trapezoid_weights(a.s) * np.sum(dy * dy, axis=0))) \
-        + (pp[parameter] - qp[parameter]) ** 2
-    size2 = float(np.sum(trapezoid_weights(a.s) * np.sum(a.y * a.y, axis=0))) \
-        + pp[parameter] ** 2
-    return dist2 <= max((SAME_POINT_STEP * max(step_p, step_q)) ** 2,
-                        SAME_POINT_RELATIVE ** 2 * (1.0 + size2))
+    dist = float(np.sqrt(np.sum(trapezoid_weights(a.s) * np.sum(dy * dy, axis=0))
+                         + (p.params[parameter] - q.params[parameter]) ** 2))
+    if dist > one.accuracy + other.accuracy:
+        return False
+    return bool(_same_kernel(plan, one, other, a.s))
 
 
 def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                 seen: list | None = None, sources: list | None = None) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
     BPs where that fails are reported in ``warnings``. A BP that is the same point
-    (`_same_point`) as one in ``seen`` (pairs of `_branch_points`) is passed over; each BP
-    switched at is added to it. ``sources``, if given, gets each job's BP (its pair)."""
+    (`_same_point`) as one in ``seen`` (`_Site`s of `_branch_points`) is passed over; each BP
+    switched at is added to it. ``sources``, if given, gets each job's BP (its site)."""
     jobs = []
     seen = [] if seen is None else seen
     for br in branches:
-        for bp in _branch_points(br)[: plan.switch_count]:
+        for bp in _branch_points(plan, br)[: plan.switch_count]:
             if any(_same_point(plan, bp, q) for q in seen):
                 continue
             seen.append(bp)
-            p = bp[0]
+            p = bp.point
             for d in (1, -1):
                 spec = BranchSpec(Start("switch", None, p.name), {}, d)
                 try:
@@ -289,11 +378,12 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
     return jobs
 
 
-def _loop_points(br: Branch) -> list[tuple]:
+def _loop_points(plan: Plan, br: Branch) -> list[_Site]:
     """Where a closed loop ``br`` meets other branches: its start (the BP it was switched
-    at) and the BPs along it, as (point, step) pairs for `_same_point`."""
-    pts = br.points
-    return [(pts[0], pts[1].ds), *_branch_points(br)]
+    at, its solution exactly) and the BPs along it, as `_Site`s for `_same_point`."""
+    start = br.points[0]
+    return [_Site(start, SAME_POINT_RELATIVE * _size(start.state, plan.parameter), True),
+            *_branch_points(plan, br)]
 
 
 def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) -> bool:
@@ -322,11 +412,11 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
 
         def skip(i, done, before=before, sources=sources):
             return any(_same_point(plan, sources[i], q) for br in done[before:]
-                       if br.closed for q in _loop_points(br))
+                       if br.closed for q in _loop_points(plan, br))
 
         if run(jobs, skip):
             return True
-        seen.extend(bp for br in level for bp in _branch_points(br))
+        seen.extend(bp for br in level for bp in _branch_points(plan, br))
         level = branches[before:]
     return False
 

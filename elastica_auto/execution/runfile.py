@@ -49,7 +49,7 @@ from typing import Sequence
 
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
-from ..core.options import ContinuationOptions
+from ..core.options import DETECTABLE, ContinuationOptions
 from .plan import MAX_BRANCHES, BranchSpec, Plan, Request, Start, Switch, make_plan
 from ..model.problem import Problem, ProblemError, load_problem
 from ..storage.store import BranchFile, StoredLabel
@@ -306,8 +306,8 @@ class _Document:
         return self.string("[execution] scheduler", table["scheduler"])
 
     def options(self) -> dict:
-        """``[options]``: numbers (or expressions), integers, the corrector's name and
-        ``mirror`` (true or false)."""
+        """``[options]``: numbers (or expressions), integers, the corrector's name,
+        ``mirror`` (true or false) and ``detect`` (a table of true or false)."""
         known = {f.name for f in fields(ContinuationOptions)}
         values = {}
         for key, v in self.table("options").items():
@@ -324,9 +324,24 @@ class _Document:
                 if not isinstance(v, bool):
                     self.fail(where, f"expected true or false, got {v!r}")
                 values[key] = v
+            elif key == "detect":
+                values[key] = self.detect(where, v)
             else:
                 values[key] = self.number(where, v)
         return values
+
+    def detect(self, where: str, v) -> dict:
+        """``detect = { LP = false, BP = false }``: the kinds of special point looked for
+        (`elastica_auto.core.options.DETECTABLE`), true or false each."""
+        if not isinstance(v, dict):
+            self.fail(where, f"expected a table such as {{ LP = false }}, got {v!r}")
+        for kind, on in v.items():
+            if kind not in DETECTABLE:
+                self.fail(f"{where}.{kind}", f"unknown kind; expected one of "
+                          f"{', '.join(DETECTABLE)}")
+            if not isinstance(on, bool):
+                self.fail(f"{where}.{kind}", f"expected true or false, got {on!r}")
+        return dict(v)
 
     def parameters(self) -> dict[str, list[float]]:
         """``[parameters]``: a value, a list of values or a range per parameter."""

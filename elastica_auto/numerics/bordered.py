@@ -151,6 +151,22 @@ class Structure:
         self.col_p = n + np.arange(k)
 
 
+#: The Sherman-Morrison update of :meth:`Factorization.solve_with_border` divides by
+#: ``1 + <delta, u>``. Where that is not above UPDATE_RTOL times the size of the terms it is
+#: summed from (``1 + sum |delta_i u_i|``), the division amplifies their rounding by more
+#: than 1 / UPDATE_RTOL: half the digits or more are lost (the new border row makes the
+#: matrix nearly singular, or differs from the factorised one by far more than the matrix
+#: can absorb; a denominator of exactly 0 divided by zero). The update is then refused
+#: (:class:`IllConditionedUpdate`) and the caller factorises the system with its new row,
+#: whose LU with partial pivoting is stable whatever the border.
+UPDATE_RTOL = 1e-8
+
+
+class IllConditionedUpdate(ArithmeticError):
+    """A border row exchanged by Sherman-Morrison whose update would lose most of its
+    digits (UPDATE_RTOL): factorise the system with the new row instead."""
+
+
 @lru_cache(maxsize=128)   # meshes change size as they adapt: keep many, each is small
 def structure(n: int, m: int, k: int, split) -> Structure:
     return Structure(n, m, k, split)
@@ -228,7 +244,8 @@ class Factorization:
     def solve_with_border(self, c, d, col, bc, border):
         """Solve the system whose last border row is ``(c, d)`` instead of the factorised one:
         ``(M + e (delta)^T)^{-1} b = x - u <delta, x> / (1 + <delta, u>)`` with
-        ``x = M^{-1} b``, ``u = M^{-1} e``."""
+        ``x = M^{-1} b``, ``u = M^{-1} e``. :class:`IllConditionedUpdate` where the
+        denominator is too small for that (UPDATE_RTOL)."""
         c0, d0 = self.border[-1]
         x_y, x_p = self.solve(col, bc, border)
         u_y, u_p = self.null_direction()
@@ -237,7 +254,12 @@ class Factorization:
         def delta(vy, vp):
             return float((dc * vy).sum() + np.dot(dd, vp))
 
-        scale = delta(x_y, x_p) / (1.0 + delta(u_y, u_p))
+        denominator = 1.0 + delta(u_y, u_p)
+        size = 1.0 + float(np.abs(dc * u_y).sum() + np.abs(dd * u_p).sum())
+        if not abs(denominator) > UPDATE_RTOL * size:
+            raise IllConditionedUpdate(f"border update denominator {denominator:.3g} of "
+                                       f"terms of size {size:.3g}")
+        scale = delta(x_y, x_p) / denominator
         return x_y - scale * u_y, x_p - scale * u_p
 
 

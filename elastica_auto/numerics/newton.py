@@ -111,7 +111,8 @@ class Linearization:
         if row is self.row or (row.c is self.row.c and row.d == self.row.d):
             dY, dp = self.fact.solve(col, bc, [g])
         else:
-            dY, dp = self.fact.solve_with_border(row.c, [row.d], col, bc, [g])
+            dY, dp = _with_border(self.fact, self.blocks, self.name, self.split, row.c, row.d,
+                                  col, bc, g)
         return dY, float(dp[0])
 
     def correct(self, row: Row, ev, g):
@@ -121,6 +122,16 @@ class Linearization:
         None without interior unknowns)."""
         dY, dlam = self.solve(row, self.blocks.condense(ev), ev.bc, g)
         return dY, dlam, self.blocks.interior(ev, dY, dlam, self.name)
+
+
+def _with_border(fact, blocks, name, split, c, d: float, col, bc, g):
+    """The solution of ``fact``'s system with its border row exchanged for ``(c, d)``: by
+    the Sherman-Morrison update, or where that would lose its digits
+    (`bordered.IllConditionedUpdate`), by a factorisation of the system with that row."""
+    try:
+        return fact.solve_with_border(c, [d], col, bc, [g])
+    except bordered.IllConditionedUpdate:
+        return bordered.factor(blocks, (name,), [(c, [d])], split).solve(col, bc, [g])
 
 
 def unit(disc: Discretisation, blocks: Blocks, v, v_lam: float, name: str) -> Tangent:
@@ -314,7 +325,8 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     weighted state part of ``t`` (an approximate null vector), fixed. The Newton matrix
     ``[[F_y, F_lam], [g_y, g_lam]]`` is that bordered matrix with the gradient of g as its
     last row (:func:`_fold_gradient`), so it is solved with the same factorisation, its last
-    row exchanged (Sherman-Morrison, `Factorization.solve_with_border`). The gradient holds
+    row exchanged (Sherman-Morrison, `Factorization.solve_with_border`, or a factorisation of
+    its own where that update would lose its digits: :func:`_with_border`). The gradient holds
     the border column F_lam fixed: its variation adds ``-w^T (dF_lam) g`` to dg, a term that
     vanishes with g at the fold, so that Newton's convergence stays quadratic (the
     iterations on the shipped runs are those of a border frozen at the start)."""
@@ -327,7 +339,7 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     for it in range(1, max_iter + 1):
         v, g, w_col, w_bc, fact = _null_vector(disc, blocks, name, c, split)
         g_y, g_lam = _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc)
-        dY, dlam = fact.solve_with_border(g_y, [g_lam], ev.col, ev.bc, [g])
+        dY, dlam = _with_border(fact, blocks, name, split, g_y, g_lam, ev.col, ev.bc, g)
         dlam = float(dlam[0])
         size = scaled_norm(dY, dlam, Y, lam)
         if not size < FOLD_MAX_CORRECTION:  # started near the fold: this diverges (or is NaN)

@@ -771,8 +771,15 @@ def label_stability(branch, problem) -> None:
     ``index`` is the common value where rule and direct count agree; at LP and BP points
     (critical eigenvalue zero, direct count ambiguous) it is the rule's value. Elsewhere a
     disagreement leaves ``index = -1`` and says so in the point's note: it is never hidden.
+
+    A branch on which folds or branch points were not looked for (the option ``detect``)
+    has no rule to follow, which reads them: its ``index`` is the direct count.
     """
     if not branch.points or not problem.has_second_variation:
+        return
+    if not all((branch.options or {}).get("detect", {}).values()):
+        for p in branch.points:
+            p.index_rule, p.index = -1, p.index_direct
         return
     # A branch switched at a branch point starts where the direct count is ambiguous.
     pts = branch.points

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.values import same_value
 from ..storage.outputs import check_output, write_output
 from ..storage.store import BranchFile
 from .style import RC, index_label, index_style, marker_style
@@ -61,14 +62,6 @@ def index_runs(x, y, index, period):
             yield x[start:stop], y[start:stop], int(index[start])
             start = i + 1
     yield x[start:], y[start:], int(index[start])
-
-
-def same_value(a, b, period=None, tol=1e-9) -> bool:
-    """Whether ``a`` and ``b`` agree to ``tol`` relative, modulo ``period`` if given."""
-    d = a - b
-    if period:
-        d = math.remainder(d, period)
-    return abs(d) <= tol * (1 + abs(b))
 
 
 def fixed_parameters(bf: BranchFile, xname: str) -> list[str]:

@@ -7,14 +7,13 @@ curves over it (folded into one period of a periodic first parameter), cusps (CP
 
 from __future__ import annotations
 
-import math
-
 import matplotlib
 import numpy as np
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 
 from ..analysis.maps import plane_groups
+from ..core.values import same_value
 from ..storage.store import BranchFile
 from .diagram import values_tex
 from .style import RC, marker_style
@@ -41,7 +40,7 @@ def draw_map(ax, bf: BranchFile, m, cmap, norm):
     period = bf.periods.get(m.x)
     x0 = m.extent[0]
     members = next(b for fixed, b in plane_groups(bf.branches, bf.parameters, m.x, m.y)
-                   if all(math.isclose(fixed[k], m.fixed[k], abs_tol=1e-12) for k in m.fixed))
+                   if all(same_value(fixed[k], m.fixed[k]) for k in m.fixed))
     for b in members:
         x, y = b.columns[m.x].astype(float), b.columns[m.y].astype(float)
         for xs, ys in _wrapped(x, y, x0, period):
