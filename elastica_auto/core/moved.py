@@ -52,7 +52,7 @@ MOVED = {
         "model.problem": "Ordinate Problem",
         "core.solution": "State",
         "branches.codim2": ("NORM fold_problem branch_point_problem fold_start branch_point_start "
-                            "family_slope CUSP_SLOPE ON_FAMILY label_fold_curve"),
+                            "family_slope label_fold_curve"),
     },
     "collocation": {
         "core.solution": "at_fractions trapezoid_weights",
@@ -233,6 +233,12 @@ MOVED = {
 
 #: Names of a moved module that have no new place -> why.
 REMOVED = {
+    "codim2": {
+        "CUSP_SLOPE": "a cusp is decided by the ratio elastica_auto.branches.codim2.CUSP_RATIO "
+                      "along the fold curve, which has no units (0.2.0, issue 45)",
+        "ON_FAMILY": "a fold curve's branch point on the exact family is decided by the ratio "
+                     "elastica_auto.branches.codim2.FAMILY_RATIO, which has no units (0.2.0)",
+    },
     "corrector": {
         "solve_tangent": "a step's tangent is the corrector's own (the tangent of "
                          "elastica_auto.numerics.newton's Linearization)",
