@@ -488,6 +488,33 @@ def test_check_stored_passes_every_label_of_a_run_and_refuses_a_moved_one(small_
                              label.name)
 
 
+
+def test_check_stored_at_a_branch_point_reads_the_residual(elastica):
+    """At a branch point the linearisation is singular, whatever its border: Newton from the
+    stored solution cannot converge, and the check reads the residual of the equations
+    instead: the exact branch point of the straight rod passes (a switch from it is computed,
+    the isotropic rod's out-of-plane branch points alike: tests/test_kirchhoff_runs.py), the
+    same solution with kappa shifted by 1e-3 does not."""
+    import math
+
+    from elastica_auto.branches import restart
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State
+    straight = ea.continuation(elastica, {"eps": 0.25, "P": 0.0}, "P", bounds=(-1, 4))
+    label = straight.label("BP1")
+    k = math.sqrt(label.state.params["P"])      # the first critical load: cot k = eps k
+    assert 0 < k < math.pi / 2 and abs(math.cos(k) - 0.25 * k * math.sin(k)) < 1e-8
+    options = ContinuationOptions()
+    restart.check_stored(elastica, label, "P", options, "BP1")
+    s = label.state
+    y = s.y.copy()
+    y[1] += 1e-3
+    with pytest.raises(StartError, match="the residual of its equations is"):
+        restart.check_stored(elastica, dataclasses.replace(label, state=State(s.s, y, s.yp,
+                                                                             s.params)),
+                             "P", options, "BP1")
+
+
 # ---- free parameters matched by name (issue 45 item 4) -----------------------------------------
 
 TWO_FREE = '''

@@ -480,22 +480,25 @@ def resampled(source: Path, target: Path, factor: int) -> Path:
     with h5py.File(target, "r+") as f:
         labels = json.loads(f.attrs["labels"])
         for key, g in f["branches"].items():
-            n = g["profiles"].shape[0]
+            prof = g["profiles"][()]
+            if "profile_rows" in g:     # format 3: each point's row of the distinct profiles
+                prof = prof[g["profile_rows"][()]]
+                del g["profile_rows"]
+            n = prof.shape[0]
             u = np.linspace(0, n - 1, (n - 1) * factor + 1)
             before = np.floor(u).astype(int)
             exact = u == np.round(u)
             for name, d in list(g["columns"].items()):
                 old = d[()]
                 if name in ("type", "label", "note", "transition"):
-                    new = np.where(exact, old[np.round(u).astype(int)], b"" if old.dtype == object
-                                   else 0)
+                    new = np.where(exact, old[np.round(u).astype(int)],
+                                   b"" if old.dtype.kind in "OS" else 0)
                 elif old.dtype.kind == "f":
                     new = np.interp(u, np.arange(n), old)
                 else:
                     new = old[before]
                 del g["columns"][name]
                 g["columns"].create_dataset(name, data=new, dtype=d.dtype)
-            prof = g["profiles"][()]
             new = np.stack([np.interp(u, np.arange(n), prof[:, k, j]) for k in
                             range(prof.shape[1]) for j in range(prof.shape[2])], axis=1)
             del g["profiles"]

@@ -109,7 +109,12 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
                      tol=min(NEWTON_TOL, 1e-3 * own.tol))
         moved = max(float(np.max(np.abs(res.Y - state.y) / (1.0 + np.abs(state.y)))),
                     abs(res.lam - lam) / (1.0 + abs(lam)))
-        if not res.converged:
+        if not res.converged and label.name.startswith("BP"):
+            # at a branch point the linearisation is singular whatever the border (its kernel
+            # has two dimensions): Newton cannot converge, and the equations' residual at the
+            # solution is what tells a solution from one that is not
+            why = _residual_too_large(disc, state, own.tol)
+        elif not res.converged:
             why = f"Newton from it does not converge ({res.message})"
         elif not moved < own.tol:
             why = (f"solved again, it moves by {moved:.3g} (its tolerance: {own.tol:g}), "
@@ -117,6 +122,20 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
     if why is not None:
         raise StartError(f"{where}: the stored solution of {label.name} does not solve the "
                          f"problem: {why}")
+
+
+def _residual_too_large(disc, state, tol: float) -> str | None:
+    """Why the residual of the discretised equations at ``state`` says it is not a solution,
+    or None: each collocation residual relative to 1 + |y| at its interval's first node,
+    each boundary residual relative to 1 + max |y|, at most ``tol`` (a solution's are of the
+    order of Newton's tolerance, an edited one's of its edit over the mesh's step)."""
+    ev = disc.evaluate(state.y, state.params)
+    scale = 1.0 + np.abs(state.y)
+    worst = max(float(np.max(np.abs(ev.col) / scale[:, :-1])),
+                float(np.max(np.abs(ev.bc)) / (1.0 + float(np.max(np.abs(state.y))))))
+    if worst <= tol:
+        return None
+    return f"the residual of its equations is {worst:.3g} (its tolerance: {tol:g})"
 
 
 def _own_options(options: ContinuationOptions, stored: dict) -> ContinuationOptions:
