@@ -31,6 +31,7 @@ _PUBLIC = {
     "StoredLabel": "branches.branch",
     "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",
     "RunFileError": "core.errors", "StartError": "core.errors",
+    "ClusterError": "core.errors", "ClusterLost": "core.errors",
     "view": "plots.viewer",
 }
 
