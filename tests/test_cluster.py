@@ -4,6 +4,10 @@ subprocesses on 127.0.0.1 (``dask scheduler`` and ``dask worker --nworkers 2``).
 The file a cluster writes is the file ``--jobs 1`` writes, number for number (only the
 ``worker`` attribute and timings differ); both workers are used; a worker killed mid-run
 costs nothing; Ctrl-C keeps the finished branches; an unreachable scheduler is one line.
+Faults (the last section): a cluster whose workers all die, or whose scheduler goes, ends
+the run after worker_timeout with its branches kept and the rest recorded for --resume;
+malformed or empty addresses are one line; --jobs is capped at the usable cores; a task
+that raises on a worker is said, one whose worker died is computed again quietly.
 """
 
 from __future__ import annotations
@@ -944,6 +948,49 @@ def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_
         for name, col in a.columns.items():
             np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
         np.testing.assert_array_equal(a.profiles, b.profiles)
+
+
+def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypatch):
+    """hostile H5 (as reproduced: "Couldn't gather 1 keys, rescheduling", then no end): a
+    branch that finished on a worker, whose workers all die as the command fetches it (here
+    killed just before its fetch). Dask computes it again, with no worker to do it: the
+    fetch no longer waits for ever, and the run ends after worker_timeout with the branches
+    it had (the first and its mirror image), the other six not computed."""
+    import threading
+
+    from elastica_auto.core.errors import ClusterLost
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution.jobs import NOT_COMPUTED
+    from elastica_auto.execution.run import execute
+    address, procs = _start_cluster(tmp_path / "cluster")
+    fetch, fetches, ended = cluster._fetched, [], []
+
+    def fetched(future):
+        fetches.append(future.key)
+        if len(fetches) == 2:       # a second branch finished: its workers die first
+            os.killpg(procs[1].pid, signal.SIGKILL)
+            procs[1].wait(timeout=30)
+        return fetch(future)
+
+    def run():
+        try:
+            execute(runfile.load(ROTATING_ARM), tmp_path / "out", scheduler=address,
+                    worker_timeout=1.0)
+        except ClusterLost as exc:
+            ended.append(exc)
+
+    monkeypatch.setattr(cluster, "_fetched", fetched)
+    thread = threading.Thread(target=run, daemon=True)   # a hung run fails the test
+    try:
+        thread.start()
+        thread.join(300)
+    finally:
+        _stop_cluster(procs)
+    assert not thread.is_alive() and len(ended) == 1
+    assert "has had no worker for 1 s (worker_timeout)" in str(ended[0])
+    saved = BranchFile(tmp_path / "out" / "rotating_arm.h5").branches
+    assert [b.attrs["end"] for b in saved] == ["EP"] * 2 + ["MX"] * 6
+    assert [b.attrs["message"] for b in saved[2:]] == [NOT_COMPUTED] * 6
 
 
 @pytest.mark.parametrize("address", ["notanaddress", "tls://127.0.0.1:1", "inproc://x"])

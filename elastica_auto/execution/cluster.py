@@ -48,6 +48,11 @@ CONNECT_TIMEOUT = 10.0
 WORKER_TIMEOUT = 60.0
 #: Seconds between looks at a cluster's number of workers (a round trip to its scheduler).
 WORKER_POLL = 1.0
+#: Seconds to fetch a finished task's result before looking at the cluster again: the
+#: worker that holds it may have died since it finished, and then Dask computes the task
+#: again, which with no worker left would hold the fetch up for ever (`_fetched`). A
+#: branch, a few megabytes at most, comes in well under a second.
+FETCH_TIMEOUT = 10.0
 
 #: Seconds between looks at the tasks' states.
 POLL = 0.05
@@ -221,6 +226,17 @@ def _unanswered(client) -> ClusterLost:
                        "to it closed)")
 
 
+def _fetched(future) -> tuple[bool, object]:
+    """(True, the result) of the finished ``future``, or (False, None) if it did not come
+    within `FETCH_TIMEOUT` or was cancelled meanwhile: its worker died with it (the task is
+    computed again, and the future is no longer done) or the scheduler went away."""
+    from concurrent.futures import CancelledError
+    try:
+        return True, future.result(timeout=FETCH_TIMEOUT)
+    except (TimeoutError, CancelledError):
+        return False, None
+
+
 class _Watch:
     """Whether ``client``'s cluster has had a worker in the last ``timeout`` seconds:
     `check` raises ClusterLost once it has had none for longer, nor a scheduler that
@@ -294,8 +310,11 @@ def map_tasks(client, function, args_list, on_done, warnings: list[str],
         for future in ready:
             i = futures[future]
             if future.status == "finished":
-                out[i] = future.result()
-                on_done(i, out[i])
+                got, out[i] = _fetched(future)
+                if got:
+                    on_done(i, out[i])
+                else:     # looked at again, as it stands now
+                    pending.add(future)
                 continue
             failure = task_failure(future)
             if not failure.lost:
@@ -376,7 +395,11 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         for f in ready:
             i = futures[f]
             if f.status == "finished":
-                br, worker = f.result()
+                got, value = _fetched(f)
+                if not got:       # looked at again, as it stands now
+                    pending.add(f)
+                    continue
+                br, worker = value
                 br.worker = worker
             else:  # the task raised, or its workers died beyond the scheduler's retries
                 br = failed_branch(plan, jobs_list[i], task_failure(f))
