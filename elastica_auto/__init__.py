@@ -33,6 +33,7 @@ _PUBLIC = {
     "StoredLabel": "branches.branch",
     "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",
     "RunFileError": "core.errors", "StartError": "core.errors", "WriteError": "core.errors",
+    "ClusterError": "core.errors", "ClusterLost": "core.errors",
     "view": "plots.viewer",
 }
 

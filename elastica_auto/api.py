@@ -24,7 +24,7 @@ from typing import Iterable, Mapping
 
 from .storage import store
 from .branches.branch import Branch
-from .core.errors import PlanError, StoreError
+from .core.errors import ClusterLost, PlanError, StoreError
 from .core.options import ContinuationOptions
 from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
@@ -103,7 +103,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  free: Iterable[str] | None = None,
                  map: bool = False, landing: bool = False, damping: Iterable[float] = (),
                  damping_folds: Iterable[str] | None = None, jobs: int = 1,
-                 scheduler: str | None = None,
+                 scheduler: str | None = None, worker_timeout: float | None = None,
                  progress: Progress | None = None, **options) -> Branches:
     """Continue solutions of ``problem`` in ``parameter`` by pseudo-arclength.
 
@@ -162,6 +162,10 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     scheduler : str, optional
         The address of a Dask scheduler (``tcp://host:port``): the branches are computed as
         tasks of its cluster instead (`elastica_auto.execution.cluster`); ``jobs`` is then unused.
+    worker_timeout : float, optional
+        Seconds the cluster (the scheduler's, or the local one of ``jobs``) may have no worker
+        before the continuation ends with ClusterLost (default 60: a worker that dies is
+        replaced within seconds; workers that reached a batch system's walltime are not).
     progress : callable, optional
         Called as ``progress(branch, points, folds, value)`` during the continuation.
     **options
@@ -184,9 +188,19 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         that the continuation from the label does not reach).
     Interrupted
         Ctrl-C; ``exc.branches`` holds what was computed.
+    ClusterError
+        A scheduler that cannot be used: a malformed address, unreachable, without workers.
+    ClusterLost
+        The cluster had no worker for ``worker_timeout`` seconds; ``exc.branches`` holds
+        every branch, those not computed ending MX with the message "not computed: ...".
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
+    if worker_timeout is not None and (isinstance(worker_timeout, bool)
+                                       or not isinstance(worker_timeout, (int, float))
+                                       or not 0 < worker_timeout < float("inf")):
+        raise PlanError("worker_timeout", f"expected a positive number of seconds, got "
+                                          f"{worker_timeout!r}")
     request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
                       uz_period=uz_period, stop=stop, switch=switch,
                       switch_depth=switch_depth, free=free, map=map,
@@ -199,18 +213,25 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         raise Interrupted(Branches([], plan.problem, [], [], time.perf_counter() - t0, [],
                                    [])) from None
     result = RunResult(None, [], 0.0)
+    lost = None
     try:
         # labels numbered as each branch is done (as a saved run's): a switched branch's
         # start names its BP
         compute(plan, first, result, lambda: number_labels(result.branches),
-                Callbacks(progress=progress), Workers(jobs, scheduler))
+                Callbacks(progress=progress),
+                Workers(jobs, scheduler, worker_timeout=worker_timeout))
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True
+    except ClusterLost as exc:  # the finished branches, and those not computed (MX)
+        lost = exc
     number_labels(result.branches)
     out = Branches(result.branches, plan.problem, result.snaps, result.warnings,
                    time.perf_counter() - t0, result.maps, result.landings, result.missing)
     if result.interrupted:
         raise Interrupted(out)
+    if lost is not None:
+        lost.branches = out
+        raise lost
     return out
 
 

@@ -1,11 +1,12 @@
 """The ``elastica-auto`` command line: run, list, show, snaps, export, plot, view, path, derive.
 
 User errors (a bad run file, a missing, foreign or damaged branch file, a path too long for
-the file system) print one line and exit with status 2, without a traceback. A run in which
-a branch ended with MX exits with status 1; an interrupted run saves what it computed and
-exits with status 130. A file that cannot be written once a command is under way (the disk
-full, a read-only file system, a file-size limit) ends any command with one line and status
-5, no file half-written.
+the file system) print one line and exit with status 2, without a traceback. Every exit status
+is in one table, `core.errors.EXIT_STATUSES` (docs/cli.md#exit-status): a branch that ended
+MX gives 1, an analysis that could not be made 3, an internal error of the engine 4, a file
+that cannot be written once a command is under way 5 (no file half-written), a run whose
+cluster had no worker for its worker_timeout 6, an interruption 130 (what was computed is
+saved).
 """
 
 from __future__ import annotations
@@ -138,7 +139,8 @@ def _fmt_params(params: dict, names) -> str:
 @click.option("--out", "out_dir", default="out", show_default=True,
               type=click.Path(file_okay=False), help="Folder for the branch file <run>.h5.")
 @click.option("--jobs", "-j", default=0, show_default=True, type=click.IntRange(min=0),
-              help="Branches computed at once (0: one per CPU core).")
+              help="Branches computed at once (0: one per CPU core); at most one per core "
+                   "this process may use.")
 @click.option("--quiet", "-q", is_flag=True, help="No live progress line (summaries only).")
 @click.option("--set", "overrides", multiple=True, metavar="NAME=VALUE",
               help="Override an option, a parameter or a [continuation] key of the run file "
@@ -149,15 +151,26 @@ def _fmt_params(params: dict, names) -> str:
               help="Compute the branches as tasks of the Dask cluster whose scheduler is at "
                    "ADDRESS (tcp://host:port); default: the run file's [execution] scheduler, "
                    "else this machine (--jobs).")
+@click.option("--worker-timeout", "worker_timeout", default=None, type=float,
+              metavar="SECONDS",
+              help="End the run (exit status 6) once its cluster has had no worker for this "
+                   "long, the branches computed so far saved; default: the run file's "
+                   "[execution] worker_timeout, else 60.")
 @click.option("--resume", is_flag=True,
               help="Continue the run's file: compute only the cells (start, parameter values, "
                    "direction) not in it yet.")
-def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resume):
+def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, worker_timeout,
+        resume):
     """Run NAME_OR_PATH (a shipped run name or a .toml file) and write OUT/<run>.h5."""
-    from .execution.jobs import Callbacks
+    from .execution.jobs import Callbacks, usable_cores
     from .execution.run import StartError, execute
     from .execution.runfile import load
     out_dir = Path(out_dir)
+    if scheduler is not None and not scheduler.strip():
+        _fail("--scheduler: an empty address; give tcp://HOST:PORT, or leave the option out "
+              "to compute on this machine")
+    if worker_timeout is not None and not 0 < worker_timeout < float("inf"):   # nan too
+        _fail(f"--worker-timeout: expected a positive number of seconds, got {worker_timeout:g}")
     try:
         plan = load(resolve_run(name_or_path), out_dir=out_dir, overrides=overrides,
                     restart=restart)
@@ -165,6 +178,11 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
         _fail(str(exc))
     nbr = len(plan.branches)
     varying = plan.varying
+    cores = usable_cores()
+    if jobs > cores and scheduler is None and plan.scheduler is None:
+        # more worker processes than cores would only share them, each with its own memory
+        click.echo(f"note: --jobs {jobs}: this process may use {cores} cores; at most "
+                   f"{cores} worker processes", err=True)
     tty = sys.stderr.isatty() and not quiet
     levels = f", {plan.switch_depth} levels deep" if plan.switch_depth > 1 else ""
     switched = (f", then the other branch at the first {plan.switch_count} BPs of each{levels}"
@@ -204,9 +222,11 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, resum
     signal.signal(signal.SIGTERM, _terminate)
     try:
         callbacks = Callbacks(progress, on_branch, header, on_tasks, on_landing)
-        result = execute(plan, out_dir, callbacks, jobs, scheduler, resume)
+        result = execute(plan, out_dir, callbacks, jobs, scheduler, resume, worker_timeout)
     except StartError as exc:
         _fail(str(exc))
+    except ClusterLost as exc:     # the branches computed so far are saved: the line says where
+        _fail(str(exc), EXIT_CLUSTER_LOST)
     except USER_ERRORS as exc:
         _fail(str(exc))
     except WriteError as exc:

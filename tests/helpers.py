@@ -236,11 +236,14 @@ class WorkingBackground:
 
     def submit(self, tag, function, args):
         import threading
+
+        from elastica_auto.execution.jobs import TaskFailure
         self.tasks.append(tag)
 
         def work():
             if self.fails:
-                self.on_result(tag, False, "KilledWorker: the worker died")
+                self.on_result(tag, False, TaskFailure("KilledWorker", "the worker died",
+                                                       lost=True))
             else:
                 self.on_result(tag, True, (function(*args), "stand-in"))
         threading.Thread(target=work).start()

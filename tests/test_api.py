@@ -164,6 +164,25 @@ def test_ctrl_c_returns_what_was_computed(bratu):
     assert br.points[-1].name == "MX1"
 
 
+def test_a_lost_cluster_returns_what_was_computed(bratu, monkeypatch):
+    """hostile H5, from Python: a cluster that had no worker for ``worker_timeout`` raises
+    ``ea.ClusterLost``, whose ``branches`` hold the branches computed so far and those not
+    computed (here a stand-in for the cluster's run: one branch, then the cluster lost)."""
+    import elastica_auto.api as api_module
+    compute = api_module.compute
+
+    def lost(plan, first, result, save, callbacks, workers):
+        assert workers.worker_timeout == 5.0
+        compute(plan, first, result, save, callbacks)        # in this process
+        raise ea.ClusterLost("the Dask scheduler at tcp://x:1 has had no worker for 5 s")
+
+    monkeypatch.setattr(api_module, "compute", lost)
+    with pytest.raises(ea.ClusterLost, match="no worker for 5 s") as info:
+        ea.continuation(bratu, {"lam": 0.0}, "lam", bounds=(-1, 4), worker_timeout=5.0)
+    (br,) = info.value.branches
+    assert len(br.points) > 10 and br.points[0].params["lam"] == 0.0
+
+
 @pytest.mark.parametrize("kwargs, key, words", [
     ({"parameter": "mu"}, "parameter", "unknown parameter 'mu'"),
     ({"bounds": (4, -1)}, "bounds", "lower < upper"),
@@ -178,6 +197,9 @@ def test_ctrl_c_returns_what_was_computed(bratu):
     ({"params": {"mu": 1}}, "params.mu", "unknown parameter"),
     ({"params": {"lam": 0.5}}, "params", "given both"),
     ({"jobs": 0}, "jobs", "positive"),
+    ({"worker_timeout": 0}, "worker_timeout", "positive number of seconds"),
+    ({"worker_timeout": math.nan}, "worker_timeout", "positive number of seconds"),
+    ({"worker_timeout": "60"}, "worker_timeout", "positive number of seconds"),
     ({"switch": -1}, "switch", "count"),
     ({"start": "trivial"}, "start", "a dict"),
     ({"start": []}, "start", "empty"),

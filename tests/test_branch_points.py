@@ -260,7 +260,6 @@ def test_a_loop_s_other_jobs_are_left_out_as_soon_as_the_loop_is_done(tmp_path, 
     1); the worker, then handed job 2, holds it. Once the loop is in, jobs 1 to 3 are left
     out at once: the run waits neither for the held job nor computes job 3, and its file is
     jobs = 1's."""
-    import os
     import threading
     import elastica_auto as ea
     from elastica_auto.execution import cluster
@@ -289,7 +288,7 @@ def test_a_loop_s_other_jobs_are_left_out_as_soon_as_the_loop_is_done(tmp_path, 
     monkeypatch.setattr(cluster, "Background",
                         lambda n, on: stand_in.append(_FirstOfEachLevel(n, on, taken))
                         or stand_in[-1])
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     plan = make_plan(problem, {"lam": -1.5}, "lam",
                      Request(bounds=(-2, 2), switch=2), {"ds_max": 0.2})
     result = RunResult(None, [], 0.0)

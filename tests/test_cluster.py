@@ -4,12 +4,17 @@ subprocesses on 127.0.0.1 (``dask scheduler`` and ``dask worker --nworkers 2``).
 The file a cluster writes is the file ``--jobs 1`` writes, number for number (only the
 ``worker`` attribute and timings differ); both workers are used; a worker killed mid-run
 costs nothing; Ctrl-C keeps the finished branches; an unreachable scheduler is one line.
+Faults (the last section): a cluster whose workers all die, or whose scheduler goes, ends
+the run after worker_timeout with its branches kept and the rest recorded for --resume;
+malformed or empty addresses are one line; --jobs is capped at the usable cores; a task
+that raises on a worker is said, one whose worker died is computed again quietly.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import os
 import signal
 import subprocess
@@ -28,10 +33,11 @@ from helpers import ROTATING_ARM, run_cli, signalling_elastica, wait_for
 BIN = Path(sys.executable).parent
 
 
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    """A scheduler and two single-threaded workers; yields the scheduler's address."""
-    root = tmp_path_factory.mktemp("cluster")
+def _start_cluster(root: Path) -> tuple[str, list]:
+    """A scheduler and two single-threaded workers (with their nannies, all in the second
+    process's group), on 127.0.0.1: the scheduler's address, once both workers have joined,
+    and the two processes (`_stop_cluster`)."""
+    root.mkdir(parents=True, exist_ok=True)
     info = root / "scheduler.json"
     common = dict(cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                   start_new_session=True)
@@ -45,11 +51,23 @@ def cluster(tmp_path_factory):
     from distributed import Client
     with Client(address, timeout=30) as client:
         client.wait_for_workers(2, timeout=60)
-    yield address
+    return address, procs
+
+
+def _stop_cluster(procs):
     for p in reversed(procs):
-        os.killpg(p.pid, signal.SIGTERM)
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGTERM)
     for p in procs:
         p.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A scheduler and two single-threaded workers; yields the scheduler's address."""
+    address, procs = _start_cluster(tmp_path_factory.mktemp("cluster"))
+    yield address
+    _stop_cluster(procs)
 
 
 def _numbers(path) -> dict:
@@ -204,7 +222,8 @@ def test_an_interrupted_cluster_run_keeps_its_finished_branches(cluster, tmp_pat
 def test_tasks_on_a_cluster_come_back_in_order_or_are_computed_here(cluster):
     """cluster.map_tasks (the damped landings of a --jobs N or scheduler run): the results
     in order, each reported once; a task the workers cannot compute (a module they cannot
-    import: `helpers` is on this process's path only) is computed in this process."""
+    import: `helpers` is on this process's path only) is computed in this process, and a
+    warning says why."""
     import importlib
 
     from distributed import Client
@@ -212,10 +231,19 @@ def test_tasks_on_a_cluster_come_back_in_order_or_are_computed_here(cluster):
     from elastica_auto.execution.cluster import map_tasks
     with Client(cluster, timeout=30, set_as_default=False) as client:   # as a run's
         reported = []
-        pids = map_tasks(client, os.getpid, [()] * 4, lambda i, r: reported.append((i, r)))
+        warnings = []
+        pids = map_tasks(client, os.getpid, [()] * 4, lambda i, r: reported.append((i, r)),
+                         warnings)
         assert sorted(reported) == list(enumerate(pids)) and os.getpid() not in pids
-        mods = map_tasks(client, importlib.import_module, [("helpers",)], lambda i, r: None)
+        assert warnings == []
+        mods = map_tasks(client, importlib.import_module, [("helpers",)], lambda i, r: None,
+                         warnings)
         assert mods[0].__name__ == "helpers"
+    # said, with the worker's exception (issue 45 item 3)
+    (line,) = warnings
+    assert line.startswith("task 1 of 1 (import_module) raised on a worker: "
+                           "ModuleNotFoundError: No module named 'helpers' (")
+    assert line.endswith("); computed here instead")
 
 
 def test_an_unreachable_scheduler_is_one_line(tmp_path, cli_exe):
@@ -342,7 +370,7 @@ def test_the_default_run_computes_here_and_on_a_background_cluster(tmp_path, mon
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     assert not started.exists()
     flag.touch()
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     both = execute(runfile.load(run), tmp_path / "both", jobs=0)
     assert [len(b.points) for b in both.branches] == [len(b.points) for b in one.branches]
     assert both.snaps and len(both.snaps) == len(one.snaps)
@@ -370,7 +398,7 @@ def test_a_default_run_hands_fold_curves_to_its_background_cluster(tmp_path, mon
     curves = fold_curves_file(tmp_path / "curves.toml", "mine.py", folds)
     one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
     flag.touch()
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     both = execute(runfile.load(curves), tmp_path / "both", jobs=0)
     assert started.exists() and len(both.branches) == len(one.branches) == 4
     _same_numbers(one.path, both.path)
@@ -399,7 +427,7 @@ def test_a_default_run_shares_its_maps_enumerations_with_its_cluster(tmp_path, m
     one = execute(runfile.load(curves), tmp_path / "one", jobs=1)
     monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
     monkeypatch.setattr(cluster, "Background", Recording)
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     both = execute(runfile.load(curves), tmp_path / "both", jobs=0)
     regions = sum(len(m.stable) for m in both.maps)
     assert regions >= 2 and ("task", "region_counts") in handed
@@ -432,6 +460,7 @@ def test_a_task_that_does_not_pickle_stays_here_and_sends_nothing():
 def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
     """One branch (examples/bratu.toml) on two cores: computed here, no cluster started."""
     from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution import run as run_module
     from elastica_auto.execution.run import execute
     from helpers import EXAMPLES
 
@@ -440,7 +469,7 @@ def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
 
     monkeypatch.setattr(cluster, "Background", refused)
     monkeypatch.setattr(cluster, "local", refused)
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     plan = runfile.load(EXAMPLES / "bratu.toml")
     assert len(plan.branches) == 1
     result = execute(plan, tmp_path, jobs=0)
@@ -503,7 +532,7 @@ def test_a_default_run_starts_its_cluster_only_if_it_pays(tmp_path, monkeypatch,
 
     monkeypatch.setattr(run_module, "CLUSTER_PAYS", pays)
     monkeypatch.setattr(cluster, "Background", background)
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     run = elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False)
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     monkeypatch.setattr(run_module, "compute_branch", computed)
@@ -742,7 +771,7 @@ def test_a_default_run_whose_scans_were_guessed_writes_the_file_one_process_writ
     one = execute(runfile.load(path), tmp_path / "one", jobs=1)
     monkeypatch.setattr(run_module, "CLUSTER_PAYS", 0.0)
     monkeypatch.setattr(cluster, "Background", Guessing)
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
     both = execute(runfile.load(path), tmp_path / "both", jobs=0)
     assert len(one.snaps) > 0 and "guess" in handed and "scan" not in handed
     _same_numbers(one.path, both.path)
@@ -850,3 +879,396 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
         again = enumerate_(plan.problem, params)
         assert [(e.k, e.index, e.ordinates) for e in got] == [
             (e.k, e.index, e.ordinates) for e in again]
+
+
+# -- faults: a cluster that loses its workers, tasks that raise, addresses that are none -------
+
+def _cells(path) -> dict:
+    """The branches of a branch file by their cell (start, parameter values, direction)."""
+    return {b.attrs["cell"]: b for b in BranchFile(path).branches}
+
+
+@pytest.mark.parametrize("killed", ["workers", "scheduler"])
+def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_exe,
+                                                                  in_one_process, killed):
+    """hostile H5: every worker of the run's scheduler killed (with their nannies, as a batch
+    system's walltime ends them), or the scheduler, once a branch is saved and another is
+    held in a step on a worker. With --worker-timeout 1 the run ends with one line and exit
+    status EXIT_CLUSTER_LOST (at once for a scheduler gone); its file has the finished
+    branches, number for number those one process computes, and after them every other
+    cell of the plan, ending MX as not computed. ``--resume`` (here in one process)
+    computes those, and the file is then the one-process run's, cell for cell."""
+    from elastica_auto.core.errors import EXIT_CLUSTER_LOST
+    from elastica_auto.execution.jobs import NOT_COMPUTED
+    address, procs = _start_cluster(tmp_path / "cluster")
+    held, out = tmp_path / "held", tmp_path / "out"
+    run = _rotating_arm(tmp_path, hold=('p["eps"] == 0.5 and p["P"] > 20 and abs(p["psi"]) > 1',
+                                        held))
+    proc = subprocess.Popen([cli_exe, "run", run, "--out", out, "--scheduler", address,
+                             "--worker-timeout", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for("the first branch saved", (out / "rotating_arm.h5").exists, proc)
+        wait_for("a branch held in a step on a worker",
+                 lambda: held.is_file() and held.read_text(), proc)
+        victim = procs[1] if killed == "workers" else procs[0]  # workers: with their nannies
+        os.killpg(victim.pid, signal.SIGKILL)
+        victim.wait(timeout=30)
+        _, err = proc.communicate(timeout=300)
+    finally:   # a run that did not end (the defect) is not left behind
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        _stop_cluster(procs)
+    assert proc.returncode == EXIT_CLUSTER_LOST and "Traceback" not in err, err
+    line = err.strip().splitlines()[-1]
+    saved = BranchFile(out / "rotating_arm.h5").branches
+    missing = [b for b in saved if b.attrs["message"] == NOT_COMPUTED]
+    why = ("has had no worker for 1 s (worker_timeout)" if killed == "workers" else
+           "went away (the connection to it closed)")
+    assert line == (f"elastica-auto: error: the Dask scheduler at {address} {why}: "
+                    f"{len(saved) - len(missing)} branches saved to "
+                    f"{out / 'rotating_arm.h5'}, {len(missing)} not computed (run it again "
+                    "with --resume to compute them)")
+    one = _cells(in_one_process)
+    assert {b.attrs["cell"] for b in saved} == one.keys() and len(saved) == len(one)
+    assert saved[-len(missing):] == missing and 1 <= len(missing) < len(saved)
+    assert all(b.attrs["end"] == "MX" for b in missing)
+    for b in saved[:-len(missing)]:
+        a = one[b.attrs["cell"]]
+        for name, col in a.columns.items():
+            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+    resumed = run_cli(cli_exe, "run", run, "--out", out, "-j", "1", "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    again = _cells(out / "rotating_arm.h5")
+    assert again.keys() == one.keys() and len(BranchFile(out / "rotating_arm.h5").branches) == 8
+    for cell, a in one.items():
+        b = again[cell]
+        assert b.attrs["end"] == a.attrs["end"] == "EP"
+        for name, col in a.columns.items():
+            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+        np.testing.assert_array_equal(a.profiles, b.profiles)
+
+
+def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypatch):
+    """hostile H5 (as reproduced: "Couldn't gather 1 keys, rescheduling", then no end): a
+    branch that finished on a worker, whose workers all die as the command fetches it (here
+    killed just before its fetch). Dask computes it again, with no worker to do it: the
+    fetch no longer waits for ever, and the run ends after worker_timeout with the branches
+    it had (the first and its mirror image), the other six not computed."""
+    import threading
+
+    from elastica_auto.core.errors import ClusterLost
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution.jobs import NOT_COMPUTED
+    from elastica_auto.execution.run import execute
+    address, procs = _start_cluster(tmp_path / "cluster")
+    fetch, fetches, ended = cluster._fetched, [], []
+
+    def fetched(future):
+        fetches.append(future.key)
+        if len(fetches) == 2:       # a second branch finished: its workers die first
+            os.killpg(procs[1].pid, signal.SIGKILL)
+            procs[1].wait(timeout=30)
+        return fetch(future)
+
+    def run():
+        try:
+            execute(runfile.load(ROTATING_ARM), tmp_path / "out", scheduler=address,
+                    worker_timeout=1.0)
+        except ClusterLost as exc:
+            ended.append(exc)
+
+    monkeypatch.setattr(cluster, "_fetched", fetched)
+    thread = threading.Thread(target=run, daemon=True)   # a hung run fails the test
+    try:
+        thread.start()
+        thread.join(300)
+    finally:
+        _stop_cluster(procs)
+    assert not thread.is_alive() and len(ended) == 1
+    assert "has had no worker for 1 s (worker_timeout)" in str(ended[0])
+    saved = BranchFile(tmp_path / "out" / "rotating_arm.h5").branches
+    assert [b.attrs["end"] for b in saved] == ["EP"] * 2 + ["MX"] * 6
+    assert [b.attrs["message"] for b in saved[2:]] == [NOT_COMPUTED] * 6
+
+
+@pytest.mark.parametrize("address", ["notanaddress", "tls://127.0.0.1:1", "inproc://x"])
+@pytest.mark.parametrize("where", ["option", "run file"])
+def test_a_malformed_scheduler_address_is_one_line(tmp_path, cli_exe, address, where):
+    """hostile M3: a scheduler address no Dask client can use (no port; TLS without
+    certificates in Dask's configuration; an in-process address), given by --scheduler or
+    by the run file's [execution] scheduler: exit 2, one line naming it, nothing written
+    (it was a traceback, then a 20 s wait at exit)."""
+    from helpers import elastica_run_file
+    run = elastica_run_file(tmp_path / "small.toml", uz=[0])
+    args = ["--scheduler", address]
+    if where == "run file":
+        run.write_text(run.read_text() + f'\n[execution]\nscheduler = "{address}"\n')
+        args = []
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path / "out", *args)
+    assert proc.returncode == 2 and not (tmp_path / "out").exists()
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(f"elastica-auto: error: {address!r} is not a Dask scheduler's "
+                           "address (")
+    assert line.endswith("); expected tcp://HOST:PORT")
+
+
+def test_an_empty_scheduler_address_is_refused(tmp_path, cli_exe):
+    """hostile L16: ``--scheduler ""`` (and ``scheduler = ""`` in the run file) is refused
+    with one line, exit 2, nothing written: it ran on this machine without a word."""
+    from helpers import elastica_run_file
+    run = elastica_run_file(tmp_path / "small.toml", uz=[0])
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path / "out", "--scheduler", "")
+    assert proc.returncode == 2 and not (tmp_path / "out").exists()
+    assert proc.stderr.strip().splitlines() == [
+        "elastica-auto: error: --scheduler: an empty address; give tcp://HOST:PORT, or leave "
+        "the option out to compute on this machine"]
+    run.write_text(run.read_text() + '\n[execution]\nscheduler = " "\n')
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path / "out")
+    assert proc.returncode == 2 and not (tmp_path / "out").exists()
+    assert proc.stderr.strip().splitlines() == [
+        f"elastica-auto: error: {run}: [execution] scheduler: an empty address; give "
+        "tcp://HOST:PORT, or leave the key out to compute on this machine"]
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", '"abc"'])
+def test_worker_timeout_is_a_positive_number_of_seconds(tmp_path, cli_exe, value):
+    """--worker-timeout and [execution] worker_timeout: a positive (finite) number of
+    seconds, else one line and exit 2."""
+    from elastica_auto.execution import runfile
+    from helpers import elastica_run_file
+    run = elastica_run_file(tmp_path / "small.toml", uz=[0])
+    text = run.read_text()
+    run.write_text(text + "\n[execution]\nworker_timeout = 30\n")
+    assert runfile.load(run).worker_timeout == 30.0
+    run.write_text(text + f"\n[execution]\nworker_timeout = {value}\n")
+    with pytest.raises(runfile.RunFileError, match=r"\[execution\] worker_timeout: "):
+        runfile.load(run)
+    if value == '"abc"':
+        return
+    run.write_text(text)
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path / "out", "--worker-timeout", value)
+    assert proc.returncode == 2 and not (tmp_path / "out").exists()
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+def test_jobs_are_capped_at_the_usable_cores(tmp_path, monkeypatch):
+    """hostile L6: ``jobs = 12`` on a run with switch (examples/nonlinear_eigenvalue.toml,
+    whose branches are not known in advance) started 12 worker processes whatever the
+    cores; with two usable cores the local cluster has two workers (threads here)."""
+    from elastica_auto.execution import cluster, runfile
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import execute
+    from helpers import EXAMPLES
+    started, local = [], cluster.local
+
+    def recorded(workers, threads=False):
+        started.append(workers)
+        return local(workers, threads=True)
+
+    monkeypatch.setattr(cluster, "local", recorded)
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
+    plan = runfile.load(EXAMPLES / "nonlinear_eigenvalue.toml")
+    assert plan.switch_count
+    result = execute(plan, tmp_path, jobs=12)
+    assert started == [2] and len(result.branches) > 2
+
+
+def test_jobs_above_the_usable_cores_are_said_to_be_capped(tmp_path, cli_exe):
+    """hostile L6: the command says so when --jobs asks for more workers than the cores this
+    process may run on (its CPU affinity, read here independently)."""
+    from helpers import elastica_run_file
+    cores = len(os.sched_getaffinity(0))
+    run = elastica_run_file(tmp_path / "small.toml", uz=[0], mirror=False)
+    proc = run_cli(cli_exe, "run", run, "--out", tmp_path / "out", "-j", cores + 1)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.splitlines()[0] == (
+        f"note: --jobs {cores + 1}: this process may use {cores} cores; at most {cores} worker "
+        "processes")
+    workers = {b.attrs["worker"] for b in BranchFile(tmp_path / "out" / "small.h5").branches}
+    assert len(workers) <= cores
+
+
+_ON_WORKERS_ONLY = '''
+
+_shooting = shooting
+
+
+def shooting(p):
+    """The shipped hook in the command's process; elsewhere (a worker) it raises."""
+    import os
+    if os.environ.get("ELASTICA_TEST_COMMAND") != "1":
+        raise RuntimeError("shooting is refused on this worker")
+    return _shooting(p)
+'''
+
+
+def test_a_task_that_raises_on_a_worker_is_said_and_computed_here(cluster, tmp_path, cli_exe):
+    """issue 45 item 3: the enumerations of a fold-curve run's stability map (``map =
+    true``) are tasks of the --scheduler run's workers, and the module's shooting hook
+    raises there (not in the command's process: an environment variable only the command
+    has). Each is computed in the command's process, and the run says so, with the
+    exception and where it was raised; the file, maps included, is the one-process run's."""
+    from helpers import ELASTICA, elastica_run_file, fold_curves_file
+    (tmp_path / "mine.py").write_text(ELASTICA + _ON_WORKERS_ONLY)
+    env = {**os.environ, "ELASTICA_TEST_COMMAND": "1"}
+
+    def cli(run, *args):
+        return subprocess.run([cli_exe, "run", run, *map(str, args)], capture_output=True,
+                              text=True, timeout=300, env=env)
+    arm = elastica_run_file(tmp_path / "arm.toml")
+    arm.write_text(arm.read_text().replace('"elastica_lever_arm"', '"mine.py"'))
+    assert cli(arm, "--out", tmp_path, "-j", "1").returncode == 0
+    curves = fold_curves_file(tmp_path / "curves.toml", "mine.py", tmp_path / "arm.h5",
+                              "map = true\n")
+    one = cli(curves, "--out", tmp_path / "one", "-j", "1")
+    assert one.returncode == 0 and "warning" not in one.stdout, one.stdout + one.stderr
+    there = cli(curves, "--out", tmp_path / "there", "--scheduler", cluster)
+    assert there.returncode == 0, there.stderr
+    said = [w for w in there.stdout.splitlines() if w.startswith("warning: ")]
+    assert said and all(re.fullmatch(
+        r"warning: task \d+ of \d+ \(region_counts\) raised on a worker: RuntimeError: "
+        r"shooting is refused on this worker \(mine\.py:\d+ in shooting\); computed here "
+        r"instead", w) for w in said), said
+    assert BranchFile(tmp_path / "one" / "curves.h5").maps
+    _same_numbers(tmp_path / "one" / "curves.h5", tmp_path / "there" / "curves.h5")
+
+
+def test_tasks_whose_worker_died_are_computed_here_quietly_and_raising_ones_are_said(tmp_path):
+    """issue 45 item 3, `cluster.map_tasks` on a local cluster that gives a task up at its
+    worker's first death (allowed-failures 0): a task that kills its worker (and only a
+    worker: not this process) is computed here without a word; one that raises on a worker
+    only is computed here, and a warning gives the exception and the worker's frame."""
+    import dask
+    import distributed  # noqa: F401  (its configuration read before a value of it is set)
+
+    from elastica_auto.execution import cluster
+    here = os.getpid()
+
+    def dies(pid):
+        if os.getpid() != pid:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return "here"
+
+    def raises(pid):
+        if os.getpid() != pid:
+            raise ValueError("refused on a worker")
+        return "here"
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        client = cluster.local(1)
+    try:
+        warnings = []
+        assert cluster.map_tasks(client, dies, [(here,)], lambda i, r: None, warnings) == ["here"]
+        assert warnings == []
+        client.wait_for_workers(1, timeout=60)          # the nanny's new worker
+        assert cluster.map_tasks(client, raises, [(here,), (here,)], lambda i, r: None,
+                                 warnings) == ["here", "here"]
+    finally:
+        cluster.close(client)
+    assert len(warnings) == 2 and all(re.fullmatch(
+        r"task \d of 2 \(raises\) raised on a worker: ValueError: refused on a worker "
+        r"\(\S+:\d+ in raises\); computed here instead", w) for w in warnings)
+
+
+def test_a_branch_task_that_raises_ends_its_branch_with_the_exception(tmp_path, monkeypatch):
+    """issue 45 item 3: a branch task that raises on a worker (here `compute_branch` raising
+    outside the continuation, in the worker threads of a local cluster only) ends its
+    branch MX with the exception in its message and its diagnostics, the worker's frames
+    among them; the other branches are computed."""
+    import threading
+
+    from elastica_auto.execution import cluster, jobs, runfile
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.run import execute
+    from helpers import elastica_run_file
+    compute, local = jobs.compute_branch, cluster.local
+
+    def computed(plan, k, job, *args):
+        if threading.current_thread() is not threading.main_thread() and job.spec.direction < 0:
+            raise TypeError("an engine bug on a worker")
+        return compute(plan, k, job, *args)
+
+    monkeypatch.setattr(jobs, "compute_branch", computed)
+    monkeypatch.setattr(cluster, "local", lambda workers, threads=False: local(workers, True))
+    monkeypatch.setattr(run_module, "usable_cores", lambda: 2)
+    plan = runfile.load(elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False))
+    result = execute(plan, tmp_path / "out", jobs=2)
+    (good, bad) = BranchFile(result.path).branches
+    assert good.attrs["end"] == "EP"
+    assert bad.attrs["end"] == "MX" and re.fullmatch(
+        r"raised on a worker: TypeError: an engine bug on a worker \(test_cluster\.py:\d+ in "
+        r"computed\)", bad.attrs["message"])
+    diagnostics = json.loads(bad.attrs["diagnostics"])
+    assert diagnostics["exception"] == "TypeError"
+    assert diagnostics["error"] == "an engine bug on a worker"
+    assert diagnostics["traceback"][-1] == diagnostics["where"]
+    assert any(f.endswith(" in _task") for f in diagnostics["traceback"])
+
+
+def test_a_default_run_s_task_that_raises_on_its_cluster_is_said_and_computed_here(tmp_path):
+    """issue 45 item 3, the default run's background cluster (`cluster.Background`, its
+    worker a thread of the helper process): of two tasks of `_Alongside.map`, this process
+    takes one and waits until the worker has taken the other, which raises there (only
+    outside this process). Both results are this process's, and a warning names the
+    worker's exception."""
+    from elastica_auto.execution.cluster import Background
+    from elastica_auto.execution.run import _Alongside
+    here, tried = os.getpid(), tmp_path / "tried"
+
+    def work(i):
+        import os
+        import time
+        if os.getpid() != here:
+            open(tried, "a").close()
+            raise RuntimeError("refused outside the command")
+        deadline = time.monotonic() + 120
+        while not os.path.exists(tried) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return i, os.getpid()
+
+    pool = _Alongside(None, 1, Background)
+    try:
+        got = pool.map(work, [(0,), (1,)], lambda i, r: None)
+    finally:
+        pool.background.close()
+    assert tried.exists() and got == [(0, here), (1, here)]
+    (line,) = pool.warnings
+    assert re.fullmatch(r"task [12] of 2 \(work\) raised on a worker: RuntimeError: refused "
+                        r"outside the command \(\S+:\d+ in work\); computed "
+                        r"here instead", line), line
+
+
+@pytest.mark.parametrize("kind", ["scan", "guess"])
+def test_a_scan_that_raises_on_the_default_run_s_cluster_is_said_and_not_sent_again(
+        monkeypatch, kind):
+    """issue 45 item 3: a snap-back scan (wanted, or guessed) that raised on the default
+    run's cluster is a warning naming the exception, and is not sent to the cluster again
+    when a branch wants it (`snap_targets` computes it here); one lost with its worker is
+    said nothing of."""
+    import types
+
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution.jobs import TaskFailure
+    from elastica_auto.execution.run import _Alongside
+    key, params = (("psi", 1.0),), {"psi": 1.0}
+    monkeypatch.setattr(run_module, "scans", lambda problem, br: {key: params})
+    monkeypatch.setattr(run_module, "copy_key", lambda problem, name, params: key)
+    plan = types.SimpleNamespace(problem=None, options=types.SimpleNamespace(mirror=False))
+    raised = TaskFailure("RuntimeError", "no shooting here", traceback=("mine.py:3 in shooting",))
+    lost = TaskFailure("KilledWorker", "the worker died", lost=True)
+    pools = {}
+    for failure in (lost, raised):
+        pool = pools[failure.lost] = _Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
+        if kind == "scan":
+            pool.pending_params[key] = params
+        else:
+            pool.guesses[key] = (None, params, key)
+        pool._take(((kind, key), False, failure), {})
+        pool._scan(types.SimpleNamespace(parameter="psi"))       # a branch that wants it
+    assert pools[True].warnings == [] and pools[True].unsent == [(key, params)]
+    assert pools[False].warnings == [
+        "the snap-back scan at psi=1 raised on a worker: RuntimeError: no shooting here "
+        "(mine.py:3 in shooting); computed here where the run needs it"]
+    assert pools[False].unsent == [] and key not in pools[False].scans

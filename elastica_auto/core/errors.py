@@ -80,8 +80,8 @@ EXIT_STATUSES = {
     EXIT_INTERNAL: "internal error: an exception from the engine itself (a bug), its "
                    "traceback kept in the file; --debug re-raises it",
     EXIT_WRITE: "a file could not be written (disk full, read-only, too large): one line",
-    EXIT_CLUSTER_LOST: "the cluster had no worker for worker_timeout seconds: the branches "
-                       "computed so far are saved",
+    EXIT_CLUSTER_LOST: "the cluster was lost (no worker for worker_timeout seconds, or its "
+                       "scheduler gone): the branches computed so far are saved",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C, SIGTERM): what was computed is saved",
 }
 EXIT_PRECEDENCE = (EXIT_INTERRUPTED, EXIT_WRITE, EXIT_CLUSTER_LOST, EXIT_INTERNAL,

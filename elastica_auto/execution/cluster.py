@@ -10,7 +10,11 @@ the branches and writes them in the plan's order, so the branch file is the same
 computed it.
 
 A worker that dies has its task rescheduled by the scheduler (a task whose workers die four
-times is reported as a failed branch, MX). Ctrl-C or SIGTERM cancels the tasks not yet
+times is reported as a failed branch, MX). A task that raises is not computed again
+quietly: a branch's ends MX with the exception, and any other task is computed in this
+process with a warning naming the exception (`TaskFailure`). A cluster with no worker for
+the run's ``worker_timeout`` seconds ends the run (`ClusterLost`), its finished branches
+saved and the others recorded as not computed. Ctrl-C or SIGTERM cancels the tasks not yet
 finished; the finished ones are written (the branches in progress are lost; with ``--jobs
 1``, in this process, the branch in progress ends at its next step and is kept).
 ``distributed`` is imported only here, for a cluster: its import alone costs about a second.
@@ -23,13 +27,32 @@ import os
 import signal
 import threading
 import time
+import traceback
 import uuid
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from ..core.errors import ClusterError, error_text, one_line
+from ..core.errors import ClusterError, ClusterLost, error_text
+
+if TYPE_CHECKING:   # imported where used: a worker imports this module to check its version,
+    from .jobs import TaskFailure   # which must not need the rest of the package
 
 #: Seconds to reach the scheduler, and to wait for its first worker.
 CONNECT_TIMEOUT = 10.0
+#: Seconds a run's cluster may have no worker before the run ends (`ClusterLost`), unless
+#: the run sets its own ``worker_timeout``. A worker that dies is replaced at once (its nanny
+#: starts it again: 0.35 s here, from the kill to the new worker with the scheduler);
+#: workers that reach a batch system's walltime, or are killed with their nannies, are not,
+#: and without a limit the run would wait for them for ever. A minute is long past a
+#: restart, even on a loaded machine, and short beside a run worth a cluster; where dead
+#: workers are replaced by new batch jobs, the limit should exceed the queue's wait.
+WORKER_TIMEOUT = 60.0
+#: Seconds between looks at a cluster's number of workers (a round trip to its scheduler).
+WORKER_POLL = 1.0
+#: Seconds to fetch a finished task's result before looking at the cluster again: the
+#: worker that holds it may have died since it finished, and then Dask computes the task
+#: again, which with no worker left would hold the fetch up for ever (`_fetched`). A
+#: branch, a few megabytes at most, comes in well under a second.
+FETCH_TIMEOUT = 10.0
 
 #: Seconds between looks at the tasks' states.
 POLL = 0.05
@@ -42,13 +65,46 @@ SATURATION = 2.0
 TaskProgress = Callable[[int, int, int, int], None]
 
 
+def check_address(address: str) -> None:
+    """ClusterError (one line) unless ``address`` is one a Dask client here can connect to:
+    a scheme with a transport (``tcp://`` by default), a host and a port, and for ``tls://``
+    the certificates of Dask's configuration. Checked before a client is made: a client
+    made of a bad address raises ValueError or TypeError, and then, collected at the
+    interpreter's exit, waits 20 s for an event loop that has ended."""
+    from distributed.comm.addressing import get_address_host_port, parse_address
+    from distributed.comm.registry import get_backend
+    from distributed.security import Security
+    why = ""
+    try:
+        scheme, _ = parse_address(address)
+        if scheme == "inproc":
+            why = "an in-process address: no other process reaches it"
+        else:
+            try:
+                get_backend(scheme).get_connector()
+            except Exception as exc:
+                raise ValueError(f"no usable {scheme}:// transport here: "
+                                 f"{error_text(exc)}") from None
+            get_address_host_port(address)
+            if (scheme in ("tls", "wss")
+                    and Security().get_connection_args("client").get("ssl_context") is None):
+                why = ("TLS needs certificates, and Dask's configuration "
+                       "(distributed.comm.tls) gives none")
+    except Exception as exc:  # ValueError, TypeError, ImportError: the transport's own words
+        why = error_text(exc)[:200]
+    if why:
+        raise ClusterError(f"{address!r} is not a Dask scheduler's address ({why}); "
+                           "expected tcp://HOST:PORT")
+
+
 def connect(address: str):
     """A client of the scheduler at ``address`` with at least one worker that can import
-    elastica-auto; ClusterError (one line) otherwise."""
+    elastica-auto; ClusterError (one line) otherwise (`check_address` first)."""
     from distributed import Client
+    check_address(address)
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address} "
                            f"({type(exc).__name__}: {error_text(exc)[:200]})") from None
     try:
@@ -98,7 +154,10 @@ def local(workers: int, threads: bool = False):
 
 def close(client, interrupted: bool = False):
     """Close ``client`` and, if it made one, its local cluster; after an interruption, its
-    workers are ended first, at once (a task in a slow step would hold up a graceful close)."""
+    workers are ended first, at once (a task in a slow step would hold up a graceful close).
+    A client still trying to reach a scheduler that is gone stops trying without a word: Dask
+    would log the stop as an error, with a traceback, after the run's own line."""
+    import logging
     cluster = client.cluster
     if cluster is not None and interrupted:
         for nanny in list(cluster.workers.values()):
@@ -108,7 +167,13 @@ def close(client, interrupted: bool = False):
                     os.kill(process.pid, signal.SIGKILL)
                 except ProcessLookupError:
                     pass
-    client.close()
+    logger = logging.getLogger("distributed.client")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        client.close()
+    finally:
+        logger.setLevel(level)
     if cluster is not None:
         cluster.close(timeout=10)
 
@@ -127,34 +192,151 @@ def _task(plan, k: int, job):
     return branch, get_worker().address
 
 
-def map_tasks(client, function, args_list, on_done) -> list:
+def task_failure(future) -> TaskFailure:
+    """Why ``future`` (done, not finished) has no result: lost (`TaskFailure.lost`) if its
+    workers died, that is the scheduler gave up on it (KilledWorker: they died with it more
+    than its ``allowed-failures`` times), its connection closed, or it was cancelled or lost;
+    else the exception it raised on its worker, with the worker's traceback."""
+    from distributed import KilledWorker
+    from distributed.comm import CommClosedError
+
+    from .jobs import TaskFailure
+    exc = future.exception() if future.status == "error" else None
+    if exc is None:
+        return TaskFailure("RuntimeError", f"the task was {future.status} (its workers died)",
+                           lost=True)
+    try:
+        frames = tuple(f"{os.path.basename(f.filename)}:{f.lineno} in {f.name}"
+                       for f in traceback.extract_tb(future.traceback()))
+    except Exception:  # a traceback that did not travel
+        frames = ()
+    return TaskFailure(type(exc).__name__, error_text(exc)[:500],
+                       lost=isinstance(exc, (KilledWorker, CommClosedError)), traceback=frames)
+
+
+def _address(client) -> str:
+    return getattr(client.scheduler, "address", None) or "?"
+
+
+def _unanswered(client) -> ClusterLost:
+    """The run's end when ``client`` lost its connection to its scheduler: Dask cancels
+    every task of the client at once (and a run cancels none but those it leaves out, so
+    a cancelled task of the run says so), and the tasks it had are gone with it."""
+    return ClusterLost(f"the Dask scheduler at {_address(client)} went away (the connection "
+                       "to it closed)")
+
+
+def _fetched(future) -> tuple[bool, object]:
+    """(True, the result) of the finished ``future``, or (False, None) if it did not come
+    within `FETCH_TIMEOUT` or was cancelled meanwhile: its worker died with it (the task is
+    computed again, and the future is no longer done) or the scheduler went away."""
+    from concurrent.futures import CancelledError
+    try:
+        return True, future.result(timeout=FETCH_TIMEOUT)
+    except (TimeoutError, CancelledError):
+        return False, None
+
+
+class _Watch:
+    """Whether ``client``'s cluster has had a worker in the last ``timeout`` seconds:
+    `check` raises ClusterLost once it has had none for longer, nor a scheduler that
+    answers (``timeout`` None: `WORKER_TIMEOUT`). It asks the scheduler at most every
+    `WORKER_POLL` seconds; a scheduler that is gone ends the run sooner (`_unanswered`)."""
+
+    def __init__(self, client, timeout: float | None):
+        self.client = client
+        self.timeout = WORKER_TIMEOUT if timeout is None else timeout
+        self.since: float | None = None      # when the workers were first seen gone
+        self.asked = -WORKER_POLL
+
+    def check(self):
+        now = time.monotonic()
+        if now - self.asked < WORKER_POLL:
+            return
+        self.asked = now
+        client = self.client
+        answers = client.status == "running"
+        if answers and client.scheduler_info(n_workers=0).get("n_workers", 0) > 0:
+            self.since = None
+            return
+        if self.since is None:
+            self.since = now
+        elif now - self.since > self.timeout:
+            what = "has had no worker" if answers else "has not answered"
+            raise ClusterLost(f"the Dask scheduler at {_address(client)} {what} for "
+                              f"{self.timeout:g} s (worker_timeout)")
+
+
+def map_tasks(client, function, args_list, on_done, warnings: list[str],
+              worker_timeout: float | None = None) -> list:
     """``function(*args)`` for each of ``args_list`` as tasks of ``client``'s cluster; their
-    results in order, ``on_done(i, result)`` called as each arrives. A task that fails
-    there (its worker died) is computed in this process. (The landings and the maps'
-    enumerations of a ``--jobs N`` or scheduler run: `execution.run._analyse`.)"""
-    from distributed import as_completed
+    results in order, ``on_done(i, result)`` called as each arrives. A task whose workers
+    died is computed in this process; so is one that raised there, with a line in
+    ``warnings`` naming the exception (computed here, it raises here as it would in a run
+    without a cluster). A cluster without a worker for ``worker_timeout`` seconds (None:
+    `WORKER_TIMEOUT`) leaves the tasks it has not done to this process, with a line in
+    ``warnings``. (The landings and the maps' enumerations of a ``--jobs N`` or scheduler
+    run: `execution.run._analyse`.)"""
     futures = {client.submit(function, *args, pure=False): i
                for i, args in enumerate(args_list)}
     out = [None] * len(args_list)
-    for future in as_completed(futures, loop=client.loop):   # not the default client
-        i = futures[future]
-        try:
-            out[i] = future.result()
-        except Exception:  # the worker died, or could not unpickle the task: here, then
-            out[i] = function(*args_list[i])
+    pending, watch = set(futures), _Watch(client, worker_timeout)
+    name = getattr(function, "__name__", "task")
+
+    def here(i):
+        out[i] = function(*args_list[i])
         on_done(i, out[i])
+
+    while pending:
+        ready = sorted((f for f in pending if f.done() and f.status != "cancelled"),
+                       key=futures.get)
+        gone = not ready and any(f.status == "cancelled" for f in pending)
+        if not ready:
+            try:
+                if gone:
+                    raise _unanswered(client)
+                watch.check()
+            except ClusterLost as exc:
+                if client.status == "running":
+                    client.cancel(list(pending))
+                warnings.append(f"{exc}: its {len(pending)} tasks left ({name}) were "
+                                "computed here")
+                for i in sorted(futures[f] for f in pending):
+                    here(i)
+                break
+            time.sleep(POLL)
+            continue
+        pending.difference_update(ready)
+        for future in ready:
+            i = futures[future]
+            if future.status == "finished":
+                got, out[i] = _fetched(future)
+                if got:
+                    on_done(i, out[i])
+                else:     # looked at again, as it stands now
+                    pending.add(future)
+                continue
+            failure = task_failure(future)
+            if not failure.lost:
+                warnings.append(f"task {i + 1} of {len(out)} ({name}) raised on a worker: "
+                                f"{failure}; computed here instead")
+            here(i)
     return out
 
 
 def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
-                   on_tasks: TaskProgress | None = None, stop=None, skip=None) -> bool:
+                   on_tasks: TaskProgress | None = None, stop=None, skip=None,
+                   worker_timeout: float | None = None) -> bool:
     """Compute ``jobs_list`` as tasks of ``client``'s cluster, appending the branches to
     ``branches`` in plan order and calling ``save()`` after each, but those for which
     ``skip(i, branches)`` is true when their turn comes (their tasks cancelled then, done
     or not: see `elastica_auto.execution.run.switch_levels`); True if interrupted
-    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`)."""
-    from .jobs import compute_branch, mirrored_branch, new_branch
-    from ..branches.stepper import start_point
+    (``stop``, a `threading.Event`, set: see `elastica_auto.core.interrupts.Interruptions`).
+    A task that failed gives its job's branch ending MX, with the exception (`task_failure`,
+    `failed_branch`). A cluster without a worker for ``worker_timeout`` seconds (None:
+    `WORKER_TIMEOUT`) raises ClusterLost once ``branches`` has the finished branches (saved)
+    and, after them, one for each job not done, ending MX with the message `NOT_COMPUTED`."""
+    from .jobs import NOT_COMPUTED, TaskFailure, compute_branch, failed_branch, mirrored_branch
     offset = len(branches)
     token = uuid.uuid4().hex[:8]
     # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
@@ -172,6 +354,7 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     pending, done, points, finished = set(futures), {}, 0, 0
     made = {}                   # the jobs' branches, for their mirror images
     last, taken = 0.0, 0        # taken: the jobs appended or left out, in order
+    watch = _Watch(client, worker_timeout)
 
     def report(force=False):
         nonlocal last
@@ -180,10 +363,31 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
             last = now
             on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
 
+    def lost(exc: ClusterLost):
+        if client.status == "running":
+            client.cancel(list(pending))
+        # the finished branches, beyond a gap in the plan's order too, then the jobs not
+        # done (mirror images included): the file records what is missing
+        branches.extend(done[i] for i in sorted(done))
+        for i in range(taken, len(jobs_list)):
+            if i not in done:
+                br = failed_branch(plan, jobs_list[i], TaskFailure(
+                    "ClusterLost", "the cluster had no worker", lost=True))
+                br.message = NOT_COMPUTED
+                branches.append(br)
+        save()
+        raise exc
+
     stop = stop if stop is not None else threading.Event()
     while pending and not stop.is_set():
-        ready = {f for f in pending if f.done()}
+        ready = {f for f in pending if f.done() and f.status != "cancelled"}
+        if not ready and any(f.status == "cancelled" for f in pending):   # scheduler gone
+            lost(_unanswered(client))
         if not ready:
+            try:
+                watch.check()
+            except ClusterLost as exc:
+                lost(exc)
             time.sleep(POLL)
             report()
             continue
@@ -191,16 +395,14 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         for f in ready:
             i = futures[f]
             if f.status == "finished":
-                br, worker = f.result()
+                got, value = _fetched(f)
+                if not got:       # looked at again, as it stands now
+                    pending.add(f)
+                    continue
+                br, worker = value
                 br.worker = worker
-            else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
-                exc = f.exception() if f.status == "error" else None
-                if exc is None:
-                    exc = RuntimeError(f"the task was {f.status} (its workers died)")
-                br = new_branch(plan, jobs_list[i])
-                br.end, br.message = "MX", f"not computed: {one_line(exc)}"
-                br.diagnostics = {"exception": type(exc).__name__, "error": str(exc)}
-                br.points.append(start_point(br, jobs_list[i].origin))
+            else:  # the task raised, or its workers died beyond the scheduler's retries
+                br = failed_branch(plan, jobs_list[i], task_failure(f))
             done[i] = br
             finished += 1
             points += len(br.points)
@@ -249,7 +451,8 @@ def serve(results_fd: int):
     ``workers`` then ``(tag, function, args)`` requests as pickles from stdin, computes each
     as a task of a local cluster of ``workers`` (`local`) that it starts, and writes
     ``("ready", workers)`` once the cluster is up, then ``("done", tag, value)`` or
-    ``("error", tag, message)`` per task, as pickles on the file descriptor ``results_fd``.
+    ``("error", tag, failure)`` (a `TaskFailure`) per task, as pickles on the file
+    descriptor ``results_fd``.
     It is the Dask client and the scheduler's host, so that the command's own process, busy
     with branches, imports nothing of ``distributed`` and runs no scheduler. At the end of
     its input (the command closed it, or ended, even killed outright) it ends its workers at
@@ -270,10 +473,8 @@ def serve(results_fd: int):
     def report(tag, future):
         if future.status == "finished":
             send(("done", tag, future.result()))
-            return
-        exc = future.exception() if future.status == "error" else None
-        send(("error", tag, f"{type(exc).__name__}: {error_text(exc)[:200]}" if exc is not None
-              else f"RuntimeError: the task was {future.status} (its workers died)"))
+        else:
+            send(("error", tag, task_failure(future)))
 
     inp = sys.stdin.buffer
     workers = pickle.load(inp)
@@ -308,8 +509,8 @@ def _call(function, *args):
 class Background:
     """The local cluster of a default run, started in a helper process (`serve`) while this
     process computes: `submit` hands it a task once it is ``ready``; each result reaches
-    ``on_result(tag, ok, value)`` (``value``: the result and the worker's address, or the
-    error's one line), called from a reading thread. `close` ends it at once."""
+    ``on_result(tag, ok, value)`` (``value``: the result and the worker's address, or why
+    there is none, a `TaskFailure`), called from a reading thread. `close` ends it at once."""
 
     def __init__(self, workers: int, on_result):
         import pickle

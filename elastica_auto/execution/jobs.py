@@ -1,14 +1,15 @@
 """One branch of a plan as a job: where it starts, and computing it.
 
 What the run in this process (`run`) and the cluster's tasks (`cluster`) share: a worker
-computes a branch with `compute_branch`, and a task that failed becomes an empty branch of
-the plan (`new_branch`) ending MX.
+computes a branch with `compute_branch`, and a task that failed (`TaskFailure`) becomes an
+empty branch of the plan ending MX (`failed_branch`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -17,7 +18,7 @@ from ..branches import codim2
 from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
-from ..branches.stepper import Origin, continue_branch
+from ..branches.stepper import Origin, continue_branch, start_point
 from ..core.errors import ENGINE, debugging, failure_record
 from ..core.interrupts import Interruptions
 from ..numerics.stability import label_stability
@@ -162,6 +163,56 @@ def mirrored_branch(plan: Plan, k: int, job: Job, source: Branch,
     br.worker = f"mirror of {source.worker}"
     br.seconds = time.perf_counter() - t0
     return br
+
+
+#: The message of a branch that a run's cluster never computed: it had no worker for the
+#: run's ``worker_timeout`` (`elastica_auto.execution.cluster`). Such branches end the file
+#: that run leaves, and ``--resume`` computes them (as it does the interrupted ones).
+NOT_COMPUTED = "not computed: the cluster had no worker (--resume computes it)"
+
+
+@dataclass(frozen=True)
+class TaskFailure:
+    """Why a task of a cluster brought no result. ``lost``: its workers died, or the cluster
+    ended (the task itself may be sound: it is computed again, quietly); else the task
+    raised ``exception`` (the type's name) with the message ``error`` on a worker,
+    ``traceback`` its frames there ("file:line in function", innermost last)."""
+
+    exception: str
+    error: str
+    lost: bool = False
+    traceback: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        """One line: the exception, and the frame it was raised in."""
+        where = f" ({self.traceback[-1]})" if self.traceback else ""
+        return f"{self.exception}: {self.error}{where}"
+
+
+def failed_branch(plan: Plan, job: Job, failure: TaskFailure) -> Branch:
+    """The branch of ``job`` whose task failed (``failure``): its start, labelled MX, and
+    why in its message and diagnostics, as a branch whose module raised in this process
+    has them (`elastica_auto.branches.stepper`)."""
+    br = new_branch(plan, job)
+    br.end = "MX"
+    br.message = (f"not computed: {failure}" if failure.lost
+                  else f"raised on a worker: {failure}")
+    br.diagnostics = {"exception": failure.exception, "error": failure.error,
+                      "traceback": list(failure.traceback)}
+    if failure.traceback:
+        br.diagnostics["where"] = failure.traceback[-1]
+    br.points.append(start_point(br, job.origin))
+    return br
+
+
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity (a batch job's share of a node,
+    ``taskset``), which ``os.cpu_count()`` (the machine's) ignores; the machine's where
+    there is no affinity to read (not on Linux)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
 
 
 def new_branch(plan: Plan, job: Job) -> Branch:

@@ -120,6 +120,9 @@ class Plan:
     text: str = ""
     base: Problem | None = None
     scheduler: str | None = None
+    #: seconds the cluster may have no worker before the run ends (None: the default,
+    #: `elastica_auto.execution.cluster.WORKER_TIMEOUT`)
+    worker_timeout: float | None = None
 
     @property
     def output_name(self) -> str:

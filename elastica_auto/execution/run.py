@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import threading
 import time
 from dataclasses import dataclass, field
@@ -24,7 +23,7 @@ from ..analysis.maps import stability_maps
 from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
 from ..branches import codim2, restart
 from ..branches.branch import Branch
-from ..branches.stepper import INTERRUPTED, Origin, start_point
+from ..branches.stepper import INTERRUPTED, Origin
 from ..branches.switching import kernel_plane, switch_direction
 from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
                            EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
@@ -35,8 +34,8 @@ from ..core.values import same_value
 from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
-from .jobs import (Callbacks, Job, cell, compute_branch, mark_mirrors, mirrored_branch,
-                   new_branch)
+from .jobs import (NOT_COMPUTED, Callbacks, Job, cell, compute_branch, failed_branch,
+                   mark_mirrors, mirrored_branch, usable_cores)
 from .plan import BranchSpec, Plan, Start
 
 
@@ -422,7 +421,8 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
 
 
 def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs: int = 1,
-            scheduler: str | None = None, resume: bool = False) -> RunResult:
+            scheduler: str | None = None, resume: bool = False,
+            worker_timeout: float | None = None) -> RunResult:
     """Run every branch of ``plan``, ``jobs`` at a time, writing ``out_dir/<run>.h5``.
 
     Before any branch is computed: a start read from the file this run writes is refused
@@ -439,7 +439,10 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
     ``<run>.h5``, replacing any earlier one. An interrupted run (Ctrl-C, SIGTERM) keeps every
     branch computed so far (in process, also the one in progress up to its last point): in
     ``<run>.h5`` if there was none, else in ``<run>.partial.h5``, leaving the earlier
-    ``<run>.h5`` as it was.
+    ``<run>.h5`` as it was. A cluster without a worker for ``worker_timeout`` seconds
+    (default the run file's, else `cluster.WORKER_TIMEOUT`) ends the run as an interruption
+    does, the branches not computed recorded at the file's end (`NOT_COMPUTED`), and raises
+    ClusterLost (one line: what was saved where).
     ``result.path`` is the file written and ``result.branches`` the branches it holds.
 
     ``resume``: continue the run's file (``<run>.partial.h5`` if an interrupted rerun left
@@ -460,9 +463,10 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
             raise RunFileError(f"{plan.path}: {key}: {spec.start.file} is the file this run "
                                f"writes ({own}); restart from a copy, or write elsewhere")
     t_run = time.perf_counter()
-    # an interrupted run's file ends with its interrupted branches: computed again
+    # an interrupted run's file ends with its interrupted branches, one that lost its cluster
+    # with those not computed: computed again
     count = len(kept.branches) if kept is not None else 0
-    while count and kept.branches[count - 1].attrs["message"] == INTERRUPTED:
+    while count and kept.branches[count - 1].attrs["message"] in (INTERRUPTED, NOT_COMPUTED):
         count -= 1
     done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
     first = [start_job(plan, spec) for spec in plan.branches if cell(spec) not in done]
@@ -480,7 +484,9 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
     if kept is not None and not first and count == len(kept.branches):  # all there already
         result.path, result.seconds = kept.path, time.perf_counter() - t_run
         return result
-    scheduler = scheduler or plan.scheduler
+    scheduler = scheduler if scheduler is not None else plan.scheduler
+    if worker_timeout is None:
+        worker_timeout = plan.worker_timeout
     client = None
     if scheduler is not None:  # before the output is opened: an error leaves nothing
         from .cluster import connect
@@ -490,6 +496,7 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
         number_labels(result.branches, result.kept + 1, _label_counters(kept, result.kept))
         writer.save(result.branches)
 
+    lost = None
     try:
         with writer:
             if kept is not None:
@@ -497,8 +504,8 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
             if callbacks.on_start is not None:
                 callbacks.on_start()
             try:
-                compute(plan, first, result, save, callbacks, Workers(jobs, client=client),
-                        kept)
+                compute(plan, first, result, save, callbacks,
+                        Workers(jobs, client=client, worker_timeout=worker_timeout), kept)
                 if not result.interrupted:
                     writer.extra["missing"] = json.dumps(result.missing)
                     writer.save(result.branches, result.snaps, result.maps, result.landings)
@@ -506,14 +513,29 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
             except KeyboardInterrupt:  # outside a branch (saving, say): the last save stands
                 result.interrupted = True
                 del result.branches[writer.written - result.kept:]
-            except (WriteError, ClusterLost, *USER_ERRORS):
+            except ClusterLost as exc:  # the branches it finished are saved, the rest recorded
+                lost = exc
+                result.missing.append({"what": "branches", "kind": "cluster",
+                                       "exception": "ClusterLost", "error": str(exc),
+                                       "message": f"the run stopped: {exc}"})
+                writer.extra["missing"] = json.dumps(result.missing)
+                save()
+            except (WriteError, *USER_ERRORS):
                 raise
             except (Exception, SystemExit) as exc:   # escaped: the branches so far are kept
                 _stopped(plan, result, writer, save, exc)
     finally:
         if client is not None:
-            client.close()
+            from .cluster import close
+            close(client)
     result.path, result.seconds = writer.path, time.perf_counter() - t_run
+    if lost is not None:
+        missing = sum(b.message == NOT_COMPUTED for b in result.branches)
+        again = ("a run with switch cannot be resumed: run it again" if plan.switch_count
+                 else "run it again with --resume to compute them")
+        saved = result.kept + len(result.branches) - missing
+        raise ClusterLost(f"{lost}: {saved} branches saved to {writer.path}, {missing} not "
+                          f"computed ({again})") from None
     return result
 
 
@@ -608,6 +630,8 @@ class Workers:
     jobs: int = 1
     scheduler: str | None = None
     client: object = None
+    #: seconds the cluster may have no worker (None: `cluster.WORKER_TIMEOUT`)
+    worker_timeout: float | None = None
 
 
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
@@ -622,23 +646,30 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     The branches are computed as tasks of a Dask cluster (`elastica_auto.execution.cluster`;
     ``callbacks.on_tasks`` reports their progress), as ``workers`` says: the one of its
     ``client`` (left open), or of its ``scheduler`` address, or else a local one of ``jobs``
-    worker processes. With ``jobs = 1``
+    worker processes, at most one per core this process may use (`usable_cores`), and no
+    more than the branches without switching. With ``jobs = 1``
     (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
     command's default): in this process from the start, and also, once it is up, on a local
     cluster of one worker per other core started meanwhile in the background (`_Alongside`);
-    with one branch (and no switching), or one core, in this process only."""
+    with one branch (and no switching), or one core, in this process only. A cluster with
+    no worker for ``workers.worker_timeout`` seconds ends the computation of the branches
+    with ClusterLost (`cluster.run_on_cluster`); after them, the tasks it has not done are
+    computed here (`cluster.map_tasks`)."""
     branches = result.branches
     mark_mirrors(plan, first)
     progress, on_branch, on_tasks = callbacks.progress, callbacks.on_branch, callbacks.on_tasks
     jobs, scheduler, client = workers.jobs, workers.scheduler, workers.client
+    timeout = workers.worker_timeout
     pool = None
     if jobs == 0 and client is None and scheduler is None:
-        alongside = (os.cpu_count() or 1) - 1 if plan.switch_count or len(first) > 1 else 0
+        alongside = usable_cores() - 1 if plan.switch_count or len(first) > 1 else 0
         if alongside > 0:
             pool = _alongside(plan, first, result, save, progress, on_branch, alongside)
             first = None
         jobs = 1
-    count = jobs if plan.switch_count else min(jobs, len(first or ()))
+    # more worker processes than cores only share them, each with its own memory
+    count = min(jobs, usable_cores())
+    count = count if plan.switch_count else min(count, len(first or ()))
     own = client is None and (scheduler is not None or count > 1)
     if own:
         from . import cluster
@@ -657,12 +688,12 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
         with Interruptions() as signals:   # until the cluster is closed
             try:
                 interrupted = run_on_cluster(client, plan, first, branches, save, on_branch,
-                                             on_tasks, signals.stop)
+                                             on_tasks, signals.stop, worker_timeout=timeout)
                 if not interrupted and plan.switch_count:
                     interrupted = switch_levels(
                         plan, branches, result.warnings, lambda jobs_list, skip: run_on_cluster(
                             client, plan, jobs_list, branches, save, on_branch, on_tasks,
-                            signals.stop, skip))
+                            signals.stop, skip, timeout))
             finally:
                 # kept open for the landings and the maps, its tasks too
                 if own and (interrupted or not _tasks_after(plan)):
@@ -677,7 +708,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
         from functools import partial
 
         from .cluster import map_tasks
-        mapper = partial(map_tasks, client)
+        mapper = partial(map_tasks, client, warnings=result.warnings, worker_timeout=timeout)
     broken = True           # until the analysis is done (a Ctrl-C in it ends the workers)
     try:
         if not interrupted:
@@ -773,7 +804,8 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     the pool: its ``scans`` are those its workers computed (`snap_targets`'s ``cache``)."""
     from .cluster import Background
     with Interruptions() as signals:
-        pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS)
+        pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS,
+                          warnings=result.warnings)
         interrupted = True        # until the branches are in: whatever escapes closes the pool
         try:
             interrupted = pool.run(first, result.branches, save, progress, on_branch,
@@ -847,11 +879,20 @@ class _Alongside:
     once the work of a kind (branches, scans, tasks) not taken yet, each estimated at the
     mean time of those this process finished, or at the time the one in hand has taken so
     far if longer, comes to more than ``pays``. (Mirror images, made here at their turn,
-    are not counted: they cost nothing.)"""
+    are not counted: they cost nothing.)
 
-    def __init__(self, plan, workers: int, background, pays: float = 0.0):
+    A task whose worker died is computed here quietly; one that raised on the cluster
+    (`jobs.TaskFailure`) gives a branch ending MX with the exception, or, a scan or another
+    task, is computed here with a line in ``warnings`` naming the exception."""
+
+    def __init__(self, plan, workers: int, background, pays: float = 0.0,
+                 warnings: list[str] | None = None):
         import queue
         self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
+        self.warnings = [] if warnings is None else warnings
+        # the scans that raised on the cluster: not sent again (`snap_targets` computes
+        # them here)
+        self.failed: set[tuple] = set()
         self.pays, self.started = pays, False
         self._make = lambda: background(workers, self._on_result)
         # the branches: the jobs of the current `run` (its ``level``: a result of an earlier
@@ -979,10 +1020,21 @@ class _Alongside:
         return True
 
     def _take(self, message, done: dict):
-        """A result from the cluster into ``done`` (a branch) or ``scans``."""
+        """A result from the cluster into ``done`` (a branch) or ``scans``. A scan or a task
+        that raised there (not lost with its worker) is reported in ``warnings``, and
+        computed here: a scan by `snap_targets` (not sent again), a task by `map`."""
         if message is None:
             return
         (kind, what), ok, value = message
+        raised = not ok and not value.lost
+        if kind in ("scan", "guess") and raised:
+            with self.lock:
+                params = (self.pending_params.get(what) or self.awaited.get(what)
+                          or self.guesses.get(what, (None, {}))[1])
+                self.failed.add(what)
+            at = ", ".join(f"{k}={v:.6g}" for k, v in params.items())
+            self.warnings.append(f"the snap-back scan at {at} raised on a worker: {value}; "
+                                 "computed here where the run needs it")
         if kind == "scan":
             if ok:
                 self.scans[what] = (self.pending_params[what], value[0])
@@ -993,7 +1045,7 @@ class _Alongside:
                     params = self.awaited.pop(what)
                     if ok:
                         self.scans[what] = (params, value[0])
-                    else:   # its worker died: computed here (`wait_for_scans`)
+                    elif not raised:   # its worker died: computed here (`wait_for_scans`)
                         self.unsent.append((what, params))
                 elif ok and what in self.guesses:
                     self.spare[what] = value[0]
@@ -1003,7 +1055,11 @@ class _Alongside:
         if kind == "task":
             if ok:
                 done[what] = value[0]
-            else:  # its worker died (KilledWorker, say): computed here instead
+            else:  # computed here instead, and if it raised there, said so
+                if raised:
+                    name = getattr(self.task_fn, "__name__", "task")
+                    self.warnings.append(f"task {what + 1} of {len(self.tasks)} ({name}) "
+                                         f"raised on a worker: {value}; computed here instead")
                 with self.lock:
                     self.task_returned.append(what)
             return
@@ -1014,12 +1070,8 @@ class _Alongside:
         if ok:
             br, worker = value
             br.worker = worker
-        else:  # the task failed beyond the scheduler's retries (KilledWorker, say)
-            br = new_branch(self.plan, job)
-            br.end, br.message = "MX", f"not computed: {value}"
-            name, _, text = value.partition(": ")
-            br.diagnostics = {"exception": name, "error": text}
-            br.points.append(start_point(br, job.origin))
+        else:  # the task raised, or its workers died beyond the scheduler's retries
+            br = failed_branch(self.plan, job, value)
         done[what] = br
 
     def run(self, jobs_list, branches, save, progress, on_branch, stop, skip=None) -> bool:
@@ -1148,6 +1200,8 @@ class _Alongside:
             if key in self.seen:
                 continue
             self.seen.add(key)
+            if key in self.failed:
+                continue
             if (self.plan.options.mirror
                     and mirror_key(problem, name, params) in self.sent):
                 continue

@@ -95,7 +95,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     except PlanError as exc:
         raise RunFileError(f"{path}: {_toml_key(exc.key)}: {exc.detail}") from None
     plan.name, plan.path, plan.text = path.stem, path, doc.text
-    plan.scheduler = doc.execution()
+    plan.scheduler, plan.worker_timeout = doc.execution()
     doc.string("description", doc.doc.get("description", ""))  # for the reader only: checked
     return plan
 
@@ -295,15 +295,28 @@ class _Document:
             out["damping_folds"] = [self.string("[continuation] damping_folds", f) for f in folds]
         return parameter, out
 
-    def execution(self) -> str | None:
-        """``[execution] scheduler``: the address of a Dask scheduler to compute on."""
+    def execution(self) -> tuple[str | None, float | None]:
+        """``[execution]``: ``scheduler``, the address of a Dask scheduler to compute on (not
+        empty: an empty address would silently mean this machine), and ``worker_timeout``,
+        the seconds its cluster may have no worker before the run ends (a positive number);
+        None for each not given."""
         table = self.table("execution")
         for key in table:
-            if key != "scheduler":
-                self.fail(f"[execution] {key}", "unknown key; expected 'scheduler'")
-        if "scheduler" not in table:
-            return None
-        return self.string("[execution] scheduler", table["scheduler"])
+            if key not in ("scheduler", "worker_timeout"):
+                self.fail(f"[execution] {key}",
+                          "unknown key; expected 'scheduler' or 'worker_timeout'")
+        scheduler = timeout = None
+        if "scheduler" in table:
+            scheduler = self.string("[execution] scheduler", table["scheduler"])
+            if not scheduler.strip():
+                self.fail("[execution] scheduler", "an empty address; give tcp://HOST:PORT, "
+                          "or leave the key out to compute on this machine")
+        if "worker_timeout" in table:
+            timeout = self.number("[execution] worker_timeout", table["worker_timeout"])
+            if timeout <= 0:
+                self.fail("[execution] worker_timeout",
+                          f"expected a positive number of seconds, got {timeout:g}")
+        return scheduler, timeout
 
     def options(self) -> dict:
         """``[options]``: numbers (or expressions), integers, the corrector's name,
