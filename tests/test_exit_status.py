@@ -32,6 +32,7 @@ from elastica_auto.core.errors import (ENGINE, MODULE, NUMERICAL, NumericalFailu
 from elastica_auto.numerics.correctors import CorrectorFailure
 from elastica_auto.storage.store import BranchFile
 from helpers import elastica_run_file, run_cli
+from test_robustness import SMALL
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -209,20 +210,6 @@ def test_an_engine_error_outside_a_branch_says_so_and_keeps_the_branches(tmp_pat
 
 
 # -- --resume continues the same run only (hostile H4, L11) --------------------------------------
-
-SMALL = textwrap.dedent("""\
-    description = "small"
-    equation = "elastica_lever_arm"
-    [parameters]
-    eps = 0.25
-    P = "pi^2/4"
-    [continuation]
-    parameter = "psi"
-    bounds = ["-pi", "pi"]
-    uz = ["pi/6"]
-    uz_period = "2*pi"
-    """)
-
 
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory, cli_exe):

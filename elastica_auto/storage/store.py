@@ -239,17 +239,31 @@ def _image(build) -> bytes:
 
 
 def _write_bytes(out: Path, data: bytes, stage: str = ""):
-    """``data`` written to a temporary file beside ``out``, synced to disk, and renamed over
-    ``out``. On any failure (an OSError), ``out`` is as it was and the temporary is gone.
-    ``stage`` names the write for `_stage`."""
-    tmp = _temporary(out)
-    try:
+    """``data`` written to ``out`` as `_replace` writes (plain writes, synced, renamed): on any
+    failure (an OSError), ``out`` is as it was and the temporary is gone."""
+    def write(tmp):
         fd = os.open(tmp, os.O_WRONLY)
         try:
             view = memoryview(data)
             while view:
                 view = view[os.write(fd, view):]
-            os.fsync(fd)   # on disk before it has the name: a crash leaves the old file
+        finally:
+            os.close(fd)
+
+    _replace(out, write, stage)
+
+
+def _replace(out: Path, write, stage: str = ""):
+    """``write(tmp)`` on a new temporary file beside ``out``, the file synced to disk (a crash
+    leaves the old file, never a half-written new one) and renamed over ``out``; on any
+    failure the temporary is removed and the exception raised. ``stage`` names the write for
+    `_stage`."""
+    tmp = _temporary(out)
+    try:
+        write(tmp)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
         finally:
             os.close(fd)
         _stage(f"{stage} written")
@@ -1375,20 +1389,7 @@ def write_atomically(out: Path, write, stage: str = "") -> Path:
     out = Path(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = _temporary(out)
-        try:
-            write(tmp)
-            fd = os.open(tmp, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-            _stage(f"{stage} written")
-            os.replace(tmp, out)
-            _stage(f"{stage} renamed")
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        _replace(out, write, stage)
     except OSError as exc:
         raise _cannot_write(out, exc) from exc
     return out
