@@ -14,7 +14,9 @@ what is not a formula:
   Hermite cubics (4th order, as the solution);
 * :func:`gradient_flow`: the energy discretised on a grid (midpoint rule) and its
   overdamped dynamics, for where a snap lands (`elastica_auto.analysis.landing`);
-* :func:`part_count`: the index of a named part of the second variation, as an ordinate.
+* :func:`part_count`: the index of a named part of the second variation, as an ordinate;
+* :func:`zero_modes`, :func:`spatial_turn`: a symmetry's zero mode in the perturbations (a
+  rotation's by its spatial turn).
 """
 
 from __future__ import annotations
@@ -143,26 +145,26 @@ def at_end(g, j):
     return g if g.ndim == 1 else g[:, j]
 
 
-def integrals(s, y, p, rhs, velocity, integrands, k):
-    """int_0^1 of each of ``integrands(s, z, v, p)`` (q, m) at the solution y on the nodes s:
+def integrals(s, y, p, rhs, velocity, integrands):
+    """int_0^1 of each of ``integrands(s, y, v, p)`` (q, m) at the solution y on the nodes s:
     Simpson's rule on each interval, the midpoint values from the Hermite cubic of the
-    solution (slopes rhs), zeta' from ``velocity``. Cached for the few ordinates asked for
-    one after the other at the same point."""
+    solution (slopes rhs), the velocities v (zeta' and the strains) from ``velocity``.
+    Cached for the few ordinates asked for one after the other at the same point."""
     s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
     return _integrals(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())), rhs,
-                      velocity, integrands, k)
+                      velocity, integrands)
 
 
 @functools.lru_cache(maxsize=8)
-def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands, k):
+def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands):
     from ..core.solution import at_fractions
     s = np.frombuffer(s_bytes).copy()
     y = np.frombuffer(y_bytes).reshape(n, -1).copy()
     p = dict(items)
     ym = at_fractions(s, y, rhs(s, y, p), (0.5,))[:, 0]
     sm = 0.5 * (s[:-1] + s[1:])
-    f = integrands(s, y[:k], velocity(s, y, p), p)
-    fm = integrands(sm, ym[:k], velocity(sm, ym, p), p)
+    f = integrands(s, y, velocity(s, y, p), p)
+    fm = integrands(sm, ym, velocity(sm, ym, p), p)
     out = np.sum(np.diff(s) * (f[:, :-1] + 4 * fm + f[:, 1:]), axis=1) / 6
     out.flags.writeable = False
     return out
@@ -191,7 +193,7 @@ def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
     return count_form(lambda pts: second_variation(pts, state(pts), p), s).parts
 
 
-def gradient_flow(p, nodes, density, ends, essential, k, flow):
+def gradient_flow(p, nodes, density, ends, essential, k, flow, rows):
     """The energy at ``p`` discretised on ``nodes`` and its overdamped dynamics, as an
     `elastica_auto.analysis.landing.Flow`.
 
@@ -201,8 +203,9 @@ def gradient_flow(p, nodes, density, ends, essential, k, flow):
     (second order; ``L`` with the quadratures' terms, ``c`` their constant), and
     ``u_t = -M^-1 grad E_h`` with M the lumped (trapezoidal) mass. Its Jacobian is the
     block-tridiagonal Hessian, assembled from each interval's (2k, 2k) block; k is the
-    number of coordinates, ``flow`` the class `elastica_auto.Flow` (the generated module
-    passes it: this package sits below the analysis layer)."""
+    number of coordinates, ``rows`` their rows in the states, ``flow`` the class
+    `elastica_auto.Flow` (the generated module passes it: this package sits below the
+    analysis layer)."""
     from scipy.sparse import coo_matrix
 
     from ..core.solution import trapezoid_weights
@@ -281,23 +284,53 @@ def gradient_flow(p, nodes, density, ends, essential, k, flow):
         from scipy.sparse import diags
         return (-diags(1.0 / mass) @ hessian(u)).tocsc()
 
-    return flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
+    return flow(nodes, lambda y: np.asarray(y)[rows].ravel()[free], mass, energy, force,
                 jacobian)
 
 
 
-def zero_modes(symmetry, s, y, p, k, constraint) -> list:
-    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
-    coordinates' rows of its generator: the zero mode of the group in the perturbations),
-    else []: a derived second variation on a circle of solutions is counted on the
-    complement of its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint``
-    is `elastica_auto.Constraint`, which the generated module passes."""
+#: A symmetry's zero mode is left out of the count where its L2 size on the points exceeds
+#: this: below it the state is one the group fixes (the straight rod), where it is no mode.
+ZERO_MODE = 1e-6
+
+
+def zero_modes(symmetry, s, y, p, tangent, constraint) -> list:
+    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y, z the
+    zero mode of the group in the perturbations (``tangent(y, generator)``: the
+    coordinates' rows, a rotation's spatial turn), L2-normalised on the points s; else []:
+    a derived second variation on a circle of solutions is counted on the complement of
+    its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint`` is
+    `elastica_auto.Constraint`, which the generated module passes."""
     if symmetry is None:
         return []
     found = symmetry(s, y, p)
     if found is None:
         return []
-    return [constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
+    from ..core.solution import trapezoid_weights
+    z = tangent(y, np.asarray(found.generator, dtype=float))
+    size = float(np.sqrt(trapezoid_weights(s) @ np.sum(z * z, axis=0)))
+    if not size > ZERO_MODE:
+        return []
+    return [constraint(z / size, kernel=True)]
+
+
+def spatial_turn(q, dq):
+    """The spatial rotation w (3, m) of a change dq of the quaternions q (4, m): [w]_x =
+    dR R^T, w = 2 Im(dq (x) conj(q)) / |q|^2."""
+    q0, q1, q2, q3 = q
+    d0, d1, d2, d3 = dq
+    scale = 2 / (q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return np.array((-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2,
+                     -d0 * q2 + d2 * q0 - d3 * q1 + d1 * q3,
+                     -d0 * q3 + d3 * q0 - d1 * q2 + d2 * q1)) * scale
+
+
+def in_rows(values, order, columns=False):
+    """``values`` in the canonical order of the states (coordinates, momenta, quadratures)
+    put in the module's rows: row i is the canonical state order[i]; ``columns``: the
+    columns too (a Jacobian)."""
+    out = np.asarray(values)[order]
+    return out[:, order] if columns else out
 
 
 def merged_ordinates(hand, derived) -> list:
