@@ -65,10 +65,10 @@ class Block:
     def add(self, target, expr):
         self.items.append((target, sp.sympify(expr)))
 
-    def lines(self, unpack) -> list[str]:
-        """The function body: ``unpack`` (symbol -> the line that defines it) for each input
-        used, the frames used, the common subexpressions, then ``target = expr`` for each
-        item."""
+    def lines(self, unpack, needs=()) -> list[str]:
+        """The function body: ``unpack`` (entries (name, line) or (name, line, names it
+        needs), in the order they may be emitted) for each input used (and for ``needs``),
+        the frames used, the common subexpressions, then ``target = expr`` for each item."""
         symbols = {k: sp.Symbol(v) for k, v in self.names.items()}
         exprs = [e.xreplace(symbols) for _, e in self.items]
         temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), order="none")
@@ -103,7 +103,11 @@ class Block:
                                     symbols=sp.numbered_symbols(f"c{frame.tag}_"))
             frame_lines += [f"{self.indent}{x} = {text(e)}" for x, e in ftemps]
             frame_lines += [f"{self.indent}{x} = {text(e)}" for (x, _), e in zip(chosen, fexprs)]
-        out = [self.indent + line for key, line in unpack if key in used]
+        used |= set(needs)
+        for entry in reversed(unpack):
+            if entry[0] in used and len(entry) > 2:
+                used |= set(entry[2])
+        out = [self.indent + entry[1] for entry in unpack if entry[0] in used]
         out += frame_lines
         for t, e in temps:
             out.append(f"{self.indent}{t} = {text(e)}")
@@ -154,11 +158,28 @@ class Module:
         unpack = [(f"p{i}", f"p{i} = p[{q.name!r}]") for i, q in enumerate(d.parameters)]
         return names, unpack
 
-    def _node_frames(self, names):
-        frames = [r.node for r in self.d.rotations]
-        for f in frames:
-            names.update(f.names())
-        return frames
+    def _node_rotations(self, names, unpack):
+        """The rotations' frames R and body moments R^T m at the nodes, computed from the
+        rows of y at once (`runtime.frame`, `runtime.body`): their names, and their unpack
+        entries put after the states'."""
+        d = self.d
+        extra = []
+        for j, r in enumerate(d.rotations):
+            q = self._rows([d.row(x) for x in r.Q])
+            m = self._rows([d.row(x) for x in r.Mr])
+            extra.append((f"F{j}", f"F{j} = {PREFIX}runtime.frame(y[{q}])  # {r.name}", ()))
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    extra.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = F{j}[{a}, {b}]", (f"F{j}",)))
+            extra.append((f"MB{j}", f"MB{j} = {PREFIX}runtime.body(F{j}, y[{m}])  # "
+                          f"{r.name}^T m", (f"F{j}",)))
+            for c in range(3):
+                names[r.MB[c]] = f"mb{j}_{c}"
+                extra.append((f"mb{j}_{c}", f"mb{j}_{c} = MB{j}[{c}]", (f"MB{j}",)))
+        at = max((i + 1 for i, e in enumerate(unpack) if re.fullmatch(r"y\d+", e[0])),
+                 default=0)
+        return unpack[:at] + extra + unpack[at:]
 
     def _end_frames(self, names):
         frames = [f for r in self.d.rotations for f in (r.start, r.end)]
@@ -333,8 +354,8 @@ class Module:
         d = self.d
         n, kv = self.n, self.kv
         names, unpack = self._states(False)
-        frames = self._node_frames(names)
-        block = Block(names, frames=frames)
+        unpack = self._node_rotations(names, unpack)
+        block = Block(names)
         for i, e in enumerate(d.rhs):
             block.add(f"out[{i}]", e)
         self.function("rhs(s, y, p)", "zeta' = V(zeta, m), m' = dL/dzeta, x' = g (the "
@@ -343,19 +364,21 @@ class Module:
                          if d.rotations else "."), block, unpack,
                       before=["    out = numpy.empty(y.shape)"], after=["    return out"])
         self.alias("rhs")
-        block = Block(names, frames=frames)
-        for i, e in enumerate(d.rhs):
-            for j, x in enumerate(d.rows):
-                de = _total(e, x, frames)
-                if de != 0:
-                    block.add(f"jac[{i}, {j}]", de)
-        self.function("rhs_jac(s, y, p)", "df/dy, (n, n, m)"
-                      + (" (through R(q) by dR/dq)." if d.rotations else "."), block, unpack,
-                      before=[f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))"],
-                      after=["    return jac"])
+        if d.rotations:
+            self.rotation_jacobian(names, unpack)
+        else:
+            block = Block(names)
+            for i, e in enumerate(d.rhs):
+                for j, x in enumerate(d.rows):
+                    de = sp.diff(e, x)
+                    if de != 0:
+                        block.add(f"jac[{i}, {j}]", de)
+            self.function("rhs_jac(s, y, p)", "df/dy, (n, n, m).", block, unpack,
+                          before=[f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))"],
+                          after=["    return jac"])
         self._by_parameter("rhs_dp(s, y, p, name)", "df/dp[name], (n, m).", d.rhs, names,
-                           unpack, "    out = numpy.zeros(y.shape)", "out[{i}]", frames=frames)
-        block = Block(names, frames=frames)
+                           unpack, "    out = numpy.zeros(y.shape)", "out[{i}]")
+        block = Block(names)
         for i, e in enumerate(d.velocity):
             block.add(f"v[{i}]", e)
         self.function(f"{PREFIX}velocity(s, y, p)", "zeta' from the momenta: the inverse of "
@@ -363,6 +386,57 @@ class Module:
                       + (" (the rotations' strains after the coordinates' derivatives)."
                          if d.rotations else "."), block, unpack,
                       before=[f"    v = numpy.empty(({kv}, y.shape[1]))"], after=["    return v"])
+
+    def rotation_jacobian(self, names, unpack):
+        """rhs_jac of a module with rotations: the partial derivatives with each frame R and
+        body moment R^T m held, then the chain through them, df/dq += f_R dR/dq + f_mb
+        d(R^T m)/dq and df/dm += f_mb R^T, by one product each (`runtime.chain`): far fewer
+        numpy calls than the chain written out entry by entry."""
+        d = self.d
+        n = self.n
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            for j, x in enumerate(d.rows):
+                de = sp.diff(e, x)
+                if de != 0:
+                    block.add(f"jac[{i}, {j}]", de)
+        after, needs = [], []
+        for j, r in enumerate(d.rotations):
+            rows_r = [i for i, e in enumerate(d.rhs) if e.has(*r.node.entries)]
+            rows_m = [i for i, e in enumerate(d.rhs) if e.has(*r.MB)]
+            q = [d.row(x) for x in r.Q]
+            m = [d.row(x) for x in r.Mr]
+            if not rows_r and not rows_m:
+                continue
+            needs.append(f"F{j}")
+            fr, fm = "None", "None"
+            if rows_r:
+                fr = f"fR{j}"
+                after.insert(0, f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
+                for a, i in enumerate(rows_r):
+                    for b in range(3):
+                        for c in range(3):
+                            de = sp.diff(d.rhs[i], r.node.R[b, c])
+                            if de != 0:
+                                block.add(f"fR{j}[{a}, {b}, {c}]", de)
+            if rows_m:
+                fm = f"fM{j}"
+                after.insert(0, f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
+                for a, i in enumerate(rows_m):
+                    for c in range(3):
+                        de = sp.diff(d.rhs[i], r.MB[c])
+                        if de != 0:
+                            block.add(f"fM{j}[{a}, {c}]", de)
+            after.append(f"    {PREFIX}runtime.chain(jac, F{j}, y[{self._rows(q)}], "
+                         f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
+                         f"{fm})  # {r.name}")
+        before = [f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))",
+                  *(line for line in after if "numpy.zeros" in line)]
+        chains = [line for line in after if "numpy.zeros" not in line]
+        self.emit("", "", "def rhs_jac(s, y, p):",
+                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
+                              "R^T m held, then through them (runtime.chain)."),
+                  *before, *block.lines(unpack, needs), *chains, "    return jac")
 
     def newton_system(self):
         d = self.d
@@ -606,7 +680,8 @@ class Module:
                 unpack = [(f"w{i}", f"w{i} = w[{i}]") for i in range(k)] + unpack
         ends, end_unpack = self._solution_ends()
         names.update(ends)
-        frames = self._node_frames(names) + self._end_frames(names)
+        unpack = self._node_rotations(names, unpack)
+        frames = self._end_frames(names)
         unpack = unpack + [u for u in end_unpack if u[0].startswith(("ya", "yb"))]
         if K > 1 or constraints:
             before += ["    m = y.shape[1]"]
@@ -671,8 +746,8 @@ class Module:
         d = self.d
         integrals = [o for o in d.ordinates if o["integrand"] != 0]
         names, unpack = self._states(True)
-        frames = self._node_frames(names)
-        block = Block(names, frames=frames)
+        unpack = self._node_rotations(names, unpack)
+        block = Block(names)
         for i, o in enumerate(integrals):
             block.add(f"out[{i}]", o["sign"] * o["integrand"])
         q = len(integrals)

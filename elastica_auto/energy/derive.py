@@ -150,10 +150,12 @@ class Frame:
 
     def derivative_definitions(self) -> list[tuple]:
         """(symbol, expression) of dR/dq_j, each in q, R and 1/|q|^2."""
-        form = _quadratic_form(self.q)
-        return [(self.dR[a][b][j], (sp.diff(form[a, b], self.q[j])
-                                    - 2 * self.q[j] * self.R[a, b]) * self.inv)
-                for a in range(3) for b in range(3) for j in range(4)]
+        if not hasattr(self, "_derivatives"):
+            form = _quadratic_form(self.q)
+            self._derivatives = [(self.dR[a][b][j], (sp.diff(form[a, b], self.q[j])
+                                                     - 2 * self.q[j] * self.R[a, b]) * self.inv)
+                                 for a in range(3) for b in range(3) for j in range(4)]
+        return self._derivatives
 
     def rotate(self, expr, c):
         """D_c expr = d/de expr(exp(e E_c) R) at e = 0: the derivative along the spatial
@@ -183,6 +185,7 @@ class RotationInfo:
     Q: list                          # the quaternion's state symbols (4)
     Mr: list                         # the spatial moment's state symbols (3)
     U: list                          # the body strains (3)
+    MB: list                         # the body moment R^T m (3): the Legendre map's value
     node: Frame | None = None
     start: Frame | None = None       # at s = 0 (the quaternion's rows of YA)
     end: Frame | None = None         # at s = 1
@@ -211,7 +214,7 @@ class Derived:
     YB: list
     P: dict
     linear: bool                     # the Legendre inverse is the symbolic ``velocity``
-    velocity: list | None            # V(Z, M, S) where linear (then the strains U)
+    velocity: list | None            # V(Z, M, S) where linear (then the strains U, in MB)
     lagrangian: sp.Expr              # L_eff in (Z, V, S, P)
     density: sp.Expr                 # the user's L in (Z, V, S, P)
     rates: list                      # g in (Z, V, S, P)
@@ -365,7 +368,8 @@ class _Names:
                 r.name, quaternion, rotation_momenta[j], r,
                 Q=[sp.Dummy(f"q{j}{i}", real=True) for i in range(4)],
                 Mr=[sp.Dummy(f"mr{j}{i}", real=True) for i in range(3)],
-                U=[sp.Dummy(f"u{j}{i}", real=True) for i in range(3)]))
+                U=[sp.Dummy(f"u{j}{i}", real=True) for i in range(3)],
+                MB=[sp.Dummy(f"mb{j}{i}", real=True) for i in range(3)]))
         # the states: coordinates, momenta (declaration order), quadratures
         coord_states, momentum_states = [], []
         coord_names, momentum_names = [], []
@@ -591,6 +595,7 @@ class _Names:
         for r in self.rot:
             back.update({u: sp.Symbol(f"{r.name}.u{i + 1}") for i, u in enumerate(r.U)})
             back.update({m: sp.Symbol(c) for m, c in zip(r.Mr, r.momenta)})
+            back.update({m: sp.Symbol(f"({r.name}^T m)_{i + 1}") for i, m in enumerate(r.MB)})
             back.update({q: sp.Symbol(c) for q, c in zip(r.Q, r.quaternion)})
             for frame, where in ((r.node, ""), (r.start, "(0)"), (r.end, "(1)")):
                 back.update({frame.R[a, b]: sp.Symbol(f"{r.name}{a + 1}{b + 1}{where}")
@@ -752,10 +757,12 @@ def derive(energy: Energy) -> Derived:
     if linear:
         b = [lv.xreplace({v: 0 for v in velocities}) for lv in Lv]
         Am = sp.Matrix(A)          # positive definite at the samples (_check_convex)
-        momenta = [*M, *(e for r in rot for e in r.node.R.T * sp.Matrix(r.Mr))]
+        # a rotation's momentum in the body, R^T m, is the symbol MB (computed at the nodes
+        # as R^T m: codegen), so that the inverse stays short
+        momenta = [*M, *(e for r in rot for e in r.MB)]
         rhs_vec = sp.Matrix([momenta[i] - b[i] for i in range(len(velocities))])
         sol = [rhs_vec[0] / Am[0, 0]] if len(velocities) == 1 else list(Am.LUsolve(rhs_vec))
-        unknowns = [*M, *(m for r in rot for m in r.Mr)]
+        unknowns = momenta
         velocity = [sp.factor_terms(sp.cancel(v)) if v.is_rational_function(*unknowns) else v
                     for v in sol]
 
@@ -1010,7 +1017,7 @@ def _turns(qc):
             return [0, 0, 0]
         dq = [sp.diff(e, p) for e in qc]
         w = [2 * e / size for e in _hamilton(dq, conj)[1:]]
-        return [sp.trigsimp(sp.factor_terms(e)) for e in w]
+        return [sp.factor_terms(e) for e in w]
     return turn
 
 

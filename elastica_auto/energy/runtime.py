@@ -325,6 +325,64 @@ def spatial_turn(q, dq):
                      -d0 * q3 + d3 * q0 - d1 * q2 + d2 * q1)) * scale
 
 
+def _quadratic_tensor():
+    """T (4, 3, 3, 4): dQ(q)/dq_j = 2 T[j] @ q, Q(q) the rotation matrix of q times |q|^2
+    (each entry of Q is q.T_ab q, T_ab symmetric)."""
+    t = np.zeros((4, 3, 3, 4))
+    for j, rows in enumerate((
+            (((0, 1), (3, -1), (2, 1)), ((3, 1), (0, 1), (1, -1)), ((2, -1), (1, 1), (0, 1))),
+            (((1, 1), (2, 1), (3, 1)), ((2, 1), (1, -1), (0, -1)), ((3, 1), (0, 1), (1, -1))),
+            (((2, -1), (1, 1), (0, 1)), ((1, 1), (2, 1), (3, 1)), ((0, -1), (3, 1), (2, -1))),
+            (((3, -1), (0, -1), (1, 1)), ((0, 1), (3, -1), (2, 1)), ((1, 1), (2, 1), (3, 1))))):
+        for a in range(3):
+            for b in range(3):
+                c, sign = rows[a][b]
+                t[j, a, b, c] = sign
+    t.flags.writeable = False
+    return t
+
+
+#: D[j, a, b, c]: (1/2) dQ_ab/dq_j = D[j, a, b] @ q (linear in q), and Q = sum_j q_j D_j q
+#: (Euler's relation): R and dR/dq by one matrix product each (`frame`, `chain`).
+_D = _quadratic_tensor()
+_QUADRATIC = _D.transpose(1, 2, 0, 3).reshape(9, 16)     # Q = _QUADRATIC @ (q (x) q)
+_LINEAR = _D.reshape(36, 4)                               # D_j(q) = (_LINEAR @ q)[j, a, b]
+
+
+def frame(q):
+    """R(q / |q|), (3, 3, m) for quaternions q (4, m) (or (3, 3) for q (4,)), scalar first:
+    the quadratic form over |q|^2, a rotation for any q != 0."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        return (_QUADRATIC @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
+    npts = q.shape[1]
+    out = _QUADRATIC @ (q[:, None, :] * q[None, :, :]).reshape(16, npts)
+    out /= np.einsum("ij,ij->j", q, q)
+    return out.reshape(3, 3, npts)
+
+
+def body(R, m):
+    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m)."""
+    return (R * m[:, None, :]).sum(axis=0)
+
+
+def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
+    """Add to ``jac`` (n, n, npts) the derivatives through a frame R = R(q / |q|) (3, 3,
+    npts) and its body moment R^T m: for the rows ``rows_r`` with f_r = df/dR (r, 3, 3,
+    npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
+    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2."""
+    npts = q.shape[1]
+    scale = 2 / np.einsum("ij,ij->j", q, q)
+    dR = (_LINEAR @ q).reshape(4, 3, 3, npts) - q[:, None, None, :] * R[None]
+    dR *= scale                                                   # dR/dq_j: (4, 3, 3, npts)
+    if f_r is not None:
+        jac[np.ix_(rows_r, qcols)] += np.einsum("iabm,jabm->ijm", f_r, dR)
+    if f_m is not None:
+        dmb = np.einsum("jacm,am->cjm", dR, m)                   # d(R^T m)/dq_j: (3, 4, npts)
+        jac[np.ix_(rows_m, qcols)] += np.einsum("icm,cjm->ijm", f_m, dmb)
+        jac[np.ix_(rows_m, mcols)] += np.einsum("icm,acm->iam", f_m, R)
+
+
 def in_rows(values, order, columns=False):
     """``values`` in the canonical order of the states (coordinates, momenta, quadratures)
     put in the module's rows: row i is the canonical state order[i]; ``columns``: the
