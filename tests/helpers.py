@@ -17,6 +17,9 @@ from elastica_auto.storage.store import BranchFile
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"
+#: The hand-written modules that the shipped energy-first ones replaced (issue 47): the
+#: references the tests compare the derived modules with.
+REFERENCE = REPO / "tests" / "reference"
 
 #: The shipped rotating-arm run (paper 4.1.1): psi continued both ways from the straight rod.
 ROTATING_ARM = REPO / "runs" / "rotating_arm.toml"
