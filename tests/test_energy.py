@@ -2,10 +2,12 @@
 
 Each derived module is checked against something derived independently of it:
 
-* the hand-written modules it replaces (equations/elastica_lever_arm.py, examples/bratu.py,
-  examples/clamped_column.py): residuals, Jacobians, parameter derivatives and second
-  variations at random states and parameters to 1e-12, and whole runs (every fold and branch
-  point, every point's index, rule and direct count);
+* the hand-written modules the shipped energy-first ones replaced (tests/reference:
+  elastica_lever_arm.py, bratu.py, clamped_column.py, guided_column.py): residuals,
+  Jacobians, parameter derivatives and second variations at random states and parameters to
+  1e-12, and whole runs (every fold and branch point, every point's index, rule and direct
+  count); the spatial rod's in tests/test_energy_rod.py, the pinned elastica's in
+  tests/test_pinned.py;
 * closed forms for models the project never had: the heavy column's buckling load (a zero of
   J_{-1/3}) and the critical loads of a shearable column on an elastic foundation;
 * the finite-difference Hessian of an energy discretised here (midpoint rule), not by the
@@ -35,7 +37,7 @@ from elastica_auto.energy import cache as energy_cache
 from elastica_auto.energy.loader import execute
 from elastica_auto.execution import runfile
 from elastica_auto.model.second_variation import as_second_variation
-from helpers import EXAMPLES, ROTATING_ARM, central_jacobian, run_plan
+from helpers import EXAMPLES, REFERENCE, ROTATING_ARM, central_jacobian, run_plan
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -119,13 +121,20 @@ ELASTICA_ROWS = [0, 2, 3, 1]
 
 @pytest.fixture(scope="module")
 def derived_elastica():
-    return ea.load_problem(EXAMPLES / "elastica_energy.py")
+    """The shipped elastica, derived from its energy (equations/elastica_lever_arm.py)."""
+    return ea.load_problem("elastica_lever_arm")
+
+
+@pytest.fixture(scope="module")
+def elastica(elastica_reference):
+    """Here: the hand-written elastica the shipped module replaced (tests/reference)."""
+    return elastica_reference
 
 
 def test_the_derived_elastica_is_the_hand_written_one(derived_elastica, elastica):
-    """Issue 47 item 2: written as its energy with the positions as passive quadratures and
-    the load on the arm's end, the elastica derives the shipped module's states,
-    equations, natural end condition, second variation and the paper's `enters`."""
+    """Issue 47 items 2, 6: written as its energy with the positions as passive quadratures
+    and the load on the arm's end, the shipped elastica derives the hand-written module's
+    states, equations, natural end condition, second variation and the paper's `enters`."""
     d = derived_elastica
     assert d.states == elastica.states
     assert {k: q.enters for k, q in d.parameters.items()} == \
@@ -206,19 +215,27 @@ def test_a_wrong_natural_condition_fails_the_residual_comparison(derived_elastic
 
 
 @pytest.fixture(scope="module")
-def derived_arm(tmp_path_factory):
-    """The shipped rotating_arm run (8 branches) on the derived elastica."""
+def derived_arm(rotating_arm):
+    """The shipped rotating_arm run (8 branches), on the derived elastica (the shipped
+    module)."""
+    return rotating_arm
+
+
+@pytest.fixture(scope="module")
+def reference_arm(tmp_path_factory):
+    """The shipped rotating_arm run on the hand-written reference."""
     out = tmp_path_factory.mktemp("arm")
     path = out / "rotating_arm.toml"
     path.write_text(ROTATING_ARM.read_text().replace(
-        'equation = "elastica_lever_arm"', f'equation = "{EXAMPLES / "elastica_energy.py"}"'))
+        'equation = "elastica_lever_arm"',
+        f'equation = "{REFERENCE / "elastica_lever_arm.py"}"'))
     return run_plan(runfile.load(path), out, jobs=1)
 
 
-def test_rotating_arm_on_the_derived_elastica(derived_arm, rotating_arm):
+def test_rotating_arm_on_the_derived_elastica(derived_arm, reference_arm):
     """Every fold of rotating_arm to 1e-9 and index, index_rule and index_direct equal at
-    every point, against the shipped module's run."""
-    mine, theirs = derived_arm.result.branches, rotating_arm.result.branches
+    every point, against the hand-written module's run."""
+    mine, theirs = derived_arm.result.branches, reference_arm.result.branches
     assert len(mine) == len(theirs) == 8
     folds = 0
     for a, b in zip(mine, theirs):
@@ -349,7 +366,7 @@ def test_a_flipped_ordinate_makes_the_rule_disagree():
     straight rod at P = 6 > pi^2/4, eps = 0.5), makes the fold rule disagree with the direct count;
     with the derived sign they agree at every point."""
     import re
-    derived = ea.load_problem(EXAMPLES / "elastica_energy.py")
+    derived = ea.load_problem("elastica_lever_arm")
     params = {"eps": 0.5, "P": 6.0}
     options = dict(bounds=(-2 * math.pi, 2 * math.pi), directions="+", mirror=False)
     (right,) = ea.continuation(derived, params, "psi", **options)

@@ -313,7 +313,7 @@ class Module:
         for end, fixed in ((0, d.fixed0), (1, d.fixed1)):
             if fixed:
                 lines.append(f"  h({end}) = 0 in " + ", ".join(d.labels[i] for i in fixed))
-        for fld, gv in d.constraints:
+        for fld, gv, _ in d.constraints:
             lines.append(f"  constraint: int ({u(fld)}).h ds"
                          + (" = 0" if all(e == 0 for e in gv) else
                             f" - g_v(0).h(0) + g_v(1).h(1) = 0, g_v = {u(gv)}"))
@@ -665,7 +665,7 @@ class Module:
         d = self.d
         k, K = self.k, self.K
         constraints = d.constraints
-        uses_w = any(e.has(*d.W) for fld, _ in constraints for e in fld)
+        uses_w = any(e.has(*d.W) for fld, _, _ in constraints for e in fld)
         if d.linear:
             names, unpack = self._states(False)
             before = []
@@ -694,10 +694,12 @@ class Module:
             for i in range(K):
                 for j in range(K):
                     block.add(entry(name, i, j), mat[i][j])
-        for c, (fld, gv) in enumerate(constraints):
+        for c, (fld, gv, dc) in enumerate(constraints):
             for i in range(K):
                 block.add(f"g{c}_{i}", fld[i])
                 block.add(f"d{c}_{i}", gv[i])
+                if any(e != 0 for e in dc):
+                    block.add(f"e{c}_{i}", dc[i])
         body = block.lines(unpack)
         args = []
         for name in ("A", "B", "C", "E0", "E1"):
@@ -710,13 +712,17 @@ class Module:
             args.append(value)
         after = []
         cons = []
-        for c in range(len(constraints)):
+        for c, (_, _, dc) in enumerate(constraints):
             g = ", ".join(f"g{c}_{i}" for i in range(K))
             dv = ", ".join(f"d{c}_{i}" for i in range(K))
             after.append(f"    gv = {PREFIX}runtime.field([[{dv}]], m)[0]")
             cons.append(f"constraint{c}")
+            d1 = f"{PREFIX}runtime.at_end(gv, -1)"
+            if any(e != 0 for e in dc):     # x(1) = c(zeta(1)): -dc/dzeta(1) at s = 1
+                d1 += (f" + {PREFIX}runtime.field([[{', '.join(f'e{c}_{i}' for i in range(K))}"
+                       "]], m)[0]")
             after.append(f"    constraint{c} = Constraint({PREFIX}runtime.field([[{g}]], m)[0], "
-                         f"{PREFIX}runtime.at_end(gv, -1), -{PREFIX}runtime.at_end(gv, 0))")
+                         f"{d1}, -{PREFIX}runtime.at_end(gv, 0))")
         parts = ""
         if d.parts:
             parts = f", parts={ {name: comps for name, comps in d.parts.items()}!r}"

@@ -22,6 +22,10 @@ everywhere), with passive quadratures ``x' = g(zeta, zeta', s)``, ``x(0) = x0(p)
   L_eff_zz``, ``E0 = B0_zz``, ``E1 = B1_zz``; the essential coordinates are the fixed
   components; a constraint ``x(1) = c`` linearises to ``int (g_z.h + g_v.h') ds = 0``, and
   by parts along the solution to ``int (g_z - (g_v)').h ds - g_v(0).h(0) + g_v(1).h(1) = 0``.
+  A constraint's value may depend on the end values at s = 1, ``x(1) = c(zeta(1))`` (a
+  pinned lever arm): ``-mu c`` is then an end term of the Lagrangian (in the natural
+  condition and E1) and the linearised constraint has ``-c_zeta.h(1)`` besides. A multiplier
+  may be given as minus a parameter, ``E - n (x(1) - c)``, n the reaction.
 * The distinguished ordinate of a parameter xi is the total derivative of E along the
   equilibria (the envelope theorem, as the Lagrangian is stationary there)::
 
@@ -227,7 +231,8 @@ class Derived:
     E1: list                         # in YB
     fixed0: list
     fixed1: list
-    constraints: list                # (field in Z, V, W, S, P; g_v in Z, V, S, P)
+    constraints: list                # (field in Z, V, W, S, P; g_v in Z, V, S, P; the end
+                                     # part -dc/dzeta(1) of x(1) = c(zeta(1)), in YB)
     ordinates: list                  # (name, tex, doc, parameter, sign, integrand, end part)
     energy_integrand: sp.Expr
     energy_ends: sp.Expr
@@ -670,7 +675,13 @@ def derive(energy: Energy) -> Derived:
                 clamps[end][i] = _quaternion(nm, value, f"fixed{end}[{rot[i].name}]")
                 continue
             label = (nm.coordinates if kind == "coordinates" else nm.quadratures)[i]
-            expr = nm.convert(value, f"fixed{end}[{label}]", state=False, s_allowed=False)
+            if kind == "quadratures" and end == 1:
+                # a constraint x(1) = c may depend on the coordinates' and frames' values at
+                # s = 1 (a pinned lever arm: x(1) + a(theta(1)) = X)
+                expr = nm.convert(value, f"fixed1[{label}]", end=1, derivatives=False)
+            else:
+                expr = nm.convert(value, f"fixed{end}[{label}]", state=False,
+                                  s_allowed=False)
             if kind == "coordinates":
                 essential[end][i] = expr
             else:
@@ -685,13 +696,17 @@ def derive(energy: Energy) -> Derived:
         if kind != "quadratures":
             _fail(f"multipliers: {key!r} is a coordinate; a multiplier belongs to a "
                   "quadrature whose final value fixed1 prescribes")
-        name = _name_of(mu)
-        if not isinstance(mu, sp.Symbol) or name not in P:
+        sign, symbol = 1, mu
+        if isinstance(mu, sp.Mul) and len(mu.args) == 2 and mu.args[0] == -1:
+            sign, symbol = -1, mu.args[1]          # E - n (x(1) - c): n the reaction
+        name = _name_of(symbol)
+        if not isinstance(symbol, sp.Symbol) or name not in P:
             _fail(f"multipliers[{nm.quadratures[j]}] = {mu!r}: expected one of the "
-                  "parameters' symbols (declare it in parameters, with its default)")
-        if name in {_name_of(m) for m in multipliers.values()}:
+                  "parameters' symbols, or minus one (declare it in parameters, with its "
+                  "default)")
+        if name in {m[0] for m in multipliers.values()}:
             _fail(f"multipliers: {name} is the multiplier of two constraints")
-        multipliers[j] = mu
+        multipliers[j] = (name, sign)
     for j in final:
         if j not in multipliers:
             _fail(f"fixed1[{nm.quadratures[j]}] is an isoperimetric constraint "
@@ -701,7 +716,7 @@ def derive(energy: Energy) -> Derived:
         if j not in final:
             _fail(f"multipliers[{nm.quadratures[j]}]: {nm.quadratures[j]}(1) is not "
                   "prescribed; give its value in fixed1")
-    mu = {j: P[_name_of(m)] for j, m in multipliers.items()}
+    mu = {j: sign * P[name] for j, (name, sign) in multipliers.items()}
 
     B0 = nm.convert(energy.end0, "end0", end=0, derivatives=False, quadratures=True)
     B1 = nm.convert(energy.end1, "end1", end=1, derivatives=False, quadratures=True)
@@ -719,11 +734,15 @@ def derive(energy: Energy) -> Derived:
         if c != 0:
             c1[j] = c
     B1p = B1.xreplace({x: 0 for x in X})            # B1 = B1' + c1.x(1)
+    # a constraint's value that depends on the end (-mu c in E + mu (x(1) - c)) is an end
+    # term of the Lagrangian: in the natural conditions and E1, not in the energy E
+    B1p -= sum((mu[j] * final[j] for j in final if final[j].free_symbols - set(P.values())),
+               sp.Integer(0))
     lam = {j: c1.get(j, 0) + mu.get(j, 0) for j in range(nq)}
     lam = {j: v for j, v in lam.items() if v != 0}
     Leff = L + sum((lam[j] * rates[j] for j in lam), sp.Integer(0))
 
-    multiplier_names = {_name_of(m) for m in multipliers.values()}
+    multiplier_names = {m[0] for m in multipliers.values()}
     for name in multiplier_names:
         p = P[name]
         for what, expr in (("the density", L), ("end0", B0), ("end1", B1),
@@ -811,8 +830,8 @@ def derive(energy: Energy) -> Derived:
         bc.append(at0[X[j]] - initial[j])
     free = []
     for j in sorted(final):
-        bc.append(at1[X[j]] - final[j])
-        free.append(_name_of(multipliers[j]))
+        bc.append(at1[X[j]] - final[j].xreplace(at1))
+        free.append(multipliers[j][0])
     for r in rot:
         for end, other in ((0, 1), (1, 0)):
             if r.offset is not None and i not in clamps[end] and False:
@@ -852,9 +871,12 @@ def derive(energy: Energy) -> Derived:
     E0, E1 = ends
     W = nm.W
     constraints = []
+    at_end = _Directions(nm, "end")
     for j in sorted(final):
         g = rates[j]
         gz, gv = [dirs.conf(g, a) for a in items], [dirs.vel(g, a) for a in items]
+        # x(1) - c(zeta(1)) = 0 linearised: the end's part -dc/dzeta(1).h(1)
+        dc = [-at_end.conf(final[j], a).xreplace(at1_all) for a in items]
         if rot and any(e != 0 for e in gv):
             _fail(f"the constraint on {nm.quadratures[j]}: its rate contains derivatives or "
                   "strains, which with a rotation coordinate the derivation does not "
@@ -872,7 +894,7 @@ def derive(energy: Energy) -> Derived:
                 fld = [e.xreplace(dict(zip(W, acc))) for e in fld]
         else:
             fld = gz
-        constraints.append(([on_solution(e) for e in fld], [on_solution(e) for e in gv]))
+        constraints.append(([on_solution(e) for e in fld], [on_solution(e) for e in gv], dc))
     fixed0 = sorted([*essential[0], *(rot[i].offset + c for i in clamps[0] for c in range(3))])
     fixed1 = sorted([*essential[1], *(rot[i].offset + c for i in clamps[1] for c in range(3))])
 
@@ -918,7 +940,8 @@ def derive(energy: Energy) -> Derived:
         # each end term at its own end's values (x(1) in B1_xi: the state's end value)
         ends_xi = sp.diff(B0, p).xreplace(at0) + sp.diff(B1, p).xreplace(at1)
         ends_xi += sum((lam[j] * sp.diff(initial[j], p) for j in lam), sp.Integer(0))
-        ends_xi -= sum((mu[j] * sp.diff(final[j], p) for j in final), sp.Integer(0))
+        ends_xi -= sum((mu[j] * sp.diff(final[j], p).xreplace(at1) for j in final),
+                       sp.Integer(0))
         ends_xi -= sum((YA[nm.rows.index(M[i])] * sp.diff(e, p)
                         for i, e in essential[0].items()), sp.Integer(0))
         ends_xi += sum((YB[nm.rows.index(M[i])] * sp.diff(e, p)
@@ -1145,8 +1168,8 @@ def _summary(nm, d, L, B0, B1, rates, initial, final, essential, multipliers,
     for j, name in enumerate(nm.quadratures):
         line = f"{name}' = {u(rates[j])}, {name}(0) = {u(initial[j])}"
         if j in final:
-            line += (f", {name}(1) = {u(final[j])} (multiplier "
-                     f"{_name_of(multipliers[j])}: E + {_name_of(multipliers[j])} "
+            mult = ("-" if multipliers[j][1] < 0 else "") + multipliers[j][0]
+            line += (f", {name}(1) = {u(final[j])} (multiplier {mult}: E + {mult} "
                      f"({name}(1) - {u(final[j])}))")
         lines.append(line)
     for end in (0, 1):
