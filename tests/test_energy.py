@@ -385,8 +385,8 @@ def test_a_flipped_ordinate_makes_the_rule_disagree():
 # ---- Bratu, the clamped column ----------------------------------------------------------
 
 def test_the_derived_bratu_is_the_hand_written_one():
-    d = ea.load_problem(EXAMPLES / "bratu_energy.py")
-    h = ea.load_problem(EXAMPLES / "bratu.py")
+    d = ea.load_problem(EXAMPLES / "bratu.py")
+    h = ea.load_problem(REFERENCE / "bratu.py")
     assert d.states == h.states
     assert_same_system(d, h, {"lam": (-5, 5)}, [0, 1], np.random.default_rng(4))
     s, y = random_states(np.random.default_rng(5), 2, 40)
@@ -396,11 +396,12 @@ def test_the_derived_bratu_is_the_hand_written_one():
 
 
 def _run_example(toml, equation, out):
+    """The example's run file ``toml`` with the module at the path ``equation``."""
     out.mkdir()
     path = out / Path(toml).name
     text = (EXAMPLES / toml).read_text()
     original = next(line for line in text.splitlines() if line.startswith("equation"))
-    path.write_text(text.replace(original, f'equation = "{EXAMPLES / equation}"'))
+    path.write_text(text.replace(original, f'equation = "{equation}"'))
     return run_plan(runfile.load(path), out / "out").result.branches
 
 
@@ -419,8 +420,8 @@ def assert_same_runs(mine, theirs, names):
 
 
 def test_bratu_run_on_the_derived_module(tmp_path):
-    mine = _run_example("bratu.toml", "bratu_energy.py", tmp_path / "d")
-    theirs = _run_example("bratu.toml", "bratu.py", tmp_path / "h")
+    mine = _run_example("bratu.toml", EXAMPLES / "bratu.py", tmp_path / "d")
+    theirs = _run_example("bratu.toml", REFERENCE / "bratu.py", tmp_path / "h")
     assert_same_runs(mine, theirs, ["lam"])
     (lp,) = mine[0].folds
     assert lp.ordinates["du0"] == pytest.approx(4.0, abs=1e-8)
@@ -428,22 +429,36 @@ def test_bratu_run_on_the_derived_module(tmp_path):
 
 def test_the_derived_clamped_column_is_the_hand_written_one(tmp_path):
     """The isoperimetric constraint x(1) = 0 by a multiplier: the same equations, extra
-    boundary row, free parameter and constrained second variation. The derived multiplier
-    is minus the hand-written reaction (E + Q x(1) with x' = -sin theta)."""
-    d = ea.load_problem(EXAMPLES / "clamped_column_energy.py")
-    h = ea.load_problem(EXAMPLES / "clamped_column.py")
+    boundary row, free parameter and constrained second variation; the multiplier given as
+    minus Q (E - Q x(1)) is the hand-written module's lateral reaction Q."""
+    d = ea.load_problem(EXAMPLES / "clamped_column.py")
+    h = ea.load_problem(REFERENCE / "clamped_column.py")
     assert d.states == h.states and d.free == h.free == ("Q",) and d.nbc == h.nbc == 5
     assert_same_system(d, h, {"P": (-50, 50), "Q": (-5, 5), "theta0": (-3, 3)},
-                       [0, 1, 2, 3, 4], np.random.default_rng(6),
-                       param_map=lambda p: {**p, "Q": -p["Q"]})
-    mine = _run_example("clamped_column.toml", "clamped_column_energy.py", tmp_path / "d")
-    theirs = _run_example("clamped_column.toml", "clamped_column.py", tmp_path / "h")
+                       [0, 1, 2, 3, 4], np.random.default_rng(6))
+    mine = _run_example("clamped_column.toml", EXAMPLES / "clamped_column.py", tmp_path / "d")
+    theirs = _run_example("clamped_column.toml", REFERENCE / "clamped_column.py",
+                          tmp_path / "h")
     assert_same_runs(mine, theirs, ["P"])
     for p in (p for br in mine for p in br.points if p.state is not None):
-        s, y, q = p.state.s, p.state.y, {**p.params, "Q": -p.params["Q"]}
+        s, y = p.state.s, p.state.y
         for name in ("y1", "m0"):           # the ordinates the two share, on one solution
-            assert p.ordinates[name] == pytest.approx(h.ordinates[name].fn(s, y[:4], q),
+            assert p.ordinates[name] == pytest.approx(h.ordinates[name].fn(s, y[:4], p.params),
                                                       abs=1e-12)
+
+
+def test_the_derived_guided_column_is_the_hand_written_one(tmp_path):
+    """The clamped-guided column: an essential end at each end, the load on a quadrature's
+    end value; the same system, and the same run (its branch points at (n pi)^2)."""
+    d = ea.load_problem(EXAMPLES / "guided_column.py")
+    h = ea.load_problem(REFERENCE / "guided_column.py")
+    assert d.states == h.states
+    assert_same_system(d, h, {"P": (-50, 50), "theta0": (-3, 3)}, [0, 1, 2, 3],
+                       np.random.default_rng(7))
+    mine = _run_example("guided_column.toml", EXAMPLES / "guided_column.py", tmp_path / "d")
+    theirs = _run_example("guided_column.toml", REFERENCE / "guided_column.py",
+                          tmp_path / "h")
+    assert_same_runs(mine, theirs, ["P"])
 
 
 # ---- models the project never had -------------------------------------------------------
