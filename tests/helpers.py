@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.resources
 import math
 import subprocess
 import sys
@@ -131,8 +130,9 @@ def wait_for(what: str, condition, proc=None, seconds: float = 120.0):
         time.sleep(0.02)
 
 
-ELASTICA = (importlib.resources.files("elastica_auto.equations")
-            / "elastica_lever_arm.py").read_text()
+#: The elastica written by hand (the shipped module is derived from its energy, issue 47): a
+#: user module with every function of the protocol, for the tests that hook into them.
+ELASTICA = (REFERENCE / "elastica_lever_arm.py").read_text()
 
 _SIGNALLING = """
 
@@ -164,8 +164,8 @@ def _signal_the_test(p):
 
 
 def signalling_elastica(path: Path, *, mark=None, hold=None) -> Path:
-    """Write the shipped elastica as the module ``path``, its rhs telling the test where the
-    run is; the numbers are the shipped module's.
+    """Write the hand-written elastica (ELASTICA) as the module ``path``, its rhs telling the
+    test where the run is; the numbers are the shipped module's to rounding.
 
     ``mark = (condition, file)``: the first call of rhs where ``condition`` (an expression
     in the parameters ``p``) is true, in each process, touches ``file``.

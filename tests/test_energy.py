@@ -37,7 +37,7 @@ from elastica_auto.energy import cache as energy_cache
 from elastica_auto.energy.loader import execute
 from elastica_auto.execution import runfile
 from elastica_auto.model.second_variation import as_second_variation
-from helpers import EXAMPLES, REFERENCE, ROTATING_ARM, central_jacobian, run_plan
+from helpers import EXAMPLES, REFERENCE, REPO, ROTATING_ARM, central_jacobian, run_plan
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -726,3 +726,64 @@ def test_a_constraint_whose_rate_contains_theta_prime(tmp_path, quartic):
         got = form_bilinear(form, pts, pert(b1, pts), pert(b1, pts, 1), pert(b2, pts),
                             pert(b2, pts, 1))
         assert got == pytest.approx(expected, rel=2e-5, abs=2e-5)
+
+
+# ---- the pinned elastica: two isoperimetric constraints -----------------------------------
+
+def test_the_derived_pinned_elastica_is_the_hand_written_one():
+    """Issue 47 item 6: the pin as two isoperimetric constraints x(1) + a_x(theta(1)) = X,
+    y(1) + a_y(theta(1)) = Y whose multipliers are the reaction (E - n.(r(1) + a - R)): the
+    hand-written module's equations with n its two constant states, its six end conditions
+    (the arm's moment balance the natural condition), its constrained second variation
+    (the constraints' end parts da/dtheta(1)) and its ordinates, at random states and
+    parameters to 1e-12."""
+    d = ea.load_problem("elastica_pinned")
+    h = ea.load_problem(REFERENCE / "elastica_pinned.py")
+    assert d.states == h.states[:4] and d.free == ("nx", "ny") and d.nbc == 6
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        p = {k: rng.uniform(-3, 3) for k in d.parameters}
+        s, y = random_states(rng, 4)
+        y6 = np.vstack((y, np.full(y.shape[1], p["nx"]), np.full(y.shape[1], p["ny"])))
+        q = {k: p[k] for k in h.parameters}
+        close = dict(rtol=0, atol=1e-12 * (1 + abs(p["nx"]) + abs(p["ny"])))
+        np.testing.assert_allclose(d.rhs(s, y, p), h.rhs(s, y6, q)[:4], **close)
+        np.testing.assert_allclose(d.rhs_jac(s, y, p), h.rhs_jac(s, y6, q)[:4, :4], **close)
+        rows = [0, 2, 3, 4, 5, 1]      # the derived rows in the hand-written order
+        np.testing.assert_allclose(d.bc(y[:, 0], y[:, -1], p)[rows],
+                                   h.bc(y6[:, 0], y6[:, -1], q), **close)
+        mine = as_second_variation(d.second_variation(s, y, p), "d")
+        theirs = as_second_variation(h.second_variation(s, y6, q), "h")
+        for what in ("A", "B", "C", "E0", "E1"):
+            a, b = np.broadcast_arrays(getattr(mine, what), getattr(theirs, what))
+            np.testing.assert_allclose(a, b, err_msg=what, **close)
+        for c, e in zip(mine.constraints, theirs.constraints):
+            for what in ("g", "d0", "d1"):
+                a, b = np.broadcast_arrays(getattr(c, what), getattr(e, what))
+                np.testing.assert_allclose(a, b, err_msg=what, **close)
+        for name in ("m0", "n_x", "n_y", "n_abs"):     # m1 = kappa(1) on solutions only
+            assert d.ordinates[name].fn(s, y, p) == pytest.approx(
+                h.ordinates[name].fn(s, y6, q), abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["pinned_arm", "pinned_clamp"])
+def test_the_pinned_runs_on_the_derived_module(tmp_path, name):
+    """The shipped pinned runs (the start solved from the shooting guess, with its reaction
+    as the free parameters' values) on the derived and the hand-written module: the same
+    points and labels, every fold to 1e-9, the index, rule and direct count at every point,
+    the reaction and m1 (kappa(1) = dE/dpsi on solutions) alike."""
+    runs = {}
+    for key, equation in (("d", "elastica_pinned"), ("h", REFERENCE / "elastica_pinned.py")):
+        out = tmp_path / key
+        out.mkdir()
+        path = out / f"{name}.toml"
+        path.write_text((REPO / "runs" / f"{name}.toml").read_text().replace(
+            'equation = "elastica_pinned"', f'equation = "{equation}"'))
+        runs[key] = run_plan(runfile.load(path), out).result.branches
+    assert_same_runs(runs["d"], runs["h"], ["psi", "theta0"])
+    for a, b in zip(runs["d"], runs["h"]):
+        for p, q in zip(a.points, b.points):
+            assert (p.params["nx"], p.params["ny"]) == pytest.approx(
+                (q.ordinates["n_x"], q.ordinates["n_y"]), abs=1e-9)
+            for key in ("m1", "m0", "n_abs"):
+                assert p.ordinates[key] == pytest.approx(q.ordinates[key], abs=1e-7)
