@@ -625,8 +625,13 @@ class Problem:
         return self._draw is not None
 
     def draw(self, ax, profile, params):
-        """Draw the configuration of ``profile`` (n, len(grid)) at ``params`` on ``ax``."""
+        """Draw the configuration of ``profile`` (n, len(grid)) at ``params`` on ``ax``. A
+        profile with rows after the module's states (a run's running integrals and free
+        parameters, whose values are in ``params``; a curve's null vectors) is drawn from
+        the module's rows."""
         profile = np.asarray(profile, dtype=float)
+        if profile.ndim == 2 and profile.shape[0] > self.n:
+            profile = profile[:self.n]
         if profile.ndim != 2 or profile.shape[0] != self.n:
             raise ProblemError(f"{self.source}: draw(ax, profile, params) needs a profile of "
                                f"shape ({self.n}, len(grid)), got {profile.shape}")
