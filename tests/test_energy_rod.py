@@ -245,3 +245,26 @@ def test_the_slope_of_the_rod_s_energy_is_its_ordinate(rods, tilted, name, ordin
     xi = np.array([p.params[name] for p in br.points])
     e = np.array([p.ordinates["E"] for p in br.points])
     _assert_slope(xi, e, sign * np.array([p.ordinates[ordinate] for p in br.points]))
+
+
+# ---- a rod written from its energy alone --------------------------------------------------
+
+def test_the_spatial_column_buckles_at_euler_s_loads_about_both_axes():
+    """examples/spatial_column.py, the docs' tutorial: a clamped-free column in space, bending
+    stiffnesses 1 and b2 = 2, written as its energy only. Continued in P from the straight
+    column its branch points are the clamped-free Euler loads B ((2 n - 1) pi / 2)^2 for
+    B = 1 and 2 (a closed form, not the derivation), in order, to 1e-8 relative, and the
+    index counts the loads below P at every other point."""
+    from helpers import EXAMPLES
+    problem = ea.load_problem(EXAMPLES / "spatial_column.py")
+    assert problem.states == ("R_q0", "R_q1", "R_q2", "R_q3", "m_R1", "m_R2", "m_R3", "x", "y",
+                              "z")
+    (br,) = ea.continuation(problem, {"P": 0.0, "b2": 2.0}, "P", bounds=(-1, 25),
+                            directions="+", ds=0.2, ds_max=1.0)
+    loads = sorted(b * ((2 * n - 1) * math.pi / 2) ** 2 for b in (1.0, 2.0) for n in (1, 2))
+    loads = [x for x in loads if x < 25]
+    bps = [p.params["P"] for p in br.points if p.type == "BP"]
+    np.testing.assert_allclose(bps, loads, rtol=1e-8)
+    for p in br.points:
+        if p.type != "BP":
+            assert p.index == p.index_direct == sum(x < p.params["P"] for x in loads)
