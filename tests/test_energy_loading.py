@@ -488,3 +488,34 @@ def test_named_parts_are_counted_each_on_its_own(tmp_path):
     end = br.points[-1]
     assert [problem.ordinates[k].fn(end.state.s, end.state.y, end.params)
             for k in ("index_u", "index_w")] == [2, 1]
+
+
+# ---- a module imported as a Python module -------------------------------------------------
+
+def test_a_shipped_module_imported_plainly_has_its_derived_names(tmp_path):
+    """``import elastica_auto.equations.kirchhoff_lever_arm as rod`` (tools/three_d.py, users'
+    scripts): the derived names come on first use (`derived_names`), the same functions as
+    `load_problem` gives; a name that is neither derived nor the module's is an
+    AttributeError; the hand-written helpers that use derived ones (part_counts) work."""
+    out = python("""
+        import numpy as np
+        import elastica_auto.equations.kirchhoff_lever_arm as rod
+        import elastica_auto.equations.elastica_lever_arm as planar
+        from elastica_auto import load_problem
+        problem = load_problem("kirchhoff_lever_arm")
+        p = {q.name: q.default for q in rod.PARAMETERS}
+        s = np.linspace(0, 1, 7)
+        y = np.random.default_rng(0).uniform(-1, 1, (10, 7))
+        assert np.array_equal(rod.rhs(s, y, p), problem.rhs(s, y, p))
+        assert np.array_equal(rod.rhs_jac(s, y, p), problem.rhs_jac(s, y, p))
+        straight = rod.exact_start(s, {**p, "P": 0.0})
+        print(rod.part_counts(s, straight, p), planar.STATES)
+        try:
+            rod.no_such_name
+        except AttributeError:
+            print("AttributeError")
+        """, tmp_path / "cache")
+    # the straight rod at the defaults, P = pi^2/4 above the first critical load 1.5992 of
+    # eps = 0.25 (docs/kirchhoff.md) about both axes (b2 = 1): one negative mode in each part
+    assert out.splitlines() == ["{'index_in': 1, 'index_out': 1} ('theta', 'kappa', 'x', 'y')",
+                                "AttributeError"]
