@@ -356,13 +356,26 @@ class Module:
         names, unpack = self._states(False)
         unpack = self._node_rotations(names, unpack)
         block = Block(names)
+        # a rotation's q' = q (x) (0, u) / 2 by one product (runtime.quaternion_rate), its
+        # strains u the Legendre inverse's
+        kinematics, after = {}, []
+        for j, r in enumerate(d.rotations):
+            rows = [d.row(q) for q in r.Q]
+            kinematics.update(dict.fromkeys(rows))
+            strains = d.velocity[self.k + 3 * j: self.k + 3 * j + 3]
+            for c, e in enumerate(strains):
+                block.add(f"u{j}_{c}", e)
+            after.append(f"    out[{self._rows(rows)}] = {PREFIX}runtime.quaternion_rate("
+                         f"y[{self._rows(rows)}], u{j}_0, u{j}_1, u{j}_2)  # {r.name}")
         for i, e in enumerate(d.rhs):
-            block.add(f"out[{i}]", e)
+            if i not in kinematics:
+                block.add(f"out[{i}]", e)
         self.function("rhs(s, y, p)", "zeta' = V(zeta, m), m' = dL/dzeta, x' = g (the "
                       "Euler-Lagrange equations in the states)"
                       + ("; q' = q (x) (0, u) / 2 and m' = the torque D L for a rotation."
                          if d.rotations else "."), block, unpack,
-                      before=["    out = numpy.empty(y.shape)"], after=["    return out"])
+                      before=["    out = numpy.empty(y.shape)"],
+                      after=[*after, "    return out"])
         self.alias("rhs")
         if d.rotations:
             self.rotation_jacobian(names, unpack)

@@ -361,6 +361,33 @@ def frame(q):
     return out.reshape(3, 3, npts)
 
 
+def _half_left():
+    """H (4, 12): q (x) (0, u) / 2 = H @ (u (x) q), columns (k, c) for u_k q_c."""
+    out = np.zeros((4, 3, 4))
+    for k in range(3):
+        for c in range(4):
+            u, q = np.eye(3)[k], np.eye(4)[c]
+            a0, a1, a2, a3 = q
+            b1, b2, b3 = u
+            out[:, k, c] = 0.5 * np.array((-a1 * b1 - a2 * b2 - a3 * b3,
+                                           a0 * b1 + a2 * b3 - a3 * b2,
+                                           a0 * b2 + a3 * b1 - a1 * b3,
+                                           a0 * b3 + a1 * b2 - a2 * b1))
+    out = out.reshape(4, 12)
+    out.flags.writeable = False
+    return out
+
+
+_HALF_LEFT = _half_left()
+
+
+def quaternion_rate(q, u1, u2, u3):
+    """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
+    (m,) or a number): one product for all points."""
+    u = np.array(np.broadcast_arrays(u1, u2, u3, q[0])[:3], dtype=float)
+    return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
+
+
 def body(R, m):
     """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m)."""
     return (R * m[:, None, :]).sum(axis=0)
