@@ -140,7 +140,8 @@ def test_a_problem_travels_with_its_generated_code(tmp_path):
 
 # ---- elastica-auto derive -----------------------------------------------------------------
 
-@pytest.mark.parametrize("name", ["elastica_lever_arm", "clamped_column", "bratu",
+@pytest.mark.parametrize("name", ["elastica_lever_arm", "kirchhoff_lever_arm", "elastica_pinned",
+                                  "spatial_column", "clamped_column", "bratu",
                                   "foundation_column"])
 def test_the_printed_module_loads_and_gives_the_same_results(tmp_path, cli_exe, name):
     """Issue 47 item 5: `derive MODULE.py -o OUT.py` writes a plain module (no ENERGY, its
