@@ -232,14 +232,46 @@ BAD = {
                           "parameters={q: 1.0}", "contains r, not a parameter"),
     "second order": ("density=t.diff(s, 2)**2/2 + q*sp.cos(t), coordinates=[t], "
                      "parameters={q: 1.0}", "first derivatives only"),
+    # a rotation coordinate (R = Rotation("R"))
+    "rotation: not quadratic in the strains": (
+        "density=R.strain[0]**4/4 + R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}", "with a rotation coordinate the Legendre transform is derived "
+        "as a linear solve only"),
+    "rotation: not convex in the strains": (
+        "density=(R.strain[0]**2 + R.strain[1]**2 - R.strain[2]**2)/2 + q*R.d3[2], "
+        "coordinates=[R], parameters={q: 1.0}", "not strictly convex in R.u3'"),
+    "rotation: a strain in an end term": (
+        "density=R.strain.dot(R.strain)/2, end1=q*R.strain[0], coordinates=[R], "
+        "parameters={q: 1.0}", "end terms depend on the end values only"),
+    "rotation: a clamp that is no quaternion": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}, fixed0={R: (1, 0, 0)}", "a quaternion, four expressions"),
+    "rotation: a clamp in the states": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}, fixed0={R: (R.d3[0], 0, 0, 1)}", "the parameters only"),
+    "rotation: a name twice": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0, sp.Symbol('R_q0'): 0.0}", "the name 'R_q0' is used twice"),
+    "rotation: the moment's names": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], momenta={R: 'm'}, "
+        "parameters={q: 1.0}", "a rotation's moment is three states"),
+    "rotation: a shifted period": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: Param(1.0, period=1, period_shift={R: 1})}",
+        "a period turns its quaternion to -q (period_flip)"),
+    "rotation: a constraint's rate with strains": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0, r: 0.0}, quadratures={x: R.strain[0]}, fixed0={x: 0}, "
+        "fixed1={x: 0}, multipliers={x: r}", "does not integrate by parts"),
 }
 
 BAD_HEAD = """
 def ENERGY():
     import sympy as sp
-    from elastica_auto.energy import Energy, Param
+    from elastica_auto.energy import Energy, Param, Rotation
     s, q, r, E = sp.symbols("s q r E", real=True)
     t, u, x = sp.Function("theta")(s), sp.Function("u")(s), sp.Function("x")(s)
+    R = Rotation("R")
     return Energy(s=s, {})
 """
 
