@@ -8,8 +8,11 @@ what was derived, in the user's names: the energy, the Legendre inverse, where e
 parameter enters and its ordinate, the second variation.
 
 Safety of the text: the internal symbols print as ``s``, ``y3``, ``v0``, ``p2``, ``ya1``, ...
-(and ``t0``, ... for common subexpressions), names no user name can take, since every user
-symbol was replaced before printing. User names appear only as string literals (``repr``) and
+(and ``t0``, ... for common subexpressions; for a rotation ``j`` its frame ``F0`` and body
+moment ``MB0`` at the nodes with their entries ``R0_12``, ``mb0_1``, its strains ``u0_1``, its
+frames at the ends ``R0a_12``, ``R0b_12`` with ``n0a``, ``dR0b_12_3`` and their common
+subexpressions ``c0a_4``), names no user name can take, since every user symbol was replaced
+before printing. User names appear only as string literals (``repr``) and
 in ``#`` comments (they are printable: no line breaks). Module-level helpers are named
 ``_derived_...``; a module that defines such a name itself is refused (`loader`).
 """
