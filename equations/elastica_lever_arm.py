@@ -1,146 +1,79 @@
-"""End-loaded planar elastica with a rigid lever arm (nondimensional: K = l = 1).
+"""End-loaded planar elastica with a rigid lever arm (nondimensional: K = l = 1), written as its
+energy (docs/energy.md; the model: docs/design.md, "The elastica with a lever arm").
 
-State ``[theta, kappa, x, y]`` on s in [0, 1]; theta is the tangent angle from the vertical,
-kappa = theta' the bending moment m.e_z, (x, y) the centreline. Moment balance, with the
-contact force n equal to the load F = P (sin alpha, -cos alpha)::
+A rod clamped at s = 0 (turned by theta0) carries a rigid arm of length eps welded to its tip
+at the angle psi (clockwise from the tip tangent), and a dead load F = P (sin alpha,
+-cos alpha) at the arm's end. theta is the tangent angle from the vertical, the centreline
+(x, y) the quadratures x' = -sin theta, y' = cos theta, and the load's potential -F.r_A is an
+end term at s = 1, linear in x(1), y(1)::
 
-    theta' = kappa,  kappa' = -P sin(theta - alpha),  x' = -sin theta,  y' = cos theta.
+    E[theta] = int_0^1 theta'^2 / 2 ds - F.(r(1) + eps (sin(psi - theta(1)), cos(psi - theta(1)))),
+    theta(0) = theta0,  x(0) = y(0) = 0.
 
-Clamp: theta(0) = theta0, x(0) = y(0) = 0. Free end (moment balance of the lever arm)::
+Derived from it (`load_problem`, `elastica-auto derive`): the states ``[theta, kappa, x, y]``
+(kappa = theta', the bending moment m.e_z), the system theta' = kappa, kappa' = -P sin(theta -
+alpha), x' = -sin theta, y' = cos theta, the free end's natural condition kappa(1) + eps P
+sin(psi + alpha - theta(1)) = 0, their Jacobians, the second variation int (h'^2 - P cos(theta
+- alpha) h^2) ds - eps P cos(psi + alpha - theta(1)) h(1)^2 on h(0) = 0, where each parameter
+enters (P and alpha only in the end term: ``"free"``, as the paper has them; theta0 only in
+the essential value: ``"fixed"``), the distinguished ordinates named as the paper names them
+(gamma = dE/dP, beta = dE/deps, m1 = dE/dpsi, mA = dE/dalpha and the clamp's reaction m0 =
+-dE/dtheta0 = kappa(0)) and the energy E.
 
-    kappa(1) + eps P sin(psi + alpha - theta(1)) = 0.
-
-The lever arm points at angle theta(1) - psi from the vertical (psi measured clockwise from
-the tip tangent). Reduced energy, whose Euler-Lagrange equations are the system above::
-
-    E[theta] = int_0^1 (kappa^2/2 + P cos(theta - alpha)) ds + eps P cos(psi + alpha - theta(1)).
-
-P and alpha appear in the reduced ODE, but in the paper's formulation (positions with Lagrange
-multipliers n) they enter only the free-end term, so they are declared ``enters="free"``.
-
-``draw`` draws a configuration for the figures: clamp, centreline, lever arm and load.
+By hand, what the energy does not say: the straight start, the mirror x -> -x, the shooting
+scan, the drawing (shared with the modules of this rod under other end conditions), and the
+gradient flow: the paper's landings were computed with its trapezoidal potential (the derived
+flow, the midpoint rule, lands on the same equilibria, its released energies within the
+discretisation: tests/test_energy_loading.py). The hand-written module this one replaces is
+tests/reference/elastica_lever_arm.py.
 """
 
 import math
 
 import numpy as np
 
-from elastica_auto import Flow, Mirror, Ordinate, Parameter
+from elastica_auto import Flow, Mirror
+from elastica_auto.energy import derived_names
 
-STATES = ("theta", "kappa", "x", "y")
+def ENERGY():
+    import sympy as sp
 
-PARAMETERS = [
-    Parameter("P", math.pi ** 2 / 4, r"P", "free", doc="load |F| l^2 / K; negative reverses F"),
-    Parameter("eps", 0.25, r"\epsilon", "free", doc="lever-arm length / l; negative flips it"),
-    Parameter("psi", 0.0, r"\psi", "free", period=2 * math.pi,
-              doc="arm angle to the tip tangent, clockwise"),
-    Parameter("alpha", 0.0, r"\alpha", "free", period=2 * math.pi,
-              doc="load direction from the vertical"),
-    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=2 * math.pi,
-              period_shift={"theta": 2 * math.pi}, doc="rotation of the clamp"),
-]
-
-
-def _arm_angle(yb, p):
-    """psi + alpha - theta(1), the angle in the free-end moment eps P sin(.)."""
-    return p["psi"] + p["alpha"] - yb[0]
-
-
-def rhs(s, y, p):
-    """theta' = kappa, kappa' = -P sin(theta - alpha), x' = -sin theta, y' = cos theta,
-    filled row by row (np.vstack of the rows costs twice as much at the engine's sizes)."""
-    theta = y[0]
-    out = np.empty(y.shape)
-    out[0] = y[1]
-    out[1] = -p["P"] * np.sin(theta - p["alpha"])
-    out[2] = -np.sin(theta)
-    out[3] = np.cos(theta)
-    return out
-
-
-def rhs_jac(s, y, p):
-    theta = y[0]
-    jac = np.zeros((4, 4, y.shape[1]))
-    jac[0, 1] = 1.0
-    jac[1, 0] = -p["P"] * np.cos(theta - p["alpha"])
-    jac[2, 0] = -np.cos(theta)
-    jac[3, 0] = -np.sin(theta)
-    return jac
+    from elastica_auto.energy import Energy, Param
+    s = sp.Symbol("s", real=True)
+    P, eps, psi, alpha, theta0 = sp.symbols("P eps psi alpha theta0", real=True)
+    theta, x, y = (sp.Function(name)(s) for name in ("theta", "x", "y"))
+    load = sp.Matrix([P * sp.sin(alpha), -P * sp.cos(alpha)])
+    arm_end = sp.Matrix([x, y]) + eps * sp.Matrix([sp.sin(psi - theta), sp.cos(psi - theta)])
+    angle = dict(period=2 * sp.pi)
+    return Energy(
+        density=theta.diff(s) ** 2 / 2,
+        end1=-(load.T * arm_end)[0],
+        s=s, coordinates=[theta], momenta={theta: "kappa"},
+        quadratures={x: -sp.sin(theta), y: sp.cos(theta)},
+        fixed0={theta: theta0, x: 0, y: 0},
+        parameters={
+            P: Param(sp.pi ** 2 / 4, "P", ordinate="gamma",
+                     doc="load |F| l^2 / K; negative reverses F"),
+            eps: Param(0.25, r"\epsilon", ordinate="beta",
+                       doc="lever-arm length / l; negative flips it"),
+            psi: Param(0.0, r"\psi", ordinate="m1", **angle,
+                       doc="arm angle to the tip tangent, clockwise"),
+            alpha: Param(0.0, r"\alpha", ordinate="mA", **angle,
+                         doc="load direction from the vertical"),
+            theta0: Param(0.0, r"\theta_0", ordinate="m0", period_shift={theta: 2 * sp.pi},
+                          doc="rotation of the clamp", **angle),
+        })
 
 
-def rhs_dp(s, y, p, name):
-    out = np.zeros_like(y)
-    if name == "P":
-        out[1] = -np.sin(y[0] - p["alpha"])
-    elif name == "alpha":
-        out[1] = p["P"] * np.cos(y[0] - p["alpha"])
-    return out
+#: Imported as a Python module, the derived names (rhs, second_variation, PARAMETERS, ...)
+#: on first use; `load_problem` gives them itself.
+__getattr__ = derived_names(__name__)
 
-
-def bc(ya, yb, p):
-    return np.array((ya[0] - p["theta0"], ya[2], ya[3],
-                     yb[1] + p["eps"] * p["P"] * np.sin(_arm_angle(yb, p))))
-
-
-def bc_jac(ya, yb, p):
-    da = np.zeros((4, 4))
-    db = np.zeros((4, 4))
-    da[0, 0] = da[1, 2] = da[2, 3] = 1.0
-    db[3, 1] = 1.0
-    db[3, 0] = -p["eps"] * p["P"] * np.cos(_arm_angle(yb, p))
-    return da, db
-
-
-def bc_dp(ya, yb, p, name):
-    out = np.zeros(4)
-    a = _arm_angle(yb, p)
-    if name == "theta0":
-        out[0] = -1.0
-    elif name == "eps":
-        out[3] = p["P"] * np.sin(a)
-    elif name == "P":
-        out[3] = p["eps"] * np.sin(a)
-    elif name in ("psi", "alpha"):
-        out[3] = p["eps"] * p["P"] * np.cos(a)
-    return out
-
-
-def _m1(s, y, p):
-    return y[1, -1]
-
-
-def _beta(s, y, p):
-    return p["P"] * np.cos(_arm_angle(y[:, -1], p))
-
-
-def _m_alpha(s, y, p):
-    x1, y1, a = y[2, -1], y[3, -1], p["alpha"]
-    return y[1, -1] - p["P"] * (x1 * np.cos(a) + y1 * np.sin(a))
-
-
-def _gamma(s, y, p):
-    x1, y1, a = y[2, -1], y[3, -1], p["alpha"]
-    return -x1 * np.sin(a) + y1 * np.cos(a) + p["eps"] * np.cos(_arm_angle(y[:, -1], p))
-
-
-def _m0(s, y, p):
-    return y[1, 0]
-
-
-ORDINATES = [
-    Ordinate("m1", r"$m(1)\cdot e_z$", _m1, "psi", "tip moment kappa(1); ordinate for psi"),
-    Ordinate("beta", r"$\beta$", _beta, "eps", "P cos(psi + alpha - theta(1)); ordinate for eps"),
-    Ordinate("mA", r"$(m + r\times n)\cdot e_z$", _m_alpha, "alpha",
-             "kappa(1) - P (x(1) cos alpha + y(1) sin alpha) = kappa(0); ordinate for alpha"),
-    Ordinate("gamma", r"$\gamma$", _gamma, "P",
-             "-x(1) sin alpha + y(1) cos alpha + eps cos(alpha + psi - theta(1)); ordinate for P"),
-    Ordinate("m0", r"$m(0)\cdot e_z$", _m0, "theta0", "clamp moment kappa(0); ordinate for theta0"),
-]
 
 #: The reflection x -> -x of the plane: theta -> -theta turns the rod, its arm, the clamp and
 #: the load into their mirror images (psi, alpha, theta0 -> their negatives), kappa = theta'
-#: and x = -int sin(theta) with them; the moments m1, mA and m0 change sign, beta and gamma
-#: (cosines of mirrored angles) do not; the shooting unknown theta'(0) changes sign.
+#: and x = -int sin(theta) with them; the moments m1, mA and m0 change sign, beta, gamma and
+#: the energy E do not; the shooting unknown theta'(0) changes sign.
 MIRROR = Mirror({"theta": "-theta", "kappa": "-kappa", "x": "-x"}, ("psi", "alpha", "theta0"),
                 ("m1", "mA", "m0"), shooting=(-1,))
 
@@ -155,15 +88,6 @@ def exact_start(s, p):
         return None
     t = p["theta0"]
     return np.vstack((np.full_like(s, t), np.zeros_like(s), -s * math.sin(t), s * math.cos(t)))
-
-
-def second_variation(s, y, p):
-    """delta^2 E[h] = int_0^1 (h'^2 - P cos(theta - alpha) h^2) ds - eps P cos(psi + alpha -
-    theta(1)) h(1)^2 with h(0) = 0 (docs/design.md, "Second variation and the natural end
-    condition"): a = 1, b = -P cos(theta - alpha), c = -eps P cos(psi + alpha - theta(1));
-    natural end condition h'(1) = eps P cos(.) h(1)."""
-    return (1.0, -p["P"] * np.cos(y[0] - p["alpha"]),
-            -p["eps"] * p["P"] * np.cos(_arm_angle(y[:, -1], p)))
 
 
 def shooting(p):

@@ -1,36 +1,29 @@
-"""Planar elastica with a rigid lever arm whose end is pinned (nondimensional: K = l = 1).
+"""Planar elastica with a rigid lever arm whose end is pinned (nondimensional: K = l = 1),
+written as its energy (docs/energy.md; the model: docs/pinned-end.md).
 
 The rod of ``elastica_lever_arm``: clamped at s = 0 (turned by theta0), a rigid lever arm of
 length eps at the tip, at angle psi (clockwise) to the tip tangent. Instead of a dead load,
-the end of the arm is pinned at a prescribed point R = (X, Y), free to rotate; the reaction
-n = (n_x, n_y), the force of the pin on the arm, is an unknown constant of the solution.
+the end of the arm is pinned at a prescribed point R = (X, Y), free to rotate: two
+isoperimetric constraints on the centreline's quadratures x' = -sin theta, y' = cos theta,
 
-State ``[theta, kappa, x, y, nx, ny]`` on s in [0, 1]; theta is the tangent angle from the
-vertical, kappa = theta' the bending moment m.e_z, (x, y) the centreline, (nx, ny) = n::
+    E[theta] = int_0^1 theta'^2 / 2 ds,   theta(0) = theta0,  x(0) = y(0) = 0,
+    x(1) + eps sin(psi - theta(1)) = X,   y(1) + eps cos(psi - theta(1)) = Y,
 
-    theta' = kappa,  kappa' = n_x cos(theta) + n_y sin(theta),
-    x' = -sin(theta),  y' = cos(theta),  n_x' = n_y' = 0.
+the arm a = eps (sin(psi - theta(1)), cos(psi - theta(1))) (from the tip to its end, at angle
+theta(1) - psi from the vertical). Their multipliers are the reaction n = (nx, ny), the force
+of the pin on the arm, free parameters solved for (``FREE``): the equations are those of the
+Lagrangian E - n.(r(1) + a - R). Derived from it: the states ``[theta, kappa, x, y]`` (kappa =
+theta'), theta' = kappa, kappa' = nx cos(theta) + ny sin(theta), the pin's two rows and the
+arm's moment balance kappa(1) = (a x n).e_z = eps (ny sin(psi - theta(1)) - nx cos(psi -
+theta(1))), the second variation int (h'^2 + (ny cos(theta) - nx sin(theta)) h^2) ds + n.a
+h(1)^2 on h(0) = 0 restricted to the variations that keep the pin (two constraints
+int g_i h ds + d_i h(1) = 0), where each parameter enters and its distinguished ordinate:
+m1 = dE/dpsi = kappa(1) (unchanged from the dead-load module), the clamp's reaction m0 =
+kappa(0), and for X and Y the reaction's components n_x, n_y (the values of nx and ny).
 
-With n = P (sin alpha, -cos alpha) the moment balance is the dead-load one,
-kappa' = -P sin(theta - alpha). The arm is a = eps (sin(psi - theta(1)), cos(psi - theta(1)))
-(from the tip to its end, at angle theta(1) - psi from the vertical). End conditions::
-
-    theta(0) = theta0,  x(0) = y(0) = 0,
-    x(1) + eps sin(psi - theta(1)) = X,  y(1) + eps cos(psi - theta(1)) = Y,
-    kappa(1) = (a x n).e_z = eps (n_y sin(psi - theta(1)) - n_x cos(psi - theta(1))),
-
-the last the moment balance of the arm about the tip: with n = P (sin alpha, -cos alpha) it is
-the dead-load module's kappa(1) + eps P sin(psi + alpha - theta(1)) = 0, so a dead-load
-equilibrium pinned at its own arm end is an equilibrium here, with reaction n = the load.
-These are the Euler-Lagrange equations of the Lagrangian
-
-    L = int_0^1 kappa^2/2 ds - n . (r(1) + a - R),   r(1) = int_0^1 (-sin theta, cos theta) ds,
-
-n the multiplier of the pin. The distinguished ordinate of a parameter xi is dL/dxi at the
-equilibrium: for psi, -n . da/dpsi = (a x n).e_z = kappa(1), the ordinate ``m1`` (unchanged
-from the dead-load module); for theta0 (the fixed end) kappa(0), ``m0`` with the fixed-end
-sign; for X and Y, n_x and n_y. The second variation is the dead-load one with the load
-replaced by n, restricted to the variations that keep the pin (``second_variation``).
+With n = P (sin alpha, -cos alpha) the moment balance is the dead-load one, kappa' = -P
+sin(theta - alpha), and a dead-load equilibrium pinned at its own arm end is an equilibrium
+here, with reaction n = the load.
 
 Pin position: the defaults put the pin on the clamp's axis at (X, Y) = (0, 0.4), so that
 the rod must buckle (the arm's end is 0.85 closer to the clamp than the straight rod's
@@ -40,144 +33,64 @@ psi. The arm end of the stable buckled dead-load rod (P = pi^2/4, eps = 0.25, ps
 |R| = 1.077, out of reach of the rod and arm near psi = pi/2 (1.031): the psi-branch from it
 runs to a straight rod in unbounded tension. The straight rod pinned at (0, 1 + eps) would be
 degenerate (any axial force holds it), hence a buckled start: ``guess`` finds an equilibrium
-by shooting (at the defaults: theta'(0) = 6.55, n = (-16.38, -12.65), one of a mirror pair).
+and its reaction by shooting (at the defaults: theta'(0) = 6.55, n = (-16.38, -12.65), one of
+a mirror pair).
 
-``draw`` draws a configuration: clamp, centreline, lever arm, the pin at (X, Y) and the
-reaction n as an arrow ending at the pin.
+By hand, what the energy does not say: ``guess``, the ordinate ``n_abs`` = |n| and ``draw``
+(clamp, centreline, lever arm, the pin at (X, Y) and the reaction n as an arrow ending at
+the pin). The hand-written module this one replaces is tests/reference/elastica_pinned.py,
+with n as two constant states.
 """
 
 import math
 
 import numpy as np
 
+from elastica_auto import Ordinate
+from elastica_auto.energy import derived_names
 from elastica_auto.equations.elastica_lever_arm import (ARM_COLOR, CLAMP_COLOR, LINE_WIDTH,
                                                        draw_force, draw_rod)
-from elastica_auto import Ordinate, Parameter
-
-STATES = ("theta", "kappa", "x", "y", "nx", "ny")
 
 #: The default pin position (module docstring).
 PIN_X, PIN_Y = 0.0, 0.4
 
-PARAMETERS = [
-    Parameter("eps", 0.25, r"\epsilon", "free", doc="lever-arm length / l; negative flips it"),
-    Parameter("psi", 0.0, r"\psi", "free", period=2 * math.pi,
-              doc="arm angle to the tip tangent, clockwise"),
-    Parameter("theta0", 0.0, r"\theta_0", "fixed", period=2 * math.pi,
-              period_shift={"theta": 2 * math.pi}, doc="rotation of the clamp"),
-    Parameter("X", PIN_X, r"X", "free", doc="pin abscissa (the arm's end), / l"),
-    Parameter("Y", PIN_Y, r"Y", "free", doc="pin ordinate (the arm's end), / l"),
-]
+
+def ENERGY():
+    import sympy as sp
+
+    from elastica_auto.energy import Energy, Param
+    s = sp.Symbol("s", real=True)
+    eps, psi, theta0, X, Y, nx, ny = sp.symbols("eps psi theta0 X Y nx ny", real=True)
+    theta, x, y = (sp.Function(name)(s) for name in ("theta", "x", "y"))
+    arm = eps * sp.Matrix([sp.sin(psi - theta), sp.cos(psi - theta)])
+    return Energy(
+        density=theta.diff(s) ** 2 / 2,
+        s=s, coordinates=[theta], momenta={theta: "kappa"},
+        quadratures={x: -sp.sin(theta), y: sp.cos(theta)},
+        fixed0={theta: theta0, x: 0, y: 0},
+        fixed1={x: X - arm[0], y: Y - arm[1]},        # the pin: r(1) + a = (X, Y)
+        multipliers={x: -nx, y: -ny},                 # E - n.(r(1) + a - R)
+        parameters={
+            eps: Param(0.25, r"\epsilon", doc="lever-arm length / l; negative flips it"),
+            psi: Param(0.0, r"\psi", period=2 * sp.pi, ordinate="m1",
+                       doc="arm angle to the tip tangent, clockwise"),
+            theta0: Param(0.0, r"\theta_0", period=2 * sp.pi, period_shift={theta: 2 * sp.pi},
+                          ordinate="m0", doc="rotation of the clamp"),
+            X: Param(PIN_X, "X", ordinate="n_x", doc="pin abscissa (the arm's end), / l"),
+            Y: Param(PIN_Y, "Y", ordinate="n_y", doc="pin ordinate (the arm's end), / l"),
+            nx: Param(0.0, "n_x", doc="the pin's reaction on the arm, x (solved for)"),
+            ny: Param(0.0, "n_y", doc="the pin's reaction on the arm, y (solved for)"),
+        })
 
 
-def _u(yb, p):
-    """psi - theta(1): the arm is eps (sin u, cos u)."""
-    return p["psi"] - yb[0]
-
-
-def rhs(s, y, p):
-    """The elastica's four rows (the contact force (nx, ny) in kappa') and nx' = ny' = 0,
-    filled row by row (np.vstack of the rows costs twice as much at the engine's sizes)."""
-    theta, nx, ny = y[0], y[4], y[5]
-    out = np.empty(y.shape)
-    out[0] = y[1]
-    out[1] = nx * np.cos(theta) + ny * np.sin(theta)
-    out[2] = -np.sin(theta)
-    out[3] = np.cos(theta)
-    out[4:] = 0.0
-    return out
-
-
-def rhs_jac(s, y, p):
-    theta, nx, ny = y[0], y[4], y[5]
-    c, sn = np.cos(theta), np.sin(theta)
-    jac = np.zeros((6, 6, y.shape[1]))
-    jac[0, 1] = 1.0
-    jac[1, 0] = -nx * sn + ny * c
-    jac[1, 4] = c
-    jac[1, 5] = sn
-    jac[2, 0] = -c
-    jac[3, 0] = -sn
-    return jac
-
-
-def rhs_dp(s, y, p, name):
-    return np.zeros_like(y)
-
-
-def bc(ya, yb, p):
-    u, eps = _u(yb, p), p["eps"]
-    return np.array((ya[0] - p["theta0"], ya[2], ya[3],
-                     yb[2] + eps * np.sin(u) - p["X"],
-                     yb[3] + eps * np.cos(u) - p["Y"],
-                     yb[1] - eps * (yb[5] * np.sin(u) - yb[4] * np.cos(u))))
-
-
-def bc_jac(ya, yb, p):
-    u, eps = _u(yb, p), p["eps"]
-    su, cu = np.sin(u), np.cos(u)
-    da = np.zeros((6, 6))
-    db = np.zeros((6, 6))
-    da[0, 0] = da[1, 2] = da[2, 3] = 1.0
-    db[3, 2] = db[4, 3] = db[5, 1] = 1.0
-    db[3, 0] = -eps * cu
-    db[4, 0] = eps * su
-    db[5, 0] = eps * (yb[5] * cu + yb[4] * su)
-    db[5, 4] = eps * cu
-    db[5, 5] = -eps * su
-    return da, db
-
-
-def bc_dp(ya, yb, p, name):
-    u, eps = _u(yb, p), p["eps"]
-    su, cu = np.sin(u), np.cos(u)
-    out = np.zeros(6)
-    if name == "theta0":
-        out[0] = -1.0
-    elif name == "eps":
-        out[3:] = su, cu, -(yb[5] * su - yb[4] * cu)
-    elif name == "psi":
-        out[3:] = eps * cu, -eps * su, -eps * (yb[5] * cu + yb[4] * su)
-    elif name == "X":
-        out[3] = -1.0
-    elif name == "Y":
-        out[4] = -1.0
-    return out
+#: Imported as a Python module, the derived names on first use (`load_problem` gives them).
+__getattr__ = derived_names(__name__)
 
 
 ORDINATES = [
-    Ordinate("m1", r"$m(1)\cdot e_z$", lambda s, y, p: y[1, -1], "psi",
-             "tip moment kappa(1) = (a x n).e_z = dL/dpsi; ordinate for psi"),
-    Ordinate("m0", r"$m(0)\cdot e_z$", lambda s, y, p: y[1, 0], "theta0",
-             "clamp moment kappa(0); ordinate for theta0"),
-    Ordinate("n_x", r"$n_x$", lambda s, y, p: y[4, 0], "X",
-             "reaction n_x = dL/dX; ordinate for X"),
-    Ordinate("n_y", r"$n_y$", lambda s, y, p: y[5, 0], "Y",
-             "reaction n_y = dL/dY; ordinate for Y"),
-    Ordinate("n_abs", r"$|n|$", lambda s, y, p: math.hypot(y[4, 0], y[5, 0]), None,
+    Ordinate("n_abs", r"$|n|$", lambda s, y, p: math.hypot(p["nx"], p["ny"]), None,
              "reaction magnitude |n|"),
 ]
-
-
-def second_variation(s, y, p):
-    """The dead-load second variation with the load replaced by the reaction n, on the
-    variations h (h(0) = 0) that keep the pin::
-
-        delta^2 L[h] = int_0^1 (h'^2 + b h^2) ds + c h(1)^2,
-        b = n_y cos(theta) - n_x sin(theta),  c = n . a = eps (n_x sin u + n_y cos u),
-
-    u = psi - theta(1); the linearised pin, delta (r(1) + a) = 0, is two constraints
-    ``int g_i h ds + d_i h(1) = 0``: delta x(1) = -int cos(theta) h, delta y(1) =
-    -int sin(theta) h, and d a / d theta(1) = eps (-cos u, sin u)::
-
-        g_1 = -cos(theta), d_1 = -eps cos u;   g_2 = -sin(theta), d_2 = eps sin u.
-    """
-    theta, nx, ny = y[0], y[4], y[5]
-    u, eps = _u(y[:, -1], p), p["eps"]
-    b = ny * np.cos(theta) - nx * np.sin(theta)
-    c = eps * (nx[-1] * np.sin(u) + ny[-1] * np.cos(u))
-    return (1.0, b, float(c), [(-np.cos(theta), -eps * math.cos(u)),
-                               (-np.sin(theta), eps * math.sin(u))])
 
 
 #: Starting values (theta'(0), n_x, n_y) tried by ``guess``: buckled either way, compressed
@@ -212,17 +125,22 @@ def _shoot(z, p):
 
 
 def _pin_residual(z, p):
-    """The three conditions at s = 1 for the batch ``z`` (B, 3): (B, 3)."""
-    yb = np.concatenate((_shoot(z, p)[:, -1], z[:, 1:].T))
-    return bc(np.zeros((6, len(z))), yb, p)[3:].T
+    """The three conditions at s = 1 for the batch ``z`` (B, 3): the pin's two and the arm's
+    moment balance, (B, 3)."""
+    theta, kappa, x, y = _shoot(z, p)[:, -1]
+    nx, ny = z[:, 1], z[:, 2]
+    u, eps = p["psi"] - theta, p["eps"]
+    return np.array((x + eps * np.sin(u) - p["X"], y + eps * np.cos(u) - p["Y"],
+                     kappa - eps * (ny * np.sin(u) - nx * np.cos(u)))).T
 
 
 def guess(s, p):
     """An equilibrium at ``p`` by shooting: Newton's method (differenced Jacobian, steps
     limited to length 2) on the three pin conditions at s = 1 for (theta'(0), n_x, n_y), from
     each of ``SHOOTING_STARTS`` at once; of the roots found, the one of least bending energy
-    int kappa^2/2 (stable, if it is the global minimum of the constrained energy). None if
-    none converges."""
+    int kappa^2/2 (stable, if it is the global minimum of the constrained energy), and its
+    reaction (nx, ny) as two constant rows after the states (the free parameters' values to
+    solve the start from). None if none converges."""
     z = SHOOTING_STARTS.copy()
     step = 1e-7
     for _ in range(40):
@@ -262,7 +180,8 @@ PIN_SIZE = 0.07
 def draw(ax, profile, p):
     """Draw the configuration on ``ax``: the clamp, centreline and lever arm (as
     ``elastica_lever_arm`` draws them), the pin (a triangle with its hinge) at (X, Y), and
-    the reaction n as an arrow ending at the pin, its length fixed whatever |n|."""
+    the reaction n (the solved-for nx, ny) as an arrow ending at the pin, its length fixed
+    whatever |n|."""
     draw_rod(ax, profile, p)
     pin, h = np.array((p["X"], p["Y"])), PIN_SIZE
     tri = pin + np.array(((0.0, 0.0), (-h, -1.6 * h), (h, -1.6 * h), (0.0, 0.0)))
@@ -272,6 +191,6 @@ def draw(ax, profile, p):
             lw=0.8, zorder=5)
     ax.plot(*pin, "o", ms=LINE_WIDTH * 2.2, markerfacecolor="white", markeredgecolor=ARM_COLOR,
             zorder=6)
-    n = profile[4:6, -1]
+    n = np.array((p["nx"], p["ny"]))
     if math.hypot(*n) > 0:
         draw_force(ax, pin, n, "reaction")

@@ -1,67 +1,41 @@
-"""A clamped-guided column: theta(0) = theta0, theta(1) = 0, the ends free to move sideways.
+"""A clamped-guided column, theta(0) = theta0, theta(1) = 0, the ends free to move sideways,
+written as its energy (docs/energy.md).
 
-A small equation module for elastica-auto (see `elastica_auto.model.problem` for the protocol): an
-inextensible elastic column of unit length and stiffness, clamped at s = 0 and held at s = 1
+An inextensible elastic column of unit length and stiffness, clamped at s = 0 and held at s = 1
 by a guide that keeps the tangent vertical but lets the end slide sideways, under a dead
-compressive load P at s = 1. First-order state ``[theta, kappa, x, y]``::
+compressive load P at s = 1 (its potential P y(1), linear in the position y(1))::
 
-    theta' = kappa,  kappa' = -P sin(theta),  x' = -sin(theta),  y' = cos(theta),
-    theta(0) = theta0,  theta(1) = 0,  x(0) = 0,  y(0) = 0.
+    E[theta] = int_0^1 theta'^2 / 2 ds + P y(1),   x' = -sin(theta), y' = cos(theta),
+    theta(0) = theta0, theta(1) = 0, x(0) = y(0) = 0.
 
-These are the Euler-Lagrange equations of the energy (the load's potential is P y(1))
-
-    E[theta] = int_0^1 ( theta'^2 / 2 + P cos(theta) ) ds,
-
-whose second variation ``int_0^1 (h'^2 - P cos(theta) h^2) ds`` on h(0) = h(1) = 0 gives the
-stability index. On the straight column (theta0 = 0, theta = 0) its eigenvalues are
+Derived from it: the states ``[theta, kappa, x, y]``, theta' = kappa, kappa' = -P sin(theta),
+the second variation ``int_0^1 (h'^2 - P cos(theta) h^2) ds`` on h(0) = h(1) = 0 (the
+stability index), P's distinguished ordinate dE/dP = y(1) (P enters the end term only:
+``"free"``) and the clamp's reaction m0 = theta'(0) = -dE/dtheta0 (an essential end value;
+docs/stability.md). On the straight column (theta0 = 0, theta = 0) the eigenvalues are
 (n pi)^2 - P: the critical loads are (n pi)^2 and the index is the number of them below P.
-Distinguished ordinates: dE/dP = y(1) for P (it enters the equation) and m0 = theta'(0) =
--dE/dtheta0 for the clamp's rotation theta0 (an essential end value; docs/stability.md).
+By hand: the straight start and the slide of the guided end. The module written by hand is
+tests/reference/guided_column.py.
 """
 
 import numpy as np
 
-from elastica_auto import Ordinate, Parameter, SecondVariation
-
-STATES = ("theta", "kappa", "x", "y")
-
-PARAMETERS = [
-    Parameter("P", 0.0, r"P", "ode", doc="the dead compressive load / (EI / l^2)"),
-    Parameter("theta0", 0.0, r"\theta_0", "fixed", doc="rotation of the clamp at s = 0"),
-]
+from elastica_auto import Ordinate
 
 
-def rhs(s, y, p):
-    theta = y[0]
-    return np.vstack((y[1], -p["P"] * np.sin(theta), -np.sin(theta), np.cos(theta)))
+def ENERGY():
+    import sympy as sp
 
-
-def rhs_jac(s, y, p):
-    theta = y[0]
-    jac = np.zeros((4, 4, y.shape[1]))
-    jac[0, 1] = 1.0
-    jac[1, 0] = -p["P"] * np.cos(theta)
-    jac[2, 0] = -np.cos(theta)
-    jac[3, 0] = -np.sin(theta)
-    return jac
-
-
-def bc(ya, yb, p):
-    return np.array((ya[0] - p["theta0"], yb[0], ya[2], ya[3]))
-
-
-ORDINATES = [
-    Ordinate("y1", r"$y(1)$", lambda s, y, p: y[3, -1], "P",
-             "height of the guided end: dE/dP; ordinate for P"),
-    Ordinate("m0", r"$m_0$", lambda s, y, p: y[1, 0], "theta0",
-             "moment at the clamp theta'(0) = -dE/dtheta0; ordinate for theta0"),
-    Ordinate("x1", r"$x(1)$", lambda s, y, p: y[2, -1], None, "sideways slide of the guided end"),
-]
-
-
-def second_variation(s, y, p):
-    """d2E[h] = int_0^1 (h'^2 - P cos(theta) h^2) ds with h(0) = h(1) = 0."""
-    return SecondVariation(1.0, -p["P"] * np.cos(y[0]), fixed0=[0], fixed1=[0])
+    from elastica_auto.energy import Energy, Param
+    s, P, theta0 = sp.symbols("s P theta0", real=True)
+    theta, x, y = (sp.Function(name)(s) for name in ("theta", "x", "y"))
+    return Energy(density=theta.diff(s) ** 2 / 2, end1=P * y, s=s, coordinates=[theta],
+                  momenta=["kappa"], quadratures={x: -sp.sin(theta), y: sp.cos(theta)},
+                  fixed0={theta: theta0, x: 0, y: 0}, fixed1={theta: 0},
+                  parameters={P: Param(0.0, "P", ordinate="y1",
+                                       doc="the dead compressive load / (EI / l^2)"),
+                              theta0: Param(0.0, r"\theta_0", ordinate="m0",
+                                            doc="rotation of the clamp at s = 0")})
 
 
 def exact_start(s, p):
@@ -69,3 +43,8 @@ def exact_start(s, p):
     if p["theta0"] != 0:
         return None
     return np.vstack((np.zeros((3, len(s))), s))
+
+
+ORDINATES = [
+    Ordinate("x1", r"$x(1)$", lambda s, y, p: y[2, -1], None, "sideways slide of the guided end"),
+]

@@ -42,6 +42,13 @@ def elastica():
 
 
 @pytest.fixture(scope="session")
+def elastica_reference():
+    """The hand-written elastica that the shipped energy-first module replaced (issue 47)."""
+    from helpers import REFERENCE
+    return load_problem(REFERENCE / "elastica_lever_arm.py")
+
+
+@pytest.fixture(scope="session")
 def rotating_arm(tmp_path_factory) -> RunOutput:
     """The shipped rotating_arm run, all branches, computed once (about 10-15 s)."""
     plan = runfile.load(ROTATING_ARM)

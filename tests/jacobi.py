@@ -18,10 +18,21 @@ import numpy as np
 N_ELEMENTS = 800
 
 
+def scalar_form(form):
+    """(a, b, c) of a module's scalar form: the tuple of the first protocol, or a
+    `SecondVariation` with k = 1, h(0) = 0 and no C, E0 or constraints (a derived module's)."""
+    if isinstance(form, tuple):
+        return form[:3]
+    assert form.k == 1 and not form.constraints and not np.any(form.C) \
+        and not np.any(form.E0) and form.fixed0.shape[1] == 1
+    a, b = form.A[:, 0, 0], form.B[:, 0, 0]
+    return (a[0] if len(a) == 1 else a), (b[0] if len(b) == 1 else b), float(form.E1[0, 0])
+
+
 def _coefficients(problem, state, n=N_ELEMENTS):
     """a, b on the grid s_j = j / (2 n) (nodes and midpoints of n elements), and c."""
     s = np.linspace(0.0, 1.0, 2 * n + 1)
-    a, b, c = problem.second_variation(s, state(s), state.params)
+    a, b, c = scalar_form(problem.second_variation(s, state(s), state.params))
     return (np.broadcast_to(np.asarray(a, dtype=float), s.shape),
             np.broadcast_to(np.asarray(b, dtype=float), s.shape), float(c))
 

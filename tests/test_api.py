@@ -104,12 +104,13 @@ def test_columns_in_memory_on_file_and_in_the_export(tmp_path, bratu_branches, c
     assert list(stored.columns) == list(mine)
     for name, col in mine.items():
         np.testing.assert_array_equal(stored.columns[name], col, err_msg=name)
-    assert list(mine) == export_names(["lam"], ["du0", "u_half", "dE_dlam"]) + list(EXTRA_COLUMNS)
+    assert list(mine) == export_names(["lam"], ["dE_dlam", "E", "du0", "u_half"]) + \
+        list(EXTRA_COLUMNS)
     out = tmp_path / "bratu.csv"
     assert run_cli(cli_exe, "export", path, "-o", out).returncode == 0
     with open(out) as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == export_names(["lam"], ["du0", "u_half", "dE_dlam"])
+    assert rows[0] == export_names(["lam"], ["dE_dlam", "E", "du0", "u_half"])
     assert [r[3] for r in rows[1:]] == list(mine["label"])
     np.testing.assert_array_equal([float(r[4]) for r in rows[1:]], mine["lam"])
 

@@ -13,7 +13,7 @@ from helpers import elastica_run_file, run_cli
 from elastica_auto.storage.store import BranchFile
 
 PARAMS = ["P", "eps", "psi", "alpha", "theta0"]
-ORDS = ["m1", "beta", "mA", "gamma", "m0"]
+ORDS = ["gamma", "beta", "m1", "mA", "m0", "E"]     # derived: the parameters' order, then E
 HEADER = ["branch", "pt", "type", "label", *PARAMS, *ORDS, "index", "index_rule", "index_direct"]
 
 
@@ -39,7 +39,7 @@ def test_show_lists_every_label(small_cli_run, cli_exe):
     lines = proc.stdout.splitlines()
     head = lines[0].split()
     assert head[:4] == ["BR", "PT", "TY", "LAB"]
-    assert head[4:14] == PARAMS + ORDS
+    assert head[4:15] == PARAMS + ORDS
     shown = [ln.split()[3] for ln in lines[1:]
              if len(ln.split()) > 3 and ln.split()[2] in ("EP", "LP", "UZ", "MX", "BP")]
     bf = BranchFile(h5)

@@ -350,7 +350,8 @@ def test_the_path_command(cli_exe):
                    "eps=0.25", "--to", "psi=2*pi")
     lines = proc.stdout.splitlines()
     assert lines[0].startswith("path of elastica_lever_arm: psi 0 -> 6.28319 (P=2.4674")
-    assert lines[1].startswith("snap 1 at t=0.130075 (psi=0.81728493) from m1=0.256")
+    # the first two ordinates: the derived elastica's gamma (dE/dP) and beta (dE/deps)
+    assert lines[1].startswith("snap 1 at t=0.130075 (psi=0.81728493) from gamma=0.89745")
     assert "1 stable equilibrium" in lines[1] and len(lines) == 3
     assert proc.returncode == 0
     bad = run_cli(cli_exe, "path", "elastica_lever_arm", "--to", "psi")

@@ -2,10 +2,12 @@
 
 Each derived module is checked against something derived independently of it:
 
-* the hand-written modules it replaces (equations/elastica_lever_arm.py, examples/bratu.py,
-  examples/clamped_column.py): residuals, Jacobians, parameter derivatives and second
-  variations at random states and parameters to 1e-12, and whole runs (every fold and branch
-  point, every point's index, rule and direct count);
+* the hand-written modules the shipped energy-first ones replaced (tests/reference:
+  elastica_lever_arm.py, bratu.py, clamped_column.py, guided_column.py): residuals,
+  Jacobians, parameter derivatives and second variations at random states and parameters to
+  1e-12, and whole runs (every fold and branch point, every point's index, rule and direct
+  count); the spatial rod's in tests/test_energy_rod.py, the pinned elastica's in
+  tests/test_pinned.py;
 * closed forms for models the project never had: the heavy column's buckling load (a zero of
   J_{-1/3}) and the critical loads of a shearable column on an elastic foundation;
 * the finite-difference Hessian of an energy discretised here (midpoint rule), not by the
@@ -35,7 +37,7 @@ from elastica_auto.energy import cache as energy_cache
 from elastica_auto.energy.loader import execute
 from elastica_auto.execution import runfile
 from elastica_auto.model.second_variation import as_second_variation
-from helpers import EXAMPLES, ROTATING_ARM, central_jacobian, run_plan
+from helpers import EXAMPLES, REFERENCE, REPO, ROTATING_ARM, central_jacobian, run_plan
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -119,13 +121,20 @@ ELASTICA_ROWS = [0, 2, 3, 1]
 
 @pytest.fixture(scope="module")
 def derived_elastica():
-    return ea.load_problem(EXAMPLES / "elastica_energy.py")
+    """The shipped elastica, derived from its energy (equations/elastica_lever_arm.py)."""
+    return ea.load_problem("elastica_lever_arm")
+
+
+@pytest.fixture(scope="module")
+def elastica(elastica_reference):
+    """Here: the hand-written elastica the shipped module replaced (tests/reference)."""
+    return elastica_reference
 
 
 def test_the_derived_elastica_is_the_hand_written_one(derived_elastica, elastica):
-    """Issue 47 item 2: written as its energy with the positions as passive quadratures and
-    the load on the arm's end, the elastica derives the shipped module's states,
-    equations, natural end condition, second variation and the paper's `enters`."""
+    """Issue 47 items 2, 6: written as its energy with the positions as passive quadratures
+    and the load on the arm's end, the shipped elastica derives the hand-written module's
+    states, equations, natural end condition, second variation and the paper's `enters`."""
     d = derived_elastica
     assert d.states == elastica.states
     assert {k: q.enters for k, q in d.parameters.items()} == \
@@ -206,19 +215,27 @@ def test_a_wrong_natural_condition_fails_the_residual_comparison(derived_elastic
 
 
 @pytest.fixture(scope="module")
-def derived_arm(tmp_path_factory):
-    """The shipped rotating_arm run (8 branches) on the derived elastica."""
+def derived_arm(rotating_arm):
+    """The shipped rotating_arm run (8 branches), on the derived elastica (the shipped
+    module)."""
+    return rotating_arm
+
+
+@pytest.fixture(scope="module")
+def reference_arm(tmp_path_factory):
+    """The shipped rotating_arm run on the hand-written reference."""
     out = tmp_path_factory.mktemp("arm")
     path = out / "rotating_arm.toml"
     path.write_text(ROTATING_ARM.read_text().replace(
-        'equation = "elastica_lever_arm"', f'equation = "{EXAMPLES / "elastica_energy.py"}"'))
+        'equation = "elastica_lever_arm"',
+        f'equation = "{REFERENCE / "elastica_lever_arm.py"}"'))
     return run_plan(runfile.load(path), out, jobs=1)
 
 
-def test_rotating_arm_on_the_derived_elastica(derived_arm, rotating_arm):
+def test_rotating_arm_on_the_derived_elastica(derived_arm, reference_arm):
     """Every fold of rotating_arm to 1e-9 and index, index_rule and index_direct equal at
-    every point, against the shipped module's run."""
-    mine, theirs = derived_arm.result.branches, rotating_arm.result.branches
+    every point, against the hand-written module's run."""
+    mine, theirs = derived_arm.result.branches, reference_arm.result.branches
     assert len(mine) == len(theirs) == 8
     folds = 0
     for a, b in zip(mine, theirs):
@@ -349,7 +366,7 @@ def test_a_flipped_ordinate_makes_the_rule_disagree():
     straight rod at P = 6 > pi^2/4, eps = 0.5), makes the fold rule disagree with the direct count;
     with the derived sign they agree at every point."""
     import re
-    derived = ea.load_problem(EXAMPLES / "elastica_energy.py")
+    derived = ea.load_problem("elastica_lever_arm")
     params = {"eps": 0.5, "P": 6.0}
     options = dict(bounds=(-2 * math.pi, 2 * math.pi), directions="+", mirror=False)
     (right,) = ea.continuation(derived, params, "psi", **options)
@@ -368,8 +385,8 @@ def test_a_flipped_ordinate_makes_the_rule_disagree():
 # ---- Bratu, the clamped column ----------------------------------------------------------
 
 def test_the_derived_bratu_is_the_hand_written_one():
-    d = ea.load_problem(EXAMPLES / "bratu_energy.py")
-    h = ea.load_problem(EXAMPLES / "bratu.py")
+    d = ea.load_problem(EXAMPLES / "bratu.py")
+    h = ea.load_problem(REFERENCE / "bratu.py")
     assert d.states == h.states
     assert_same_system(d, h, {"lam": (-5, 5)}, [0, 1], np.random.default_rng(4))
     s, y = random_states(np.random.default_rng(5), 2, 40)
@@ -379,11 +396,12 @@ def test_the_derived_bratu_is_the_hand_written_one():
 
 
 def _run_example(toml, equation, out):
+    """The example's run file ``toml`` with the module at the path ``equation``."""
     out.mkdir()
     path = out / Path(toml).name
     text = (EXAMPLES / toml).read_text()
     original = next(line for line in text.splitlines() if line.startswith("equation"))
-    path.write_text(text.replace(original, f'equation = "{EXAMPLES / equation}"'))
+    path.write_text(text.replace(original, f'equation = "{equation}"'))
     return run_plan(runfile.load(path), out / "out").result.branches
 
 
@@ -402,8 +420,8 @@ def assert_same_runs(mine, theirs, names):
 
 
 def test_bratu_run_on_the_derived_module(tmp_path):
-    mine = _run_example("bratu.toml", "bratu_energy.py", tmp_path / "d")
-    theirs = _run_example("bratu.toml", "bratu.py", tmp_path / "h")
+    mine = _run_example("bratu.toml", EXAMPLES / "bratu.py", tmp_path / "d")
+    theirs = _run_example("bratu.toml", REFERENCE / "bratu.py", tmp_path / "h")
     assert_same_runs(mine, theirs, ["lam"])
     (lp,) = mine[0].folds
     assert lp.ordinates["du0"] == pytest.approx(4.0, abs=1e-8)
@@ -411,22 +429,36 @@ def test_bratu_run_on_the_derived_module(tmp_path):
 
 def test_the_derived_clamped_column_is_the_hand_written_one(tmp_path):
     """The isoperimetric constraint x(1) = 0 by a multiplier: the same equations, extra
-    boundary row, free parameter and constrained second variation. The derived multiplier
-    is minus the hand-written reaction (E + Q x(1) with x' = -sin theta)."""
-    d = ea.load_problem(EXAMPLES / "clamped_column_energy.py")
-    h = ea.load_problem(EXAMPLES / "clamped_column.py")
+    boundary row, free parameter and constrained second variation; the multiplier given as
+    minus Q (E - Q x(1)) is the hand-written module's lateral reaction Q."""
+    d = ea.load_problem(EXAMPLES / "clamped_column.py")
+    h = ea.load_problem(REFERENCE / "clamped_column.py")
     assert d.states == h.states and d.free == h.free == ("Q",) and d.nbc == h.nbc == 5
     assert_same_system(d, h, {"P": (-50, 50), "Q": (-5, 5), "theta0": (-3, 3)},
-                       [0, 1, 2, 3, 4], np.random.default_rng(6),
-                       param_map=lambda p: {**p, "Q": -p["Q"]})
-    mine = _run_example("clamped_column.toml", "clamped_column_energy.py", tmp_path / "d")
-    theirs = _run_example("clamped_column.toml", "clamped_column.py", tmp_path / "h")
+                       [0, 1, 2, 3, 4], np.random.default_rng(6))
+    mine = _run_example("clamped_column.toml", EXAMPLES / "clamped_column.py", tmp_path / "d")
+    theirs = _run_example("clamped_column.toml", REFERENCE / "clamped_column.py",
+                          tmp_path / "h")
     assert_same_runs(mine, theirs, ["P"])
     for p in (p for br in mine for p in br.points if p.state is not None):
-        s, y, q = p.state.s, p.state.y, {**p.params, "Q": -p.params["Q"]}
+        s, y = p.state.s, p.state.y
         for name in ("y1", "m0"):           # the ordinates the two share, on one solution
-            assert p.ordinates[name] == pytest.approx(h.ordinates[name].fn(s, y[:4], q),
+            assert p.ordinates[name] == pytest.approx(h.ordinates[name].fn(s, y[:4], p.params),
                                                       abs=1e-12)
+
+
+def test_the_derived_guided_column_is_the_hand_written_one(tmp_path):
+    """The clamped-guided column: an essential end at each end, the load on a quadrature's
+    end value; the same system, and the same run (its branch points at (n pi)^2)."""
+    d = ea.load_problem(EXAMPLES / "guided_column.py")
+    h = ea.load_problem(REFERENCE / "guided_column.py")
+    assert d.states == h.states
+    assert_same_system(d, h, {"P": (-50, 50), "theta0": (-3, 3)}, [0, 1, 2, 3],
+                       np.random.default_rng(7))
+    mine = _run_example("guided_column.toml", EXAMPLES / "guided_column.py", tmp_path / "d")
+    theirs = _run_example("guided_column.toml", REFERENCE / "guided_column.py",
+                          tmp_path / "h")
+    assert_same_runs(mine, theirs, ["P"])
 
 
 # ---- models the project never had -------------------------------------------------------
@@ -694,3 +726,64 @@ def test_a_constraint_whose_rate_contains_theta_prime(tmp_path, quartic):
         got = form_bilinear(form, pts, pert(b1, pts), pert(b1, pts, 1), pert(b2, pts),
                             pert(b2, pts, 1))
         assert got == pytest.approx(expected, rel=2e-5, abs=2e-5)
+
+
+# ---- the pinned elastica: two isoperimetric constraints -----------------------------------
+
+def test_the_derived_pinned_elastica_is_the_hand_written_one():
+    """Issue 47 item 6: the pin as two isoperimetric constraints x(1) + a_x(theta(1)) = X,
+    y(1) + a_y(theta(1)) = Y whose multipliers are the reaction (E - n.(r(1) + a - R)): the
+    hand-written module's equations with n its two constant states, its six end conditions
+    (the arm's moment balance the natural condition), its constrained second variation
+    (the constraints' end parts da/dtheta(1)) and its ordinates, at random states and
+    parameters to 1e-12."""
+    d = ea.load_problem("elastica_pinned")
+    h = ea.load_problem(REFERENCE / "elastica_pinned.py")
+    assert d.states == h.states[:4] and d.free == ("nx", "ny") and d.nbc == 6
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        p = {k: rng.uniform(-3, 3) for k in d.parameters}
+        s, y = random_states(rng, 4)
+        y6 = np.vstack((y, np.full(y.shape[1], p["nx"]), np.full(y.shape[1], p["ny"])))
+        q = {k: p[k] for k in h.parameters}
+        close = dict(rtol=0, atol=1e-12 * (1 + abs(p["nx"]) + abs(p["ny"])))
+        np.testing.assert_allclose(d.rhs(s, y, p), h.rhs(s, y6, q)[:4], **close)
+        np.testing.assert_allclose(d.rhs_jac(s, y, p), h.rhs_jac(s, y6, q)[:4, :4], **close)
+        rows = [0, 2, 3, 4, 5, 1]      # the derived rows in the hand-written order
+        np.testing.assert_allclose(d.bc(y[:, 0], y[:, -1], p)[rows],
+                                   h.bc(y6[:, 0], y6[:, -1], q), **close)
+        mine = as_second_variation(d.second_variation(s, y, p), "d")
+        theirs = as_second_variation(h.second_variation(s, y6, q), "h")
+        for what in ("A", "B", "C", "E0", "E1"):
+            a, b = np.broadcast_arrays(getattr(mine, what), getattr(theirs, what))
+            np.testing.assert_allclose(a, b, err_msg=what, **close)
+        for c, e in zip(mine.constraints, theirs.constraints):
+            for what in ("g", "d0", "d1"):
+                a, b = np.broadcast_arrays(getattr(c, what), getattr(e, what))
+                np.testing.assert_allclose(a, b, err_msg=what, **close)
+        for name in ("m0", "n_x", "n_y", "n_abs"):     # m1 = kappa(1) on solutions only
+            assert d.ordinates[name].fn(s, y, p) == pytest.approx(
+                h.ordinates[name].fn(s, y6, q), abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["pinned_arm", "pinned_clamp"])
+def test_the_pinned_runs_on_the_derived_module(tmp_path, name):
+    """The shipped pinned runs (the start solved from the shooting guess, with its reaction
+    as the free parameters' values) on the derived and the hand-written module: the same
+    points and labels, every fold to 1e-9, the index, rule and direct count at every point,
+    the reaction and m1 (kappa(1) = dE/dpsi on solutions) alike."""
+    runs = {}
+    for key, equation in (("d", "elastica_pinned"), ("h", REFERENCE / "elastica_pinned.py")):
+        out = tmp_path / key
+        out.mkdir()
+        path = out / f"{name}.toml"
+        path.write_text((REPO / "runs" / f"{name}.toml").read_text().replace(
+            'equation = "elastica_pinned"', f'equation = "{equation}"'))
+        runs[key] = run_plan(runfile.load(path), out).result.branches
+    assert_same_runs(runs["d"], runs["h"], ["psi", "theta0"])
+    for a, b in zip(runs["d"], runs["h"]):
+        for p, q in zip(a.points, b.points):
+            assert (p.params["nx"], p.params["ny"]) == pytest.approx(
+                (q.ordinates["n_x"], q.ordinates["n_y"]), abs=1e-9)
+            for key in ("m1", "m0", "n_abs"):
+                assert p.ordinates[key] == pytest.approx(q.ordinates[key], abs=1e-7)

@@ -23,7 +23,8 @@ from elastica_auto.core.errors import EXIT_USER, ProblemError
 from elastica_auto.energy import cache as energy_cache
 from elastica_auto.model.second_variation import as_second_variation
 from elastica_auto.numerics import stability
-from helpers import EXAMPLES, run_cli
+from elastica_auto.energy.loader import execute
+from helpers import EXAMPLES, REFERENCE, REPO, run_cli
 from form_reference import Form, dense_count
 
 
@@ -121,7 +122,7 @@ def test_a_problem_travels_with_its_generated_code(tmp_path):
     """Issue 47 item 4: pickled (as to a Dask worker), a problem carries the generated module;
     unpickled where sympy cannot be imported and the cache is off, it works: no worker
     derives."""
-    problem = ea.load_problem(EXAMPLES / "elastica_energy.py")
+    problem = ea.load_problem("elastica_lever_arm")
     blob = tmp_path / "problem.pickle"
     blob.write_bytes(pickle.dumps(problem))
     out = python(f"""
@@ -139,19 +140,22 @@ def test_a_problem_travels_with_its_generated_code(tmp_path):
 
 # ---- elastica-auto derive -----------------------------------------------------------------
 
-@pytest.mark.parametrize("name", ["elastica_energy", "clamped_column_energy", "bratu_energy",
+@pytest.mark.parametrize("name", ["elastica_lever_arm", "kirchhoff_lever_arm", "elastica_pinned",
+                                  "spatial_column", "clamped_column", "bratu",
                                   "foundation_column"])
 def test_the_printed_module_loads_and_gives_the_same_results(tmp_path, cli_exe, name):
     """Issue 47 item 5: `derive MODULE.py -o OUT.py` writes a plain module (no ENERGY, its
     hand-written hooks kept) whose functions and ordinates equal the loaded module's, and
     whose header says what was derived."""
     out = tmp_path / "printed.py"
-    result = run_cli(cli_exe, "derive", EXAMPLES / f"{name}.py", "-o", out)
+    path = EXAMPLES / f"{name}.py" if (EXAMPLES / f"{name}.py").is_file() else \
+        REPO / "equations" / f"{name}.py"
+    result = run_cli(cli_exe, "derive", path, "-o", out)
     assert result.returncode == 0, result.stderr
     text = out.read_text()
     assert "def ENERGY" not in text and "# second variation" in text
     assert "# parameters (where each enters" in text
-    printed, loaded = ea.load_problem(out), ea.load_problem(EXAMPLES / f"{name}.py")
+    printed, loaded = ea.load_problem(out), ea.load_problem(path)
     assert printed.generated is None
     assert printed.states == loaded.states and printed.free == loaded.free
     assert list(printed.parameters.values()) == list(loaded.parameters.values())
@@ -180,10 +184,10 @@ def test_the_printed_module_loads_and_gives_the_same_results(tmp_path, cli_exe, 
 def test_derive_prints_to_stdout_and_refuses_a_module_without_energy(cli_exe, tmp_path):
     result = run_cli(cli_exe, "derive", EXAMPLES / "heavy_column.py")
     assert result.returncode == 0 and "def rhs(s, y, p):" in result.stdout
-    result = run_cli(cli_exe, "derive", EXAMPLES / "bratu.py")
+    result = run_cli(cli_exe, "derive", REFERENCE / "bratu.py")
     assert result.returncode == EXIT_USER
     assert result.stderr.strip().splitlines() == [
-        f"elastica-auto: error: {EXAMPLES / 'bratu.py'}: defines no ENERGY(); there is "
+        f"elastica-auto: error: {REFERENCE / 'bratu.py'}: defines no ENERGY(); there is "
         "nothing to derive"]
 
 
@@ -228,14 +232,46 @@ BAD = {
                           "parameters={q: 1.0}", "contains r, not a parameter"),
     "second order": ("density=t.diff(s, 2)**2/2 + q*sp.cos(t), coordinates=[t], "
                      "parameters={q: 1.0}", "first derivatives only"),
+    # a rotation coordinate (R = Rotation("R"))
+    "rotation: not quadratic in the strains": (
+        "density=R.strain[0]**4/4 + R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}", "with a rotation coordinate the Legendre transform is derived "
+        "as a linear solve only"),
+    "rotation: not convex in the strains": (
+        "density=(R.strain[0]**2 + R.strain[1]**2 - R.strain[2]**2)/2 + q*R.d3[2], "
+        "coordinates=[R], parameters={q: 1.0}", "not strictly convex in R.u3'"),
+    "rotation: a strain in an end term": (
+        "density=R.strain.dot(R.strain)/2, end1=q*R.strain[0], coordinates=[R], "
+        "parameters={q: 1.0}", "end terms depend on the end values only"),
+    "rotation: a clamp that is no quaternion": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}, fixed0={R: (1, 0, 0)}", "a quaternion, four expressions"),
+    "rotation: a clamp in the states": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}, fixed0={R: (R.d3[0], 0, 0, 1)}", "the parameters only"),
+    "rotation: a name twice": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0, sp.Symbol('R_q0'): 0.0}", "the name 'R_q0' is used twice"),
+    "rotation: the moment's names": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], momenta={R: 'm'}, "
+        "parameters={q: 1.0}", "a rotation's moment is three states"),
+    "rotation: a shifted period": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: Param(1.0, period=1, period_shift={R: 1})}",
+        "a period turns its quaternion to -q (period_flip)"),
+    "rotation: a constraint's rate with strains": (
+        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0, r: 0.0}, quadratures={x: R.strain[0]}, fixed0={x: 0}, "
+        "fixed1={x: 0}, multipliers={x: r}", "does not integrate by parts"),
 }
 
 BAD_HEAD = """
 def ENERGY():
     import sympy as sp
-    from elastica_auto.energy import Energy, Param
+    from elastica_auto.energy import Energy, Param, Rotation
     s, q, r, E = sp.symbols("s q r E", real=True)
     t, u, x = sp.Function("theta")(s), sp.Function("u")(s), sp.Function("x")(s)
+    R = Rotation("R")
     return Energy(s=s, {})
 """
 
@@ -400,15 +436,17 @@ def _b(y, lam):
 # ---- the gradient flow --------------------------------------------------------------------
 
 @pytest.mark.parametrize("name, params, size", [
-    ("elastica_energy", {"P": 9 * math.pi ** 2 / 4, "eps": 0.5, "psi": 1.0, "theta0": 0.3}, 40),
+    ("elastica_lever_arm", {"P": 9 * math.pi ** 2 / 4, "eps": 0.5, "psi": 1.0, "theta0": 0.3},
+     40),
     ("foundation_column", {"P": 30.0}, 2 * 41 - 2)])
 def test_the_derived_flow_is_the_gradient_of_its_energy(name, params, size):
     """The derived gradient flow (midpoint rule) of the elastica (theta clamped at s = 0)
     and of the foundation column (two coordinates, w held at both ends): force = -grad E /
     mass and its Jacobian against central differences of its energy."""
-    problem = ea.load_problem(EXAMPLES / f"{name}.py")
+    problem = ea.load_problem(name if name == "elastica_lever_arm" else EXAMPLES / f"{name}.py")
     p = {**problem.defaults(), **params}
-    flow = problem.gradient_flow(p, np.linspace(0, 1, 41))
+    # the derived flow (the shipped elastica keeps its hand-written one: the paper's landings)
+    flow = execute(problem.generated, name).gradient_flow(p, np.linspace(0, 1, 41))
     assert len(flow.mass) == size
     u = 0.3 + np.random.default_rng(1).normal(size=size)
     d = 1e-6
@@ -422,15 +460,18 @@ def test_the_derived_flow_is_the_gradient_of_its_energy(name, params, size):
 
 
 def test_snaps_land_where_the_hand_written_flow_lands():
-    """Where a snap lands (the derived flow and the hand-written one, on the rotating arm at
-    eps = 0.5, P = 9 pi^2/4): the same stable equilibrium from every fold, the energy
-    released to the flows' discretisation."""
-    out = {}
-    for name in ("elastica_lever_arm", EXAMPLES / "elastica_energy.py"):
-        out[name] = ea.continuation(ea.load_problem(name), {"eps": 0.5, "P": 9 * math.pi ** 2 / 4},
-                                    "psi", directions="both", bounds=(-6 * math.pi, 6 * math.pi),
-                                    landing=True).snaps
-    theirs, mine = out.values()
+    """Where a snap lands (the derived flow and the hand-written one the shipped elastica
+    keeps, on the rotating arm at eps = 0.5, P = 9 pi^2/4): the same stable equilibrium from
+    every fold, the energy released to the flows' discretisation."""
+    shipped = ea.load_problem("elastica_lever_arm")
+    derived = execute(shipped.generated, "derived")          # its derived gradient flow
+    derived.exact_start, derived.shooting = shipped.module.exact_start, shipped.module.shooting
+    out = []
+    for problem in (shipped, ea.Problem(derived, "derived")):
+        out.append(ea.continuation(problem, {"eps": 0.5, "P": 9 * math.pi ** 2 / 4}, "psi",
+                                   directions="both", bounds=(-6 * math.pi, 6 * math.pi),
+                                   landing=True).snaps)
+    theirs, mine = out
     assert len(mine) == len(theirs) > 10
     assert sum(a["landed"] for a in mine) >= 4
     for a, b in zip(mine, theirs):
@@ -480,3 +521,34 @@ def test_named_parts_are_counted_each_on_its_own(tmp_path):
     end = br.points[-1]
     assert [problem.ordinates[k].fn(end.state.s, end.state.y, end.params)
             for k in ("index_u", "index_w")] == [2, 1]
+
+
+# ---- a module imported as a Python module -------------------------------------------------
+
+def test_a_shipped_module_imported_plainly_has_its_derived_names(tmp_path):
+    """``import elastica_auto.equations.kirchhoff_lever_arm as rod`` (tools/three_d.py, users'
+    scripts): the derived names come on first use (`derived_names`), the same functions as
+    `load_problem` gives; a name that is neither derived nor the module's is an
+    AttributeError; the hand-written helpers that use derived ones (part_counts) work."""
+    out = python("""
+        import numpy as np
+        import elastica_auto.equations.kirchhoff_lever_arm as rod
+        import elastica_auto.equations.elastica_lever_arm as planar
+        from elastica_auto import load_problem
+        problem = load_problem("kirchhoff_lever_arm")
+        p = {q.name: q.default for q in rod.PARAMETERS}
+        s = np.linspace(0, 1, 7)
+        y = np.random.default_rng(0).uniform(-1, 1, (10, 7))
+        assert np.array_equal(rod.rhs(s, y, p), problem.rhs(s, y, p))
+        assert np.array_equal(rod.rhs_jac(s, y, p), problem.rhs_jac(s, y, p))
+        straight = rod.exact_start(s, {**p, "P": 0.0})
+        print(rod.part_counts(s, straight, p), planar.STATES)
+        try:
+            rod.no_such_name
+        except AttributeError:
+            print("AttributeError")
+        """, tmp_path / "cache")
+    # the straight rod at the defaults, P = pi^2/4 above the first critical load 1.5992 of
+    # eps = 0.25 (docs/kirchhoff.md) about both axes (b2 = 1): one negative mode in each part
+    assert out.splitlines() == ["{'index_in': 1, 'index_out': 1} ('theta', 'kappa', 'x', 'y')",
+                                "AttributeError"]

@@ -31,7 +31,7 @@ from elastica_auto.numerics import stability
 from elastica_auto.branches.branch import PROFILE_GRID
 from elastica_auto.core.solution import State
 from form_reference import Form, conjugate_count, dense_count
-from helpers import EXAMPLES, run_plan
+from helpers import EXAMPLES, REFERENCE, run_plan
 
 PI2 = math.pi ** 2
 #: Cases whose smallest |eigenvalue| (dense count) is below this are not compared: there the
@@ -285,7 +285,7 @@ def test_where_the_legendre_condition_fails_the_point_says_so_and_the_branch_goe
     reason, the others their count, and the branch goes on to its bound (a step that only
     tries such a point did end it MX)."""
     old = 'return SecondVariation(1.0, -p["lam"] * np.exp(y[0]),'
-    source = (EXAMPLES / "bratu.py").read_text()
+    source = (REFERENCE / "bratu.py").read_text()      # written by hand: its functions
     assert old in source
     source = source.replace(old, 'return SecondVariation(1 - p["lam"] / 2, 1.0,')
     (tmp_path / "soft.py").write_text(source)

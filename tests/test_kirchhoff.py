@@ -24,6 +24,7 @@ import pytest
 import elastica_auto as ea
 from elastica_auto.numerics import stability
 from elastica_auto.model.problem import SecondVariation, load_problem
+import jacobi
 
 K3 = "kirchhoff_lever_arm"
 PSI_UZ = (-0.5, 0.3, 0.6)
@@ -38,7 +39,10 @@ BASE = {"P": math.pi ** 2 / 4, "eps": 0.25, "b2": 2.0}
 
 @pytest.fixture(scope="module")
 def modules():
-    import elastica_auto.equations.kirchhoff_lever_arm as mod
+    """The planar and the spatial rod as shipped (derived from their energies), and the
+    hand-written spatial rod (tests/reference) for the checks that stand apart from the
+    derivation (its helpers, complex-step Jacobians, shooting)."""
+    import reference.kirchhoff_lever_arm as mod
     return load_problem("elastica_lever_arm"), load_problem(K3), mod
 
 
@@ -113,7 +117,8 @@ def test_in_plane_block_is_the_planar_second_variation(modules, rotating):
         st2, st3 = b2.label(p2.name).state, b3.label(p3.name).state
         pts = np.linspace(0, 1, 33)
         form = mod.second_variation(pts, st3(pts), st3.params)
-        a, b, c = planar_problem.second_variation(pts, st2(pts), st2.params)
+        a, b, c = jacobi.scalar_form(planar_problem.second_variation(pts, st2(pts),
+                                                                    st2.params))
         # decoupled: no coefficient couples e_z to the plane's directions
         for m in (form.A, form.B, form.C):
             assert np.max(np.abs(m[:, 2, :2])) < 1e-10 and np.max(np.abs(m[:, :2, 2])) < 1e-10
@@ -659,7 +664,9 @@ def test_fold_rule_with_the_distinguished_ordinates(modules, rotating):
 @pytest.mark.parametrize("seed", range(4))
 def test_jacobians_are_the_complex_step_derivatives(modules, seed):
     """rhs_jac and bc_jac against complex-step derivatives of rhs and bc (exact to rounding:
-    no subtraction), at random states (|q| != 1 too) and random parameters."""
+    no subtraction), at random states (|q| != 1 too) and random parameters: the hand-written
+    reference's (tests/reference), with which tests/test_energy_rod.py compares the derived
+    module's."""
     _, _, mod = modules
     rng = np.random.default_rng(seed)
     p = dict(zip(("P", "eps", "psi", "alpha", "theta0", "chi", "beta", "phi0", "u1", "u2", "u3"),
@@ -918,15 +925,16 @@ def test_a_branch_s_split_index_is_the_engine_s_count(monkeypatch):
     module's ordinates: the module counts them itself (``part_counts``) only at points the
     engine did not count as steps (the start, labels, the end), and in-plane plus
     out-of-plane is the index wherever both are counted."""
+    from elastica_auto.energy import runtime
     rod = load_problem(K3)
     calls = []
-    counted = rod.module.part_counts
+    counted = runtime._part_counts       # what the derived index_in, index_out count with
 
     def part_counts(*args, **kwargs):
         calls.append(args)
         return counted(*args, **kwargs)
-    monkeypatch.setattr(rod.module, "part_counts", part_counts)
-    rod.module._part_counts_of.cache_clear()
+    counted.cache_clear()
+    monkeypatch.setattr(runtime, "_part_counts", part_counts)
     (br,) = ea.continuation(rod, BASE, "psi", bounds=(-0.6, 0.6), max_points=40, ds_max=0.05)
     stepped = [p for p in br.points if not p.type]
     assert len(stepped) >= 15

@@ -30,6 +30,7 @@ from scipy.linalg import null_space
 from scipy.optimize import brentq
 
 import elastica_auto as ea
+from elastica_auto import SecondVariation
 from elastica_auto.numerics import stability
 from elastica_auto.branches.branch import PROFILE_GRID
 from elastica_auto.model.problem import load_problem
@@ -93,14 +94,13 @@ def test_dead_load_equilibrium_pinned_at_its_arm_end_is_an_equilibrium(pinned, P
     t1, x1, y1 = y4[0, -1], y4[2, -1], y4[3, -1]
     pin = (x1 + eps * math.sin(psi - t1), y1 + eps * math.cos(psi - t1))
     n = P * np.array((math.sin(alpha), -math.cos(alpha)))
-    y = np.vstack((y4, np.full(len(s), n[0]), np.full(len(s), n[1])))
-    p = {"eps": eps, "psi": psi, "theta0": 0.0, "X": pin[0], "Y": pin[1]}
-    assert np.max(np.abs(pinned.bc(y[:, 0], y[:, -1], p))) < 1e-8
+    # the reaction n: the pin's multipliers, free parameters
+    p = {"eps": eps, "psi": psi, "theta0": 0.0, "X": pin[0], "Y": pin[1], "nx": n[0],
+         "ny": n[1]}
+    assert np.max(np.abs(pinned.bc(y4[:, 0], y4[:, -1], p))) < 1e-8
     dead = load_problem("elastica_lever_arm")
     want = dead.rhs(s, y4, {"P": P, "eps": eps, "psi": psi, "alpha": alpha, "theta0": 0.0})
-    got = pinned.rhs(s, y, p)
-    np.testing.assert_allclose(got[:4], want, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(got[4:], 0.0)
+    np.testing.assert_allclose(pinned.rhs(s, y4, p), want, rtol=0, atol=1e-12)
 
 
 def test_guess_is_solved_to_an_equilibrium_with_a_compressive_reaction(psi_run):
@@ -174,7 +174,7 @@ def _random_states(pinned, count, seed=20261202):
         a = rng.normal(0, 1.5, 5) / k
         n = rng.uniform(-100, 100, 2)
         p = {**pinned.defaults(), "eps": rng.uniform(-0.6, 0.6),
-             "psi": rng.uniform(0, 2 * math.pi)}
+             "psi": rng.uniform(0, 2 * math.pi), "nx": n[0], "ny": n[1]}
 
         def theta(s, a=a):
             return a @ np.sin(np.outer(k, np.atleast_1d(s)) * math.pi / 2)[:, ...].reshape(
@@ -182,8 +182,7 @@ def _random_states(pinned, count, seed=20261202):
 
         mesh = np.linspace(0, 1, 201)
         dth = (a * k * math.pi / 2) @ np.cos(np.outer(k, mesh) * math.pi / 2)
-        y = np.vstack((theta(mesh), dth, np.zeros((2, len(mesh))),
-                       np.full(len(mesh), n[0]), np.full(len(mesh), n[1])))
+        y = np.vstack((theta(mesh), dth, np.zeros((2, len(mesh)))))
         yield theta, p, n, State.from_values(pinned, mesh, y, p)
 
 
@@ -246,7 +245,7 @@ def _mode(j):
 ])
 def test_constrained_index_with_known_spectra(pinned, constraints, expected):
     mesh = np.linspace(0, 1, 41)
-    state = State.from_values(pinned, mesh, np.zeros((6, len(mesh))), pinned.defaults())
+    state = State.from_values(pinned, mesh, np.zeros((4, len(mesh))), pinned.defaults())
     assert stability.index(_Hook(5.0, constraints), state) == expected
     # the dense count agrees (its own check)
     cons = [(g, d) for g, d in constraints]
@@ -287,14 +286,18 @@ def test_without_the_constraints_the_direct_count_differs(psi_run):
     larger than the constrained one on much of the run, so the agreement above is not that
     of the unconstrained problem."""
     base = load_problem("elastica_pinned")
+
+    def unconstrained(s, y, p):
+        form = base.second_variation(s, y, p)        # (its fields are (m, k, k))
+        return SecondVariation(form.A[:, 0, 0], form.B[:, 0, 0], form.C[:, 0, 0],
+                               E0=form.E0, E1=form.E1, fixed0=[0])
     loose = types.SimpleNamespace(has_second_variation=True,
-                                  second_variation=lambda s, y, p:
-                                  base.second_variation(s, y, p)[:3])
+                                  second_variation=unconstrained)
     differ = total = 0
     for br, k, pt in _points(psi_run):
         if k % 5:
             continue
-        state = State.from_values(base, PROFILE_GRID, pt.profile, pt.params)
+        state = State.from_values(base, PROFILE_GRID, pt.profile[:4], pt.params)
         total += 1
         differ += stability.index(loose, state) > pt.index_direct
     assert differ >= total // 4, (differ, total)
@@ -306,17 +309,18 @@ def test_mirror_image_solves_the_mirrored_problem(pinned, psi_run):
     """(theta, kappa, x, n_x) -> -(...), psi -> -psi, X -> -X maps solutions to solutions
     with m1 -> -m1 and the same index; along the run (X = 0) the mirror images of the
     points are points of the branch (psi, m1) -> (-psi, -m1) of the mirrored start."""
-    sign = np.array((-1, -1, -1, 1, -1, 1))[:, None]
+    sign = np.array((-1, -1, -1, 1))[:, None]
     for br, k, pt in _points(psi_run):
         if k % 7:
             continue
-        y = pt.profile * sign
-        p = {**pt.params, "psi": -pt.params["psi"], "X": -pt.params["X"]}
+        y = pt.profile[:4] * sign
+        p = {**pt.params, "psi": -pt.params["psi"], "X": -pt.params["X"],
+             "nx": -pt.params["nx"]}
         assert np.max(np.abs(pinned.bc(y[:, 0], y[:, -1], p))) < 1e-7
         np.testing.assert_allclose(pinned.rhs(PROFILE_GRID, y, p),
-                                   sign * pinned.rhs(PROFILE_GRID, pt.profile, pt.params),
+                                   sign * pinned.rhs(PROFILE_GRID, pt.profile[:4], pt.params),
                                    atol=1e-12)
-        a = stability.index(pinned, State.from_values(pinned, PROFILE_GRID, pt.profile,
+        a = stability.index(pinned, State.from_values(pinned, PROFILE_GRID, pt.profile[:4],
                                                       pt.params))
         b = stability.index(pinned, State.from_values(pinned, PROFILE_GRID, y, p))
         assert a == b

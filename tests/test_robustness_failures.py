@@ -12,7 +12,6 @@ and one direction meets the failure. Last, the snap-back scan at an exact zero o
 
 from __future__ import annotations
 
-import importlib.resources
 import json
 import math
 import re
@@ -22,9 +21,10 @@ import numpy as np
 import pytest
 
 from elastica_auto.storage.store import BranchFile
-from helpers import EXAMPLES, run_cli, wait_for
+from helpers import ELASTICA as _ELASTICA
+from helpers import REFERENCE, run_cli, wait_for
 
-BRATU = (EXAMPLES / "bratu.py").read_text()
+BRATU = (REFERENCE / "bratu.py").read_text()        # written by hand: its functions
 
 RUN = textwrap.dedent("""\
     equation = "mine.py"
@@ -42,8 +42,8 @@ RUN = textwrap.dedent("""\
     """)
 
 
-ELASTICA = (importlib.resources.files("elastica_auto.equations")
-            / "elastica_lever_arm.py").read_text()
+# the elastica written by hand (tests/reference): the functions the tests break
+ELASTICA = _ELASTICA
 PSI_RUN = textwrap.dedent("""\
     equation = "mine.py"
     [parameters]

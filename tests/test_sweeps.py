@@ -67,8 +67,10 @@ def test_an_interrupted_sweep_resumes_to_the_whole_file(sweep, tmp_path, cli_exe
     """The signal comes in a step of the second branch, held until it comes (by a copy of
     the elastica that says so): the first branch is saved whole, the second up to there."""
     whole = tmp_path / "whole"
-    # every branch computed (none the mirror image of another): the signal comes in a step
-    sweep.write_text(SWEEP + "mirror = false\n")
+    # every branch computed (none the mirror image of another): the signal comes in a step;
+    # the whole run with the same module (the elastica written by hand), unsignalled
+    signalling_elastica(tmp_path / "plain.py")
+    sweep.write_text(SWEEP.replace('"elastica_lever_arm"', '"plain.py"') + "mirror = false\n")
     assert run_cli(cli_exe, "run", sweep, "--out", whole, "-j", "1").returncode == 0
     out, held = tmp_path / "out", tmp_path / "held"
     sweep.write_text(SWEEP.replace('"elastica_lever_arm"', '"mine.py"') + "mirror = false\n")

@@ -25,6 +25,7 @@ The layers, one concern each:
 ``loader``   the hook of `load_problem`: the module's own names first, then the derived
 """
 
-from .declare import Energy, Param
+from .declare import Energy, Param, Rotation, compose, rotation_about
+from .loader import derived_names
 
-__all__ = ["Energy", "Param"]
+__all__ = ["Energy", "Param", "Rotation", "compose", "derived_names", "rotation_about"]

@@ -8,8 +8,11 @@ what was derived, in the user's names: the energy, the Legendre inverse, where e
 parameter enters and its ordinate, the second variation.
 
 Safety of the text: the internal symbols print as ``s``, ``y3``, ``v0``, ``p2``, ``ya1``, ...
-(and ``t0``, ... for common subexpressions), names no user name can take, since every user
-symbol was replaced before printing. User names appear only as string literals (``repr``) and
+(and ``t0``, ... for common subexpressions; for a rotation ``j`` its frame ``F0`` and body
+moment ``MB0`` at the nodes with their entries ``R0_12``, ``mb0_1``, its strains ``u0_1``, its
+frames at the ends ``R0a_12``, ``R0b_12`` with ``n0a``, ``dR0b_12_3`` and their common
+subexpressions ``c0a_4``), names no user name can take, since every user symbol was replaced
+before printing. User names appear only as string literals (``repr``) and
 in ``#`` comments (they are printable: no line breaks). Module-level helpers are named
 ``_derived_...``; a module that defines such a name itself is refused (`loader`).
 """
@@ -52,19 +55,23 @@ def _docstring(doc: str, indent: str = "    ", width: int = 96) -> list[str]:
 
 class Block:
     """Assignments of expressions to targets inside one function, with the common
-    subexpressions of all of them taken out once."""
+    subexpressions of all of them taken out once. ``frames``: the rotations' frames
+    (`elastica_auto.energy.derive.Frame`) whose entries the expressions may contain; those
+    used are computed first from their quaternions (with their own common subexpressions)."""
 
-    def __init__(self, names: dict, indent: str = "    "):
+    def __init__(self, names: dict, indent: str = "    ", frames=()):
         self.names = names                  # internal symbol -> printed name
         self.indent = indent
         self.items = []                     # (target or None, expr)
+        self.frames = list(frames)
 
     def add(self, target, expr):
         self.items.append((target, sp.sympify(expr)))
 
-    def lines(self, unpack) -> list[str]:
-        """The function body: ``unpack`` (symbol -> the line that defines it) for each input
-        used, the common subexpressions, then ``target = expr`` for each item."""
+    def lines(self, unpack, needs=()) -> list[str]:
+        """The function body: ``unpack`` (entries (name, line) or (name, line, names it
+        needs), in the order they may be emitted) for each input used (and for ``needs``),
+        the frames used, the common subexpressions, then ``target = expr`` for each item."""
         symbols = {k: sp.Symbol(v) for k, v in self.names.items()}
         exprs = [e.xreplace(symbols) for _, e in self.items]
         temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), order="none")
@@ -72,7 +79,6 @@ class Block:
         for e in [*reduced, *(t for _, t in temps)]:
             used |= {x.name for x in e.free_symbols}
         printer = _Printer({"strict": True})
-        out = [self.indent + line for key, line in unpack if key in used]
 
         def text(e):
             try:
@@ -83,6 +89,29 @@ class Block:
                 _fail(f"numpy cannot evaluate the function {what}, which the derived "
                       "expressions contain: write the energy with functions numpy has")
 
+        frame_lines = []
+        for frame in self.frames:
+            definitions = [(symbols[x], e.xreplace(symbols)) for x, e in
+                           (*frame.definitions(), *frame.derivative_definitions())]
+            needed = set()
+            for x, e in reversed(definitions):
+                if x.name in used or x.name in needed:
+                    needed.add(x.name)
+                    needed |= {y.name for y in e.free_symbols}
+            chosen = [(x, e) for x, e in definitions if x.name in needed]
+            if not chosen:
+                continue
+            used |= needed
+            ftemps, fexprs = sp.cse([e for _, e in chosen], order="none",
+                                    symbols=sp.numbered_symbols(f"c{frame.tag}_"))
+            frame_lines += [f"{self.indent}{x} = {text(e)}" for x, e in ftemps]
+            frame_lines += [f"{self.indent}{x} = {text(e)}" for (x, _), e in zip(chosen, fexprs)]
+        used |= set(needs)
+        for entry in reversed(unpack):
+            if entry[0] in used and len(entry) > 2:
+                used |= set(entry[2])
+        out = [self.indent + entry[1] for entry in unpack if entry[0] in used]
+        out += frame_lines
         for t, e in temps:
             out.append(f"{self.indent}{t} = {text(e)}")
         self.printed = []
@@ -94,15 +123,36 @@ class Block:
         return out
 
 
+def _total(expr, x, frames):
+    """d expr / dx for a state x, every frame's entries taken as functions of its
+    quaternion."""
+    for frame in frames:
+        if x in frame.q:
+            return frame.total(expr, x)
+    return sp.diff(expr, x)
+
+
 class Module:
     """The text of the generated module of a `Derived`."""
 
     def __init__(self, d: Derived):
         self.d = d
         self.k, self.nq = d.k, len(d.quadratures)
-        self.n = 2 * self.k + self.nq
+        self.n = len(d.rows)
+        self.K = d.components
+        self.kv = len(d.velocities)
         self.pindex = {q.name: i for i, q in enumerate(d.parameters)}
         self.lines: list[str] = []
+        self.zrows = [d.row(z) for z in d.Z]
+        self.mrows = [d.row(m) for m in d.M]
+        self.xrows = [d.row(x) for x in d.X]
+        canonical = [*self.zrows, *self.mrows, *self.xrows]
+        #: for each row, its place in the canonical order (coordinates, momenta,
+        #: quadratures) where the states are in another (Energy(states=...)); else None
+        #: (the Newton case's system is assembled in the canonical order: scalar
+        #: coordinates only)
+        self.order = None if d.rotations or canonical == list(range(self.n)) else \
+            [canonical.index(r) for r in range(self.n)]
 
     # -- names of the inputs ---------------------------------------------------------------
     def _params(self):
@@ -111,25 +161,57 @@ class Module:
         unpack = [(f"p{i}", f"p{i} = p[{q.name!r}]") for i, q in enumerate(d.parameters)]
         return names, unpack
 
+    def _node_rotations(self, names, unpack):
+        """The rotations' frames R and body moments R^T m at the nodes, computed from the
+        rows of y at once (`runtime.frame`, `runtime.body`): their names, and their unpack
+        entries put after the states'."""
+        d = self.d
+        extra = []
+        for j, r in enumerate(d.rotations):
+            q = self._rows([d.row(x) for x in r.Q])
+            m = self._rows([d.row(x) for x in r.Mr])
+            extra.append((f"F{j}", f"F{j} = {PREFIX}runtime.frame(y[{q}])  # {r.name}", ()))
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    extra.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = F{j}[{a}, {b}]", (f"F{j}",)))
+            extra.append((f"MB{j}", f"MB{j} = {PREFIX}runtime.body(F{j}, y[{m}])  # "
+                          f"{r.name}^T m", (f"F{j}",)))
+            for c in range(3):
+                names[r.MB[c]] = f"mb{j}_{c}"
+                extra.append((f"mb{j}_{c}", f"mb{j}_{c} = MB{j}[{c}]", (f"MB{j}",)))
+        at = max((i + 1 for i, e in enumerate(unpack) if re.fullmatch(r"y\d+", e[0])),
+                 default=0)
+        return unpack[:at] + extra + unpack[at:]
+
+    def _end_frames(self, names):
+        frames = [f for r in self.d.rotations for f in (r.start, r.end)]
+        for f in frames:
+            names.update(f.names())
+        return frames
+
     def _states(self, with_v: bool):
-        """Names for a function of (s, y, p): Z, M, X as the rows of y, V as ``v``."""
+        """Names for a function of (s, y, p): the states as the rows of y, V as ``v``."""
         d = self.d
         names, unpack = self._params()
         names[d.S] = "s"
-        states = [*d.Z, *d.M, *d.X]
-        labels = d.states
-        for i, x in enumerate(states):
+        for i, x in enumerate(d.rows):
             names[x] = f"y{i}"
-        unpack = [(f"y{i}", f"y{i} = y[{i}]  # {labels[i]}") for i in range(self.n)] + unpack
+        unpack = [(f"y{i}", f"y{i} = y[{i}]  # {d.names[i]}") for i in range(self.n)] + unpack
         if with_v:
-            for i, v in enumerate(d.V):
+            for i, v in enumerate(d.velocities):
                 names[v] = f"v{i}"
-            unpack = [(f"v{i}", f"v{i} = v[{i}]  # {d.coordinates[i]}'")
-                      for i in range(self.k)] + unpack
+            unpack = [(f"v{i}", f"v{i} = v[{i}]  # {label}'")
+                      for i, label in enumerate(self._velocity_labels())] + unpack
         return names, unpack
 
+    def _velocity_labels(self):
+        d = self.d
+        return [*d.coordinates, *(f"{r.name}.u{i + 1}" for r in d.rotations for i in range(3))]
+
     def _kernel(self):
-        """Names for a kernel of (s, z, v, p): Z as the rows of z, V of v."""
+        """Names for a kernel of (s, z, v, p): Z as the rows of z, V of v (scalar
+        coordinates only: the Newton inverse and the gradient flow)."""
         d = self.d
         names, unpack = self._params()
         names[d.S] = "s"
@@ -157,6 +239,15 @@ class Module:
                    .replace(f"= yb[{key[2:]}]", f"= y[{key[2:]}, -1]")) for key, line in unpack]
         return names, unpack
 
+    @staticmethod
+    def _rows(rows):
+        """The rows ``rows`` of y as index text: a slice where they are consecutive."""
+        if not rows:
+            return "0:0"
+        if list(rows) == list(range(rows[0], rows[0] + len(rows))):
+            return f"{rows[0]}:{rows[0] + len(rows)}"
+        return repr(list(rows))
+
     # -- output ----------------------------------------------------------------------------
     def emit(self, *lines):
         self.lines.extend(lines)
@@ -179,15 +270,17 @@ class Module:
         else:
             self.newton_system()
         self.boundary()
-        self.kernels()
+        if not d.rotations:
+            self.kernels()
+        self.tangent()
         self.second_variation()
         self.ordinates()
-        if not d.free:
+        if not d.free and not d.rotations:
             self.emit("", "", "def gradient_flow(p, nodes):",
                       *_docstring('The energy discretised on ``nodes`` and its overdamped dynamics '
                                   '(runtime.gradient_flow).'),
                       f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
-                      f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow)")
+                      f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow, {self.zrows!r})")
         return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
 
     def header(self):
@@ -216,13 +309,14 @@ class Module:
             lines.append(f"  {o['name']} = " + " + ".join(parts).replace("+ -", "- ")
                          if parts else f"  {o['name']} = 0")
         lines += ["", "second variation, d2E[h] = int (h'.A h' + 2 h'.C h + h.B h) ds "
-                  "+ h(0).E0 h(0) + h(1).E1 h(1):"]
+                  "+ h(0).E0 h(0) + h(1).E1 h(1)"
+                  + (f", h = ({', '.join(d.labels)}):" if d.rotations else ":")]
         for name, m in (("A", d.A), ("C", d.C), ("B", d.B), ("E0", d.E0), ("E1", d.E1)):
-            lines.append(f"  {name} = {u(m) if self.k > 1 else u(m[0][0])}")
+            lines.append(f"  {name} = {u(m) if self.K > 1 else u(m[0][0])}")
         for end, fixed in ((0, d.fixed0), (1, d.fixed1)):
             if fixed:
-                lines.append(f"  h({end}) = 0 in " + ", ".join(d.coordinates[i] for i in fixed))
-        for fld, gv in d.constraints:
+                lines.append(f"  h({end}) = 0 in " + ", ".join(d.labels[i] for i in fixed))
+        for fld, gv, _ in d.constraints:
             lines.append(f"  constraint: int ({u(fld)}).h ds"
                          + (" = 0" if all(e == 0 for e in gv) else
                             f" - g_v(0).h(0) + g_v(1).h(1) = 0, g_v = {u(gv)}"))
@@ -261,37 +355,110 @@ class Module:
     # -- the system ------------------------------------------------------------------------
     def linear_system(self):
         d = self.d
-        n, k = self.n, self.k
+        n, kv = self.n, self.kv
         names, unpack = self._states(False)
+        unpack = self._node_rotations(names, unpack)
         block = Block(names)
+        # a rotation's q' = q (x) (0, u) / 2 by one product (runtime.quaternion_rate), its
+        # strains u the Legendre inverse's
+        kinematics, after = {}, []
+        for j, r in enumerate(d.rotations):
+            rows = [d.row(q) for q in r.Q]
+            kinematics.update(dict.fromkeys(rows))
+            strains = d.velocity[self.k + 3 * j: self.k + 3 * j + 3]
+            for c, e in enumerate(strains):
+                block.add(f"u{j}_{c}", e)
+            after.append(f"    out[{self._rows(rows)}] = {PREFIX}runtime.quaternion_rate("
+                         f"y[{self._rows(rows)}], u{j}_0, u{j}_1, u{j}_2)  # {r.name}")
         for i, e in enumerate(d.rhs):
-            block.add(f"out[{i}]", e)
+            if i not in kinematics:
+                block.add(f"out[{i}]", e)
         self.function("rhs(s, y, p)", "zeta' = V(zeta, m), m' = dL/dzeta, x' = g (the "
-                      "Euler-Lagrange equations in the states).", block, unpack,
-                      before=["    out = numpy.empty(y.shape)"], after=["    return out"])
+                      "Euler-Lagrange equations in the states)"
+                      + ("; q' = q (x) (0, u) / 2 and m' = the torque D L for a rotation."
+                         if d.rotations else "."), block, unpack,
+                      before=["    out = numpy.empty(y.shape)"],
+                      after=[*after, "    return out"])
         self.alias("rhs")
-        states = [*d.Z, *d.M, *d.X]
-        block = Block(names)
-        for i, e in enumerate(d.rhs):
-            for j, x in enumerate(states):
-                de = sp.diff(e, x)
-                if de != 0:
-                    block.add(f"jac[{i}, {j}]", de)
-        self.function("rhs_jac(s, y, p)", "df/dy, (n, n, m).", block, unpack,
-                      before=[f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))"],
-                      after=["    return jac"])
+        if d.rotations:
+            self.rotation_jacobian(names, unpack)
+        else:
+            block = Block(names)
+            for i, e in enumerate(d.rhs):
+                for j, x in enumerate(d.rows):
+                    de = sp.diff(e, x)
+                    if de != 0:
+                        block.add(f"jac[{i}, {j}]", de)
+            self.function("rhs_jac(s, y, p)", "df/dy, (n, n, m).", block, unpack,
+                          before=[f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))"],
+                          after=["    return jac"])
         self._by_parameter("rhs_dp(s, y, p, name)", "df/dp[name], (n, m).", d.rhs, names,
                            unpack, "    out = numpy.zeros(y.shape)", "out[{i}]")
         block = Block(names)
         for i, e in enumerate(d.velocity):
             block.add(f"v[{i}]", e)
         self.function(f"{PREFIX}velocity(s, y, p)", "zeta' from the momenta: the inverse of "
-                      "the Legendre map, (k, m).", block, unpack,
-                      before=[f"    v = numpy.empty(({k}, y.shape[1]))"], after=["    return v"])
+                      "the Legendre map, (k, m)"
+                      + (" (the rotations' strains after the coordinates' derivatives)."
+                         if d.rotations else "."), block, unpack,
+                      before=[f"    v = numpy.empty(({kv}, y.shape[1]))"], after=["    return v"])
+
+    def rotation_jacobian(self, names, unpack):
+        """rhs_jac of a module with rotations: the partial derivatives with each frame R and
+        body moment R^T m held, then the chain through them, df/dq += f_R dR/dq + f_mb
+        d(R^T m)/dq and df/dm += f_mb R^T, by one product each (`runtime.chain`): far fewer
+        numpy calls than the chain written out entry by entry."""
+        d = self.d
+        n = self.n
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            for j, x in enumerate(d.rows):
+                de = sp.diff(e, x)
+                if de != 0:
+                    block.add(f"jac[{i}, {j}]", de)
+        after, needs = [], []
+        for j, r in enumerate(d.rotations):
+            rows_r = [i for i, e in enumerate(d.rhs) if e.has(*r.node.entries)]
+            rows_m = [i for i, e in enumerate(d.rhs) if e.has(*r.MB)]
+            q = [d.row(x) for x in r.Q]
+            m = [d.row(x) for x in r.Mr]
+            if not rows_r and not rows_m:
+                continue
+            needs.append(f"F{j}")
+            fr, fm = "None", "None"
+            if rows_r:
+                fr = f"fR{j}"
+                after.insert(0, f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
+                for a, i in enumerate(rows_r):
+                    for b in range(3):
+                        for c in range(3):
+                            de = sp.diff(d.rhs[i], r.node.R[b, c])
+                            if de != 0:
+                                block.add(f"fR{j}[{a}, {b}, {c}]", de)
+            if rows_m:
+                fm = f"fM{j}"
+                after.insert(0, f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
+                for a, i in enumerate(rows_m):
+                    for c in range(3):
+                        de = sp.diff(d.rhs[i], r.MB[c])
+                        if de != 0:
+                            block.add(f"fM{j}[{a}, {c}]", de)
+            after.append(f"    {PREFIX}runtime.chain(jac, F{j}, y[{self._rows(q)}], "
+                         f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
+                         f"{fm})  # {r.name}")
+        before = [f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))",
+                  *(line for line in after if "numpy.zeros" in line)]
+        chains = [line for line in after if "numpy.zeros" not in line]
+        self.emit("", "", "def rhs_jac(s, y, p):",
+                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
+                              "R^T m held, then through them (runtime.chain)."),
+                  *before, *block.lines(unpack, needs), *chains, "    return jac")
 
     def newton_system(self):
         d = self.d
         k, nq = self.k, self.nq
+        z_rows, m_rows = self._rows(self.zrows), self._rows(self.mrows)
+        order = self.order
         names, unpack = self._kernel()
         block = Block(names)
         block.add("L", d.lagrangian)
@@ -307,8 +474,8 @@ class Module:
         self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
                   *_docstring("zeta' from the momenta, by Newton's method on L - m.v "
                               '(runtime.legendre_inverse).'),
-                  f"    return {PREFIX}runtime.legendre_inverse({PREFIX}legendre, s, y[:{k}], "
-                  f"y[{k}:{2 * k}], p)")
+                  f"    return {PREFIX}runtime.legendre_inverse({PREFIX}legendre, s, "
+                  f"y[{z_rows}], y[{m_rows}], p)")
         block = Block(names)
         for j, g in enumerate(d.rates):
             block.add(f"g[{j}]", g)
@@ -322,24 +489,27 @@ class Module:
                               f"    gz = numpy.empty(({nq}, {k}, z.shape[1]))",
                               f"    gv = numpy.empty(({nq}, {k}, z.shape[1]))"],
                       after=["    return g, gz, gv"])
+        canonical = "numpy.concatenate((v, Lz, g))"
         self.emit("", "", "def rhs(s, y, p):",
                   *_docstring("zeta' = V(zeta, m), m' = dL/dzeta, x' = g."),
                   f"    v = {PREFIX}velocity(s, y, p)",
-                  f"    z = y[:{k}]",
+                  f"    z = y[{z_rows}]",
                   f"    _, Lz, _, _, _, _ = {PREFIX}density(s, z, v, p)",
                   f"    g, _, _ = {PREFIX}rates(s, z, v, p)",
-                  "    return numpy.concatenate((v, Lz, g))",
+                  f"    return {canonical}" if order is None else
+                  f"    return {PREFIX}runtime.in_rows({canonical}, {order!r})",
                   "", "", f"{PREFIX}rhs = rhs  # what the derived ordinates use",
                   "", "",
                   "def rhs_jac(s, y, p):",
                   *_docstring('df/dy by the implicit function theorem: dv/dm = A^-1, dv/dzeta = '
                               '-A^-1 C (runtime.hamilton_jacobian).'),
                   f"    v = {PREFIX}velocity(s, y, p)",
-                  f"    z = y[:{k}]",
+                  f"    z = y[{z_rows}]",
                   f"    _, _, _, Lzz, Lvz, Lvv = {PREFIX}density(s, z, v, p)",
                   f"    _, gz, gv = {PREFIX}rates(s, z, v, p)",
-                  f"    return {PREFIX}runtime.hamilton_jacobian(Lvv, Lvz, Lzz, gz, gv)")
-        block = Block(names)
+                  f"    jac = {PREFIX}runtime.hamilton_jacobian(Lvv, Lvz, Lzz, gz, gv)",
+                  "    return jac" if order is None else
+                  f"    return {PREFIX}runtime.in_rows(jac, {order!r}, columns=True)")
         cases = []
         for q in d.parameters:
             p = d.P[q.name]
@@ -362,18 +532,20 @@ class Module:
                     block.add(target, e)
             self.emit(f"    {'if' if c == 0 else 'elif'} name == {name!r}:",
                       *block.lines(unpack))
+        dp = f"{PREFIX}runtime.hamilton_dp(Lvv, Lvz, gv, Lzp, Lvp, gp)"
         self.emit("    return Lzp, Lvp, gp", "", "",
                   "def rhs_dp(s, y, p, name):",
                   *_docstring('df/dp[name] with dv/dp = -A^-1 d2L/dv dp.'),
                   f"    v = {PREFIX}velocity(s, y, p)",
-                  f"    z = y[:{k}]",
+                  f"    z = y[{z_rows}]",
                   f"    _, _, _, _, Lvz, Lvv = {PREFIX}density(s, z, v, p)",
                   f"    _, _, gv = {PREFIX}rates(s, z, v, p)",
                   f"    Lzp, Lvp, gp = {PREFIX}dp(s, z, v, p, name)",
-                  f"    return {PREFIX}runtime.hamilton_dp(Lvv, Lvz, gv, Lzp, Lvp, gp)")
+                  f"    return {dp}" if order is None else
+                  f"    return {PREFIX}runtime.in_rows({dp}, {order!r})")
 
     def _by_parameter(self, signature, doc, exprs, names, unpack, init, target, ret="out",
-                      symbols=None):
+                      frames=()):
         """A function dispatching on the parameter ``name``: the derivatives of ``exprs``
         in each parameter that enters them."""
         d = self.d
@@ -381,7 +553,7 @@ class Module:
         first = True
         for q in d.parameters:
             p = d.P[q.name]
-            block = Block(names, indent="        ")
+            block = Block(names, indent="        ", frames=frames)
             for i, e in enumerate(exprs):
                 de = sp.diff(e, p)
                 if de != 0:
@@ -396,18 +568,19 @@ class Module:
         d = self.d
         n, nbc = self.n, len(d.bc)
         names, unpack = self._ends()
-        block = Block(names)
+        frames = self._end_frames(names)
+        block = Block(names, frames=frames)
         for i, e in enumerate(d.bc):
             block.add(f"out[{i}]", e)
         self.function("bc(ya, yb, p)", "Essential values, natural conditions (-m(0) + "
                       "dB0/dzeta, m(1) + dB1/dzeta), quadratures' starts, constraints.",
                       block, unpack, before=[f"    out = numpy.empty({nbc})"],
                       after=["    return out"])
-        block = Block(names)
+        block = Block(names, frames=frames)
         for i, e in enumerate(d.bc):
             for j in range(n):
                 for arr, y in (("da", d.YA[j]), ("db", d.YB[j])):
-                    de = sp.diff(e, y)
+                    de = _total(e, y, frames)
                     if de != 0:
                         block.add(f"{arr}[{i}, {j}]", de)
         self.function("bc_jac(ya, yb, p)", "dbc/dya, dbc/dyb, each (nbc, n).", block, unpack,
@@ -415,11 +588,11 @@ class Module:
                               f"    db = numpy.zeros(({nbc}, {n}))"],
                       after=["    return da, db"])
         self._by_parameter("bc_dp(ya, yb, p, name)", "dbc/dp[name], (nbc,).", d.bc, names,
-                           unpack, f"    out = numpy.zeros({nbc})", "out[{i}]")
+                           unpack, f"    out = numpy.zeros({nbc})", "out[{i}]", frames=frames)
 
     def kernels(self):
         """The density and end terms with their derivatives: the gradient flow's energy, and
-        the Newton case's system."""
+        the Newton case's system (scalar coordinates)."""
         d = self.d
         k = self.k
         names, unpack = self._kernel()
@@ -487,11 +660,28 @@ class Module:
                               "B1)."),
                   *body, f"    return {{{at0}}}, {{{at1}}}, float({values[-1]})")
 
+    def tangent(self):
+        """The perturbation (K, m) of a tangent g to the states at y: the scalar
+        coordinates' rows, and each rotation's spatial turn 2 Im(g_q (x) conj(q)) / |q|^2
+        (a symmetry's generator as the zero mode of the second variation)."""
+        d = self.d
+        lines = [f"    out = numpy.empty(({self.K}, y.shape[1]))"]
+        for i, row in enumerate(self.zrows):
+            lines.append(f"    out[{i}] = g[{row}]  # {d.coordinates[i]}")
+        for r in d.rotations:
+            rows = [d.row(q) for q in r.Q]
+            lines.append(f"    out[{r.offset}:{r.offset + 3}] = {PREFIX}runtime.spatial_turn("
+                         f"y[{self._rows(rows)}], g[{self._rows(rows)}])  # {r.name}")
+        self.emit("", "", f"def {PREFIX}tangent(y, g):",
+                  *_docstring("The perturbation of the states' tangent g at y: the "
+                              "coordinates' rows, a rotation's spatial turn."),
+                  *lines, "    return out")
+
     def second_variation(self):
         d = self.d
-        k = self.k
+        k, K = self.k, self.K
         constraints = d.constraints
-        uses_w = any(e.has(*d.W) for fld, _ in constraints for e in fld)
+        uses_w = any(e.has(*d.W) for fld, _, _ in constraints for e in fld)
         if d.linear:
             names, unpack = self._states(False)
             before = []
@@ -502,52 +692,67 @@ class Module:
                 for i, w in enumerate(d.W):
                     names[w] = f"w{i}"
                 before += [f"    w = {PREFIX}runtime.acceleration({PREFIX}density, "
-                           f"{PREFIX}lvs, s, y[:{k}], v, p)"]
+                           f"{PREFIX}lvs, s, y[{self._rows(self.zrows)}], v, p)"]
                 unpack = [(f"w{i}", f"w{i} = w[{i}]") for i in range(k)] + unpack
         ends, end_unpack = self._solution_ends()
         names.update(ends)
+        unpack = self._node_rotations(names, unpack)
+        frames = self._end_frames(names)
         unpack = unpack + [u for u in end_unpack if u[0].startswith(("ya", "yb"))]
-        if k > 1 or constraints:
+        if K > 1 or constraints:
             before += ["    m = y.shape[1]"]
-        block = Block(names)
+        block = Block(names, frames=frames)
+
+        def entry(name, i, j):
+            return name if K == 1 else f"{name}{i}_{j}"
+
         for name, mat in (("A", d.A), ("B", d.B), ("C", d.C), ("E0", d.E0), ("E1", d.E1)):
-            for i in range(k):
-                for j in range(k):
-                    block.add(f"{name}{i}{j}" if k > 1 else name, mat[i][j])
-        for c, (fld, gv) in enumerate(constraints):
-            for i in range(k):
+            for i in range(K):
+                for j in range(K):
+                    block.add(entry(name, i, j), mat[i][j])
+        for c, (fld, gv, dc) in enumerate(constraints):
+            for i in range(K):
                 block.add(f"g{c}_{i}", fld[i])
                 block.add(f"d{c}_{i}", gv[i])
+                if any(e != 0 for e in dc):
+                    block.add(f"e{c}_{i}", dc[i])
         body = block.lines(unpack)
         args = []
         for name in ("A", "B", "C", "E0", "E1"):
-            if k == 1:
+            if K == 1:
                 value = name
             else:
-                rows = ", ".join("[" + ", ".join(f"{name}{i}{j}" for j in range(k)) + "]"
-                                 for i in range(k))
+                rows = ", ".join("[" + ", ".join(entry(name, i, j) for j in range(K)) + "]"
+                                 for i in range(K))
                 value = f"{PREFIX}runtime.field([{rows}], m)"
             args.append(value)
         after = []
         cons = []
-        for c in range(len(constraints)):
-            g = ", ".join(f"g{c}_{i}" for i in range(k))
-            dv = ", ".join(f"d{c}_{i}" for i in range(k))
+        for c, (_, _, dc) in enumerate(constraints):
+            g = ", ".join(f"g{c}_{i}" for i in range(K))
+            dv = ", ".join(f"d{c}_{i}" for i in range(K))
             after.append(f"    gv = {PREFIX}runtime.field([[{dv}]], m)[0]")
             cons.append(f"constraint{c}")
+            d1 = f"{PREFIX}runtime.at_end(gv, -1)"
+            if any(e != 0 for e in dc):     # x(1) = c(zeta(1)): -dc/dzeta(1) at s = 1
+                d1 += (f" + {PREFIX}runtime.field([[{', '.join(f'e{c}_{i}' for i in range(K))}"
+                       "]], m)[0]")
             after.append(f"    constraint{c} = Constraint({PREFIX}runtime.field([[{g}]], m)[0], "
-                         f"{PREFIX}runtime.at_end(gv, -1), -{PREFIX}runtime.at_end(gv, 0))")
+                         f"{d1}, -{PREFIX}runtime.at_end(gv, 0))")
         parts = ""
         if d.parts:
             parts = f", parts={ {name: comps for name, comps in d.parts.items()}!r}"
         after.append(f"    return SecondVariation({args[0]}, {args[1]}, {args[2]}, E0={args[3]}, "
                      f"E1={args[4]}, fixed0={d.fixed0!r}, fixed1={d.fixed1!r}, "
                      f"constraints=[{', '.join(cons)}] + {PREFIX}runtime.zero_modes("
-                     f"{PREFIX}symmetry, s, y, p, {k}, Constraint){parts})")
+                     f"{PREFIX}symmetry, s, y, p, {PREFIX}tangent, Constraint){parts})")
         self.emit("", "", "def second_variation(s, y, p):",
                   *_docstring("The second variation at the solution y: A = d2L/dv2, C = "
                               "d2L/dv dz, B = d2L/dz2, E0 = d2B0/dz2, E1 = d2B1/dz2 "
-                              "(docs/energy.md)."),
+                              + ("(a rotation's components by spatial turns w: A = R L_uu "
+                                 "R^T, C = R G - [m]_x / 2, B = sym(D_i D_c L)) "
+                                 if d.rotations else "")
+                              + "(docs/energy.md)."),
                   *before, *body, *after)
         self.alias("second_variation")
         if uses_w and not d.linear:
@@ -561,28 +766,30 @@ class Module:
 
     def ordinates(self):
         d = self.d
-        k = self.k
         integrals = [o for o in d.ordinates if o["integrand"] != 0]
-        names, unpack = self._kernel()
+        names, unpack = self._states(True)
+        unpack = self._node_rotations(names, unpack)
         block = Block(names)
         for i, o in enumerate(integrals):
             block.add(f"out[{i}]", o["sign"] * o["integrand"])
         q = len(integrals)
         if q:
-            self.function(f"{PREFIX}integrands(s, z, v, p)", "The integrands of the "
-                          "ordinates that are integrals, (q, m).", block, unpack,
-                          before=[f"    out = numpy.empty(({q}, z.shape[1]))"],
+            self.function(f"{PREFIX}integrands(s, y, v, p)", "The integrands of the "
+                          "ordinates that are integrals at the states y and the velocities "
+                          "v, (q, m).", block, unpack,
+                          before=[f"    out = numpy.empty(({q}, y.shape[1]))"],
                           after=["    return out"])
             self.emit("", "", f"def {PREFIX}integrals(s, y, p):",
                       *_docstring("The integrals of the ordinates at the solution y "
                                   "(Simpson's rule on its Hermite cubics; one pass for all "
                                   "of them)."),
                       f"    return {PREFIX}runtime.integrals(s, y, p, {PREFIX}rhs, "
-                      f"{PREFIX}velocity, {PREFIX}integrands, {k})")
+                      f"{PREFIX}velocity, {PREFIX}integrands)")
         names, unpack = self._solution_ends()
+        frames = self._end_frames(names)
         entries = []
         for i, o in enumerate(d.ordinates):
-            block = Block(names)
+            block = Block(names, frames=frames)
             block.add("value", o["sign"] * o["ends"])
             extra = []
             if o["integrand"] != 0:

@@ -75,6 +75,13 @@ class Energy:
         ``{name: [coordinates]}``: groups of the second variation's perturbation
         components counted each on its own where the form decouples along them
         (`elastica_auto.model.second_variation.SecondVariation`); each becomes an ordinate.
+        A rotation's components are ``R[0]``, ``R[1]``, ``R[2]`` (``R`` for all three).
+    states : list, optional
+        The states' names in another order than the derived one (coordinates, momenta,
+        quadratures): every derived state exactly once. For a module that must read the
+        branch files of a hand-written predecessor with that order.
+
+    A coordinate is a scalar function of s or a :class:`Rotation` (a frame in SO(3)).
     """
 
     density: object
@@ -89,14 +96,97 @@ class Energy:
     multipliers: dict
     momenta: object
     parts: dict
+    states: tuple | None
 
     def __init__(self, density, *, s, coordinates, parameters, fixed0=None, fixed1=None,
                  end0=0, end1=0, quadratures=None, multipliers=None, momenta=None,
-                 parts=None):
+                 parts=None, states=None):
         values = dict(density=density, s=s, coordinates=tuple(coordinates),
                       parameters=dict(parameters), fixed0=dict(fixed0 or {}),
                       fixed1=dict(fixed1 or {}), end0=end0, end1=end1,
                       quadratures=dict(quadratures or {}), multipliers=dict(multipliers or {}),
-                      momenta=momenta, parts=dict(parts or {}))
+                      momenta=momenta, parts=dict(parts or {}),
+                      states=None if states is None else tuple(states))
         for key, value in values.items():
             object.__setattr__(self, key, value)
+
+
+class Rotation:
+    """A frame R(s) in SO(3) as a coordinate of an :class:`Energy` (docs/energy.md, "Rotation
+    coordinates").
+
+    The energy is written in its body strains ``R.strain`` (u = (R^T R')^vee, a column of
+    three symbols: R' = R [u]_x) and the frame itself, ``R.matrix`` (3 x 3, body to space)
+    or its directors ``R.d1``, ``R.d2``, ``R.d3`` (its columns); in an end term these stand
+    for the frame at that end. The frame is stored as a quaternion q, four states named
+    ``quaternion`` (default ``<name>_q0`` .. ``<name>_q3``, scalar first), R = R(q / |q|)
+    and q' = q (x) (0, u) / 2, which keeps |q|; its momentum is the spatial moment
+    m = R dL/du (three states). A clamp is ``fixed0={R: q_c}`` with q_c a quaternion in
+    the parameters (:func:`rotation_about`, :func:`compose`). Its perturbations are spatial
+    rotations w in R^3, R -> exp([w]_x) R: three components of the second variation,
+    ``R[0]``, ``R[1]``, ``R[2]``, after the scalar coordinates'.
+
+    Built inside ``ENERGY()`` (it creates sympy symbols, named ``<name>.u1``,
+    ``<name>.R11`` and so on).
+    """
+
+    def __init__(self, name, quaternion=None):
+        import sympy as sp
+        self.name = name
+        self.quaternion = tuple(quaternion) if quaternion is not None else \
+            tuple(f"{name}_q{i}" for i in range(4))
+        self.strain = sp.Matrix([sp.Symbol(f"{name}.u{i + 1}", real=True) for i in range(3)])
+        self.matrix = sp.Matrix(3, 3, lambda a, b: sp.Symbol(f"{name}.R{a + 1}{b + 1}",
+                                                             real=True))
+
+    @property
+    def d1(self):
+        return self.matrix[:, 0]
+
+    @property
+    def d2(self):
+        return self.matrix[:, 1]
+
+    @property
+    def d3(self):
+        return self.matrix[:, 2]
+
+    def __getitem__(self, i):
+        if i not in (0, 1, 2):
+            raise IndexError(f"{self.name}[{i!r}]: a rotation's components are 0, 1, 2")
+        return RotationComponent(self, i)
+
+    def __repr__(self):
+        return f"Rotation({self.name!r}, quaternion={self.quaternion!r})"
+
+
+@dataclass(frozen=True)
+class RotationComponent:
+    """``R[i]``: the i-th component of a rotation's perturbation (a spatial rotation about
+    e_i), to name in ``parts``."""
+
+    rotation: Rotation
+    index: int
+
+
+def rotation_about(axis, angle):
+    """The unit quaternion (a sympy column of 4, scalar first) of the rotation by ``angle``
+    about the unit vector ``axis``."""
+    import sympy as sp
+    axis = list(axis)
+    return sp.Matrix([sp.cos(angle / 2)] + [sp.sin(angle / 2) * a for a in axis])
+
+
+def compose(*quaternions):
+    """The Hamilton product of quaternions (columns of 4, scalar first), left to right: the
+    rotation of the last one, then the one before, ..."""
+    import sympy as sp
+    out = sp.Matrix(quaternions[0])
+    for b in quaternions[1:]:
+        a0, a1, a2, a3 = out
+        b0, b1, b2, b3 = list(b)
+        out = sp.Matrix([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+                         a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+                         a0 * b2 + a2 * b0 + a3 * b1 - a1 * b3,
+                         a0 * b3 + a3 * b0 + a1 * b2 - a2 * b1])
+    return out

@@ -26,7 +26,9 @@ the worker executes it with `merge`, and never derives.
 from __future__ import annotations
 
 import ast
+import functools
 import re
+import sys
 import types
 from pathlib import Path
 
@@ -163,8 +165,16 @@ def execute(code: str, source: str, filename: str | None = None) -> types.Module
     """The generated module ``code``, executed in a namespace of its own."""
     namespace = types.ModuleType(f"elastica_auto_derived_{Path(source).stem}")
     namespace.__file__ = filename or f"<derived from {source}>"
-    exec(compile(code, namespace.__file__, "exec"), namespace.__dict__)
+    exec(_compiled(code, namespace.__file__), namespace.__dict__)
     return namespace
+
+
+@functools.lru_cache(maxsize=16)
+def _compiled(code: str, filename: str):
+    """``code`` compiled, once per process: a run loads its module again for each run file
+    it reads and each restart, and compiling the spatial rod's 2000 lines costs 1 MB and
+    tens of milliseconds each time."""
+    return compile(code, filename, "exec")
 
 
 def merge(module, source: str, code: str, filename: str | None = None):
@@ -182,6 +192,32 @@ def _give(module, derived):
             module.ORDINATES = merged_ordinates(module.ORDINATES, derived.ORDINATES)
         elif hasattr(derived, name) and not hasattr(module, name) and name not in left_out:
             setattr(module, name, getattr(derived, name))
+
+
+#: Set in a module imported as a Python module once its derived names are given (or being
+#: given): `derived_names` does not derive again.
+_ATTACHED = "__energy_derived__"
+
+
+def derived_names(name: str):
+    """A module-level ``__getattr__`` for the module ``name`` (its ``__name__``) that defines
+    ENERGY: imported as a Python module (``import elastica_auto.equations.X``, not through
+    `load_problem`), it gets its derived names on first use of one of them (from the cache,
+    or derived), as `load_problem` gives them. Write ``__getattr__ = derived_names(__name__)``
+    in a module whose derived functions other code imports. Under `load_problem` (which
+    executes the module under another name) it only says that a name is missing."""
+    def __getattr__(attr):
+        module = sys.modules.get(name)
+        if module is None or attr not in DERIVED or _ATTACHED in vars(module) \
+                or "ENERGY" not in vars(module):    # (a module `derive` printed)
+            raise AttributeError(f"module {name!r} has no attribute {attr!r}")
+        vars(module)[_ATTACHED] = True
+        path = Path(module.__file__)
+        attach(module, name, path.read_text(encoding="utf-8"))
+        if attr not in vars(module):
+            raise AttributeError(f"module {name!r} has no attribute {attr!r}")
+        return vars(module)[attr]
+    return __getattr__
 
 
 def _bound_names(tree) -> dict[str, ast.stmt]:

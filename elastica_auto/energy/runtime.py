@@ -14,7 +14,9 @@ what is not a formula:
   Hermite cubics (4th order, as the solution);
 * :func:`gradient_flow`: the energy discretised on a grid (midpoint rule) and its
   overdamped dynamics, for where a snap lands (`elastica_auto.analysis.landing`);
-* :func:`part_count`: the index of a named part of the second variation, as an ordinate.
+* :func:`part_count`: the index of a named part of the second variation, as an ordinate;
+* :func:`zero_modes`, :func:`spatial_turn`: a symmetry's zero mode in the perturbations (a
+  rotation's by its spatial turn).
 """
 
 from __future__ import annotations
@@ -143,26 +145,26 @@ def at_end(g, j):
     return g if g.ndim == 1 else g[:, j]
 
 
-def integrals(s, y, p, rhs, velocity, integrands, k):
-    """int_0^1 of each of ``integrands(s, z, v, p)`` (q, m) at the solution y on the nodes s:
+def integrals(s, y, p, rhs, velocity, integrands):
+    """int_0^1 of each of ``integrands(s, y, v, p)`` (q, m) at the solution y on the nodes s:
     Simpson's rule on each interval, the midpoint values from the Hermite cubic of the
-    solution (slopes rhs), zeta' from ``velocity``. Cached for the few ordinates asked for
-    one after the other at the same point."""
+    solution (slopes rhs), the velocities v (zeta' and the strains) from ``velocity``.
+    Cached for the few ordinates asked for one after the other at the same point."""
     s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
     return _integrals(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())), rhs,
-                      velocity, integrands, k)
+                      velocity, integrands)
 
 
 @functools.lru_cache(maxsize=8)
-def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands, k):
+def _integrals(s_bytes, y_bytes, n, items, rhs, velocity, integrands):
     from ..core.solution import at_fractions
     s = np.frombuffer(s_bytes).copy()
     y = np.frombuffer(y_bytes).reshape(n, -1).copy()
     p = dict(items)
     ym = at_fractions(s, y, rhs(s, y, p), (0.5,))[:, 0]
     sm = 0.5 * (s[:-1] + s[1:])
-    f = integrands(s, y[:k], velocity(s, y, p), p)
-    fm = integrands(sm, ym[:k], velocity(sm, ym, p), p)
+    f = integrands(s, y, velocity(s, y, p), p)
+    fm = integrands(sm, ym, velocity(sm, ym, p), p)
     out = np.sum(np.diff(s) * (f[:, :-1] + 4 * fm + f[:, 1:]), axis=1) / 6
     out.flags.writeable = False
     return out
@@ -191,7 +193,7 @@ def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
     return count_form(lambda pts: second_variation(pts, state(pts), p), s).parts
 
 
-def gradient_flow(p, nodes, density, ends, essential, k, flow):
+def gradient_flow(p, nodes, density, ends, essential, k, flow, rows):
     """The energy at ``p`` discretised on ``nodes`` and its overdamped dynamics, as an
     `elastica_auto.analysis.landing.Flow`.
 
@@ -201,8 +203,9 @@ def gradient_flow(p, nodes, density, ends, essential, k, flow):
     (second order; ``L`` with the quadratures' terms, ``c`` their constant), and
     ``u_t = -M^-1 grad E_h`` with M the lumped (trapezoidal) mass. Its Jacobian is the
     block-tridiagonal Hessian, assembled from each interval's (2k, 2k) block; k is the
-    number of coordinates, ``flow`` the class `elastica_auto.Flow` (the generated module
-    passes it: this package sits below the analysis layer)."""
+    number of coordinates, ``rows`` their rows in the states, ``flow`` the class
+    `elastica_auto.Flow` (the generated module passes it: this package sits below the
+    analysis layer)."""
     from scipy.sparse import coo_matrix
 
     from ..core.solution import trapezoid_weights
@@ -281,23 +284,138 @@ def gradient_flow(p, nodes, density, ends, essential, k, flow):
         from scipy.sparse import diags
         return (-diags(1.0 / mass) @ hessian(u)).tocsc()
 
-    return flow(nodes, lambda y: np.asarray(y)[:k].ravel()[free], mass, energy, force,
+    return flow(nodes, lambda y: np.asarray(y)[rows].ravel()[free], mass, energy, force,
                 jacobian)
 
 
 
-def zero_modes(symmetry, s, y, p, k, constraint) -> list:
-    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y (z the
-    coordinates' rows of its generator: the zero mode of the group in the perturbations),
-    else []: a derived second variation on a circle of solutions is counted on the
-    complement of its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint``
-    is `elastica_auto.Constraint`, which the generated module passes."""
+#: A symmetry's zero mode is left out of the count where its L2 size on the points exceeds
+#: this: below it the state is one the group fixes (the straight rod), where it is no mode.
+ZERO_MODE = 1e-6
+
+
+def zero_modes(symmetry, s, y, p, tangent, constraint) -> list:
+    """[constraint(z, kernel=True)] where the module's ``symmetry`` hook holds at y, z the
+    zero mode of the group in the perturbations (``tangent(y, generator)``: the
+    coordinates' rows, a rotation's spatial turn), L2-normalised on the points s; else []:
+    a derived second variation on a circle of solutions is counted on the complement of
+    its zero mode (docs/stability.md, "Continuous symmetry"). ``constraint`` is
+    `elastica_auto.Constraint`, which the generated module passes."""
     if symmetry is None:
         return []
     found = symmetry(s, y, p)
     if found is None:
         return []
-    return [constraint(np.asarray(found.generator, dtype=float)[:k], kernel=True)]
+    from ..core.solution import trapezoid_weights
+    z = tangent(y, np.asarray(found.generator, dtype=float))
+    size = float(np.sqrt(trapezoid_weights(s) @ np.sum(z * z, axis=0)))
+    if not size > ZERO_MODE:
+        return []
+    return [constraint(z / size, kernel=True)]
+
+
+def spatial_turn(q, dq):
+    """The spatial rotation w (3, m) of a change dq of the quaternions q (4, m): [w]_x =
+    dR R^T, w = 2 Im(dq (x) conj(q)) / |q|^2."""
+    q0, q1, q2, q3 = q
+    d0, d1, d2, d3 = dq
+    scale = 2 / (q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return np.array((-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2,
+                     -d0 * q2 + d2 * q0 - d3 * q1 + d1 * q3,
+                     -d0 * q3 + d3 * q0 - d1 * q2 + d2 * q1)) * scale
+
+
+def _quadratic_tensor():
+    """T (4, 3, 3, 4): dQ(q)/dq_j = 2 T[j] @ q, Q(q) the rotation matrix of q times |q|^2
+    (each entry of Q is q.T_ab q, T_ab symmetric)."""
+    t = np.zeros((4, 3, 3, 4))
+    for j, rows in enumerate((
+            (((0, 1), (3, -1), (2, 1)), ((3, 1), (0, 1), (1, -1)), ((2, -1), (1, 1), (0, 1))),
+            (((1, 1), (2, 1), (3, 1)), ((2, 1), (1, -1), (0, -1)), ((3, 1), (0, 1), (1, -1))),
+            (((2, -1), (1, 1), (0, 1)), ((1, 1), (2, 1), (3, 1)), ((0, -1), (3, 1), (2, -1))),
+            (((3, -1), (0, -1), (1, 1)), ((0, 1), (3, -1), (2, 1)), ((1, 1), (2, 1), (3, 1))))):
+        for a in range(3):
+            for b in range(3):
+                c, sign = rows[a][b]
+                t[j, a, b, c] = sign
+    t.flags.writeable = False
+    return t
+
+
+#: D[j, a, b, c]: (1/2) dQ_ab/dq_j = D[j, a, b] @ q (linear in q), and Q = sum_j q_j D_j q
+#: (Euler's relation): R and dR/dq by one matrix product each (`frame`, `chain`).
+_D = _quadratic_tensor()
+_QUADRATIC = _D.transpose(1, 2, 0, 3).reshape(9, 16)     # Q = _QUADRATIC @ (q (x) q)
+_LINEAR = _D.reshape(36, 4)                               # D_j(q) = (_LINEAR @ q)[j, a, b]
+
+
+def frame(q):
+    """R(q / |q|), (3, 3, m) for quaternions q (4, m) (or (3, 3) for q (4,)), scalar first:
+    the quadratic form over |q|^2, a rotation for any q != 0."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        return (_QUADRATIC @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
+    npts = q.shape[1]
+    out = _QUADRATIC @ (q[:, None, :] * q[None, :, :]).reshape(16, npts)
+    out /= np.einsum("ij,ij->j", q, q)
+    return out.reshape(3, 3, npts)
+
+
+def _half_left():
+    """H (4, 12): q (x) (0, u) / 2 = H @ (u (x) q), columns (k, c) for u_k q_c."""
+    out = np.zeros((4, 3, 4))
+    for k in range(3):
+        for c in range(4):
+            u, q = np.eye(3)[k], np.eye(4)[c]
+            a0, a1, a2, a3 = q
+            b1, b2, b3 = u
+            out[:, k, c] = 0.5 * np.array((-a1 * b1 - a2 * b2 - a3 * b3,
+                                           a0 * b1 + a2 * b3 - a3 * b2,
+                                           a0 * b2 + a3 * b1 - a1 * b3,
+                                           a0 * b3 + a1 * b2 - a2 * b1))
+    out = out.reshape(4, 12)
+    out.flags.writeable = False
+    return out
+
+
+_HALF_LEFT = _half_left()
+
+
+def quaternion_rate(q, u1, u2, u3):
+    """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
+    (m,) or a number): one product for all points."""
+    u = np.array(np.broadcast_arrays(u1, u2, u3, q[0])[:3], dtype=float)
+    return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
+
+
+def body(R, m):
+    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m)."""
+    return (R * m[:, None, :]).sum(axis=0)
+
+
+def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
+    """Add to ``jac`` (n, n, npts) the derivatives through a frame R = R(q / |q|) (3, 3,
+    npts) and its body moment R^T m: for the rows ``rows_r`` with f_r = df/dR (r, 3, 3,
+    npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
+    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2."""
+    npts = q.shape[1]
+    scale = 2 / np.einsum("ij,ij->j", q, q)
+    dR = (_LINEAR @ q).reshape(4, 3, 3, npts) - q[:, None, None, :] * R[None]
+    dR *= scale                                                   # dR/dq_j: (4, 3, 3, npts)
+    if f_r is not None:
+        jac[np.ix_(rows_r, qcols)] += np.einsum("iabm,jabm->ijm", f_r, dR)
+    if f_m is not None:
+        dmb = np.einsum("jacm,am->cjm", dR, m)                   # d(R^T m)/dq_j: (3, 4, npts)
+        jac[np.ix_(rows_m, qcols)] += np.einsum("icm,cjm->ijm", f_m, dmb)
+        jac[np.ix_(rows_m, mcols)] += np.einsum("icm,acm->iam", f_m, R)
+
+
+def in_rows(values, order, columns=False):
+    """``values`` in the canonical order of the states (coordinates, momenta, quadratures)
+    put in the module's rows: row i is the canonical state order[i]; ``columns``: the
+    columns too (a Jacobian)."""
+    out = np.asarray(values)[order]
+    return out[:, order] if columns else out
 
 
 def merged_ordinates(hand, derived) -> list:

@@ -186,10 +186,15 @@ class Augmented(NamesOfBase):
 
     def complete(self, s, y0, p):
         """The states (n, len(s)) from the module's states ``y0``: the running integrals of
-        the integrands (trapezoidal) and the free parameters' values in ``p``."""
+        the integrands (trapezoidal) and the free parameters' values, those of the rows
+        after the states' where ``y0`` has them (a guess that found them, `Problem.guess`),
+        else those in ``p``."""
         if y0 is None:
             return None
         y = np.zeros((self.n, len(s)))
+        if len(y0) == self.n0 + len(self.free):
+            p = {**p, **dict(zip(self.free, np.asarray(y0)[self.n0:, 0]))}
+            y0 = np.asarray(y0)[: self.n0]
         y[: self.n0] = y0
         if self.q:
             phi = self.base.integrals(s, y0, p)

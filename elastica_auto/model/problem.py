@@ -528,16 +528,21 @@ class Problem:
         return Augmented(self, free)
 
     def guess(self, s, p):
-        """The module's approximate solution on mesh ``s`` at ``p``, or None."""
+        """The module's approximate solution on mesh ``s`` at ``p``, or None. A module with
+        free parameters (``FREE``) may give their values too, as constant rows after the
+        states' ((n + len(FREE), len(s))): the start is solved from them
+        (`elastica_auto.model.augmented.Augmented.complete`), not from ``p``'s."""
         if self._guess is None:
             return None
         y = self._guess(s, p)
         if y is None:
             return None
         y = np.asarray(y, dtype=float)
-        if y.shape != (self.n, len(s)):
+        if y.shape not in ((self.n, len(s)), (self.n + len(self.free), len(s))):
             raise ProblemError(f"{self.source}: guess(s, p) returned shape {y.shape}; "
-                               f"expected {(self.n, len(s))} = (len(STATES), len(s))")
+                               f"expected {(self.n, len(s))} = (len(STATES), len(s))"
+                               + (f", or {(self.n + len(self.free), len(s))} with the free "
+                                  "parameters' values" if self.free else ""))
         return y
 
     @property
@@ -628,8 +633,13 @@ class Problem:
         return self._draw is not None
 
     def draw(self, ax, profile, params):
-        """Draw the configuration of ``profile`` (n, len(grid)) at ``params`` on ``ax``."""
+        """Draw the configuration of ``profile`` (n, len(grid)) at ``params`` on ``ax``. A
+        profile with rows after the module's states (a run's running integrals and free
+        parameters, whose values are in ``params``; a curve's null vectors) is drawn from
+        the module's rows."""
         profile = np.asarray(profile, dtype=float)
+        if profile.ndim == 2 and profile.shape[0] > self.n:
+            profile = profile[:self.n]
         if profile.ndim != 2 or profile.shape[0] != self.n:
             raise ProblemError(f"{self.source}: draw(ax, profile, params) needs a profile of "
                                f"shape ({self.n}, len(grid)), got {profile.shape}")

@@ -400,7 +400,11 @@ def _smooth(x, y, sx, sy, per_segment=8):
         return x, y
     u = np.concatenate([np.linspace(t[k], t[k + 1], per_segment, endpoint=False)
                         for k in range(len(t) - 1)] + [t[-1:]])
-    return PchipInterpolator(t, x)(u), PchipInterpolator(t, y)(u)
+    xs, ys = PchipInterpolator(t, x)(u), PchipInterpolator(t, y)(u)
+    # the points themselves, not the interpolant's rounding of them (a fold ends one line
+    # and starts the next at the same point: tests/test_plots.py)
+    xs[::per_segment], ys[::per_segment] = x, y
+    return xs, ys
 
 
 #: How close (relative to the diagram's extent in each coordinate) a stretch of a branch
