@@ -597,3 +597,30 @@ def test_a_restart_without_a_value_for_a_free_parameter_is_a_user_error(tmp_path
     problem = ea.load_problem(str(module))
     with pytest.raises(ea.PlanError, match="UZ1: no stored value for the free parameter 'b'"):
         ea.continuation(problem, lost, "lam", bounds=(0, 0.5), free=["b", "a"])
+
+
+def test_a_file_of_0_1_restarts_a_module_whose_state_became_a_free_parameter():
+    """A user's files survive an upgrade (issue 45): elastica_pinned carried the pin's
+    reaction as two states (nx, ny, constant along s) in 0.1 and solves for it as two free
+    parameters now (its energy's multipliers). A label of a file written by 0.1
+    (tests/data/pinned_0_1.h5, elastica-auto 0.1.0) restarts it: each free parameter is its
+    stored state's constant value, and the continuation's first point has the reaction the
+    old module stored, to the corrector's tolerance."""
+    import h5py
+    from pathlib import Path
+    path = Path(__file__).parent / "data" / "pinned_0_1.h5"
+    bf = BranchFile(path)
+    assert bf.attrs["version"] == "0.1.0" and bf.states[-2:] == ["nx", "ny"]
+    with h5py.File(path, "r") as f:
+        stored_nx = float(f["branches/001/columns/n_x"][-1])
+        stored_ny = float(f["branches/001/columns/n_y"][-1])
+    problem = ea.load_problem("elastica_pinned")
+    assert "nx" not in problem.states
+    branches = ea.continuation(problem, bf.label("EP2"), "theta0", bounds=(-0.1, 0.1),
+                               directions="both", max_points=10)
+    for br in branches:
+        first = br.points[0]
+        assert first.ordinates["n_x"] == pytest.approx(stored_nx, rel=1e-7)
+        assert first.ordinates["n_y"] == pytest.approx(stored_ny, rel=1e-7)
+        assert br.end == "EP" and len(br.points) > 2
+

@@ -33,6 +33,16 @@ from ..core.solution import State, Tangent
 from .stepper import STATIONARY, Course, Origin, Stops, continue_branch
 
 
+def _constant(state: State, row: int, label: StoredLabel, name: str) -> float:
+    """The value of the state ``row`` of ``state``, which must be constant along s (to the
+    rounding of a continuation's solution, relative): a parameter held as a state."""
+    values = state.y[row]
+    if np.max(np.abs(values - values[0])) > 1e-8 * (1.0 + abs(values[0])):
+        raise PlanError("start", f"{label.name}: its state {name!r} is not constant along s, "
+                        f"so it is no value of the free parameter {name!r}")
+    return float(values[0])
+
+
 def by_name(problem, label: StoredLabel) -> StoredLabel:
     """``label`` with its solution's rows in the order of ``problem.states``, matched by name.
 
@@ -42,23 +52,28 @@ def by_name(problem, label: StoredLabel) -> StoredLabel:
     of that name; a free parameter of ``problem`` that the label has no state for (one held
     fixed where it was found) is its stored value, constant along s (its derivative 0), and
     a free parameter of the label that ``problem`` holds fixed keeps its stored value among
-    the parameters. The tangent goes along where the states are the same ones reordered;
+    the parameters; a free parameter that the label holds as a state of its own name,
+    constant along s (a module that carried it as a state: elastica_pinned's reaction before
+    0.2), is that constant. The tangent goes along where the states are the same ones reordered;
     else it is dropped (another problem's tangent). PlanError (``start``) if a state cannot be
     matched: a free parameter without a stored value, or a state of another name."""
     names, have = tuple(problem.states), tuple(label.states)
     if not have or have == names:
         return label
     rows = {name: i for i, name in enumerate(have)}
-    state, pick = label.state, []
+    state, pick, params = label.state, [], dict(label.state.params)
     for name in names:
         if name in rows:
             pick.append(rows[name])
         elif name.startswith("free:") and name[5:] in problem.parameters:
             value = state.params.get(name[5:])
+            if value is None and name[5:] in rows:
+                value = _constant(state, rows[name[5:]], label, name[5:])
             if value is None:
                 raise PlanError("start", f"{label.name}: no stored value for the free "
                                 f"parameter {name[5:]!r} (its states: {', '.join(have)})")
             pick.append(float(value))
+            params[name[5:]] = float(value)
         else:
             raise PlanError("start", f"{label.name} has no state {name!r} "
                             f"(its states: {', '.join(have)}; {problem.source}'s: "
@@ -69,7 +84,7 @@ def by_name(problem, label: StoredLabel) -> StoredLabel:
         return np.array([y[k] if isinstance(k, int) else
                          np.full(m, 0.0 if derivative else k) for k in pick])
 
-    moved = State(state.s, rows_of(state.y, False), rows_of(state.yp, True), state.params)
+    moved = State(state.s, rows_of(state.y, False), rows_of(state.yp, True), params)
     tangent, t = None, label.tangent
     if t is not None and sorted(have) == sorted(names):
         order = [rows[name] for name in names]
