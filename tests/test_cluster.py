@@ -893,9 +893,19 @@ def _cells(path) -> dict:
     return {b.attrs["cell"]: b for b in BranchFile(path).branches}
 
 
+@pytest.fixture(scope="module")
+def plain_in_one_process(tmp_path_factory, cli_exe):
+    """rotating_arm with the module `_rotating_arm` writes (the hand-written elastica, whose
+    numbers are the shipped energy-first module's to rounding only), in one process."""
+    here = tmp_path_factory.mktemp("plain_one_process")
+    assert run_cli(cli_exe, "run", _rotating_arm(here), "--out", here / "out",
+                   "-j", "1").returncode == 0
+    return here / "out" / "rotating_arm.h5"
+
+
 @pytest.mark.parametrize("killed", ["workers", "scheduler"])
 def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_exe,
-                                                                  in_one_process, killed):
+                                                                  plain_in_one_process, killed):
     """hostile H5: every worker of the run's scheduler killed (with their nannies, as a batch
     system's walltime ends them), or the scheduler, once a branch is saved and another is
     held in a step on a worker. With --worker-timeout 1 the run ends with one line and exit
@@ -935,7 +945,7 @@ def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_
                     f"{len(saved) - len(missing)} branches saved to "
                     f"{out / 'rotating_arm.h5'}, {len(missing)} not computed (run it again "
                     "with --resume to compute them)")
-    one = _cells(in_one_process)
+    one = _cells(plain_in_one_process)      # the same module in one process
     assert {b.attrs["cell"] for b in saved} == one.keys() and len(saved) == len(one)
     assert saved[-len(missing):] == missing and 1 <= len(missing) < len(saved)
     assert all(b.attrs["end"] == "MX" for b in missing)

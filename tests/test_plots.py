@@ -158,7 +158,7 @@ def test_draw_must_be_a_function_and_gets_a_profile_of_the_states(tmp_path, brat
     problem = bratu_files["with_draw"][1]
     fig = Figure()
     with pytest.raises(ProblemError, match=r"profile of shape \(2, len\(grid\)\)"):
-        problem.draw(fig.add_subplot(), np.zeros((4, 10)), {"lam": 1.0})
+        problem.draw(fig.add_subplot(), np.zeros((1, 10)), {"lam": 1.0})   # fewer rows than states
 
 
 
