@@ -242,7 +242,14 @@ class Collocation:
         """The solution at the guess's parameters, from the guess, on a mesh that meets
         ``tol``."""
         lam = guess.params[self.parameter]
-        return self._solve(guess.s, guess.params, guess, lam, lambda disc: Row.value(disc, lam))
+        sol = self._solve(guess.s, guess.params, guess, lam, lambda disc: Row.value(disc, lam))
+        # the row fixes the parameter at lam, which the bordered solve gives back to its
+        # rounding (-4e-31 for 0 with one BLAS kernel, 0.0 or -0.0 with another): lam itself,
+        # so that a start's value is the one asked for, whatever the kernel (a UZ value or a
+        # bound at the start is then met the same way)
+        sol.state.params = {**sol.state.params, self.parameter: lam}
+        sol.lin.lam, sol.lin.params = lam, {**sol.lin.params, self.parameter: lam}
+        return sol
 
     def step(self, a: Solution, ds: float, curvature: Tangent | None = None) -> Solution:
         """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` on a's mesh (a's factorised
