@@ -84,8 +84,9 @@ def test_no_fold_where_the_parameter_only_turns_by_rounding(vertical):
 def test_the_bratu_fold_on_a_module_scaled_by_1e3_and_1e_3(tmp_path):
     """Issue 45 item 5's check for the fold rule's noise bound (events.TURN_NOISE): the
     Bratu module (the hand-written one, whose functions the scaled copy calls) with its
-    states scaled by 1e3 and 1e-3 has its one fold at lam_c, as the module itself. Steps and ds_min in the units of each (a step is a distance in y; the
-    fold of the 1e-3 module turns within 1e-6 of arclength)."""
+    states scaled by 1e3 and 1e-3 has its one fold at lam_c, as the module itself. Steps
+    and ds_min in the units of each (a step is a distance in y; the fold of the 1e-3 module
+    turns within 1e-6 of arclength)."""
     for scale in (1.0, 1e3, 1e-3):
         problem = ea.load_problem(str(scaled_module(REFERENCE / "bratu.py", scale, tmp_path)))
         unit = max(scale, 1.0)
