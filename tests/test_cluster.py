@@ -1004,8 +1004,12 @@ def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypat
     assert not thread.is_alive() and len(ended) == 1
     assert "has had no worker for 1 s (worker_timeout)" in str(ended[0])
     saved = BranchFile(tmp_path / "out" / "rotating_arm.h5").branches
-    assert [b.attrs["end"] for b in saved] == ["EP"] * 2 + ["MX"] * 6
-    assert [b.attrs["message"] for b in saved[2:]] == [NOT_COMPUTED] * 6
+    # the first two at least (fetched before the kill) and any other that finished before
+    # the workers died are whole; the rest, one at least, not computed
+    ends = [b.attrs["end"] for b in saved]
+    assert len(saved) == 8 and ends[:2] == ["EP", "EP"] and "MX" in ends
+    assert all((b.attrs["end"], b.attrs["message"]) == ("MX", NOT_COMPUTED)
+               for b in saved if b.attrs["end"] != "EP")
 
 
 @pytest.mark.parametrize("address", ["notanaddress", "tls://127.0.0.1:1", "inproc://x"])

@@ -233,7 +233,10 @@ def _fetched(future) -> tuple[bool, object]:
     from concurrent.futures import CancelledError
     try:
         return True, future.result(timeout=FETCH_TIMEOUT)
-    except (TimeoutError, CancelledError):
+    except (TimeoutError, CancelledError, OSError):
+        # OSError: distributed's CommClosedError, a connection closed as the result came (the
+        # scheduler or the worker gone; the run's watch tells which, `_Watch`): it was an
+        # internal error that ended a run whose scheduler was killed
         return False, None
 
 
@@ -256,7 +259,11 @@ class _Watch:
         self.asked = now
         client = self.client
         answers = client.status == "running"
-        if answers and client.scheduler_info(n_workers=0).get("n_workers", 0) > 0:
+        try:
+            workers = answers and client.scheduler_info(n_workers=0).get("n_workers", 0)
+        except OSError:          # CommClosedError too: the scheduler is going away
+            answers = workers = False
+        if workers:
             self.since = None
             return
         if self.since is None:
@@ -401,6 +408,17 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                     continue
                 br, worker = value
                 br.worker = worker
+            elif f.status == "lost":
+                # its data went with the workers as the cluster ended (no KilledWorker: not
+                # the task's fault): submitted again, for workers that come back; with none,
+                # the watch ends the run and the branch is recorded as not computed
+                again = client.submit(_task, plan, offset + i + 1, jobs_list[i], pure=False,
+                                      key=f"elastica-branch-{offset + i + 1}-"
+                                          f"{uuid.uuid4().hex[:8]}")
+                tasks[i] = again
+                futures[again] = i
+                pending.add(again)
+                continue
             else:  # the task raised, or its workers died beyond the scheduler's retries
                 br = failed_branch(plan, jobs_list[i], task_failure(f))
             done[i] = br
