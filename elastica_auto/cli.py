@@ -229,10 +229,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, worke
         _fail(str(exc), EXIT_CLUSTER_LOST)
     except USER_ERRORS as exc:
         _fail(str(exc))
-    except WriteError as exc:
+    except WriteError as exc:      # before the catch-all below: one line, exit 5
         _fail(str(exc), EXIT_WRITE)
-    except ClusterLost as exc:
-        _fail(str(exc), EXIT_CLUSTER_LOST)
     except KeyboardInterrupt:  # execute stops its own interruptions once the output is open
         click.echo("\ninterrupted before the first branch: nothing written", err=True)
         sys.exit(EXIT_INTERRUPTED)
@@ -434,8 +432,6 @@ def export(file, output):
         path = export_csv(bf, check_output(output, bf.path, "the CSV", "exported"))
     except StoreError as exc:
         _fail(str(exc))
-    except WriteError as exc:      # the write's OSError, as one line
-        _fail(str(exc), EXIT_WRITE)
     n = sum(len(b) for b in bf.branches)
     click.echo(f"{n} points of {len(bf.branches)} branches -> {path}")
 
@@ -463,8 +459,6 @@ def plot(file, xname, yname, output, fold):
         path = bifurcation_diagram(bf, Path(output), xname, yname, period=period)
     except (ValueError, StoreError) as exc:
         _fail(str(exc))
-    except WriteError as exc:      # the write's OSError, as one line
-        _fail(str(exc), EXIT_WRITE)
     click.echo(f"wrote {path}")
 
 
@@ -500,8 +494,6 @@ def view(file, output, xname, yname, fold, equation):
         path = write_page(text, output, bf.path)
     except (ValueError, StoreError) as exc:      # the ProblemErrors of --equation too
         _fail(str(exc))
-    except WriteError as exc:      # the write's OSError, as one line
-        _fail(str(exc), EXIT_WRITE)
     except KeyboardInterrupt:
         click.echo("\ninterrupted: no page written", err=True)
         sys.exit(EXIT_INTERRUPTED)

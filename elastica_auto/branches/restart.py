@@ -124,13 +124,11 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
                      tol=min(NEWTON_TOL, 1e-3 * own.tol))
         moved = max(float(np.max(np.abs(res.Y - state.y) / (1.0 + np.abs(state.y)))),
                     abs(res.lam - lam) / (1.0 + abs(lam)))
-        if not res.converged and label.name.startswith("BP"):
-            # at a branch point the linearisation is singular whatever the border (its kernel
-            # has two dimensions): Newton cannot converge, and the equations' residual at the
-            # solution is what tells a solution from one that is not
-            why = _residual_too_large(disc, state, own.tol)
-        elif not res.converged:
-            why = f"Newton from it does not converge ({res.message})"
+        if not res.converged:
+            # where the linearisation is singular whatever the border (a branch point: its
+            # kernel has two dimensions) Newton cannot converge from a solution either: the
+            # equations' residual there is what tells a solution from one that is not
+            why = _residual_too_large(disc, state, own.tol, res.message)
         elif not moved < own.tol:
             why = (f"solved again, it moves by {moved:.3g} (its tolerance: {own.tol:g}), "
                    f"{_where_most(res.Y - state.y, state.y, label.states)}")
@@ -139,18 +137,20 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
                          f"problem: {why}")
 
 
-def _residual_too_large(disc, state, tol: float) -> str | None:
-    """Why the residual of the discretised equations at ``state`` says it is not a solution,
-    or None: each collocation residual relative to 1 + |y| at its interval's first node,
-    each boundary residual relative to 1 + max |y|, at most ``tol`` (a solution's are of the
-    order of Newton's tolerance, an edited one's of its edit over the mesh's step)."""
+def _residual_too_large(disc, state, tol: float, newton: str) -> str | None:
+    """Why the residual of the discretised equations at ``state`` says it is not a solution
+    (``newton``: why Newton from it did not converge), or None: each collocation residual
+    relative to 1 + |y| at its interval's first node, each boundary residual relative to
+    1 + max |y|, at most ``tol`` (a solution's are of the order of Newton's tolerance, an
+    edited one's of its edit over the mesh's step)."""
     ev = disc.evaluate(state.y, state.params)
     scale = 1.0 + np.abs(state.y)
     worst = max(float(np.max(np.abs(ev.col) / scale[:, :-1])),
                 float(np.max(np.abs(ev.bc)) / (1.0 + float(np.max(np.abs(state.y))))))
     if worst <= tol:
         return None
-    return f"the residual of its equations is {worst:.3g} (its tolerance: {tol:g})"
+    return (f"Newton from it does not converge ({newton}), and the residual of its "
+            f"equations is {worst:.3g} (its tolerance: {tol:g})")
 
 
 def _own_options(options: ContinuationOptions, stored: dict) -> ContinuationOptions:
