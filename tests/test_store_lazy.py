@@ -50,15 +50,29 @@ def copy(bratu_file, tmp_path):
 
 @pytest.fixture
 def reads(monkeypatch):
-    """The names of the datasets read through h5py from now on, in order."""
+    """The names of the datasets read from now on, in order: through h5py's datasets, or
+    its low-level calls (the store's ``_dataset`` and ``_part``; a ``_part`` of no columns
+    reads nothing)."""
+    from elastica_auto.storage import store
     names = []
-    getitem = h5py.Dataset.__getitem__
+    getitem, dataset, part = h5py.Dataset.__getitem__, store._dataset, store._part
 
     def counted(self, args, *rest, **kw):
         names.append(self.name)
         return getitem(self, args, *rest, **kw)
 
+    def counted_dataset(g, name, *rest):
+        names.append(f"{g.name}/{name}")
+        return dataset(g, name, *rest)
+
+    def counted_part(g, name, a, b):
+        if (a, b) != (0, 0):
+            names.append(f"{g.name}/{name}")
+        return part(g, name, a, b)
+
     monkeypatch.setattr(h5py.Dataset, "__getitem__", counted)
+    monkeypatch.setattr(store, "_dataset", counted_dataset)
+    monkeypatch.setattr(store, "_part", counted_part)
     return names
 
 
@@ -437,3 +451,80 @@ def test_a_mesh_index_out_of_range_is_damage(copy):
     with pytest.raises(StoreError) as err:
         bf.label(next(n for n, (br, _) in bf.labels.items() if br == 1))
     assert "damaged" in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.fixture
+def checks(monkeypatch, tmp_path):
+    """The files whose chunks an opening checks from now on (``_checksum_failure``'s calls,
+    by file name), with a cache folder of this test's own."""
+    from elastica_auto.storage import store
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.delenv("ELASTICA_AUTO_CHECKSUMS", raising=False)
+    names = []
+    check = store._checksum_failure
+
+    def counted(group, where):
+        names.append(Path(group.file.filename).name)
+        return check(group, where)
+
+    monkeypatch.setattr(store, "_checksum_failure", counted)
+    return names
+
+
+def _bratu(tmp_path, name="fresh.h5"):
+    problem = ea.load_problem(str(BRATU))
+    branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1],
+                               ds=0.05, ds_max=0.5, max_points=20)
+    return ea.save(branches, tmp_path / name)
+
+
+def test_a_file_is_checked_once_as_it_is(tmp_path, checks, monkeypatch):
+    """Issue 45 item 7 (reading no slower than before the checksums): a file this program
+    wrote opens without the checksum pass (HDF5 made its checksums from the bytes it wrote);
+    a copy of it (another file) is checked on its first opening, not on the next;
+    ``ELASTICA_AUTO_CHECKSUMS=always`` checks on every opening."""
+    path = _bratu(tmp_path)
+    BranchFile(path)
+    assert checks == []
+    copied = tmp_path / "copied.h5"
+    shutil.copy(path, copied)
+    BranchFile(copied)
+    BranchFile(copied)
+    assert checks == ["copied.h5"]
+    monkeypatch.setenv("ELASTICA_AUTO_CHECKSUMS", "always")
+    BranchFile(path)
+    BranchFile(path)
+    assert checks == ["copied.h5", "fresh.h5", "fresh.h5"]
+
+
+@pytest.mark.parametrize("times", ["kept", "set back"])
+def test_a_known_file_damaged_in_place_is_checked_again(tmp_path, checks, times):
+    """Issue 45 item 7: bytes written over a chunk of a file known to match its checksums
+    (written by this program, opened since) are found on the next opening, the dataset
+    named, even with the file's modification time set back to what it was: a write changes
+    the file's status-change time, which no user can set."""
+    path = _bratu(tmp_path)
+    BranchFile(path)
+    before = os.stat(path)
+    with h5py.File(path, "r") as f:
+        chunk = f["branches/001/columns/lam"].id.get_chunk_info(0)
+    with open(path, "r+b") as fh:
+        fh.seek(chunk.byte_offset)
+        fh.write(bytes(b ^ 0xFF for b in fh.read(8)))
+    if times == "set back":
+        os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
+        assert os.stat(path).st_mtime_ns == before.st_mtime_ns
+    with pytest.raises(StoreError, match="checksum mismatch in /branches/001/columns/lam"):
+        BranchFile(path)
+    assert checks == ["fresh.h5"]
+
+
+def test_an_unwritable_cache_only_costs_the_check(tmp_path, checks, monkeypatch):
+    """A cache folder that cannot be made (its parent a file) costs the check on every
+    opening, and nothing else: the file opens, its damage would be found."""
+    (tmp_path / "blocked").write_text("a file where the cache folder would be")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "blocked"))
+    path = _bratu(tmp_path)
+    BranchFile(path)
+    BranchFile(path)
+    assert checks == ["fresh.h5", "fresh.h5"]

@@ -1,0 +1,94 @@
+"""The branch files known to match their checksums, so that opening one need not check it again.
+
+Opening a branch file checks every chunk of every dataset against its Fletcher32 checksum
+(`store._checksum_failure`): a damaged byte anywhere is reported, whatever a command would
+have read. That pass reads the whole file (for `rotating_arm_3d`'s 24 MB, some 50 ms: twice
+the rest of the opening). It is needed once per file as it is on disk: this module remembers
+the files that passed it, and the files this program wrote (HDF5 made their checksums from
+the bytes it wrote), by their identity
+
+    (device, inode, size, modification time, status-change time)   (nanoseconds)
+
+as an empty file named by its digest in ``$XDG_CACHE_HOME/elastica-auto/verified``
+(``~/.cache/...`` where that is not set). Any write to a file changes its modification and
+status-change times, and a copy is a new inode: a file damaged since, or edited through HDF5,
+or copied, is checked again on its next opening. (A user cannot set the status-change time,
+so a damaged file cannot pass for a checked one by its times being set back.) Bytes damaged
+on the disk itself, below the file system, change neither: those are found by HDF5, which
+checks each chunk's checksum whenever it reads it, so no command computes anything from them.
+
+A folder that cannot be written only costs the check next time. Entries older than
+`MAX_AGE` are removed once the folder holds more than `MAX_ENTRIES`.
+``ELASTICA_AUTO_CHECKSUMS=always`` checks every file on every opening, remembering nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import time
+from pathlib import Path
+
+#: The environment variable that makes every opening check every chunk ("always").
+ENV = "ELASTICA_AUTO_CHECKSUMS"
+#: The folder is pruned when it holds more entries than this ...
+MAX_ENTRIES = 4096
+#: ... of those not used (remembered or looked up) for this many seconds.
+MAX_AGE = 30 * 86400
+
+
+def always() -> bool:
+    """Whether every opening checks every chunk (the environment variable says ``always``)."""
+    return os.environ.get(ENV, "").strip().lower() == "always"
+
+
+def folder() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "elastica-auto" / "verified"
+
+
+def _entry(st: os.stat_result) -> Path:
+    identity = f"{st.st_dev}:{st.st_ino}:{st.st_size}:{st.st_mtime_ns}:{st.st_ctime_ns}"
+    return folder() / hashlib.sha256(identity.encode()).hexdigest()[:32]
+
+
+def known(st: os.stat_result) -> bool:
+    """Whether the file of status ``st`` (`os.fstat` of the open file) passed the check, or
+    was written by this program, as it is now."""
+    if always():
+        return False
+    entry = _entry(st)
+    try:
+        os.utime(entry)          # its use keeps it from pruning
+    except FileNotFoundError:
+        return False
+    except OSError:              # a folder this user cannot write
+        return entry.exists()
+    return True
+
+
+def remember(st: os.stat_result):
+    """The file of status ``st`` matches its checksums as it is now (best effort)."""
+    if always():
+        return
+    entry = _entry(st)
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        entry.touch()
+    except OSError:
+        return
+    _prune(entry.parent)
+
+
+def _prune(where: Path):
+    """Remove the entries not used for MAX_AGE, where there are more than MAX_ENTRIES."""
+    with contextlib.suppress(OSError):
+        entries = list(os.scandir(where))
+        if len(entries) <= MAX_ENTRIES:
+            return
+        cutoff = time.time() - MAX_AGE
+        for e in entries:
+            with contextlib.suppress(OSError):
+                if e.stat().st_mtime < cutoff:
+                    os.unlink(e.path)
