@@ -75,9 +75,12 @@ def symmetric_start(problem, parameter: str, origin) -> bool:
 def symmetric_course(course) -> bool:
     """Whether ``course`` ends branches where their mirror images end: bounds -b and b, and
     no stops on an ordinate (a fold stop, ``stop = "LP3"``, counts folds along the branch,
-    which its image meets in the same order; a fold curve's course is not one)."""
+    which its image meets in the same order; a fold curve's course is not one); and labels
+    the same points on both: no events asked for (``events``: an ordinate's value need not
+    be its image's)."""
     stops = course.stops
-    return stops.lower == -stops.upper and not stops.limits and not course.all_folds
+    return (stops.lower == -stops.upper and not stops.limits and not course.all_folds
+            and not course.watch)
 
 
 def mirror_course(course):

@@ -44,9 +44,10 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
-                     locate_branch_point, locate_fold, locate_index_change, locate_limit,
-                     locate_value, pair_suspected, parameter_turns,
-                     place_symmetric_branch_point, tangent_between)
+                     locate_limit, pair_suspected, tangent_between)
+from .kinds import Event, Hit, Limit
+from .registry import BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, USER_VALUE
+from ..core import labels
 from ..numerics.newton import Row
 from ..core.errors import ENGINE, debugging, failure_record
 from ..core.options import ContinuationOptions
@@ -99,26 +100,6 @@ REPEAT_GAP = 1e-4
 
 
 @dataclass(frozen=True)
-class Limit:
-    """``stop = ["norm > 100"]``: the branch ends where ``name`` (an ordinate or a free
-    parameter) passes ``value`` upwards (``sign`` +1, ``>``) or downwards (-1, ``<``)."""
-
-    name: str
-    sign: int
-    value: float
-
-    def __str__(self):
-        return f"{self.name} {'>' if self.sign > 0 else '<'} {self.value:g}"
-
-    def excess(self, problem, state: State) -> float:
-        """sign (quantity - value) at ``state``: positive once the limit is passed."""
-        p = problem.point_params(state.params, state.y)
-        q = p[self.name] if self.name in p else \
-            problem.ordinate_values(state.s, state.y, state.params)[self.name]
-        return self.sign * (q - self.value)
-
-
-@dataclass(frozen=True)
 class Stops:
     """Where a branch ends: bounds on the continued parameter, the n-th fold (or None), and
     limits on ordinates or free parameters."""
@@ -127,17 +108,6 @@ class Stops:
     upper: float = math.inf
     at_fold: int | None = None
     limits: tuple[Limit, ...] = ()
-
-
-@dataclass
-class _Event:
-    sigma: float
-    kind: str
-    state: State
-    tangent: Tangent | None
-    residual: float = float("nan")
-    note: str = ""
-    message: str = ""      # an EP's: why the branch ends there
 
 
 class _Reject(Exception):
@@ -260,7 +230,10 @@ class Course:
     met a turn of its rounding that could not be located: 8% of a 3D run's time).
     ``counted_values``: the UZ values whose points count toward ``max_points`` (None: all of
     ``user_values``); the others are set aside for the branch's mirror image
-    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch."""
+    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch.
+    ``watch``: the events the run asks for (``events = [...]``,
+    `elastica_auto.branches.registry.parse_events`), each found in every step by its own
+    test function (:meth:`~elastica_auto.branches.kinds.Event.find`)."""
 
     parameter: str
     options: ContinuationOptions
@@ -269,6 +242,7 @@ class Course:
     all_folds: bool = False
     events: bool = True
     counted_values: tuple[UserValues, ...] | None = None
+    watch: tuple[Event, ...] = ()
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -310,9 +284,9 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             a = start_solution(corr, origin.state, branch.direction, origin.tangent,
                                origin.kind == "switch")
         except CorrectorFailure as exc:
-            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
                                     note="singular start"))
-            branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
+            branch.end, branch.message = labels.MX, f"no tangent at the start point ({exc})"
             return branch
         walk = _Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         walk.run(a)
@@ -340,10 +314,10 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
     its label and is followed by an MX of its own). A branch without points gets its start,
     labelled MX, so that every branch has a point to show and restart from (without calling
     the module, which may be what failed, if it fails there: :func:`start_point`)."""
-    branch.end, branch.message = "MX", message
+    branch.end, branch.message = labels.MX, message
     if not branch.points:
         try:
-            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
                                     tangent=origin.tangent))
         except Exception:  # the module fails at the start itself
             branch.insert(start_point(branch, origin))
@@ -355,10 +329,10 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
         branch.points.pop()
     last = branch.points[-1]
     if last.type:  # keep its label (the start's EP, say); end with an MX of its own
-        branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,
+        branch.insert(new_point(problem, last.state, type=labels.MX, arclength=last.arclength,
                                 tangent=last.tangent, direct=last.index_direct))
     else:  # the last accepted point, whose solution the walk still has
-        walk.end_at_base("MX", message)
+        walk.end_at_base(labels.MX, message)
 
 
 def start_point(branch: Branch, origin: Origin) -> Point:
@@ -368,7 +342,7 @@ def start_point(branch: Branch, origin: Origin) -> Point:
     state = origin.state
     return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
                                                                     float("nan")),
-                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type=labels.MX,
                  profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
                  state=state, tangent=origin.tangent)
 
@@ -394,7 +368,7 @@ class _Walk:
     def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
         self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
         self.stops, self.user_values = course.stops, course.user_values
-        self.counted_values = course.counted_values
+        self.counted_values, self.watch = course.counted_values, course.watch
         self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
         self.all_folds, self.events = course.all_folds, course.events
         # the kinds of special point looked for (the option ``detect``; none without events)
@@ -421,12 +395,12 @@ class _Walk:
         """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
         sure every fold recurs at its translates (:meth:`_complete_translates`)."""
         self._walk(a)
-        if self.until is None and self.branch.end != "LP":
+        if self.until is None and self.branch.end != labels.LP:
             self._complete_translates()
 
     def _walk(self, a: Solution):
         opt, branch = self.opt, self.branch
-        self.base_point = self._add(a.state, type="EP", arclength=0.0, tangent=a.tangent)
+        self.base_point = self._add(a.state, type=labels.EP, arclength=0.0, tangent=a.tangent)
         if self.singular_start:
             self.base_point.note = ""
         self.a, self.arclength, self.first = a, 0.0, True
@@ -444,7 +418,7 @@ class _Walk:
         while True:
             # the branch ends at its last point, which an EP of its own follows if labelled
             if self._room() <= (1 if self.base_point.type else 0):
-                self.end_at_base("EP", self._full())
+                self.end_at_base(labels.EP, self._full())
                 return
             try:
                 ds_next, ended = self._step(ds, retries, below)
@@ -465,7 +439,7 @@ class _Walk:
                         # the corrector's absolute accuracy and lam exp(u) is not small)
                         why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
                                 "without meeting tol)")
-                    self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                    self.end_at_base(labels.MX, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
                                             f"after point {len(branch.points)} "
                                             f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
                     branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
@@ -483,11 +457,12 @@ class _Walk:
         translation once it passes its start one period on (:meth:`_repeat`): a regular
         start, and nothing that a translate would have to decide afresh. Each UZ value
         recurs with a period that divides the parameter's (every translate of a user point
-        is one, and no other point becomes one); no fold stop, no limit, not a fold curve
+        is one, and no other point becomes one); no fold stop, no limit, no event the run
+        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
         nor the refinement of a step."""
         period = self.problem.parameters[self.name].period
         if (period is None or singular_start or course.all_folds or course.stops.limits
-                or course.stops.at_fold is not None):
+                or course.stops.at_fold is not None or course.watch):
             return None
         for spec in course.user_values:
             if spec.period is None:
@@ -521,7 +496,7 @@ class _Walk:
         """Whether a point of this ``kind`` at parameters ``params`` counts toward
         ``max_points``: all but UZ points at values set aside for the branch's mirror image
         (not among ``counted_values``)."""
-        return (kind != "UZ" or self.counted_values is None
+        return (kind != labels.UZ or self.counted_values is None
                 or is_user_value(params[self.name], self.counted_values))
 
     def _room(self) -> int:
@@ -611,7 +586,7 @@ class _Walk:
                           f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
                           f"deg to the chord, ds = {ds:.3g})", ds / 2)
 
-    def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
+    def _detect(self, step: Step, retries: int) -> tuple[list[Hit], int]:
         """The folds and branch points in the step, located, and the index at b, checked
         against the fold rule; a fold pair suspected inside the step, a fold that cannot be
         located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
@@ -620,8 +595,8 @@ class _Walk:
         s = b.mesh
         skip = (self.first and self.singular_start) or not self.events
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
-        fold = parameter_turns(a.tangent.lam, b.tangent.lam) and not skip and self.detect_lp
-        bp = (a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
+        fold = FOLD.crossed(step) and not skip and self.detect_lp
+        bp = (BRANCH_POINT.crossed(a_here, b) and not skip and not a.extra.get("singular")
               and self.detect_bp)
         counted = count(self.problem, b.state)
         index_a, index_b = self.base_point.index_direct, counted.index
@@ -646,18 +621,18 @@ class _Walk:
                     # the parameter turns, the fold system is singular and no eigenvalue
                     # crossed zero: not a simple fold (where the index changes by one) but a
                     # pitchfork passed along its other branch
-                    found.append(_Event(step.dist / 2, "BP", b.state, b.tangent,
+                    found.append(Hit(step.dist / 2, labels.BP, b.state, b.tangent,
                                         note="turning point without index change (the fold "
                                              f"system fails: {exc})"))
                     unlocated = ""   # that is the branch point, labelled, its note says why
                 else:
                     self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
                                                 f"located: {exc}")
-                    found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
+                    found.append(Hit(step.dist / 2, labels.LP, b.state, b.tangent,
                                         note=f"fold not located: {exc}"))
         elif located is not None:
             note = self._kernel_check(located.state, index_a, index_b)
-            found.append(_Event(located.sigma, "BP", located.state, step.secant,
+            found.append(Hit(located.sigma, labels.BP, located.state, step.secant,
                                 abs(located.value), note=note))
         if unlocated:
             self.branch.warnings.append(unlocated)
@@ -681,19 +656,17 @@ class _Walk:
             self.event_retries = 0
         return found, counted
 
-    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> _Event:
+    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> Hit:
         """A branch point where the index changed by an even number with neither a fold nor
         a change of sign of the determinant, down to the shortest step: eigenvalues crossed
         zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
         does not see. Located where the index changes (bisection)."""
-        def index_of(state):
-            return count(self.problem, state).index
-        at = locate_index_change(self.corr, step, index_of, index_a)
+        at = EVEN_BRANCH_POINT.locate(self, step, index_a)
         state = at.solution.state
         note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
                 "(a branch point of even multiplicity)")
         kernel = self._kernel_check(state, index_a, index_b)
-        return _Event(at.sigma, "BP", state, step.secant, note="; ".join(filter(None, (note,
+        return Hit(at.sigma, labels.BP, state, step.secant, note="; ".join(filter(None, (note,
                                                                                     kernel))))
 
     def _kernel_check(self, state, index_a: int, index_b: int) -> str:
@@ -710,7 +683,7 @@ class _Walk:
         self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
         return note
 
-    def _accept(self, step: Step, found: list[_Event], counted: Count, retries: int,
+    def _accept(self, step: Step, found: list[Hit], counted: Count, retries: int,
                 cos_turn: float) -> tuple[float, bool]:
         """Add the step's events and its end point b; the next ds (grown after an easy step)
         and whether the branch ended."""
@@ -738,7 +711,7 @@ class _Walk:
             origin, direction, distance = self.until
             s = b.mesh
             if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
-                self.branch.end, self.branch.message = "EP", "reached the end of the segment"
+                self.branch.end, self.branch.message = labels.EP, "reached the end of the segment"
                 return ds, True
         if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
                 and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
@@ -768,7 +741,7 @@ class _Walk:
         pts = self.branch.points
         lam = np.array([p.params[self.name] for p in pts])
         ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = [k for k, p in enumerate(pts) if p.type == "LP" and not p.note]
+        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
         out = {}
         for k in folds:
             scale = 1.0 + np.abs(ords[k])
@@ -808,11 +781,11 @@ class _Walk:
         opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
                                   ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
         sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
-        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values),
-                     None, False)
+        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
+                                                     watch=self.watch), None, False)
         walk.until = (p.state, sec, dist * (1 - 1e-7))
         walk.run(p)
-        if sub.end != "EP":
+        if sub.end != labels.EP:
             return False
         grid = PROFILE_GRID
         w = np.gradient(grid)
@@ -870,7 +843,7 @@ class _Walk:
                 return
             u = nxt
 
-    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[_Event]:
+    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[Hit]:
         """The fold in the step, located: an LP, or where the determinant changed sign too, a
         BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
         branch), unless the branch point ``located`` lies apart from the fold (more than
@@ -879,18 +852,18 @@ class _Walk:
         both; as one BP the fold was missing, and the walk for its translates went on for
         thousands of points)."""
         before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
-        fp = locate_fold(self.corr, step, before[0] if before else None)
+        fp = FOLD.locate(self, step, before[0] if before else None)
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
             phi = phi.scaled(-1.0)
         sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
-        fold = _Event(sigma, "LP", fp.state, phi, fp.residual)
+        fold = Hit(sigma, labels.LP, fp.state, phi, fp.residual)
         if not bp:
             return [fold]
         if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
-            return [fold, _Event(located.sigma, "BP", located.state, step.secant,
+            return [fold, Hit(located.sigma, labels.BP, located.state, step.secant,
                                  abs(located.value))]
-        return [_Event(sigma, "BP", fp.state, step.secant, fp.residual,
+        return [Hit(sigma, labels.BP, fp.state, step.secant, fp.residual,
                        note="turning point without index change")]
 
     def _branch_point(self, step: Step, can_retry: bool
@@ -905,11 +878,8 @@ class _Walk:
         has the other sign), the solutions on the hyperplanes between the two branches fail
         or the sign change does not survive a finer mesh, and a shorter step follows the
         branch round its corner."""
-        placed = place_symmetric_branch_point(self.corr, self.problem, step)
-        if placed is not None:
-            return placed, ""
         try:
-            return locate_branch_point(self.corr, step), ""
+            return BRANCH_POINT.locate(self, step), ""
         except CorrectorFailure as exc:
             if can_retry:
                 self.event_retries += 1
@@ -917,13 +887,13 @@ class _Walk:
             return None, (f"branch point between {self.name} = {step.a.lam:.6g} and "
                           f"{step.b.lam:.6g} not located: {exc}")
 
-    def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
+    def _rule(self, step: Step, found: list[Hit], index_a: int) -> int | None:
         """The index at b by the fold rule from a's (None where the rule does not apply)."""
         if self.ordinate is None:
             return None
         out = index_a
         for e in sorted(found, key=lambda e: e.sigma):
-            if e.kind != "LP" or e.note:
+            if e.kind != labels.LP or e.note:
                 return None
             # xi'' from the tangents (robust at any step length), dB/dtau across the step
             change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
@@ -937,8 +907,9 @@ class _Walk:
         return float(self.ordinate.fn(state.s, state.y, state.params))
 
     # -- user points, bounds, and adding the events -----------------------------------------
-    def _add_events(self, step: Step, found: list[_Event]) -> str:
-        """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
+    def _add_events(self, step: Step, found: list[Hit]) -> str:
+        """Add the LP/BP events ``found`` in the step, its UZ and bound EP points, and the
+        points of the events the run asks for (``Course.watch``), in order;
         return "ended" if the branch ends in this step, "moved" if it came back to its start
         one period on and the walk moved past the translates of that period (:meth:`_repeat`),
         else "". Folds split the step: a value is solved between the two knots that bracket
@@ -950,7 +921,7 @@ class _Walk:
         fold stop); where the step has more, the branch ends at the last one added, and the
         UZ values past those the room can take are not solved for."""
         branch, name, stops = self.branch, self.name, self.stops
-        inside = sorted((e for e in found if e.kind == "LP" and not e.note
+        inside = sorted((e for e in found if e.kind == labels.LP and not e.note
                          and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
         knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
                  + [(step.dist, step.b.state)])
@@ -966,17 +937,19 @@ class _Walk:
                 for c in crossings(lx, ly, spec):
                     if solved[k] >= room:
                         break
-                    ev = self._value_event(step, x, y, s0, s1, c, "UZ")
+                    ev = self._value_event(step, x, y, s0, s1, c, USER_VALUE)
                     if ev is not None:
                         events.append(ev)
-                        solved[k] += self._counts("UZ", ev.state.params)
+                        solved[k] += self._counts(labels.UZ, ev.state.params)
             bound = stops.upper if lx <= stops.upper < ly else \
                 stops.lower if ly < stops.lower <= lx else None
             if bound is not None:
-                bound_hit = self._value_event(step, x, y, s0, s1, bound, "EP")
+                bound_hit = self._value_event(step, x, y, s0, s1, bound, BOUND)
                 if bound_hit is None:
-                    bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
+                    bound_hit = Hit(s1, labels.EP, y, step.b.tangent, note="bound not located")
                 break
+        for event in self.watch:
+            events.extend(event.find(self, step))
         for hit in (self._limit_event(step), self._closure_event(step),
                     self._period_event(step)):
             if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
@@ -992,24 +965,24 @@ class _Walk:
                 return self._repeat(step, e)
             # room for the event, and for the EP after it unless it ends the branch (a point
             # set aside for the mirror image takes none, but may be the last before that EP)
-            ends = e.kind == "EP" or (e.kind == "LP" and stops.at_fold is not None
-                                      and nfolds + 1 >= stops.at_fold)
+            ends = e.kind == labels.EP or (e.kind == labels.LP and stops.at_fold is not None
+                                           and nfolds + 1 >= stops.at_fold)
             need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
             if self._room() < need:
                 self._end_full(last, e.kind)
                 return "ended"
             last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
                              tangent=e.tangent, fold_residual=e.residual, note=e.note)
-            if e.kind == "LP":
+            if e.kind == labels.LP:
                 nfolds += 1
                 if stops.at_fold is not None and nfolds >= stops.at_fold:
                     cut = step.position(e.sigma)
                     branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                    branch.end = "LP"
+                    branch.end = labels.LP
                     branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
                     return "ended"
-            if e.kind == "EP":
-                branch.end = "EP"
+            if e.kind == labels.EP:
+                branch.end = labels.EP
                 branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
                 return "ended"
         return ""
@@ -1020,22 +993,21 @@ class _Walk:
         that leaves one point unused, the message says why: the ``following`` point (its
         label) would have needed the EP after it as well."""
         if last is None:
-            self.end_at_base("EP", self._full())
+            self.end_at_base(labels.EP, self._full())
         else:
-            self._add(last.state, type="EP", arclength=last.arclength, tangent=last.tangent,
+            self._add(last.state, type=labels.EP, arclength=last.arclength, tangent=last.tangent,
                       direct=last.index_direct)
-            self.branch.end, self.branch.message = "EP", self._full()
+            self.branch.end, self.branch.message = labels.EP, self._full()
         if following and self._room() > 0:
             self.branch.message += (f" (the next point, {following}, and the EP after it would "
                                     "exceed it)")
 
-    def _limit_event(self, step: Step) -> _Event | None:
+    def _limit_event(self, step: Step) -> Hit | None:
         """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
         event (None if none is passed)."""
         first = None
         for limit in self.stops.limits:
-            if not (limit.excess(self.problem, step.a.state) < 0
-                    <= limit.excess(self.problem, step.b.state)):
+            if not limit.passed(self.problem, step):
                 continue
             try:
                 at = locate_limit(self.corr, self.problem, step, limit)
@@ -1046,7 +1018,7 @@ class _Walk:
             if first is None or sigma < first.sigma:
                 state = step.b.state if at is None else at.solution.state
                 value = limit.value + limit.sign * (0.0 if at is None else at.value)
-                first = _Event(sigma, "EP", state, tangent_between(step, sigma),
+                first = Hit(sigma, limit.label, state, tangent_between(step, sigma),
                                message=f"reached {limit.name} = {value:.6g} (stop {limit})")
         return first
 
@@ -1070,9 +1042,9 @@ class _Walk:
         off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
         if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
             return False
-        self._add(start.state, type="EP", arclength=self.arclength + sigma,
+        self._add(start.state, type=labels.EP, arclength=self.arclength + sigma,
                   tangent=start.tangent, direct=self.branch.points[0].index_direct)
-        self.branch.end = "EP"
+        self.branch.end = labels.EP
         self.branch.message = self._closed(self.arclength + sigma)
         return True
 
@@ -1089,7 +1061,7 @@ class _Walk:
         return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
                 f"after arclength {arclength:.6g}")
 
-    def _closure_event(self, step: Step) -> _Event | None:
+    def _closure_event(self, step: Step) -> Hit | None:
         """An EP at the branch's start point if the step passes it the way the branch left
         it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
         branch, say), else None. The start projects onto the step's secant at
@@ -1110,10 +1082,10 @@ class _Walk:
         if (norm(off) > CLOSED_LOOP * step.dist
                 or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
             return None
-        return _Event(sigma, "EP", start.state, start.tangent,
+        return Hit(sigma, labels.EP, start.state, start.tangent,
                       message=self._closed(step.position(sigma)))
 
-    def _period_event(self, step: Step) -> _Event | None:
+    def _period_event(self, step: Step) -> Hit | None:
         """The start translated by whole periods of the parameter, if the step passes it the
         way the branch left it (as :meth:`_closure_event` tests for the start itself) and
         the branch's own solution on that hyperplane is the translate: then the branch is
@@ -1161,10 +1133,10 @@ class _Walk:
                     "the ordinates there differ from the start's: not completed by translation")
                 self.period = None
                 return None
-            return _Event(sigma, PERIOD, there, tangent)
+            return Hit(sigma, PERIOD, there, tangent)
         return None
 
-    def _repeat(self, step: Step, hit: _Event) -> str:
+    def _repeat(self, step: Step, hit: Hit) -> str:
         """The branch passes ``hit``, its start translated by whole periods of the parameter,
         the way it left the start: from there on it is its first period translated (the
         solution set and the ordinates are periodic, and a continuation through a regular
@@ -1182,9 +1154,9 @@ class _Walk:
         uz = is_user_value(hit.state.params[name], self.user_values)
         # room for the translate, and for the EP that follows it where it is labelled
         if self._room() < (2 if uz else 1):
-            self._end_full(None, "UZ" if uz else "")
+            self._end_full(None, labels.UZ if uz else "")
             return "ended"
-        translate = self._add(hit.state, type="UZ" if uz else "",
+        translate = self._add(hit.state, type=labels.UZ if uz else "",
                               arclength=step.position(hit.sigma), tangent=hit.tangent,
                               direct=branch.points[0].index_direct)
         period = branch.points[1:]
@@ -1216,7 +1188,7 @@ class _Walk:
         not a translate of the start, with the tangent along the branch."""
         branch, name = self.branch, self.name
         pts = branch.points
-        while pts[-1].type in ("LP", "BP"):
+        while pts[-1].type in (labels.LP, labels.BP):
             pts.pop()
         point = pts[-1]
         sol = None
@@ -1250,7 +1222,7 @@ class _Walk:
             self.progress(branch, sol.lam)
         return "moved"
 
-    def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
+    def _at_start(self, step: Step, event: Hit, end: Hit) -> bool:
         """Whether ``event``, found in the step that closes the loop at ``end`` (or that
         passes the start's translate by a period), is the start itself found again (the fold
         or branch point the branch was started from, the UZ point at its translate, to 1e-6)
@@ -1263,21 +1235,21 @@ class _Walk:
         gap = norm(difference(event.state, end.state, self.name, s), s)
         return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
-    def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
-        """The UZ or bound EP point where the parameter is ``value`` between the knots x and
-        y of the step. Where it is not found there although the knots' values bracket it,
-        the branch does not pass from x to y through the solutions between them (a step that
-        jumped to another branch, hostile M9): the step is rejected, as for an event that
-        cannot be located (RETRY_HALVINGS), then accepted with a warning and no point."""
+    def _value_event(self, step, x, y, s0, s1, value, kind) -> Hit | None:
+        """The UZ or bound EP point (``kind``: USER_VALUE or BOUND) where the parameter is
+        ``value`` between the knots x and y of the step. Where it is not found there although
+        the knots' values bracket it, the branch does not pass from x to y through the
+        solutions between them (a step that jumped to another branch, hostile M9): the step
+        is rejected, as for an event that cannot be located (RETRY_HALVINGS), then accepted
+        with a warning and no point."""
         try:
-            state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
+            return kind.locate(self, step, x, y, s0, s1, value)
         except CorrectorFailure as exc:
-            what = "user point" if kind == "UZ" else "bound"
+            what = "user point" if kind is USER_VALUE else "bound"
             if self.can_retry:
                 self.event_retries += 1
                 raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
                               step.ds / 2) from None
             self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
             return None
-        return _Event(sigma, kind, state, tangent_between(step, sigma))
 
