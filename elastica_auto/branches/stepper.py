@@ -362,115 +362,11 @@ def _turned_tangent(problem, name: str, t: Tangent | None, k: int) -> Tangent | 
                    periods_applied(problem, name, t.yp, k, True), t.lam)
 
 
-class _Walk:
-    """The state of one continuation: the last accepted solution, ds, the arclength."""
-
-    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
-        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
-        self.stops, self.user_values = course.stops, course.user_values
-        self.counted_values, self.watch = course.counted_values, course.watch
-        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
-        self.all_folds, self.events = course.all_folds, course.events
-        # the kinds of special point looked for (the option ``detect``; none without events)
-        self.detect_lp = course.events and self.opt.detect["LP"]
-        self.detect_bp = course.events and self.opt.detect["BP"]
-        self.progress, self.singular_start = progress, singular_start
-        self.name = branch.parameter
-        self.a, self.base_point = None, None
-        self.ordinate = next((o for o in self.problem.ordinates.values()
-                              if o.parameter == self.name), None)
-        self.enters = self.problem.parameters[self.name].enters
-        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
-        self.start = None   # the first solution: the branch ends where it comes back to it
-        self.event_retries = 0
-        self.can_retry = True   # whether the step may still be retried for an event (_detect)
-        # the length of the last step accepted (inf before the first): the retries an event
-        # may take are halvings below it (`_walk`)
-        self.accepted_ds = math.inf
-        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
-        self.period = self._repeat_period(course, singular_start)
-
-    # -- the loop ---------------------------------------------------------------------------
-    def run(self, a: Solution):
-        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
-        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
-        self._walk(a)
-        if self.until is None and self.branch.end != labels.LP:
-            self._complete_translates()
-
-    def _walk(self, a: Solution):
-        opt, branch = self.opt, self.branch
-        self.base_point = self._add(a.state, type=labels.EP, arclength=0.0, tangent=a.tangent)
-        if self.singular_start:
-            self.base_point.note = ""
-        self.a, self.arclength, self.first = a, 0.0, True
-        self.start = a
-        self.curvature = None
-        ds = abs(opt.ds)
-        history = []
-        # the step's rejections, and those that left it shorter than the last step accepted:
-        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
-        # known to resolve, and its halvings down to it do not spend the retries that an
-        # event that cannot be located, or an index the fold rule does not give, may take
-        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
-        # with a warning, hostile M9). With growth < 2 every halving is below it.
-        retries = below = 0
-        while True:
-            # the branch ends at its last point, which an EP of its own follows if labelled
-            if self._room() <= (1 if self.base_point.type else 0):
-                self.end_at_base(labels.EP, self._full())
-                return
-            try:
-                ds_next, ended = self._step(ds, retries, below)
-            except _Reject as rej:
-                history.append({"ds": ds, "residual": rej.residual,
-                                "nodes": len(self.a.mesh), "message": str(rej)})
-                retries += 1
-                below += rej.ds < self.accepted_ds
-                ds = rej.ds
-                if ds < opt.ds_min:
-                    # an infinite residual is Newton's mark for residuals that are not finite,
-                    # which only the module's functions can make from a finite guess
-                    why = (" (the equation module returned NaN or inf there)"
-                           if math.isinf(rej.residual) else "")
-                    if any(h["nodes"] >= opt.max_nodes for h in history):
-                        # no mesh met tol: what is left of the residual is not the mesh's
-                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
-                        # the corrector's absolute accuracy and lam exp(u) is not small)
-                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
-                                "without meeting tol)")
-                    self.end_at_base(labels.MX, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
-                                            f"after point {len(branch.points)} "
-                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
-                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
-                                          "nodes": len(self.a.mesh), "history": history[-12:]}
-                    return
-                continue
-            if ended:
-                return
-            history.clear()
-            retries = below = 0
-            ds = ds_next
-
-    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
-        """The period of the continued parameter if the branch may be completed by
-        translation once it passes its start one period on (:meth:`_repeat`): a regular
-        start, and nothing that a translate would have to decide afresh. Each UZ value
-        recurs with a period that divides the parameter's (every translate of a user point
-        is one, and no other point becomes one); no fold stop, no limit, no event the run
-        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
-        nor the refinement of a step."""
-        period = self.problem.parameters[self.name].period
-        if (period is None or singular_start or course.all_folds or course.stops.limits
-                or course.stops.at_fold is not None or course.watch):
-            return None
-        for spec in course.user_values:
-            if spec.period is None:
-                return None
-            ratio = period / spec.period
-            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
-                return None
-        return period
+class _Points:
+    """The branch's points and the room for them: adding a point, ending the branch at the last
+    one accepted, and ``max_points`` (the points that count toward it, a UZ point set aside for
+    a mirror image does not). Reads ``branch``, ``problem``, ``corr``, ``opt``, ``a``,
+    ``base_point``, ``arclength``, ``all_folds``, ``counted_values``."""
 
     def _add(self, state: State, **fields) -> Point:
         if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
@@ -516,75 +412,27 @@ class _Walk:
     def _full(self) -> str:
         return f"reached max_points = {self.opt.max_points}"
 
-    def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
-        """One step of length ds from self.a: returns (next ds, whether the branch ended);
-        raises _Reject to retry with a smaller ds. ``retries``: the step's rejections so far,
-        ``below``: those that left it shorter than the last step accepted (`_walk`)."""
-        if self._close_ahead(ds):
-            return ds, True
-        step, cos_turn = self._correct(ds)
-        found, counted = self._detect(step, below)
-        return self._accept(step, found, counted, retries, cos_turn)
+    def _end_full(self, last: Point | None, following: str = ""):
+        """End the branch at ``max_points`` inside a step: at the last point it added (a
+        labelled one, followed by an EP of its own), or at the step's start if none. Where
+        that leaves one point unused, the message says why: the ``following`` point (its
+        label) would have needed the EP after it as well."""
+        if last is None:
+            self.end_at_base(labels.EP, self._full())
+        else:
+            self._add(last.state, type=labels.EP, arclength=last.arclength, tangent=last.tangent,
+                      direct=last.index_direct)
+            self.branch.end, self.branch.message = labels.EP, self._full()
+        if following and self._room() > 0:
+            self.branch.message += (f" (the next point, {following}, and the EP after it would "
+                                    "exceed it)")
 
-    def _correct(self, ds: float) -> tuple[Step, float]:
-        """Predict and correct (on the mesh chosen for the step), then check the new point:
-        a turn of the tangent beyond max_angle, or a correction that moved it more than
-        ds / 2 from the predictor (a jump to another branch), rejects the step."""
-        opt, corr, a, name = self.opt, self.corr, self.a, self.name
-        mesh = corr.next_mesh(a)
-        if mesh is not a.mesh:  # the step's mesh: linearise a there once, for both uses
-            a = self.a = corr.relinearize(a, mesh)
-        try:
-            b = corr.step(a, ds, self.curvature)
-        except CorrectorFailure as exc:
-            raise _Reject(str(exc), ds / 2, exc.residual) from None
-        s = b.mesh
-        cos_turn = inner(a.tangent.on(s), b.tangent, s)
-        if cos_turn < math.cos(opt.max_angle):
-            raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
-                          " deg > max_angle", ds / 2)
-        sec, dist = secant(a.state, b.state, name)
-        if not self.first or not a.extra.get("singular"):
-            pred = Tangent(s, a.state(s) + ds * a.tangent.on(s).y - b.state.y,
-                           a.state.derivative(s) + ds * a.tangent.on(s).yp - b.state.yp,
-                           a.lam + ds * a.tangent.lam - b.lam)
-            jump = norm(pred)
-            if jump > 0.5 * ds:
-                raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
-                              f"(ds = {ds:.3g})", ds / 2)
-        if ds > LONG_STEP * self.accepted_ds:
-            self._arc_checked(a, b, sec, dist, ds)
-        return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
 
-    def _arc_checked(self, a: Solution, b: Solution, sec: Tangent, dist: float, ds: float):
-        """Reject a long step (LONG_STEP) whose end the branch does not reach along an arc:
-        the solution on the hyperplane halfway along the chord, solved from the chord's
-        midpoint, must lie within ``dist tan(max_angle / 4)`` of it, and its tangent within
-        max_angle of the chord. An arc that turns by at most max_angle lies within
-        ``dist tan(turn / 4) / 2`` of its chord's midpoint (a circle's; twice that is allowed
-        for arcs that are not circles), where its tangent is parallel to the chord (a
-        circle's; within the turn, for others). Where b is on another branch, the branch from
-        a crosses that hyperplane elsewhere, or not at all, and what is found there is a
-        solution of yet another branch, crossing it at an angle (the straight rod, halfway
-        between a buckled rod and its mirror image, at the rotating arm's P = 9 pi^2 / 4)."""
-        name = self.name
-        try:
-            mid = self.corr.on_plane(a, sec, dist / 2, b.mesh, regrid=False)
-        except CorrectorFailure:
-            raise _Reject("the branch does not reach the step's end along an arc (no "
-                          "solution halfway)", ds / 2) from None
-        s = b.mesh
-        d = difference(mid.state, a.state, name, s)
-        off = norm(Tangent(s, d.y - dist / 2 * sec.y, d.yp - dist / 2 * sec.yp,
-                           d.lam - dist / 2 * sec.lam))
-        if off > dist * math.tan(self.opt.max_angle / 4):
-            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
-                          f"{off:.3g} from the chord, ds = {ds:.3g})", ds / 2)
-        cos_mid = inner(mid.tangent.on(s), sec, s)
-        if cos_mid < math.cos(self.opt.max_angle):
-            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
-                          f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
-                          f"deg to the chord, ds = {ds:.3g})", ds / 2)
+class _Detection:
+    """The folds and branch points of a step, detected and located through the registry's event
+    objects (`elastica_auto.branches.registry`), reconciled (a turn at a branch point is one
+    BP), and the stability index at the step's end checked against the fold rule; a fold pair
+    suspected inside the step is probed. Raises ``_Reject`` to retry the step shorter."""
 
     def _detect(self, step: Step, retries: int) -> tuple[list[Hit], int]:
         """The folds and branch points in the step, located, and the index at b, checked
@@ -683,138 +531,6 @@ class _Walk:
         self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
         return note
 
-    def _accept(self, step: Step, found: list[Hit], counted: Count, retries: int,
-                cos_turn: float) -> tuple[float, bool]:
-        """Add the step's events and its end point b; the next ds (grown after an easy step)
-        and whether the branch ended."""
-        opt, a, b, ds = self.opt, step.a, step.b, step.ds
-        outcome = self._add_events(step, found)
-        if outcome == "moved":      # the branch repeats: the walk goes on past its translates
-            return self.resume_ds, False
-        if outcome:
-            return ds, True
-        arclength = self.arclength + ds
-        residual = float(b.rms.max()) if self.all_folds else math.nan
-        tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
-        curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
-                            (tb.lam - ta.lam) / step.dist)
-        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter,
-                          direct=counted.index, parts=counted.parts, fold_residual=residual,
-                          note=counted.reason if counted.refused else "")
-        # the walk moves on to b in one statement that calls nothing (no signal lands inside)
-        self.base_point, self.a, self.arclength, self.curvature, self.first = \
-            point, b, arclength, curvature, False
-        self.accepted_ds = ds
-        if self.progress is not None:
-            self.progress(self.branch, b.lam)
-        if self.until is not None:
-            origin, direction, distance = self.until
-            s = b.mesh
-            if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
-                self.branch.end, self.branch.message = labels.EP, "reached the end of the segment"
-                return ds, True
-        if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
-                and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
-            ds = min(ds * opt.growth, opt.ds_max)
-        return ds, False
-
-    # -- folds at every translate of a periodic parameter -------------------------------------
-    def _complete_translates(self):
-        """The solution set is periodic in a parameter with a period, so a fold found at
-        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
-        Where it passes without one (a fold pair stepped over), the step there is walked again
-        with steps of at most 1/32 of its length; a translate still missing is a warning."""
-        period = self.problem.parameters[self.name].period
-        if period is None:
-            return
-        for _ in range(3):
-            gaps = self._missing_translates(period, TRANSLATE_NEAR)
-            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
-                break
-        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
-            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
-                                        f"{lam:.6g}, a translate of a fold by a period")
-
-    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
-        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
-        whole periods, within the range the branch travelled) where the branch has no fold."""
-        pts = self.branch.points
-        lam = np.array([p.params[self.name] for p in pts])
-        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
-        out = {}
-        for k in folds:
-            scale = 1.0 + np.abs(ords[k])
-            for j in range(math.ceil((lam.min() - lam[k]) / period),
-                           math.floor((lam.max() - lam[k]) / period) + 1):
-                target = lam[k] + j * period
-                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
-                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
-                                 for g in folds):
-                    continue
-                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
-                # fold's parameter is an extreme value, which the branch touches, not crosses
-                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
-                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
-                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
-                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
-                for i in np.flatnonzero(near):
-                    out[int(i)] = float(target)
-        return out
-
-    def _refine(self, i: int) -> bool:
-        """Walk the step from point i to point i+1 again with small steps, and put the points
-        (and any folds, branch points, user points) it finds between them. False if it could
-        not be done (the two points could not be solved again from their profiles, or there
-        is no room for the new points within ``max_points``)."""
-        pts, corr, name = self.branch.points, self.corr, self.name
-        try:
-            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
-        except CorrectorFailure:
-            return False
-        sec, dist = secant(p.state, q.state, name)
-        if inner(p.tangent, sec, sec.s) < 0:
-            t = p.tangent.scaled(-1.0)
-            disc = corr.disc(p.mesh)
-            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
-                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
-        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
-                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
-        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
-        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
-                                                     watch=self.watch), None, False)
-        walk.until = (p.state, sec, dist * (1 - 1e-7))
-        walk.run(p)
-        if sub.end != labels.EP:
-            return False
-        grid = PROFILE_GRID
-        w = np.gradient(grid)
-        origin = p.state(grid)
-
-        def sigma(pt):
-            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
-                         + (pt.params[name] - p.lam) * sec.lam)
-
-        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
-        if self._room() < len(new):      # the branch's points stay within max_points
-            return False
-        total = sub.points[-1].arclength
-        a0, a1 = pts[i].arclength, pts[i + 1].arclength
-        for pt in new:
-            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
-        pts[i + 1:i + 1] = new
-        self.branch.warnings.extend(sub.warnings)
-        return True
-
-    def _resolve(self, point) -> Solution:
-        """A point of the branch as a linearised solution: its stored solution if labelled,
-        else solved again at its parameters from its profile."""
-        state = point.state
-        if state is None:
-            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
-        return self.corr.point(state)
-
-    # -- detection helpers ------------------------------------------------------------------
     def _probe(self, step: Step, u: float, ds: float, index_a: int):
         """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
         look for the slope's minimum along the step. Each probe solves on the hyperplane at
@@ -906,7 +622,13 @@ class _Walk:
     def _ordinate(self, state: State) -> float:
         return float(self.ordinate.fn(state.s, state.y, state.params))
 
-    # -- user points, bounds, and adding the events -----------------------------------------
+
+class _Placement:
+    """The step's points in the order of travel: its folds and branch points, its user points
+    (UZ) and the bound (EP) solved on the monotone pieces between folds, the limits of
+    ``stop``, and the events the run asks for (``Course.watch``, each by its own ``find``);
+    the points past an end dropped, the fold stop applied."""
+
     def _add_events(self, step: Step, found: list[Hit]) -> str:
         """Add the LP/BP events ``found`` in the step, its UZ and bound EP points, and the
         points of the events the run asks for (``Course.watch``), in order;
@@ -987,21 +709,6 @@ class _Walk:
                 return "ended"
         return ""
 
-    def _end_full(self, last: Point | None, following: str = ""):
-        """End the branch at ``max_points`` inside a step: at the last point it added (a
-        labelled one, followed by an EP of its own), or at the step's start if none. Where
-        that leaves one point unused, the message says why: the ``following`` point (its
-        label) would have needed the EP after it as well."""
-        if last is None:
-            self.end_at_base(labels.EP, self._full())
-        else:
-            self._add(last.state, type=labels.EP, arclength=last.arclength, tangent=last.tangent,
-                      direct=last.index_direct)
-            self.branch.end, self.branch.message = labels.EP, self._full()
-        if following and self._room() > 0:
-            self.branch.message += (f" (the next point, {following}, and the EP after it would "
-                                    "exceed it)")
-
     def _limit_event(self, step: Step) -> Hit | None:
         """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
         event (None if none is passed)."""
@@ -1021,6 +728,30 @@ class _Walk:
                 first = Hit(sigma, limit.label, state, tangent_between(step, sigma),
                                message=f"reached {limit.name} = {value:.6g} (stop {limit})")
         return first
+
+    def _value_event(self, step, x, y, s0, s1, value, kind) -> Hit | None:
+        """The UZ or bound EP point (``kind``: USER_VALUE or BOUND) where the parameter is
+        ``value`` between the knots x and y of the step. Where it is not found there although
+        the knots' values bracket it, the branch does not pass from x to y through the
+        solutions between them (a step that jumped to another branch, hostile M9): the step
+        is rejected, as for an event that cannot be located (RETRY_HALVINGS), then accepted
+        with a warning and no point."""
+        try:
+            return kind.locate(self, step, x, y, s0, s1, value)
+        except CorrectorFailure as exc:
+            what = "user point" if kind is USER_VALUE else "bound"
+            if self.can_retry:
+                self.event_retries += 1
+                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
+                              step.ds / 2) from None
+            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
+            return None
+
+
+class _Return:
+    """Where the branch comes back: to its start (a closed loop ends there, EP), or to its start
+    translated by whole periods of the parameter (the rest is the first period translated:
+    copied, then the walk resumes)."""
 
     def _close_ahead(self, ds: float) -> bool:
         """End the branch at its start point, without a step, where the start lies within
@@ -1235,21 +966,321 @@ class _Walk:
         gap = norm(difference(event.state, end.state, self.name, s), s)
         return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
-    def _value_event(self, step, x, y, s0, s1, value, kind) -> Hit | None:
-        """The UZ or bound EP point (``kind``: USER_VALUE or BOUND) where the parameter is
-        ``value`` between the knots x and y of the step. Where it is not found there although
-        the knots' values bracket it, the branch does not pass from x to y through the
-        solutions between them (a step that jumped to another branch, hostile M9): the step
-        is rejected, as for an event that cannot be located (RETRY_HALVINGS), then accepted
-        with a warning and no point."""
+
+class _Translates:
+    """For a parameter with a period, every fold at each of its translates: a step that passes
+    a translate without its fold (a fold pair stepped over) is walked again with short
+    steps."""
+
+    def _complete_translates(self):
+        """The solution set is periodic in a parameter with a period, so a fold found at
+        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
+        Where it passes without one (a fold pair stepped over), the step there is walked again
+        with steps of at most 1/32 of its length; a translate still missing is a warning."""
+        period = self.problem.parameters[self.name].period
+        if period is None:
+            return
+        for _ in range(3):
+            gaps = self._missing_translates(period, TRANSLATE_NEAR)
+            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
+                break
+        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
+            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
+                                        f"{lam:.6g}, a translate of a fold by a period")
+
+    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
+        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
+        whole periods, within the range the branch travelled) where the branch has no fold."""
+        pts = self.branch.points
+        lam = np.array([p.params[self.name] for p in pts])
+        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
+        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
+        out = {}
+        for k in folds:
+            scale = 1.0 + np.abs(ords[k])
+            for j in range(math.ceil((lam.min() - lam[k]) / period),
+                           math.floor((lam.max() - lam[k]) / period) + 1):
+                target = lam[k] + j * period
+                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
+                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
+                                 for g in folds):
+                    continue
+                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
+                # fold's parameter is an extreme value, which the branch touches, not crosses
+                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
+                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
+                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
+                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
+                for i in np.flatnonzero(near):
+                    out[int(i)] = float(target)
+        return out
+
+    def _refine(self, i: int) -> bool:
+        """Walk the step from point i to point i+1 again with small steps, and put the points
+        (and any folds, branch points, user points) it finds between them. False if it could
+        not be done (the two points could not be solved again from their profiles, or there
+        is no room for the new points within ``max_points``)."""
+        pts, corr, name = self.branch.points, self.corr, self.name
         try:
-            return kind.locate(self, step, x, y, s0, s1, value)
-        except CorrectorFailure as exc:
-            what = "user point" if kind is USER_VALUE else "bound"
-            if self.can_retry:
-                self.event_retries += 1
-                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
-                              step.ds / 2) from None
-            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
+            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
+        except CorrectorFailure:
+            return False
+        sec, dist = secant(p.state, q.state, name)
+        if inner(p.tangent, sec, sec.s) < 0:
+            t = p.tangent.scaled(-1.0)
+            disc = corr.disc(p.mesh)
+            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
+                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
+        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
+                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
+        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
+        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
+                                                     watch=self.watch), None, False)
+        walk.until = (p.state, sec, dist * (1 - 1e-7))
+        walk.run(p)
+        if sub.end != labels.EP:
+            return False
+        grid = PROFILE_GRID
+        w = np.gradient(grid)
+        origin = p.state(grid)
+
+        def sigma(pt):
+            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
+                         + (pt.params[name] - p.lam) * sec.lam)
+
+        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        if self._room() < len(new):      # the branch's points stay within max_points
+            return False
+        total = sub.points[-1].arclength
+        a0, a1 = pts[i].arclength, pts[i + 1].arclength
+        for pt in new:
+            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
+        pts[i + 1:i + 1] = new
+        self.branch.warnings.extend(sub.warnings)
+        return True
+
+    def _resolve(self, point) -> Solution:
+        """A point of the branch as a linearised solution: its stored solution if labelled,
+        else solved again at its parameters from its profile."""
+        state = point.state
+        if state is None:
+            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
+        return self.corr.point(state)
+
+
+class _Walk(_Points, _Detection, _Placement, _Return, _Translates):
+    """The state of one continuation (the last accepted solution, ds, the arclength) and its
+    loop: predict and correct a step, check it, detect and place its points (the parts it is
+    made of, each a class above), accept it."""
+
+    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
+        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
+        self.stops, self.user_values = course.stops, course.user_values
+        self.counted_values, self.watch = course.counted_values, course.watch
+        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
+        self.all_folds, self.events = course.all_folds, course.events
+        # the kinds of special point looked for (the option ``detect``; none without events)
+        self.detect_lp = course.events and self.opt.detect["LP"]
+        self.detect_bp = course.events and self.opt.detect["BP"]
+        self.progress, self.singular_start = progress, singular_start
+        self.name = branch.parameter
+        self.a, self.base_point = None, None
+        self.ordinate = next((o for o in self.problem.ordinates.values()
+                              if o.parameter == self.name), None)
+        self.enters = self.problem.parameters[self.name].enters
+        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
+        self.start = None   # the first solution: the branch ends where it comes back to it
+        self.event_retries = 0
+        self.can_retry = True   # whether the step may still be retried for an event (_detect)
+        # the length of the last step accepted (inf before the first): the retries an event
+        # may take are halvings below it (`_walk`)
+        self.accepted_ds = math.inf
+        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
+        self.period = self._repeat_period(course, singular_start)
+
+    def run(self, a: Solution):
+        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
+        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
+        self._walk(a)
+        if self.until is None and self.branch.end != labels.LP:
+            self._complete_translates()
+
+    def _walk(self, a: Solution):
+        opt, branch = self.opt, self.branch
+        self.base_point = self._add(a.state, type=labels.EP, arclength=0.0, tangent=a.tangent)
+        if self.singular_start:
+            self.base_point.note = ""
+        self.a, self.arclength, self.first = a, 0.0, True
+        self.start = a
+        self.curvature = None
+        ds = abs(opt.ds)
+        history = []
+        # the step's rejections, and those that left it shorter than the last step accepted:
+        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
+        # known to resolve, and its halvings down to it do not spend the retries that an
+        # event that cannot be located, or an index the fold rule does not give, may take
+        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
+        # with a warning, hostile M9). With growth < 2 every halving is below it.
+        retries = below = 0
+        while True:
+            # the branch ends at its last point, which an EP of its own follows if labelled
+            if self._room() <= (1 if self.base_point.type else 0):
+                self.end_at_base(labels.EP, self._full())
+                return
+            try:
+                ds_next, ended = self._step(ds, retries, below)
+            except _Reject as rej:
+                history.append({"ds": ds, "residual": rej.residual,
+                                "nodes": len(self.a.mesh), "message": str(rej)})
+                retries += 1
+                below += rej.ds < self.accepted_ds
+                ds = rej.ds
+                if ds < opt.ds_min:
+                    # an infinite residual is Newton's mark for residuals that are not finite,
+                    # which only the module's functions can make from a finite guess
+                    why = (" (the equation module returned NaN or inf there)"
+                           if math.isinf(rej.residual) else "")
+                    if any(h["nodes"] >= opt.max_nodes for h in history):
+                        # no mesh met tol: what is left of the residual is not the mesh's
+                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
+                        # the corrector's absolute accuracy and lam exp(u) is not small)
+                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
+                                "without meeting tol)")
+                    self.end_at_base(labels.MX, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                                            f"after point {len(branch.points)} "
+                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
+                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
+                                          "nodes": len(self.a.mesh), "history": history[-12:]}
+                    return
+                continue
+            if ended:
+                return
+            history.clear()
+            retries = below = 0
+            ds = ds_next
+
+    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
+        """The period of the continued parameter if the branch may be completed by
+        translation once it passes its start one period on (:meth:`_repeat`): a regular
+        start, and nothing that a translate would have to decide afresh. Each UZ value
+        recurs with a period that divides the parameter's (every translate of a user point
+        is one, and no other point becomes one); no fold stop, no limit, no event the run
+        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
+        nor the refinement of a step."""
+        period = self.problem.parameters[self.name].period
+        if (period is None or singular_start or course.all_folds or course.stops.limits
+                or course.stops.at_fold is not None or course.watch):
             return None
+        for spec in course.user_values:
+            if spec.period is None:
+                return None
+            ratio = period / spec.period
+            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
+                return None
+        return period
+
+    def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
+        """One step of length ds from self.a: returns (next ds, whether the branch ended);
+        raises _Reject to retry with a smaller ds. ``retries``: the step's rejections so far,
+        ``below``: those that left it shorter than the last step accepted (`_walk`)."""
+        if self._close_ahead(ds):
+            return ds, True
+        step, cos_turn = self._correct(ds)
+        found, counted = self._detect(step, below)
+        return self._accept(step, found, counted, retries, cos_turn)
+
+    def _correct(self, ds: float) -> tuple[Step, float]:
+        """Predict and correct (on the mesh chosen for the step), then check the new point:
+        a turn of the tangent beyond max_angle, or a correction that moved it more than
+        ds / 2 from the predictor (a jump to another branch), rejects the step."""
+        opt, corr, a, name = self.opt, self.corr, self.a, self.name
+        mesh = corr.next_mesh(a)
+        if mesh is not a.mesh:  # the step's mesh: linearise a there once, for both uses
+            a = self.a = corr.relinearize(a, mesh)
+        try:
+            b = corr.step(a, ds, self.curvature)
+        except CorrectorFailure as exc:
+            raise _Reject(str(exc), ds / 2, exc.residual) from None
+        s = b.mesh
+        cos_turn = inner(a.tangent.on(s), b.tangent, s)
+        if cos_turn < math.cos(opt.max_angle):
+            raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
+                          " deg > max_angle", ds / 2)
+        sec, dist = secant(a.state, b.state, name)
+        if not self.first or not a.extra.get("singular"):
+            pred = Tangent(s, a.state(s) + ds * a.tangent.on(s).y - b.state.y,
+                           a.state.derivative(s) + ds * a.tangent.on(s).yp - b.state.yp,
+                           a.lam + ds * a.tangent.lam - b.lam)
+            jump = norm(pred)
+            if jump > 0.5 * ds:
+                raise _Reject(f"the corrector moved {jump:.3g} from the predictor "
+                              f"(ds = {ds:.3g})", ds / 2)
+        if ds > LONG_STEP * self.accepted_ds:
+            self._arc_checked(a, b, sec, dist, ds)
+        return Step(a, b, sec, dist, self.arclength, ds, name), cos_turn
+
+    def _arc_checked(self, a: Solution, b: Solution, sec: Tangent, dist: float, ds: float):
+        """Reject a long step (LONG_STEP) whose end the branch does not reach along an arc:
+        the solution on the hyperplane halfway along the chord, solved from the chord's
+        midpoint, must lie within ``dist tan(max_angle / 4)`` of it, and its tangent within
+        max_angle of the chord. An arc that turns by at most max_angle lies within
+        ``dist tan(turn / 4) / 2`` of its chord's midpoint (a circle's; twice that is allowed
+        for arcs that are not circles), where its tangent is parallel to the chord (a
+        circle's; within the turn, for others). Where b is on another branch, the branch from
+        a crosses that hyperplane elsewhere, or not at all, and what is found there is a
+        solution of yet another branch, crossing it at an angle (the straight rod, halfway
+        between a buckled rod and its mirror image, at the rotating arm's P = 9 pi^2 / 4)."""
+        name = self.name
+        try:
+            mid = self.corr.on_plane(a, sec, dist / 2, b.mesh, regrid=False)
+        except CorrectorFailure:
+            raise _Reject("the branch does not reach the step's end along an arc (no "
+                          "solution halfway)", ds / 2) from None
+        s = b.mesh
+        d = difference(mid.state, a.state, name, s)
+        off = norm(Tangent(s, d.y - dist / 2 * sec.y, d.yp - dist / 2 * sec.yp,
+                           d.lam - dist / 2 * sec.lam))
+        if off > dist * math.tan(self.opt.max_angle / 4):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"{off:.3g} from the chord, ds = {ds:.3g})", ds / 2)
+        cos_mid = inner(mid.tangent.on(s), sec, s)
+        if cos_mid < math.cos(self.opt.max_angle):
+            raise _Reject(f"the branch does not reach the step's end along an arc (halfway, "
+                          f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
+                          f"deg to the chord, ds = {ds:.3g})", ds / 2)
+
+    def _accept(self, step: Step, found: list[Hit], counted: Count, retries: int,
+                cos_turn: float) -> tuple[float, bool]:
+        """Add the step's events and its end point b; the next ds (grown after an easy step)
+        and whether the branch ended."""
+        opt, a, b, ds = self.opt, step.a, step.b, step.ds
+        outcome = self._add_events(step, found)
+        if outcome == "moved":      # the branch repeats: the walk goes on past its translates
+            return self.resume_ds, False
+        if outcome:
+            return ds, True
+        arclength = self.arclength + ds
+        residual = float(b.rms.max()) if self.all_folds else math.nan
+        tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
+        curvature = Tangent(b.mesh, (tb.y - ta.y) / step.dist, (tb.yp - ta.yp) / step.dist,
+                            (tb.lam - ta.lam) / step.dist)
+        point = self._add(b.state, arclength=arclength, ds=ds, niter=b.niter,
+                          direct=counted.index, parts=counted.parts, fold_residual=residual,
+                          note=counted.reason if counted.refused else "")
+        # the walk moves on to b in one statement that calls nothing (no signal lands inside)
+        self.base_point, self.a, self.arclength, self.curvature, self.first = \
+            point, b, arclength, curvature, False
+        self.accepted_ds = ds
+        if self.progress is not None:
+            self.progress(self.branch, b.lam)
+        if self.until is not None:
+            origin, direction, distance = self.until
+            s = b.mesh
+            if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
+                self.branch.end, self.branch.message = labels.EP, "reached the end of the segment"
+                return ds, True
+        if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
+                and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
+            ds = min(ds * opt.growth, opt.ds_max)
+        return ds, False
 
