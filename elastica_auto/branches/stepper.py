@@ -28,8 +28,16 @@ travel):
    fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
 5. **accept**: the folds and branch points split the step into monotone pieces, on which user
-   points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
-   step.
+   points (UZ) and bounds (EP) are solved; the events the run asks for (``events = [...]``:
+   user events, extrema) are found by their own test functions
+   (:meth:`~elastica_auto.branches.kinds.Event.find`); b is added, ds grows by ``growth``
+   after an easy step.
+
+Every kind of special point is an event object (:mod:`elastica_auto.branches.kinds`), the
+shipped ones created in :mod:`elastica_auto.branches.registry`. The walk is one class made of
+named parts: the points and their room (``_Points``), detection (``_Detection``), the step's
+points in order (``_Placement``), the return to the start (``_Return``), fold translates
+(``_Translates``), and the loop (``_Walk``).
 """
 
 from __future__ import annotations
