@@ -15,8 +15,10 @@ own locating method, as the shipped ones do:
 
 * :class:`Fold`, LP, continue: the tangent's parameter component; the fold system (bordered
   Newton, :func:`~elastica_auto.branches.events.locate_fold`);
-* :class:`BranchPoint`, BP, switch: the sign of the bordered Jacobian's determinant; placed
-  at the module's symmetric value where it has one, else Brent's method on two meshes;
+* :class:`BranchPoint`, BP, switch: the sign of the bordered Jacobian's determinant; Brent's
+  method on two meshes;
+* :class:`SymmetricBranchPoint`, BP, switch: the same sign change, placed at the module's
+  symmetric value of the parameter inside the step where it has one;
 * :class:`EvenBranchPoint`, BP, switch: the stability index; bisection;
 * :class:`ParameterValue`, UZ (continue) or EP (end): ``lam - value`` on each monotone piece
   of the step, solved at the value;
@@ -140,9 +142,9 @@ class Fold(Event):
 class BranchPoint(Event):
     """BP: another branch crosses. Test function: the sign of the bordered Jacobian's
     determinant (AUTO-07p's for boundary value problems; it keeps its sign at a fold), at a
-    on b's mesh (``a_here``) and at b. Placed at the module's symmetric value where it has
-    one inside the step (exact on every mesh), else located as the root of the scaled
-    determinant on two meshes (:func:`~elastica_auto.branches.events.locate_branch_point`)."""
+    on b's mesh (``a_here``) and at b. Located as the root of the scaled determinant on two
+    meshes (:func:`~elastica_auto.branches.events.locate_branch_point`), where
+    :class:`SymmetricBranchPoint` does not place it."""
 
     label, action = labels.BP, SWITCH
 
@@ -153,12 +155,28 @@ class BranchPoint(Event):
         """Whether the determinant changes sign between a (on b's mesh) and b."""
         return a_here.sign * b.sign < 0
 
-    def locate(self, walk, step: Step) -> Located | Placed:
+    def locate(self, walk, step: Step) -> Located:
         """The branch point in the step; CorrectorFailure where it is not located."""
-        placed = place_symmetric_branch_point(walk.corr, walk.problem, step)
-        if placed is not None:
-            return placed
         return locate_branch_point(walk.corr, step)
+
+
+class SymmetricBranchPoint(Event):
+    """BP where the module's symmetry holds: the determinant changed sign in the step, and
+    the module's ``symmetric_values`` give one value ``v`` of the parameter inside it, at
+    which the group moves the state. Test function ``lam - v``; placed by a solve at ``v``
+    (:func:`~elastica_auto.branches.events.place_symmetric_branch_point`), exact on every
+    mesh, since the discretised problem keeps the symmetry."""
+
+    label, action = labels.BP, SWITCH
+
+    def test(self, walk, sol: Solution) -> float:
+        return sol.lam
+
+    def locate(self, walk, step: Step) -> Placed | None:
+        """The branch point placed at the symmetric value, or None where the module gives
+        none (or more than one) in the step, the solve fails, or the group fixes the state
+        there (then :class:`BranchPoint` locates it)."""
+        return place_symmetric_branch_point(walk.corr, walk.problem, step)
 
 
 class EvenBranchPoint(Event):

@@ -16,7 +16,8 @@ import importlib
 
 from ..core.errors import PlanError
 from ..core import labels
-from .kinds import BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue
+from .kinds import (BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue,
+                    SymmetricBranchPoint)
 
 #: The shipped kinds, one object each, which the stepper drives in their roles: folds and
 #: branch points located and reconciled (a turn at a branch point is one BP) and the index
@@ -25,6 +26,7 @@ from .kinds import BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue
 #: :class:`~elastica_auto.branches.kinds.Limit` the plan makes.)
 FOLD = Fold()
 BRANCH_POINT = BranchPoint()
+SYMMETRIC_BRANCH_POINT = SymmetricBranchPoint()
 EVEN_BRANCH_POINT = EvenBranchPoint()
 USER_VALUE = ParameterValue(labels.UZ)
 BOUND = ParameterValue(labels.EP)

@@ -54,7 +54,8 @@ from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
                      locate_limit, pair_suspected, tangent_between)
 from .kinds import Event, Hit, Limit
-from .registry import BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, USER_VALUE
+from .registry import (BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, SYMMETRIC_BRANCH_POINT,
+                       USER_VALUE)
 from ..core import labels
 from ..numerics.newton import Row
 from ..core.errors import ENGINE, debugging, failure_record
@@ -602,6 +603,9 @@ class _Detection:
         has the other sign), the solutions on the hyperplanes between the two branches fail
         or the sign change does not survive a finer mesh, and a shorter step follows the
         branch round its corner."""
+        placed = SYMMETRIC_BRANCH_POINT.locate(self, step)
+        if placed is not None:
+            return placed, ""
         try:
             return BRANCH_POINT.locate(self, step), ""
         except CorrectorFailure as exc:
