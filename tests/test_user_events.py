@@ -150,3 +150,37 @@ def test_the_api_refuses_a_bad_event_and_events_on_fold_curves():
         ea.continuation(problem, {"eps": 0.5}, "psi", events="m1 = 1")
     with pytest.raises(ea.PlanError, match="'nope' is not an ordinate"):
         ea.continuation(problem, {"eps": 0.5}, "psi", events=["extremum nope"])
+
+
+def test_events_on_a_free_parameter_against_the_closed_form():
+    """examples/bratu_mean.py, the Bratu problem continued in its mean M with lam solved for
+    (free): along the family ``u = -2 ln(cosh(z (x - 1/2)) / cosh(z/2))``,
+    ``lam = 2 z^2 / cosh^2(z/2)`` rises, then falls. Its maximum (XT, "extremum lam") is the
+    Bratu fold: ``w tanh w = 1`` with w = z/2 (d lam / dz = 0), lam_c = 3.5138..., where
+    ``u'(0) = 2 z tanh(z/2) = 4`` exactly; "lam = 2" is met twice, rising and falling, at the
+    two roots z of ``2 z^2 / cosh^2(z/2) = 2``. M at each is the closed form's mean, by
+    quadrature. Tolerances: the points' accuracy (tol = 1e-5: about 1e-7 relative); M at the
+    extremum, where lam is stationary, is as accurate (its error is the derivative's error
+    over the curvature, not a square root)."""
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+
+    def mean(z):
+        return quad(lambda x: -2 * math.log(math.cosh(z * (x - 0.5)) / math.cosh(z / 2)),
+                    0, 1, epsabs=1e-12, epsrel=1e-12)[0]
+
+    problem = ea.load_problem(str(EXAMPLES / "bratu_mean.py"))
+    (br,) = ea.continuation(problem, {"M": 0.0}, "M", bounds=(-1, 3), directions="+",
+                            events=["extremum lam", "lam = 2"], max_points=200)
+    labelled = [p for p in br.points if p.type in ("UZ", "XT")]
+    assert [(p.type, p.note) for p in labelled] == [
+        ("UZ", "lam = 2 (rising)"), ("XT", "maximum of lam"), ("UZ", "lam = 2 (falling)")]
+    w = brentq(lambda w: w * math.tanh(w) - 1, 0.5, 2.0, xtol=1e-15)
+    top = labelled[1]
+    assert top.params["lam"] == pytest.approx(8 * w ** 2 / math.cosh(w) ** 2, rel=1e-7)
+    assert top.params["M"] == pytest.approx(mean(2 * w), abs=1e-6)
+    assert top.ordinates["du0"] == pytest.approx(4.0, rel=1e-7)
+    for p, (lo, hi) in zip((labelled[0], labelled[2]), ((0.01, 2 * w), (2 * w, 20.0))):
+        z = brentq(lambda z: 2 * z * z / math.cosh(z / 2) ** 2 - 2, lo, hi, xtol=1e-15)
+        assert p.params["lam"] == pytest.approx(2.0, abs=1e-9)
+        assert p.params["M"] == pytest.approx(mean(z), abs=1e-7)
