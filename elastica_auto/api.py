@@ -99,7 +99,8 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
                  params: Mapping[str, float | Iterable[float]] | None = None,
                  bounds: tuple[float, float] | None = None, directions: str = "+",
                  uz: Iterable[float] = (), uz_period: float | None = None,
-                 stop: Iterable[str] = (), switch: int = 0, switch_depth: int = 1,
+                 stop: Iterable[str] = (), events: Iterable[str] = (), switch: int = 0,
+                 switch_depth: int = 1,
                  free: Iterable[str] | None = None,
                  map: bool = False, landing: bool = False, damping: Iterable[float] = (),
                  damping_folds: Iterable[str] | None = None, jobs: int = 1,
@@ -130,6 +131,12 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
     stop : list of str, optional
         ``["LP4"]`` ends each branch at its 4th fold; ``["u_max > 100"]`` where an ordinate
         (or a free parameter) passes a value (EP, located exactly).
+    events : list of str, optional
+        Points to label without ending the branch: ``"NAME = VALUE"`` a UZ point wherever
+        the ordinate, free parameter or continued parameter NAME takes VALUE (AUTO-07p's
+        UZR); ``"extremum NAME"`` an XT point wherever the ordinate or free parameter NAME
+        has a maximum or minimum along the branch. Located to the corrector's tolerance;
+        the note says which (``m0 = 0 (rising)``, ``maximum of m1``).
     switch : int
         Also follow the other branch, both ways, at the first ``switch`` branch points of
         each branch (AUTO-07p's ISW=-1). A closed loop is followed once: a branch point it
@@ -202,7 +209,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         raise PlanError("worker_timeout", f"expected a positive number of seconds, got "
                                           f"{worker_timeout!r}")
     request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
-                      uz_period=uz_period, stop=stop, switch=switch,
+                      uz_period=uz_period, stop=stop, events=events, switch=switch,
                       switch_depth=switch_depth, free=free, map=map,
                       landing=landing, damping=damping, damping_folds=damping_folds)
     plan = make_plan(problem, start, parameter, request, options)

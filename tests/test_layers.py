@@ -139,7 +139,25 @@ def test_no_private_name_from_another_module():
     assert private(graph()) == []
 
 
+def kind_imports(edges) -> list[str]:
+    """The imports of the package's modules by the kinds of special point an ``events``
+    entry asks for (`elastica_auto.branches.registry.REQUESTED`) other than the event type
+    (`branches.kinds`) and `core`: a new kind is its own module and one registry line, so
+    it reads the walk only through the event interface."""
+    from elastica_auto.branches.registry import REQUESTED
+    allowed = {"elastica_auto.branches.kinds", "elastica_auto"}
+    return [f"{m}:{line} imports {target}" for m in (f"elastica_auto.branches.{k}"
+                                                    for k in REQUESTED)
+            for target, _, line in edges[m]
+            if target not in allowed and layer(target) != "core"]
+
+
+def test_a_requested_event_kind_imports_only_the_event_type_and_core():
+    assert kind_imports(graph()) == []
+
+
 @pytest.mark.parametrize("where, line, check", [
+    ("branches/extrema.py", "from .stepper import Course", kind_imports),
     ("numerics/newton.py", "from ..execution.run import execute", upward),
     ("numerics/newton.py", "from .stability import _kernel", private),
     ("numerics/collocation.py", "from .newton import newton", cycles),

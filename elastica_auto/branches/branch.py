@@ -9,14 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core import labels
 from ..core.solution import State, Tangent
 from ..numerics.stability import count
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
 PROFILE_GRID = np.linspace(0.0, 1.0, 101)
 
-#: Label types, AUTO-07p's vocabulary.
-LABEL_TYPES = ("EP", "LP", "BP", "UZ", "MX", "CP")
+#: Label types, AUTO-07p's vocabulary and XT (`elastica_auto.core.labels`, what each means).
+LABEL_TYPES = tuple(labels.MEANING)
 
 #: Index columns hold this until the stability post-processor has filled them.
 INDEX_UNKNOWN = -1

@@ -44,6 +44,7 @@ import dataclasses
 
 import numpy as np
 
+from ..core import labels
 from ..core.solution import State, Tangent
 from .branch import Branch, Point
 from .events import UserValues, is_user_value
@@ -75,9 +76,12 @@ def symmetric_start(problem, parameter: str, origin) -> bool:
 def symmetric_course(course) -> bool:
     """Whether ``course`` ends branches where their mirror images end: bounds -b and b, and
     no stops on an ordinate (a fold stop, ``stop = "LP3"``, counts folds along the branch,
-    which its image meets in the same order; a fold curve's course is not one)."""
+    which its image meets in the same order; a fold curve's course is not one); and labels
+    the same points on both: no events asked for (``events``: an ordinate's value need not
+    be its image's)."""
     stops = course.stops
-    return stops.lower == -stops.upper and not stops.limits and not course.all_folds
+    return (stops.lower == -stops.upper and not stops.limits and not course.all_folds
+            and not course.watch)
 
 
 def mirror_course(course):
@@ -98,7 +102,7 @@ def set_aside(branch: Branch, course) -> None:
     ``course`` asks for them (`image_of`)."""
     name = course.parameter
     aside = [p for p in branch.points
-             if p.type == "UZ" and not is_user_value(p.params[name], course.user_values)]
+             if p.type == labels.UZ and not is_user_value(p.params[name], course.user_values)]
     branch.points = [p for p in branch.points if all(p is not q for q in aside)]
     branch.mirror_points = aside
 
@@ -110,9 +114,9 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
     module docstring): then the ``-`` branch is computed."""
     name = source.parameter
     last = source.points[-1] if source.points else None
-    at_bound = (source.end == "EP" and last is not None
+    at_bound = (source.end == labels.EP and last is not None
                 and source.message == f"reached {name} = {last.params[name]:g}")
-    at_fold = source.end == "LP" and source.message.startswith("stopped at fold ")
+    at_fold = source.end == labels.LP and source.message.startswith("stopped at fold ")
     if (last is None or not (at_bound or at_fold) or source.interrupted or source.warnings
             or source.diagnostics or last.state is None
             or any("not located" in p.note for p in source.points)):
@@ -120,7 +124,7 @@ def image_of(problem, source: Branch, new: Branch, course) -> Branch | None:
     if not all(_checked(problem, p) for p in _witnesses(problem, source)):
         return None
     for p in source.points:
-        if not (p.type == "UZ" and not is_user_value(-p.params[name], course.user_values)):
+        if not (p.type == labels.UZ and not is_user_value(-p.params[name], course.user_values)):
             new.points.append(_point_image(problem, p))
     for p in source.mirror_points:
         new.insert(_point_image(problem, p))

@@ -28,8 +28,16 @@ travel):
    fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
 5. **accept**: the folds and branch points split the step into monotone pieces, on which user
-   points (UZ) and bounds (EP) are solved; b is added, ds grows by ``growth`` after an easy
-   step.
+   points (UZ) and bounds (EP) are solved; the events the run asks for (``events = [...]``:
+   user events, extrema) are found by their own test functions
+   (:meth:`~elastica_auto.branches.kinds.Event.find`); b is added, ds grows by ``growth``
+   after an easy step.
+
+Every kind of special point is an event object (:mod:`elastica_auto.branches.kinds`), the
+shipped ones created in :mod:`elastica_auto.branches.registry`. The walk is one class made of
+named parts: the points and their room (``_Points``), detection (``_Detection``), the step's
+points in order (``_Placement``), the return to the start (``_Return``), fold translates
+(``_Translates``), and the loop (``_Walk``).
 """
 
 from __future__ import annotations
@@ -44,9 +52,11 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
-                     locate_branch_point, locate_fold, locate_index_change, locate_limit,
-                     locate_value, pair_suspected, parameter_turns,
-                     place_symmetric_branch_point, tangent_between)
+                     locate_limit, pair_suspected, tangent_between)
+from .kinds import Event, Hit, Limit
+from .registry import (BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, SYMMETRIC_BRANCH_POINT,
+                       USER_VALUE)
+from ..core import labels
 from ..numerics.newton import Row
 from ..core.errors import ENGINE, debugging, failure_record
 from ..core.options import ContinuationOptions
@@ -99,26 +109,6 @@ REPEAT_GAP = 1e-4
 
 
 @dataclass(frozen=True)
-class Limit:
-    """``stop = ["norm > 100"]``: the branch ends where ``name`` (an ordinate or a free
-    parameter) passes ``value`` upwards (``sign`` +1, ``>``) or downwards (-1, ``<``)."""
-
-    name: str
-    sign: int
-    value: float
-
-    def __str__(self):
-        return f"{self.name} {'>' if self.sign > 0 else '<'} {self.value:g}"
-
-    def excess(self, problem, state: State) -> float:
-        """sign (quantity - value) at ``state``: positive once the limit is passed."""
-        p = problem.point_params(state.params, state.y)
-        q = p[self.name] if self.name in p else \
-            problem.ordinate_values(state.s, state.y, state.params)[self.name]
-        return self.sign * (q - self.value)
-
-
-@dataclass(frozen=True)
 class Stops:
     """Where a branch ends: bounds on the continued parameter, the n-th fold (or None), and
     limits on ordinates or free parameters."""
@@ -127,17 +117,6 @@ class Stops:
     upper: float = math.inf
     at_fold: int | None = None
     limits: tuple[Limit, ...] = ()
-
-
-@dataclass
-class _Event:
-    sigma: float
-    kind: str
-    state: State
-    tangent: Tangent | None
-    residual: float = float("nan")
-    note: str = ""
-    message: str = ""      # an EP's: why the branch ends there
 
 
 class _Reject(Exception):
@@ -260,7 +239,10 @@ class Course:
     met a turn of its rounding that could not be located: 8% of a 3D run's time).
     ``counted_values``: the UZ values whose points count toward ``max_points`` (None: all of
     ``user_values``); the others are set aside for the branch's mirror image
-    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch."""
+    (`elastica_auto.branches.mirror.mirror_course`) and are no points of this branch.
+    ``watch``: the events the run asks for (``events = [...]``,
+    `elastica_auto.branches.registry.parse_events`), each found in every step by its own
+    test function (:meth:`~elastica_auto.branches.kinds.Event.find`)."""
 
     parameter: str
     options: ContinuationOptions
@@ -269,6 +251,7 @@ class Course:
     all_folds: bool = False
     events: bool = True
     counted_values: tuple[UserValues, ...] | None = None
+    watch: tuple[Event, ...] = ()
 
 
 def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
@@ -310,9 +293,9 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             a = start_solution(corr, origin.state, branch.direction, origin.tangent,
                                origin.kind == "switch")
         except CorrectorFailure as exc:
-            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
                                     note="singular start"))
-            branch.end, branch.message = "MX", f"no tangent at the start point ({exc})"
+            branch.end, branch.message = labels.MX, f"no tangent at the start point ({exc})"
             return branch
         walk = _Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         walk.run(a)
@@ -340,10 +323,10 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
     its label and is followed by an MX of its own). A branch without points gets its start,
     labelled MX, so that every branch has a point to show and restart from (without calling
     the module, which may be what failed, if it fails there: :func:`start_point`)."""
-    branch.end, branch.message = "MX", message
+    branch.end, branch.message = labels.MX, message
     if not branch.points:
         try:
-            branch.insert(new_point(problem, origin.state, type="MX", arclength=0.0,
+            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
                                     tangent=origin.tangent))
         except Exception:  # the module fails at the start itself
             branch.insert(start_point(branch, origin))
@@ -355,10 +338,10 @@ def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
         branch.points.pop()
     last = branch.points[-1]
     if last.type:  # keep its label (the start's EP, say); end with an MX of its own
-        branch.insert(new_point(problem, last.state, type="MX", arclength=last.arclength,
+        branch.insert(new_point(problem, last.state, type=labels.MX, arclength=last.arclength,
                                 tangent=last.tangent, direct=last.index_direct))
     else:  # the last accepted point, whose solution the walk still has
-        walk.end_at_base("MX", message)
+        walk.end_at_base(labels.MX, message)
 
 
 def start_point(branch: Branch, origin: Origin) -> Point:
@@ -368,7 +351,7 @@ def start_point(branch: Branch, origin: Origin) -> Point:
     state = origin.state
     return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
                                                                     float("nan")),
-                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type="MX",
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type=labels.MX,
                  profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
                  state=state, tangent=origin.tangent)
 
@@ -388,114 +371,11 @@ def _turned_tangent(problem, name: str, t: Tangent | None, k: int) -> Tangent | 
                    periods_applied(problem, name, t.yp, k, True), t.lam)
 
 
-class _Walk:
-    """The state of one continuation: the last accepted solution, ds, the arclength."""
-
-    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
-        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
-        self.stops, self.user_values = course.stops, course.user_values
-        self.counted_values = course.counted_values
-        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
-        self.all_folds, self.events = course.all_folds, course.events
-        # the kinds of special point looked for (the option ``detect``; none without events)
-        self.detect_lp = course.events and self.opt.detect["LP"]
-        self.detect_bp = course.events and self.opt.detect["BP"]
-        self.progress, self.singular_start = progress, singular_start
-        self.name = branch.parameter
-        self.a, self.base_point = None, None
-        self.ordinate = next((o for o in self.problem.ordinates.values()
-                              if o.parameter == self.name), None)
-        self.enters = self.problem.parameters[self.name].enters
-        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
-        self.start = None   # the first solution: the branch ends where it comes back to it
-        self.event_retries = 0
-        self.can_retry = True   # whether the step may still be retried for an event (_detect)
-        # the length of the last step accepted (inf before the first): the retries an event
-        # may take are halvings below it (`_walk`)
-        self.accepted_ds = math.inf
-        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
-        self.period = self._repeat_period(course, singular_start)
-
-    # -- the loop ---------------------------------------------------------------------------
-    def run(self, a: Solution):
-        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
-        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
-        self._walk(a)
-        if self.until is None and self.branch.end != "LP":
-            self._complete_translates()
-
-    def _walk(self, a: Solution):
-        opt, branch = self.opt, self.branch
-        self.base_point = self._add(a.state, type="EP", arclength=0.0, tangent=a.tangent)
-        if self.singular_start:
-            self.base_point.note = ""
-        self.a, self.arclength, self.first = a, 0.0, True
-        self.start = a
-        self.curvature = None
-        ds = abs(opt.ds)
-        history = []
-        # the step's rejections, and those that left it shorter than the last step accepted:
-        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
-        # known to resolve, and its halvings down to it do not spend the retries that an
-        # event that cannot be located, or an index the fold rule does not give, may take
-        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
-        # with a warning, hostile M9). With growth < 2 every halving is below it.
-        retries = below = 0
-        while True:
-            # the branch ends at its last point, which an EP of its own follows if labelled
-            if self._room() <= (1 if self.base_point.type else 0):
-                self.end_at_base("EP", self._full())
-                return
-            try:
-                ds_next, ended = self._step(ds, retries, below)
-            except _Reject as rej:
-                history.append({"ds": ds, "residual": rej.residual,
-                                "nodes": len(self.a.mesh), "message": str(rej)})
-                retries += 1
-                below += rej.ds < self.accepted_ds
-                ds = rej.ds
-                if ds < opt.ds_min:
-                    # an infinite residual is Newton's mark for residuals that are not finite,
-                    # which only the module's functions can make from a finite guess
-                    why = (" (the equation module returned NaN or inf there)"
-                           if math.isinf(rej.residual) else "")
-                    if any(h["nodes"] >= opt.max_nodes for h in history):
-                        # no mesh met tol: what is left of the residual is not the mesh's
-                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
-                        # the corrector's absolute accuracy and lam exp(u) is not small)
-                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
-                                "without meeting tol)")
-                    self.end_at_base("MX", f"corrector failed at ds < ds_min = {opt.ds_min:g} "
-                                            f"after point {len(branch.points)} "
-                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
-                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
-                                          "nodes": len(self.a.mesh), "history": history[-12:]}
-                    return
-                continue
-            if ended:
-                return
-            history.clear()
-            retries = below = 0
-            ds = ds_next
-
-    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
-        """The period of the continued parameter if the branch may be completed by
-        translation once it passes its start one period on (:meth:`_repeat`): a regular
-        start, and nothing that a translate would have to decide afresh. Each UZ value
-        recurs with a period that divides the parameter's (every translate of a user point
-        is one, and no other point becomes one); no fold stop, no limit, not a fold curve
-        nor the refinement of a step."""
-        period = self.problem.parameters[self.name].period
-        if (period is None or singular_start or course.all_folds or course.stops.limits
-                or course.stops.at_fold is not None):
-            return None
-        for spec in course.user_values:
-            if spec.period is None:
-                return None
-            ratio = period / spec.period
-            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
-                return None
-        return period
+class _Points:
+    """The branch's points and the room for them: adding a point, ending the branch at the last
+    one accepted, and ``max_points`` (the points that count toward it, a UZ point set aside for
+    a mirror image does not). Reads ``branch``, ``problem``, ``corr``, ``opt``, ``a``,
+    ``base_point``, ``arclength``, ``all_folds``, ``counted_values``."""
 
     def _add(self, state: State, **fields) -> Point:
         if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
@@ -521,7 +401,7 @@ class _Walk:
         """Whether a point of this ``kind`` at parameters ``params`` counts toward
         ``max_points``: all but UZ points at values set aside for the branch's mirror image
         (not among ``counted_values``)."""
-        return (kind != "UZ" or self.counted_values is None
+        return (kind != labels.UZ or self.counted_values is None
                 or is_user_value(params[self.name], self.counted_values))
 
     def _room(self) -> int:
@@ -540,6 +420,776 @@ class _Walk:
 
     def _full(self) -> str:
         return f"reached max_points = {self.opt.max_points}"
+
+    def _end_full(self, last: Point | None, following: str = ""):
+        """End the branch at ``max_points`` inside a step: at the last point it added (a
+        labelled one, followed by an EP of its own), or at the step's start if none. Where
+        that leaves one point unused, the message says why: the ``following`` point (its
+        label) would have needed the EP after it as well."""
+        if last is None:
+            self.end_at_base(labels.EP, self._full())
+        else:
+            self._add(last.state, type=labels.EP, arclength=last.arclength, tangent=last.tangent,
+                      direct=last.index_direct)
+            self.branch.end, self.branch.message = labels.EP, self._full()
+        if following and self._room() > 0:
+            self.branch.message += (f" (the next point, {following}, and the EP after it would "
+                                    "exceed it)")
+
+
+class _Detection:
+    """The folds and branch points of a step, detected and located through the registry's event
+    objects (`elastica_auto.branches.registry`), reconciled (a turn at a branch point is one
+    BP), and the stability index at the step's end checked against the fold rule; a fold pair
+    suspected inside the step is probed. Raises ``_Reject`` to retry the step shorter."""
+
+    def _detect(self, step: Step, retries: int) -> tuple[list[Hit], int]:
+        """The folds and branch points in the step, located, and the index at b, checked
+        against the fold rule; a fold pair suspected inside the step, a fold that cannot be
+        located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
+        then with a warning). Returns the events and b's index."""
+        corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
+        s = b.mesh
+        skip = (self.first and self.singular_start) or not self.events
+        a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
+        fold = FOLD.crossed(step) and not skip and self.detect_lp
+        bp = (BRANCH_POINT.crossed(a_here, b) and not skip and not a.extra.get("singular")
+              and self.detect_bp)
+        counted = count(self.problem, b.state)
+        index_a, index_b = self.base_point.index_direct, counted.index
+        # retries for a fold that cannot be located or a fold rule that fails count until a
+        # step with a fold is accepted: shorter steps that stop before the fold do not reset
+        # them (they would approach the fold for ever)
+        can_retry = self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
+        if not (fold or bp) and can_retry and not skip and self.detect_lp:
+            u = pair_suspected(step)
+            if u is not None:
+                self._probe(step, u, ds, index_a)
+        found = []
+        located, unlocated = self._branch_point(step, can_retry) if bp else (None, "")
+        if fold:
+            try:
+                found.extend(self._fold_events(step, bp, located))
+            except CorrectorFailure as exc:
+                if can_retry:
+                    self.event_retries += 1
+                    raise _Reject(f"fold not located ({exc})", ds / 2) from None
+                if 0 <= index_a == index_b and self.detect_bp:
+                    # the parameter turns, the fold system is singular and no eigenvalue
+                    # crossed zero: not a simple fold (where the index changes by one) but a
+                    # pitchfork passed along its other branch
+                    found.append(Hit(step.dist / 2, labels.BP, b.state, b.tangent,
+                                        note="turning point without index change (the fold "
+                                             f"system fails: {exc})"))
+                    unlocated = ""   # that is the branch point, labelled, its note says why
+                else:
+                    self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
+                                                f"located: {exc}")
+                    found.append(Hit(step.dist / 2, labels.LP, b.state, b.tangent,
+                                        note=f"fold not located: {exc}"))
+        elif located is not None:
+            note = self._kernel_check(located.state, index_a, index_b)
+            found.append(Hit(located.sigma, labels.BP, located.state, step.secant,
+                                abs(located.value), note=note))
+        if unlocated:
+            self.branch.warnings.append(unlocated)
+        # the fold rule predicts b's index from the folds and branch points found: not where
+        # either kind is not looked for
+        if index_a >= 0 and index_b >= 0 and not skip and self.detect_lp and self.detect_bp:
+            expected = self._rule(step, found, index_a)
+            if (expected is not None and expected != index_b and not found and not can_retry
+                    and (index_b - index_a) % 2 == 0):
+                found.append(self._even_branch_point(step, index_a, index_b))
+                expected = None
+            if expected is not None and expected != index_b:
+                if can_retry:
+                    self.event_retries += 1
+                    raise _Reject(f"index {index_b} at the new point, the fold rule gives "
+                                  f"{expected}", ds / 2)
+                self.branch.warnings.append(
+                    f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
+                    f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
+        if found:
+            self.event_retries = 0
+        return found, counted
+
+    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> Hit:
+        """A branch point where the index changed by an even number with neither a fold nor
+        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
+        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
+        does not see. Located where the index changes (bisection)."""
+        at = EVEN_BRANCH_POINT.locate(self, step, index_a)
+        state = at.solution.state
+        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
+                "(a branch point of even multiplicity)")
+        kernel = self._kernel_check(state, index_a, index_b)
+        return Hit(at.sigma, labels.BP, state, step.secant, note="; ".join(filter(None, (note,
+                                                                                    kernel))))
+
+    def _kernel_check(self, state, index_a: int, index_b: int) -> str:
+        """At a branch point crossed by the branch, the index changes by the dimension of the
+        second variation's kernel there (an eigenvalue crosses zero for each kernel
+        direction): '' where it does, else a note, also kept as a warning."""
+        if index_a < 0 or index_b < 0 or not self.problem.has_second_variation:
+            return ""
+        kernel = kernel_dimension(self.problem, state)
+        if kernel == abs(index_b - index_a):
+            return ""
+        note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
+                f"dimension {kernel if kernel >= 0 else 'unknown'}")
+        self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
+        return note
+
+    def _probe(self, step: Step, u: float, ds: float, index_a: int):
+        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
+        look for the slope's minimum along the step. Each probe solves on the hyperplane at
+        u and reads the tangent and index there; a tangent turned over (or an index that
+        differs from a's) means a fold pair: retry with a step that ends before it. Else the
+        next u is the vertex of the parabola through the three lowest slopes known (the
+        ends' and the probes'), up to PROBES probes or until u moves by less than 1e-3: a
+        pair narrower than the model's error (near a cusp) is found all the same."""
+        sign = math.copysign(1.0, step.a.tangent.lam)
+        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
+        for _ in range(PROBES):
+            try:
+                mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
+            except CorrectorFailure:
+                raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
+            t = mid.tangent
+            if inner(t, step.secant, mid.mesh) < 0:
+                t = t.scaled(-1.0)
+            if sign * t.lam <= 0 or (
+                    index_a >= 0 and count(self.problem, mid.state).index != index_a):
+                raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
+                              max(u * ds / 2, ds / 8))
+            known.append((u, sign * t.lam))
+            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
+            if nxt is None or abs(nxt - u) < 1e-3:
+                return
+            u = nxt
+
+    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[Hit]:
+        """The fold in the step, located: an LP, or where the determinant changed sign too, a
+        BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
+        branch), unless the branch point ``located`` lies apart from the fold (more than
+        SAME_EVENT of the step): then both, the fold and a branch point of its own (the
+        isotropic rod's symmetric points lie 0.02 in psi from folds, and a step can pass
+        both; as one BP the fold was missing, and the walk for its translates went on for
+        thousands of points)."""
+        before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
+        fp = FOLD.locate(self, step, before[0] if before else None)
+        phi = fp.phi
+        if inner(phi, step.secant, phi.s) < 0:
+            phi = phi.scaled(-1.0)
+        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
+        fold = Hit(sigma, labels.LP, fp.state, phi, fp.residual)
+        if not bp:
+            return [fold]
+        if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
+            return [fold, Hit(located.sigma, labels.BP, located.state, step.secant,
+                                 abs(located.value))]
+        return [Hit(sigma, labels.BP, fp.state, step.secant, fp.residual,
+                       note="turning point without index change")]
+
+    def _branch_point(self, step: Step, can_retry: bool
+                      ) -> tuple[Located | Placed | None, str]:
+        """The branch point where the determinant changed sign in the step, located (or
+        placed at a value of the parameter where the module's symmetry holds), and ""; or,
+        once retries are spent, None and the warning that says so (which the caller drops
+        where the step's turning point is labelled BP instead).
+
+        A step whose branch point cannot be located is retried shorter: where the step
+        jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
+        has the other sign), the solutions on the hyperplanes between the two branches fail
+        or the sign change does not survive a finer mesh, and a shorter step follows the
+        branch round its corner."""
+        placed = SYMMETRIC_BRANCH_POINT.locate(self, step)
+        if placed is not None:
+            return placed, ""
+        try:
+            return BRANCH_POINT.locate(self, step), ""
+        except CorrectorFailure as exc:
+            if can_retry:
+                self.event_retries += 1
+                raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
+            return None, (f"branch point between {self.name} = {step.a.lam:.6g} and "
+                          f"{step.b.lam:.6g} not located: {exc}")
+
+    def _rule(self, step: Step, found: list[Hit], index_a: int) -> int | None:
+        """The index at b by the fold rule from a's (None where the rule does not apply)."""
+        if self.ordinate is None:
+            return None
+        out = index_a
+        for e in sorted(found, key=lambda e: e.sigma):
+            if e.kind != labels.LP or e.note:
+                return None
+            # xi'' from the tangents (robust at any step length), dB/dtau across the step
+            change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
+                                  self._ordinate(step.b.state) - self._ordinate(step.a.state))
+            if change == 0:
+                return None
+            out += change
+        return out
+
+    def _ordinate(self, state: State) -> float:
+        return float(self.ordinate.fn(state.s, state.y, state.params))
+
+
+class _Placement:
+    """The step's points in the order of travel: its folds and branch points, its user points
+    (UZ) and the bound (EP) solved on the monotone pieces between folds, the limits of
+    ``stop``, and the events the run asks for (``Course.watch``, each by its own ``find``);
+    the points past an end dropped, the fold stop applied."""
+
+    def _add_events(self, step: Step, found: list[Hit]) -> str:
+        """Add the LP/BP events ``found`` in the step, its UZ and bound EP points, and the
+        points of the events the run asks for (``Course.watch``), in order;
+        return "ended" if the branch ends in this step, "moved" if it came back to its start
+        one period on and the walk moved past the translates of that period (:meth:`_repeat`),
+        else "". Folds split the step: a value is solved between the two knots that bracket
+        it, so it cannot converge to the other side.
+
+        The points never exceed ``max_points``: an event is added while the points that
+        count (`_counts`) leave room for one more, the EP that ends the branch after it (or
+        while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
+        fold stop); where the step has more, the branch ends at the last one added, and the
+        UZ values past those the room can take are not solved for."""
+        branch, name, stops = self.branch, self.name, self.stops
+        inside = sorted((e for e in found if e.kind == labels.LP and not e.note
+                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
+        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
+                 + [(step.dist, step.b.state)])
+        events = list(found)
+        bound_hit = None
+        room = self._room()
+        # each spec's values come in the order of travel: past the first ``room`` that count,
+        # none could be added
+        solved = [0] * len(self.user_values)
+        for (s0, x), (s1, y) in zip(knots, knots[1:]):
+            lx, ly = x.params[name], y.params[name]
+            for k, spec in enumerate(self.user_values):
+                for c in crossings(lx, ly, spec):
+                    if solved[k] >= room:
+                        break
+                    ev = self._value_event(step, x, y, s0, s1, c, USER_VALUE)
+                    if ev is not None:
+                        events.append(ev)
+                        solved[k] += self._counts(labels.UZ, ev.state.params)
+            bound = stops.upper if lx <= stops.upper < ly else \
+                stops.lower if ly < stops.lower <= lx else None
+            if bound is not None:
+                bound_hit = self._value_event(step, x, y, s0, s1, bound, BOUND)
+                if bound_hit is None:
+                    bound_hit = Hit(s1, labels.EP, y, step.b.tangent, note="bound not located")
+                break
+        for event in self.watch:
+            events.extend(event.find(self, step))
+        for hit in (self._limit_event(step), self._closure_event(step),
+                    self._period_event(step)):
+            if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
+                bound_hit = hit
+        if bound_hit is not None:
+            events = [e for e in events if e.sigma < bound_hit.sigma
+                      and not self._at_start(step, e, bound_hit)] + [bound_hit]
+        events.sort(key=lambda e: e.sigma)
+        nfolds = len(branch.folds)
+        last = None
+        for e in events:
+            if e.kind == PERIOD:
+                return self._repeat(step, e)
+            # room for the event, and for the EP after it unless it ends the branch (a point
+            # set aside for the mirror image takes none, but may be the last before that EP)
+            ends = e.kind == labels.EP or (e.kind == labels.LP and stops.at_fold is not None
+                                           and nfolds + 1 >= stops.at_fold)
+            need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
+            if self._room() < need:
+                self._end_full(last, e.kind)
+                return "ended"
+            last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
+                             tangent=e.tangent, fold_residual=e.residual, note=e.note)
+            if e.kind == labels.LP:
+                nfolds += 1
+                if stops.at_fold is not None and nfolds >= stops.at_fold:
+                    cut = step.position(e.sigma)
+                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
+                    branch.end = labels.LP
+                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
+                    return "ended"
+            if e.kind == labels.EP:
+                branch.end = labels.EP
+                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
+                return "ended"
+        return ""
+
+    def _limit_event(self, step: Step) -> Hit | None:
+        """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
+        event (None if none is passed)."""
+        first = None
+        for limit in self.stops.limits:
+            if not limit.passed(self.problem, step):
+                continue
+            try:
+                at = locate_limit(self.corr, self.problem, step, limit)
+            except CorrectorFailure as exc:
+                self.branch.warnings.append(f"stop {limit} not located: {exc}")
+                at = None
+            sigma = step.dist if at is None else at.sigma
+            if first is None or sigma < first.sigma:
+                state = step.b.state if at is None else at.solution.state
+                value = limit.value + limit.sign * (0.0 if at is None else at.value)
+                first = Hit(sigma, limit.label, state, tangent_between(step, sigma),
+                               message=f"reached {limit.name} = {value:.6g} (stop {limit})")
+        return first
+
+    def _value_event(self, step, x, y, s0, s1, value, kind) -> Hit | None:
+        """The UZ or bound EP point (``kind``: USER_VALUE or BOUND) where the parameter is
+        ``value`` between the knots x and y of the step. Where it is not found there although
+        the knots' values bracket it, the branch does not pass from x to y through the
+        solutions between them (a step that jumped to another branch, hostile M9): the step
+        is rejected, as for an event that cannot be located (RETRY_HALVINGS), then accepted
+        with a warning and no point."""
+        try:
+            return kind.locate(self, step, x, y, s0, s1, value)
+        except CorrectorFailure as exc:
+            what = "user point" if kind is USER_VALUE else "bound"
+            if self.can_retry:
+                self.event_retries += 1
+                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
+                              step.ds / 2) from None
+            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
+            return None
+
+
+class _Return:
+    """Where the branch comes back: to its start (a closed loop ends there, EP), or to its start
+    translated by whole periods of the parameter (the rest is the first period translated:
+    copied, then the walk resumes)."""
+
+    def _close_ahead(self, ds: float) -> bool:
+        """End the branch at its start point, without a step, where the start lies within
+        the next step (ahead of a along its tangent by sigma <= ds, within ``CLOSED_LOOP``
+        sigma of the tangent's line, the tangent pointing the way the branch left it): a step
+        that ends next to a singular start (a branch point it was switched from) would see
+        the start's own fold or branch point there, and fail to locate it. (Measured against
+        ds, which ``growth`` makes far longer than any step the branch has taken, the start
+        of the rotating arm was "ahead" of points a period away: hostile M9.)"""
+        start, a = self.start, self.a
+        if start is None or self.until is not None or self.first or self._far(a, ds):
+            return False
+        s = a.mesh
+        t = a.tangent.on(s)
+        off = difference(start.state, a.state, self.name, s)
+        sigma = inner(off, t, s)
+        if not 0.0 < sigma <= ds:
+            return False
+        off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
+        if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
+            return False
+        self._add(start.state, type=labels.EP, arclength=self.arclength + sigma,
+                  tangent=start.tangent, direct=self.branch.points[0].index_direct)
+        self.branch.end = labels.EP
+        self.branch.message = self._closed(self.arclength + sigma)
+        return True
+
+    def _far(self, a, length: float) -> bool:
+        """Whether the start is farther from ``a`` in the parameter alone than either check
+        allows: both need |x0 - a| <= hypot(1, CLOSED_LOOP) ``length`` (the start within
+        ``length`` along a line from a, within CLOSED_LOOP ``length`` of it), and the norm
+        bounds the parameter's difference. (The checks interpolate the start onto a's mesh;
+        this one costs nothing, and rules out nearly every step.)"""
+        gap = abs(self.start.state.params[self.name] - a.state.params[self.name])
+        return gap > math.hypot(1.0, CLOSED_LOOP) * length
+
+    def _closed(self, arclength: float) -> str:
+        return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
+                f"after arclength {arclength:.6g}")
+
+    def _closure_event(self, step: Step) -> Hit | None:
+        """An EP at the branch's start point if the step passes it the way the branch left
+        it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
+        branch, say), else None. The start projects onto the step's secant at
+        ``0 < sigma <= dist`` within ``CLOSED_LOOP`` of the step's length of it; the end point
+        is the start's own solution, so the loop closes exactly. Not in a walk that ends at
+        a hyperplane (``until``: the refinement of one step)."""
+        start = self.start
+        if (start is None or self.until is not None or self.first
+                or self._far(step.a, step.dist)):
+            return None
+        s = step.b.mesh
+        sigma = step.sigma(start.state)
+        if not 0.0 < sigma <= step.dist:
+            return None
+        off = difference(start.state, step.a.state, self.name, s)
+        off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
+                      off.lam - sigma * step.secant.lam)
+        if (norm(off) > CLOSED_LOOP * step.dist
+                or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
+            return None
+        return Hit(sigma, labels.EP, start.state, start.tangent,
+                      message=self._closed(step.position(sigma)))
+
+    def _period_event(self, step: Step) -> Hit | None:
+        """The start translated by whole periods of the parameter, if the step passes it the
+        way the branch left it (as :meth:`_closure_event` tests for the start itself) and
+        the branch's own solution on that hyperplane is the translate: then the branch is
+        periodic, and :meth:`_repeat` completes it. None where the walk may not repeat
+        (``self.period`` None, the first step) or the step passes no translate.
+
+        The translate is checked twice, since what follows copies it: the solution on the
+        hyperplane through it differs from it by at most REPEAT_GAP (relative, in norm; the
+        corrector's tolerance makes the two discrete solutions differ by about 1e-6), and
+        its ordinates equal the start's to rounding (the module's ordinates are periodic in
+        the parameter as its equations are; a module whose ordinates are not gets a
+        warning, and no branch of it repeats)."""
+        if self.period is None or self.until is not None or self.first:
+            return None
+        start, name, period = self.start, self.name, self.period
+        lo, hi = sorted((step.a.lam, step.b.lam))
+        reach = math.hypot(1.0, CLOSED_LOOP) * step.dist
+        s = step.b.mesh
+        for k in range(math.ceil((lo - reach - start.lam) / period),
+                       math.floor((hi + reach - start.lam) / period) + 1):
+            if k == 0:
+                continue
+            there = _turned(self.problem, name, start.state, k, start.lam + k * period)
+            tangent = _turned_tangent(self.problem, name, start.tangent, k)
+            sigma = step.sigma(there)
+            if not 0.0 < sigma <= step.dist:
+                continue
+            off = difference(there, step.a.state, name, s)
+            off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
+                          off.lam - sigma * step.secant.lam)
+            if (norm(off) > CLOSED_LOOP * step.dist
+                    or inner(tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
+                continue
+            try:
+                sol = self.corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
+            except CorrectorFailure:
+                continue
+            if norm(difference(sol.state, there, name, s), s) > REPEAT_GAP * (1.0 + norm(there, s)):
+                continue
+            ours = self.problem.ordinate_values(there.s, there.y, there.params)
+            first = self.branch.points[0].ordinates
+            if any(abs(v - first[q]) > 1e-9 * (1.0 + abs(first[q])) for q, v in ours.items()):
+                self.branch.warnings.append(
+                    f"the branch passes its start translated by {k} periods of {name}, but "
+                    "the ordinates there differ from the start's: not completed by translation")
+                self.period = None
+                return None
+            return Hit(sigma, PERIOD, there, tangent)
+        return None
+
+    def _repeat(self, step: Step, hit: Hit) -> str:
+        """The branch passes ``hit``, its start translated by whole periods of the parameter,
+        the way it left the start: from there on it is its first period translated (the
+        solution set and the ordinates are periodic, and a continuation through a regular
+        point in a given direction is unique). Add the translate and then copies of the
+        period's points, each period shifted by the same amount in the parameter and in
+        arclength, while they stay within the bounds and ``max_points``; then resume the
+        walk from the last copy that is not a fold or a branch point (solved again from its
+        profile, or the last translate of the start, which is exact), for what remains.
+        Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
+        at its next turn, as it would have there; a labelled copy is made only with room for
+        the EP after it), or "ended" where there is no room for the translate."""
+        branch, name, stops, problem = self.branch, self.name, self.stops, self.problem
+        shift = hit.state.params[name] - self.start.lam
+        turns = round(shift / self.period)      # the periods from the start to ``hit``
+        uz = is_user_value(hit.state.params[name], self.user_values)
+        # room for the translate, and for the EP that follows it where it is labelled
+        if self._room() < (2 if uz else 1):
+            self._end_full(None, labels.UZ if uz else "")
+            return "ended"
+        translate = self._add(hit.state, type=labels.UZ if uz else "",
+                              arclength=step.position(hit.sigma), tangent=hit.tangent,
+                              direct=branch.points[0].index_direct)
+        period = branch.points[1:]
+        length = translate.arclength - branch.points[0].arclength
+        exact = {id(translate): hit.state}     # the translates of the start: their solutions
+        j = 1
+        while True:
+            for p in period:
+                lam = p.params[name] + j * shift
+                counts = self._counts(p.type, {**p.params, name: lam})
+                if not stops.lower < lam < stops.upper or self._room() < (
+                        (2 if p.type else 1) if counts else 1):
+                    return self._resume(exact)
+                k = j * turns
+                copy = dataclasses.replace(
+                    p, params={**p.params, name: lam}, arclength=p.arclength + j * length,
+                    profile=np.array(periods_applied(problem, name, p.profile, k)))
+                if p.state is not None:
+                    copy.state = _turned(problem, name, p.state, k, lam)
+                    copy.tangent = _turned_tangent(problem, name, p.tangent, k)
+                if p is translate:
+                    exact[id(copy)] = _turned(problem, name, hit.state, k, lam)
+                branch.points.append(copy)
+            j += 1
+
+    def _resume(self, exact: dict) -> str:
+        """Go on from the last copy :meth:`_repeat` made that is not a fold or a branch point
+        (the later copies removed): its solution, solved again from its profile where it is
+        not a translate of the start, with the tangent along the branch."""
+        branch, name = self.branch, self.name
+        pts = branch.points
+        while pts[-1].type in (labels.LP, labels.BP):
+            pts.pop()
+        point = pts[-1]
+        sol = None
+        if id(point) not in exact:
+            try:
+                sol = self._resolve(point)
+            except CorrectorFailure:
+                while id(pts[-1]) not in exact:
+                    pts.pop()
+                point = pts[-1]
+        if sol is None:
+            sol = self.corr.point(exact[id(point)])
+        prev = pts[-2]
+        grid = PROFILE_GRID
+        t = sol.tangent
+        along = (float(np.sum(np.gradient(grid) * np.sum(t(grid) * (point.profile - prev.profile),
+                                                           axis=0)))
+                 + t.lam * (point.params[name] - prev.params[name]))
+        if along < 0:
+            t = t.scaled(-1.0)
+        disc = self.corr.disc(sol.mesh)
+        sol = self.corr.solution(disc, sol.state.params, sol.state.y, sol.lam,
+                                 Row(disc.weights * t.on(sol.mesh).y, t.lam, 0.0))
+        self.base_point, self.a, self.arclength, self.curvature, self.first = \
+            point, sol, point.arclength, None, False
+        self.period = None
+        following = [p.ds for p in pts if p.ds > 0]
+        self.resume_ds = min(following[-1] if following else abs(self.opt.ds), self.opt.ds_max)
+        self.accepted_ds = self.resume_ds
+        if self.progress is not None:
+            self.progress(branch, sol.lam)
+        return "moved"
+
+    def _at_start(self, step: Step, event: Hit, end: Hit) -> bool:
+        """Whether ``event``, found in the step that closes the loop at ``end`` (or that
+        passes the start's translate by a period), is the start itself found again (the fold
+        or branch point the branch was started from, the UZ point at its translate, to 1e-6)
+        or lies past it (an event that could not be located, placed at the step's end)."""
+        if end.state is not self.start.state and end.kind != PERIOD:
+            return False
+        if step.sigma(event.state) >= end.sigma:
+            return True
+        s = end.state.s
+        gap = norm(difference(event.state, end.state, self.name, s), s)
+        return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
+
+
+class _Translates:
+    """For a parameter with a period, every fold at each of its translates: a step that passes
+    a translate without its fold (a fold pair stepped over) is walked again with short
+    steps."""
+
+    def _complete_translates(self):
+        """The solution set is periodic in a parameter with a period, so a fold found at
+        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
+        Where it passes without one (a fold pair stepped over), the step there is walked again
+        with steps of at most 1/32 of its length; a translate still missing is a warning."""
+        period = self.problem.parameters[self.name].period
+        if period is None:
+            return
+        for _ in range(3):
+            gaps = self._missing_translates(period, TRANSLATE_NEAR)
+            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
+                break
+        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
+            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
+                                        f"{lam:.6g}, a translate of a fold by a period")
+
+    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
+        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
+        whole periods, within the range the branch travelled) where the branch has no fold."""
+        pts = self.branch.points
+        lam = np.array([p.params[self.name] for p in pts])
+        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
+        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
+        out = {}
+        for k in folds:
+            scale = 1.0 + np.abs(ords[k])
+            for j in range(math.ceil((lam.min() - lam[k]) / period),
+                           math.floor((lam.max() - lam[k]) / period) + 1):
+                target = lam[k] + j * period
+                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
+                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
+                                 for g in folds):
+                    continue
+                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
+                # fold's parameter is an extreme value, which the branch touches, not crosses
+                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
+                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
+                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
+                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
+                for i in np.flatnonzero(near):
+                    out[int(i)] = float(target)
+        return out
+
+    def _refine(self, i: int) -> bool:
+        """Walk the step from point i to point i+1 again with small steps, and put the points
+        (and any folds, branch points, user points) it finds between them. False if it could
+        not be done (the two points could not be solved again from their profiles, or there
+        is no room for the new points within ``max_points``)."""
+        pts, corr, name = self.branch.points, self.corr, self.name
+        try:
+            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
+        except CorrectorFailure:
+            return False
+        sec, dist = secant(p.state, q.state, name)
+        if inner(p.tangent, sec, sec.s) < 0:
+            t = p.tangent.scaled(-1.0)
+            disc = corr.disc(p.mesh)
+            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
+                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
+        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
+                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
+        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
+        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
+                                                     watch=self.watch), None, False)
+        walk.until = (p.state, sec, dist * (1 - 1e-7))
+        walk.run(p)
+        if sub.end != labels.EP:
+            return False
+        grid = PROFILE_GRID
+        w = np.gradient(grid)
+        origin = p.state(grid)
+
+        def sigma(pt):
+            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
+                         + (pt.params[name] - p.lam) * sec.lam)
+
+        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
+        if self._room() < len(new):      # the branch's points stay within max_points
+            return False
+        total = sub.points[-1].arclength
+        a0, a1 = pts[i].arclength, pts[i + 1].arclength
+        for pt in new:
+            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
+        pts[i + 1:i + 1] = new
+        self.branch.warnings.extend(sub.warnings)
+        return True
+
+    def _resolve(self, point) -> Solution:
+        """A point of the branch as a linearised solution: its stored solution if labelled,
+        else solved again at its parameters from its profile."""
+        state = point.state
+        if state is None:
+            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
+        return self.corr.point(state)
+
+
+class _Walk(_Points, _Detection, _Placement, _Return, _Translates):
+    """The state of one continuation (the last accepted solution, ds, the arclength) and its
+    loop: predict and correct a step, check it, detect and place its points (the parts it is
+    made of, each a class above), accept it."""
+
+    def __init__(self, branch, problem, corr, course: Course, progress, singular_start):
+        self.branch, self.problem, self.corr, self.opt = branch, problem, corr, course.options
+        self.stops, self.user_values = course.stops, course.user_values
+        self.counted_values, self.watch = course.counted_values, course.watch
+        self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
+        self.all_folds, self.events = course.all_folds, course.events
+        # the kinds of special point looked for (the option ``detect``; none without events)
+        self.detect_lp = course.events and self.opt.detect["LP"]
+        self.detect_bp = course.events and self.opt.detect["BP"]
+        self.progress, self.singular_start = progress, singular_start
+        self.name = branch.parameter
+        self.a, self.base_point = None, None
+        self.ordinate = next((o for o in self.problem.ordinates.values()
+                              if o.parameter == self.name), None)
+        self.enters = self.problem.parameters[self.name].enters
+        self.until = None   # (origin, unit direction, distance): end once past that hyperplane
+        self.start = None   # the first solution: the branch ends where it comes back to it
+        self.event_retries = 0
+        self.can_retry = True   # whether the step may still be retried for an event (_detect)
+        # the length of the last step accepted (inf before the first): the retries an event
+        # may take are halvings below it (`_walk`)
+        self.accepted_ds = math.inf
+        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
+        self.period = self._repeat_period(course, singular_start)
+
+    def run(self, a: Solution):
+        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
+        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
+        self._walk(a)
+        if self.until is None and self.branch.end != labels.LP:
+            self._complete_translates()
+
+    def _walk(self, a: Solution):
+        opt, branch = self.opt, self.branch
+        self.base_point = self._add(a.state, type=labels.EP, arclength=0.0, tangent=a.tangent)
+        if self.singular_start:
+            self.base_point.note = ""
+        self.a, self.arclength, self.first = a, 0.0, True
+        self.start = a
+        self.curvature = None
+        ds = abs(opt.ds)
+        history = []
+        # the step's rejections, and those that left it shorter than the last step accepted:
+        # a step grown past that length (by ``growth``, up to 100) is no step the branch is
+        # known to resolve, and its halvings down to it do not spend the retries that an
+        # event that cannot be located, or an index the fold rule does not give, may take
+        # (RETRY_HALVINGS: spent there, a step that jumped to another branch was accepted
+        # with a warning, hostile M9). With growth < 2 every halving is below it.
+        retries = below = 0
+        while True:
+            # the branch ends at its last point, which an EP of its own follows if labelled
+            if self._room() <= (1 if self.base_point.type else 0):
+                self.end_at_base(labels.EP, self._full())
+                return
+            try:
+                ds_next, ended = self._step(ds, retries, below)
+            except _Reject as rej:
+                history.append({"ds": ds, "residual": rej.residual,
+                                "nodes": len(self.a.mesh), "message": str(rej)})
+                retries += 1
+                below += rej.ds < self.accepted_ds
+                ds = rej.ds
+                if ds < opt.ds_min:
+                    # an infinite residual is Newton's mark for residuals that are not finite,
+                    # which only the module's functions can make from a finite guess
+                    why = (" (the equation module returned NaN or inf there)"
+                           if math.isinf(rej.residual) else "")
+                    if any(h["nodes"] >= opt.max_nodes for h in history):
+                        # no mesh met tol: what is left of the residual is not the mesh's
+                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
+                        # the corrector's absolute accuracy and lam exp(u) is not small)
+                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
+                                "without meeting tol)")
+                    self.end_at_base(labels.MX, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                                            f"after point {len(branch.points)} "
+                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
+                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
+                                          "nodes": len(self.a.mesh), "history": history[-12:]}
+                    return
+                continue
+            if ended:
+                return
+            history.clear()
+            retries = below = 0
+            ds = ds_next
+
+    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
+        """The period of the continued parameter if the branch may be completed by
+        translation once it passes its start one period on (:meth:`_repeat`): a regular
+        start, and nothing that a translate would have to decide afresh. Each UZ value
+        recurs with a period that divides the parameter's (every translate of a user point
+        is one, and no other point becomes one); no fold stop, no limit, no event the run
+        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
+        nor the refinement of a step."""
+        period = self.problem.parameters[self.name].period
+        if (period is None or singular_start or course.all_folds or course.stops.limits
+                or course.stops.at_fold is not None or course.watch):
+            return None
+        for spec in course.user_values:
+            if spec.period is None:
+                return None
+            ratio = period / spec.period
+            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
+                return None
+        return period
 
     def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
@@ -611,106 +1261,7 @@ class _Walk:
                           f"its tangent at {math.degrees(math.acos(max(-1.0, cos_mid))):.1f} "
                           f"deg to the chord, ds = {ds:.3g})", ds / 2)
 
-    def _detect(self, step: Step, retries: int) -> tuple[list[_Event], int]:
-        """The folds and branch points in the step, located, and the index at b, checked
-        against the fold rule; a fold pair suspected inside the step, a fold that cannot be
-        located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
-        then with a warning). Returns the events and b's index."""
-        corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
-        s = b.mesh
-        skip = (self.first and self.singular_start) or not self.events
-        a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
-        fold = parameter_turns(a.tangent.lam, b.tangent.lam) and not skip and self.detect_lp
-        bp = (a_here.sign * b.sign < 0 and not skip and not a.extra.get("singular")
-              and self.detect_bp)
-        counted = count(self.problem, b.state)
-        index_a, index_b = self.base_point.index_direct, counted.index
-        # retries for a fold that cannot be located or a fold rule that fails count until a
-        # step with a fold is accepted: shorter steps that stop before the fold do not reset
-        # them (they would approach the fold for ever)
-        can_retry = self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
-        if not (fold or bp) and can_retry and not skip and self.detect_lp:
-            u = pair_suspected(step)
-            if u is not None:
-                self._probe(step, u, ds, index_a)
-        found = []
-        located, unlocated = self._branch_point(step, can_retry) if bp else (None, "")
-        if fold:
-            try:
-                found.extend(self._fold_events(step, bp, located))
-            except CorrectorFailure as exc:
-                if can_retry:
-                    self.event_retries += 1
-                    raise _Reject(f"fold not located ({exc})", ds / 2) from None
-                if 0 <= index_a == index_b and self.detect_bp:
-                    # the parameter turns, the fold system is singular and no eigenvalue
-                    # crossed zero: not a simple fold (where the index changes by one) but a
-                    # pitchfork passed along its other branch
-                    found.append(_Event(step.dist / 2, "BP", b.state, b.tangent,
-                                        note="turning point without index change (the fold "
-                                             f"system fails: {exc})"))
-                    unlocated = ""   # that is the branch point, labelled, its note says why
-                else:
-                    self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
-                                                f"located: {exc}")
-                    found.append(_Event(step.dist / 2, "LP", b.state, b.tangent,
-                                        note=f"fold not located: {exc}"))
-        elif located is not None:
-            note = self._kernel_check(located.state, index_a, index_b)
-            found.append(_Event(located.sigma, "BP", located.state, step.secant,
-                                abs(located.value), note=note))
-        if unlocated:
-            self.branch.warnings.append(unlocated)
-        # the fold rule predicts b's index from the folds and branch points found: not where
-        # either kind is not looked for
-        if index_a >= 0 and index_b >= 0 and not skip and self.detect_lp and self.detect_bp:
-            expected = self._rule(step, found, index_a)
-            if (expected is not None and expected != index_b and not found and not can_retry
-                    and (index_b - index_a) % 2 == 0):
-                found.append(self._even_branch_point(step, index_a, index_b))
-                expected = None
-            if expected is not None and expected != index_b:
-                if can_retry:
-                    self.event_retries += 1
-                    raise _Reject(f"index {index_b} at the new point, the fold rule gives "
-                                  f"{expected}", ds / 2)
-                self.branch.warnings.append(
-                    f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
-                    f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
-        if found:
-            self.event_retries = 0
-        return found, counted
-
-    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> _Event:
-        """A branch point where the index changed by an even number with neither a fold nor
-        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
-        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
-        does not see. Located where the index changes (bisection)."""
-        def index_of(state):
-            return count(self.problem, state).index
-        at = locate_index_change(self.corr, step, index_of, index_a)
-        state = at.solution.state
-        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
-                "(a branch point of even multiplicity)")
-        kernel = self._kernel_check(state, index_a, index_b)
-        return _Event(at.sigma, "BP", state, step.secant, note="; ".join(filter(None, (note,
-                                                                                    kernel))))
-
-    def _kernel_check(self, state, index_a: int, index_b: int) -> str:
-        """At a branch point crossed by the branch, the index changes by the dimension of the
-        second variation's kernel there (an eigenvalue crosses zero for each kernel
-        direction): '' where it does, else a note, also kept as a warning."""
-        if index_a < 0 or index_b < 0 or not self.problem.has_second_variation:
-            return ""
-        kernel = kernel_dimension(self.problem, state)
-        if kernel == abs(index_b - index_a):
-            return ""
-        note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
-                f"dimension {kernel if kernel >= 0 else 'unknown'}")
-        self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
-        return note
-
-    def _accept(self, step: Step, found: list[_Event], counted: Count, retries: int,
+    def _accept(self, step: Step, found: list[Hit], counted: Count, retries: int,
                 cos_turn: float) -> tuple[float, bool]:
         """Add the step's events and its end point b; the next ds (grown after an easy step)
         and whether the branch ended."""
@@ -738,546 +1289,10 @@ class _Walk:
             origin, direction, distance = self.until
             s = b.mesh
             if inner(difference(b.state, origin, self.name, s), direction, s) >= distance:
-                self.branch.end, self.branch.message = "EP", "reached the end of the segment"
+                self.branch.end, self.branch.message = labels.EP, "reached the end of the segment"
                 return ds, True
         if (retries == 0 and cos_turn > math.cos(opt.max_angle / 2)
                 and b.extra.get("contraction", 0.0) < EASY_CONTRACTION):
             ds = min(ds * opt.growth, opt.ds_max)
         return ds, False
-
-    # -- folds at every translate of a periodic parameter -------------------------------------
-    def _complete_translates(self):
-        """The solution set is periodic in a parameter with a period, so a fold found at
-        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
-        Where it passes without one (a fold pair stepped over), the step there is walked again
-        with steps of at most 1/32 of its length; a translate still missing is a warning."""
-        period = self.problem.parameters[self.name].period
-        if period is None:
-            return
-        for _ in range(3):
-            gaps = self._missing_translates(period, TRANSLATE_NEAR)
-            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
-                break
-        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
-            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
-                                        f"{lam:.6g}, a translate of a fold by a period")
-
-    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
-        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
-        whole periods, within the range the branch travelled) where the branch has no fold."""
-        pts = self.branch.points
-        lam = np.array([p.params[self.name] for p in pts])
-        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = [k for k, p in enumerate(pts) if p.type == "LP" and not p.note]
-        out = {}
-        for k in folds:
-            scale = 1.0 + np.abs(ords[k])
-            for j in range(math.ceil((lam.min() - lam[k]) / period),
-                           math.floor((lam.max() - lam[k]) / period) + 1):
-                target = lam[k] + j * period
-                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
-                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
-                                 for g in folds):
-                    continue
-                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
-                # fold's parameter is an extreme value, which the branch touches, not crosses
-                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
-                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
-                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
-                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
-                for i in np.flatnonzero(near):
-                    out[int(i)] = float(target)
-        return out
-
-    def _refine(self, i: int) -> bool:
-        """Walk the step from point i to point i+1 again with small steps, and put the points
-        (and any folds, branch points, user points) it finds between them. False if it could
-        not be done (the two points could not be solved again from their profiles, or there
-        is no room for the new points within ``max_points``)."""
-        pts, corr, name = self.branch.points, self.corr, self.name
-        try:
-            p, q = (self._resolve(pts[j]) for j in (i, i + 1))
-        except CorrectorFailure:
-            return False
-        sec, dist = secant(p.state, q.state, name)
-        if inner(p.tangent, sec, sec.s) < 0:
-            t = p.tangent.scaled(-1.0)
-            disc = corr.disc(p.mesh)
-            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
-                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
-        opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
-                                  ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
-        sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
-        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values),
-                     None, False)
-        walk.until = (p.state, sec, dist * (1 - 1e-7))
-        walk.run(p)
-        if sub.end != "EP":
-            return False
-        grid = PROFILE_GRID
-        w = np.gradient(grid)
-        origin = p.state(grid)
-
-        def sigma(pt):
-            return float(np.sum(w * np.sum((pt.profile - origin) * sec(grid), axis=0))
-                         + (pt.params[name] - p.lam) * sec.lam)
-
-        new = [pt for pt in sub.points[1:] if sigma(pt) < dist * (1 - 1e-6)]
-        if self._room() < len(new):      # the branch's points stay within max_points
-            return False
-        total = sub.points[-1].arclength
-        a0, a1 = pts[i].arclength, pts[i + 1].arclength
-        for pt in new:
-            pt.arclength = a0 + (a1 - a0) * pt.arclength / total
-        pts[i + 1:i + 1] = new
-        self.branch.warnings.extend(sub.warnings)
-        return True
-
-    def _resolve(self, point) -> Solution:
-        """A point of the branch as a linearised solution: its stored solution if labelled,
-        else solved again at its parameters from its profile."""
-        state = point.state
-        if state is None:
-            state = State.from_values(self.problem, PROFILE_GRID, point.profile, point.params)
-        return self.corr.point(state)
-
-    # -- detection helpers ------------------------------------------------------------------
-    def _probe(self, step: Step, u: float, ds: float, index_a: int):
-        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
-        look for the slope's minimum along the step. Each probe solves on the hyperplane at
-        u and reads the tangent and index there; a tangent turned over (or an index that
-        differs from a's) means a fold pair: retry with a step that ends before it. Else the
-        next u is the vertex of the parabola through the three lowest slopes known (the
-        ends' and the probes'), up to PROBES probes or until u moves by less than 1e-3: a
-        pair narrower than the model's error (near a cusp) is found all the same."""
-        sign = math.copysign(1.0, step.a.tangent.lam)
-        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
-        for _ in range(PROBES):
-            try:
-                mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
-            except CorrectorFailure:
-                raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
-            t = mid.tangent
-            if inner(t, step.secant, mid.mesh) < 0:
-                t = t.scaled(-1.0)
-            if sign * t.lam <= 0 or (
-                    index_a >= 0 and count(self.problem, mid.state).index != index_a):
-                raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
-                              max(u * ds / 2, ds / 8))
-            known.append((u, sign * t.lam))
-            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
-            if nxt is None or abs(nxt - u) < 1e-3:
-                return
-            u = nxt
-
-    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[_Event]:
-        """The fold in the step, located: an LP, or where the determinant changed sign too, a
-        BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
-        branch), unless the branch point ``located`` lies apart from the fold (more than
-        SAME_EVENT of the step): then both, the fold and a branch point of its own (the
-        isotropic rod's symmetric points lie 0.02 in psi from folds, and a step can pass
-        both; as one BP the fold was missing, and the walk for its translates went on for
-        thousands of points)."""
-        before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
-        fp = locate_fold(self.corr, step, before[0] if before else None)
-        phi = fp.phi
-        if inner(phi, step.secant, phi.s) < 0:
-            phi = phi.scaled(-1.0)
-        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
-        fold = _Event(sigma, "LP", fp.state, phi, fp.residual)
-        if not bp:
-            return [fold]
-        if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
-            return [fold, _Event(located.sigma, "BP", located.state, step.secant,
-                                 abs(located.value))]
-        return [_Event(sigma, "BP", fp.state, step.secant, fp.residual,
-                       note="turning point without index change")]
-
-    def _branch_point(self, step: Step, can_retry: bool
-                      ) -> tuple[Located | Placed | None, str]:
-        """The branch point where the determinant changed sign in the step, located (or
-        placed at a value of the parameter where the module's symmetry holds), and ""; or,
-        once retries are spent, None and the warning that says so (which the caller drops
-        where the step's turning point is labelled BP instead).
-
-        A step whose branch point cannot be located is retried shorter: where the step
-        jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
-        has the other sign), the solutions on the hyperplanes between the two branches fail
-        or the sign change does not survive a finer mesh, and a shorter step follows the
-        branch round its corner."""
-        placed = place_symmetric_branch_point(self.corr, self.problem, step)
-        if placed is not None:
-            return placed, ""
-        try:
-            return locate_branch_point(self.corr, step), ""
-        except CorrectorFailure as exc:
-            if can_retry:
-                self.event_retries += 1
-                raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
-            return None, (f"branch point between {self.name} = {step.a.lam:.6g} and "
-                          f"{step.b.lam:.6g} not located: {exc}")
-
-    def _rule(self, step: Step, found: list[_Event], index_a: int) -> int | None:
-        """The index at b by the fold rule from a's (None where the rule does not apply)."""
-        if self.ordinate is None:
-            return None
-        out = index_a
-        for e in sorted(found, key=lambda e: e.sigma):
-            if e.kind != "LP" or e.note:
-                return None
-            # xi'' from the tangents (robust at any step length), dB/dtau across the step
-            change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
-                                  self._ordinate(step.b.state) - self._ordinate(step.a.state))
-            if change == 0:
-                return None
-            out += change
-        return out
-
-    def _ordinate(self, state: State) -> float:
-        return float(self.ordinate.fn(state.s, state.y, state.params))
-
-    # -- user points, bounds, and adding the events -----------------------------------------
-    def _add_events(self, step: Step, found: list[_Event]) -> str:
-        """Add the LP/BP events ``found`` in the step and its UZ and bound EP points, in order;
-        return "ended" if the branch ends in this step, "moved" if it came back to its start
-        one period on and the walk moved past the translates of that period (:meth:`_repeat`),
-        else "". Folds split the step: a value is solved between the two knots that bracket
-        it, so it cannot converge to the other side.
-
-        The points never exceed ``max_points``: an event is added while the points that
-        count (`_counts`) leave room for one more, the EP that ends the branch after it (or
-        while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
-        fold stop); where the step has more, the branch ends at the last one added, and the
-        UZ values past those the room can take are not solved for."""
-        branch, name, stops = self.branch, self.name, self.stops
-        inside = sorted((e for e in found if e.kind == "LP" and not e.note
-                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
-        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
-                 + [(step.dist, step.b.state)])
-        events = list(found)
-        bound_hit = None
-        room = self._room()
-        # each spec's values come in the order of travel: past the first ``room`` that count,
-        # none could be added
-        solved = [0] * len(self.user_values)
-        for (s0, x), (s1, y) in zip(knots, knots[1:]):
-            lx, ly = x.params[name], y.params[name]
-            for k, spec in enumerate(self.user_values):
-                for c in crossings(lx, ly, spec):
-                    if solved[k] >= room:
-                        break
-                    ev = self._value_event(step, x, y, s0, s1, c, "UZ")
-                    if ev is not None:
-                        events.append(ev)
-                        solved[k] += self._counts("UZ", ev.state.params)
-            bound = stops.upper if lx <= stops.upper < ly else \
-                stops.lower if ly < stops.lower <= lx else None
-            if bound is not None:
-                bound_hit = self._value_event(step, x, y, s0, s1, bound, "EP")
-                if bound_hit is None:
-                    bound_hit = _Event(s1, "EP", y, step.b.tangent, note="bound not located")
-                break
-        for hit in (self._limit_event(step), self._closure_event(step),
-                    self._period_event(step)):
-            if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
-                bound_hit = hit
-        if bound_hit is not None:
-            events = [e for e in events if e.sigma < bound_hit.sigma
-                      and not self._at_start(step, e, bound_hit)] + [bound_hit]
-        events.sort(key=lambda e: e.sigma)
-        nfolds = len(branch.folds)
-        last = None
-        for e in events:
-            if e.kind == PERIOD:
-                return self._repeat(step, e)
-            # room for the event, and for the EP after it unless it ends the branch (a point
-            # set aside for the mirror image takes none, but may be the last before that EP)
-            ends = e.kind == "EP" or (e.kind == "LP" and stops.at_fold is not None
-                                      and nfolds + 1 >= stops.at_fold)
-            need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
-            if self._room() < need:
-                self._end_full(last, e.kind)
-                return "ended"
-            last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
-                             tangent=e.tangent, fold_residual=e.residual, note=e.note)
-            if e.kind == "LP":
-                nfolds += 1
-                if stops.at_fold is not None and nfolds >= stops.at_fold:
-                    cut = step.position(e.sigma)
-                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                    branch.end = "LP"
-                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
-                    return "ended"
-            if e.kind == "EP":
-                branch.end = "EP"
-                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
-                return "ended"
-        return ""
-
-    def _end_full(self, last: Point | None, following: str = ""):
-        """End the branch at ``max_points`` inside a step: at the last point it added (a
-        labelled one, followed by an EP of its own), or at the step's start if none. Where
-        that leaves one point unused, the message says why: the ``following`` point (its
-        label) would have needed the EP after it as well."""
-        if last is None:
-            self.end_at_base("EP", self._full())
-        else:
-            self._add(last.state, type="EP", arclength=last.arclength, tangent=last.tangent,
-                      direct=last.index_direct)
-            self.branch.end, self.branch.message = "EP", self._full()
-        if following and self._room() > 0:
-            self.branch.message += (f" (the next point, {following}, and the EP after it would "
-                                    "exceed it)")
-
-    def _limit_event(self, step: Step) -> _Event | None:
-        """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
-        event (None if none is passed)."""
-        first = None
-        for limit in self.stops.limits:
-            if not (limit.excess(self.problem, step.a.state) < 0
-                    <= limit.excess(self.problem, step.b.state)):
-                continue
-            try:
-                at = locate_limit(self.corr, self.problem, step, limit)
-            except CorrectorFailure as exc:
-                self.branch.warnings.append(f"stop {limit} not located: {exc}")
-                at = None
-            sigma = step.dist if at is None else at.sigma
-            if first is None or sigma < first.sigma:
-                state = step.b.state if at is None else at.solution.state
-                value = limit.value + limit.sign * (0.0 if at is None else at.value)
-                first = _Event(sigma, "EP", state, tangent_between(step, sigma),
-                               message=f"reached {limit.name} = {value:.6g} (stop {limit})")
-        return first
-
-    def _close_ahead(self, ds: float) -> bool:
-        """End the branch at its start point, without a step, where the start lies within
-        the next step (ahead of a along its tangent by sigma <= ds, within ``CLOSED_LOOP``
-        sigma of the tangent's line, the tangent pointing the way the branch left it): a step
-        that ends next to a singular start (a branch point it was switched from) would see
-        the start's own fold or branch point there, and fail to locate it. (Measured against
-        ds, which ``growth`` makes far longer than any step the branch has taken, the start
-        of the rotating arm was "ahead" of points a period away: hostile M9.)"""
-        start, a = self.start, self.a
-        if start is None or self.until is not None or self.first or self._far(a, ds):
-            return False
-        s = a.mesh
-        t = a.tangent.on(s)
-        off = difference(start.state, a.state, self.name, s)
-        sigma = inner(off, t, s)
-        if not 0.0 < sigma <= ds:
-            return False
-        off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
-        if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
-            return False
-        self._add(start.state, type="EP", arclength=self.arclength + sigma,
-                  tangent=start.tangent, direct=self.branch.points[0].index_direct)
-        self.branch.end = "EP"
-        self.branch.message = self._closed(self.arclength + sigma)
-        return True
-
-    def _far(self, a, length: float) -> bool:
-        """Whether the start is farther from ``a`` in the parameter alone than either check
-        allows: both need |x0 - a| <= hypot(1, CLOSED_LOOP) ``length`` (the start within
-        ``length`` along a line from a, within CLOSED_LOOP ``length`` of it), and the norm
-        bounds the parameter's difference. (The checks interpolate the start onto a's mesh;
-        this one costs nothing, and rules out nearly every step.)"""
-        gap = abs(self.start.state.params[self.name] - a.state.params[self.name])
-        return gap > math.hypot(1.0, CLOSED_LOOP) * length
-
-    def _closed(self, arclength: float) -> str:
-        return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
-                f"after arclength {arclength:.6g}")
-
-    def _closure_event(self, step: Step) -> _Event | None:
-        """An EP at the branch's start point if the step passes it the way the branch left
-        it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
-        branch, say), else None. The start projects onto the step's secant at
-        ``0 < sigma <= dist`` within ``CLOSED_LOOP`` of the step's length of it; the end point
-        is the start's own solution, so the loop closes exactly. Not in a walk that ends at
-        a hyperplane (``until``: the refinement of one step)."""
-        start = self.start
-        if (start is None or self.until is not None or self.first
-                or self._far(step.a, step.dist)):
-            return None
-        s = step.b.mesh
-        sigma = step.sigma(start.state)
-        if not 0.0 < sigma <= step.dist:
-            return None
-        off = difference(start.state, step.a.state, self.name, s)
-        off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
-                      off.lam - sigma * step.secant.lam)
-        if (norm(off) > CLOSED_LOOP * step.dist
-                or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
-            return None
-        return _Event(sigma, "EP", start.state, start.tangent,
-                      message=self._closed(step.position(sigma)))
-
-    def _period_event(self, step: Step) -> _Event | None:
-        """The start translated by whole periods of the parameter, if the step passes it the
-        way the branch left it (as :meth:`_closure_event` tests for the start itself) and
-        the branch's own solution on that hyperplane is the translate: then the branch is
-        periodic, and :meth:`_repeat` completes it. None where the walk may not repeat
-        (``self.period`` None, the first step) or the step passes no translate.
-
-        The translate is checked twice, since what follows copies it: the solution on the
-        hyperplane through it differs from it by at most REPEAT_GAP (relative, in norm; the
-        corrector's tolerance makes the two discrete solutions differ by about 1e-6), and
-        its ordinates equal the start's to rounding (the module's ordinates are periodic in
-        the parameter as its equations are; a module whose ordinates are not gets a
-        warning, and no branch of it repeats)."""
-        if self.period is None or self.until is not None or self.first:
-            return None
-        start, name, period = self.start, self.name, self.period
-        lo, hi = sorted((step.a.lam, step.b.lam))
-        reach = math.hypot(1.0, CLOSED_LOOP) * step.dist
-        s = step.b.mesh
-        for k in range(math.ceil((lo - reach - start.lam) / period),
-                       math.floor((hi + reach - start.lam) / period) + 1):
-            if k == 0:
-                continue
-            there = _turned(self.problem, name, start.state, k, start.lam + k * period)
-            tangent = _turned_tangent(self.problem, name, start.tangent, k)
-            sigma = step.sigma(there)
-            if not 0.0 < sigma <= step.dist:
-                continue
-            off = difference(there, step.a.state, name, s)
-            off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
-                          off.lam - sigma * step.secant.lam)
-            if (norm(off) > CLOSED_LOOP * step.dist
-                    or inner(tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
-                continue
-            try:
-                sol = self.corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
-            except CorrectorFailure:
-                continue
-            if norm(difference(sol.state, there, name, s), s) > REPEAT_GAP * (1.0 + norm(there, s)):
-                continue
-            ours = self.problem.ordinate_values(there.s, there.y, there.params)
-            first = self.branch.points[0].ordinates
-            if any(abs(v - first[q]) > 1e-9 * (1.0 + abs(first[q])) for q, v in ours.items()):
-                self.branch.warnings.append(
-                    f"the branch passes its start translated by {k} periods of {name}, but "
-                    "the ordinates there differ from the start's: not completed by translation")
-                self.period = None
-                return None
-            return _Event(sigma, PERIOD, there, tangent)
-        return None
-
-    def _repeat(self, step: Step, hit: _Event) -> str:
-        """The branch passes ``hit``, its start translated by whole periods of the parameter,
-        the way it left the start: from there on it is its first period translated (the
-        solution set and the ordinates are periodic, and a continuation through a regular
-        point in a given direction is unique). Add the translate and then copies of the
-        period's points, each period shifted by the same amount in the parameter and in
-        arclength, while they stay within the bounds and ``max_points``; then resume the
-        walk from the last copy that is not a fold or a branch point (solved again from its
-        profile, or the last translate of the start, which is exact), for what remains.
-        Returns "moved" (where the copies filled the branch to ``max_points``, the walk ends
-        at its next turn, as it would have there; a labelled copy is made only with room for
-        the EP after it), or "ended" where there is no room for the translate."""
-        branch, name, stops, problem = self.branch, self.name, self.stops, self.problem
-        shift = hit.state.params[name] - self.start.lam
-        turns = round(shift / self.period)      # the periods from the start to ``hit``
-        uz = is_user_value(hit.state.params[name], self.user_values)
-        # room for the translate, and for the EP that follows it where it is labelled
-        if self._room() < (2 if uz else 1):
-            self._end_full(None, "UZ" if uz else "")
-            return "ended"
-        translate = self._add(hit.state, type="UZ" if uz else "",
-                              arclength=step.position(hit.sigma), tangent=hit.tangent,
-                              direct=branch.points[0].index_direct)
-        period = branch.points[1:]
-        length = translate.arclength - branch.points[0].arclength
-        exact = {id(translate): hit.state}     # the translates of the start: their solutions
-        j = 1
-        while True:
-            for p in period:
-                lam = p.params[name] + j * shift
-                counts = self._counts(p.type, {**p.params, name: lam})
-                if not stops.lower < lam < stops.upper or self._room() < (
-                        (2 if p.type else 1) if counts else 1):
-                    return self._resume(exact)
-                k = j * turns
-                copy = dataclasses.replace(
-                    p, params={**p.params, name: lam}, arclength=p.arclength + j * length,
-                    profile=np.array(periods_applied(problem, name, p.profile, k)))
-                if p.state is not None:
-                    copy.state = _turned(problem, name, p.state, k, lam)
-                    copy.tangent = _turned_tangent(problem, name, p.tangent, k)
-                if p is translate:
-                    exact[id(copy)] = _turned(problem, name, hit.state, k, lam)
-                branch.points.append(copy)
-            j += 1
-
-    def _resume(self, exact: dict) -> str:
-        """Go on from the last copy :meth:`_repeat` made that is not a fold or a branch point
-        (the later copies removed): its solution, solved again from its profile where it is
-        not a translate of the start, with the tangent along the branch."""
-        branch, name = self.branch, self.name
-        pts = branch.points
-        while pts[-1].type in ("LP", "BP"):
-            pts.pop()
-        point = pts[-1]
-        sol = None
-        if id(point) not in exact:
-            try:
-                sol = self._resolve(point)
-            except CorrectorFailure:
-                while id(pts[-1]) not in exact:
-                    pts.pop()
-                point = pts[-1]
-        if sol is None:
-            sol = self.corr.point(exact[id(point)])
-        prev = pts[-2]
-        grid = PROFILE_GRID
-        t = sol.tangent
-        along = (float(np.sum(np.gradient(grid) * np.sum(t(grid) * (point.profile - prev.profile),
-                                                           axis=0)))
-                 + t.lam * (point.params[name] - prev.params[name]))
-        if along < 0:
-            t = t.scaled(-1.0)
-        disc = self.corr.disc(sol.mesh)
-        sol = self.corr.solution(disc, sol.state.params, sol.state.y, sol.lam,
-                                 Row(disc.weights * t.on(sol.mesh).y, t.lam, 0.0))
-        self.base_point, self.a, self.arclength, self.curvature, self.first = \
-            point, sol, point.arclength, None, False
-        self.period = None
-        following = [p.ds for p in pts if p.ds > 0]
-        self.resume_ds = min(following[-1] if following else abs(self.opt.ds), self.opt.ds_max)
-        self.accepted_ds = self.resume_ds
-        if self.progress is not None:
-            self.progress(branch, sol.lam)
-        return "moved"
-
-    def _at_start(self, step: Step, event: _Event, end: _Event) -> bool:
-        """Whether ``event``, found in the step that closes the loop at ``end`` (or that
-        passes the start's translate by a period), is the start itself found again (the fold
-        or branch point the branch was started from, the UZ point at its translate, to 1e-6)
-        or lies past it (an event that could not be located, placed at the step's end)."""
-        if end.state is not self.start.state and end.kind != PERIOD:
-            return False
-        if step.sigma(event.state) >= end.sigma:
-            return True
-        s = end.state.s
-        gap = norm(difference(event.state, end.state, self.name, s), s)
-        return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
-
-    def _value_event(self, step, x, y, s0, s1, value, kind) -> _Event | None:
-        """The UZ or bound EP point where the parameter is ``value`` between the knots x and
-        y of the step. Where it is not found there although the knots' values bracket it,
-        the branch does not pass from x to y through the solutions between them (a step that
-        jumped to another branch, hostile M9): the step is rejected, as for an event that
-        cannot be located (RETRY_HALVINGS), then accepted with a warning and no point."""
-        try:
-            state, sigma = locate_value(self.corr, step, x, y, s0, s1, value)
-        except CorrectorFailure as exc:
-            what = "user point" if kind == "UZ" else "bound"
-            if self.can_retry:
-                self.event_retries += 1
-                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
-                              step.ds / 2) from None
-            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
-            return None
-        return _Event(sigma, kind, state, tangent_between(step, sigma))
 

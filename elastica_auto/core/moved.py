@@ -119,7 +119,8 @@ MOVED = {
         "core.expressions": "evaluate",
         "core.options": "ContinuationOptions OptionsError",
         "model.problem": "Problem",
-        "branches.stepper": "Course Limit Stops",
+        "branches.stepper": "Course Stops",
+        "branches.kinds": "Limit",
         "core.solution": "State",
         "branches.branch": "StoredLabel",
         "execution.plan": "DIRECTIONS Switch StartLike Start BranchSpec Plan make_plan",
@@ -202,9 +203,10 @@ MOVED = {
         "core.options": "ContinuationOptions",
         "core.solution": "State Tangent difference inner norm secant",
         "numerics.stability": "Count count index_change kernel_dimension",
-        "branches.stepper": ("RETRY_HALVINGS EASY_CONTRACTION STATIONARY RISE_NOISE PROBES Limit "
+        "branches.stepper": ("RETRY_HALVINGS EASY_CONTRACTION STATIONARY RISE_NOISE PROBES "
                              "Stops start_solution INTERRUPTED Origin Course continue_branch "
                              "start_point"),
+        "branches.kinds": "Limit",
     },
     "store": {
         "": "FORMAT_VERSION",

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, fields
 
+from . import labels
+
 
 #: The correctors (:mod:`elastica_auto.numerics.correctors`).
 CORRECTORS = ("collocation", "solve_bvp")
@@ -20,7 +22,7 @@ NCOL_RANGE = (2, 7)
 MAX_STEP = 1e3
 #: The kinds of special point whose detection a run can switch off (the option ``detect``):
 #: folds and branch points, AUTO-07p's ILP and ISP.
-DETECTABLE = ("LP", "BP")
+DETECTABLE = (labels.LP, labels.BP)
 
 
 class OptionsError(ValueError):

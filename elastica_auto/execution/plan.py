@@ -23,6 +23,8 @@ from ..model.augmented import Augmented
 from ..branches import restart
 from ..core.errors import PlanError, ProblemError
 from ..branches.events import UserValues
+from ..branches.kinds import Event
+from ..branches.registry import parse_events
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions, OptionsError
 from ..model.problem import Problem
@@ -107,6 +109,9 @@ class Plan:
     stops: Stops
     user_values: list[UserValues]
     branches: list[BranchSpec] = field(default_factory=list)
+    #: the events the run asks for (``events``), and the entries as written
+    watch: tuple[Event, ...] = ()
+    events: tuple[str, ...] = ()
     varying: list[str] = field(default_factory=list)
     switch_count: int = 0
     switch_depth: int = 1
@@ -152,12 +157,15 @@ class Plan:
                 "switch": [self.switch_count, self.switch_depth],
                 "maps": self.maps, "landing": self.landing, "damping": list(self.damping),
                 "damping_folds": (list(self.damping_folds)
-                                  if self.damping_folds is not None else None)}
+                                  if self.damping_folds is not None else None),
+                # only where given: the settings of a run without events are those stored
+                # before there were any, so that --resume continues such a file
+                **({"events": list(self.events)} if self.events else {})}
 
     @property
     def course(self) -> Course:
         return Course(self.parameter, self.options, self.stops, tuple(self.user_values),
-                      all_folds=self.curve == "fold")
+                      all_folds=self.curve == "fold", watch=self.watch)
 
 
 @dataclass(frozen=True)
@@ -179,6 +187,7 @@ class Request:
     uz: tuple[float, ...] = ()
     uz_period: float | None = None
     stop: tuple[str, ...] = ()
+    events: tuple[str, ...] = ()
     switch: int = 0
     switch_depth: int = 1
     free: tuple[str, ...] | None = None
@@ -217,9 +226,12 @@ class Request:
                             "count of branch points to switch at on each branch)")
         if isinstance(self.stop, (str, bytes)) or not isinstance(self.stop, Iterable):
             raise PlanError("stop", f"expected a list such as [\"LP4\"], got {self.stop!r}")
+        if isinstance(self.events, (str, bytes)) or not isinstance(self.events, Iterable):
+            raise PlanError("events", f"expected a list such as [\"m0 = 0\"], "
+                            f"got {self.events!r}")
         for name, value in (("damping", damping), ("damping_folds", folds), ("free", free),
                             ("bounds", bounds), ("uz", uz), ("uz_period", uz_period),
-                            ("stop", tuple(self.stop))):
+                            ("stop", tuple(self.stop)), ("events", tuple(self.events))):
             object.__setattr__(self, name, value)  # frozen: the checked form, set once
 
     @property
@@ -280,8 +292,10 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     specs = _specs(starts, grid, request.directions)
     at_fold, limits = _stops(problem, request.stop)
     _detected(opts, at_fold, request.switch)
+    watch = parse_events(problem, parameter, request.events)
     return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
-                request.user_values, specs, varying=[k for k, v in grid.items() if len(v) > 1],
+                request.user_values, specs, watch, request.events,
+                varying=[k for k, v in grid.items() if len(v) > 1],
                 switch_count=request.switch, switch_depth=request.switch_depth,
                 landing=request.landing, damping=request.damping,
                 damping_folds=request.damping_folds)
@@ -399,6 +413,9 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
         raise PlanError("free", f"a two-parameter continuation solves for {lam!r}; give no free")
     if request.switch:
         raise PlanError("switch", "no switching on a two-parameter continuation")
+    if request.events:
+        raise PlanError("events", "no events on a two-parameter continuation (its points are "
+                        "folds or branch points all along)")
     items = list(start) if isinstance(start, (list, tuple)) else [start]
     if not items or not all(isinstance(x, StoredLabel) for x in items):
         raise PlanError("start", "a two-parameter continuation starts from LP or BP labels "

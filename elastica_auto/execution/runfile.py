@@ -60,8 +60,8 @@ __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 _TOP = {"description", "equation", "start", "switch", "switch_depth", "parameters",
         "continuation", "options", "execution"}
 _SELECT = {"file", "type", "where", "index", "distinct", "limit"}
-_CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free", "map",
-         "landing", "damping", "damping_folds"}
+_CONT = {"parameter", "directions", "bounds", "stop", "events", "uz", "uz_period", "free",
+         "map", "landing", "damping", "damping_folds"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes", "ncol")
 
 
@@ -262,11 +262,11 @@ class _Document:
             if not isinstance(b, list) or len(b) != 2:
                 self.fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
             out["bounds"] = [self.number("[continuation] bounds", v) for v in b]
-        for key in ("stop", "uz", "free"):
+        for key in ("stop", "events", "uz", "free"):
             if key in cont:
                 if not isinstance(cont[key], list):
-                    example = {"stop": "[\"LP4\"]", "uz": "of values",
-                               "free": "of parameter names"}[key]
+                    example = {"stop": "[\"LP4\"]", "events": "[\"m0 = 0\"]",
+                               "uz": "of values", "free": "of parameter names"}[key]
                     self.fail(f"[continuation] {key}",
                               f"expected a list {example}, got {cont[key]!r}")
                 out[key] = cont[key]

@@ -1,0 +1,70 @@
+"""Where the kinds of special point are registered: the shipped ones the stepper drives, and
+the kinds a run file's or the API's ``events`` entries ask for.
+
+A new kind is one module of this package defining an
+:class:`~elastica_auto.branches.kinds.Event` class (its test function, label, note, action)
+with a ``parse(problem, parameter, text)`` class method that returns its event for an entry
+it reads (else None), the class as ``EVENT`` and the entry's form as ``FORM``; and one line
+in :data:`REQUESTED` naming the module. The stepper drives every requested event through
+its ``find`` (`elastica_auto.branches.stepper`); docs/design.md ("Events") shows the two
+requested kinds as the example.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from ..core.errors import PlanError
+from ..core import labels
+from .kinds import (BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue,
+                    SymmetricBranchPoint)
+
+#: The shipped kinds, one object each, which the stepper drives in their roles: folds and
+#: branch points located and reconciled (a turn at a branch point is one BP) and the index
+#: checked against the fold rule; user values (``uz``) and bounds solved on the monotone
+#: pieces between folds. (A ``stop`` entry on an ordinate is a
+#: :class:`~elastica_auto.branches.kinds.Limit` the plan makes.)
+FOLD = Fold()
+BRANCH_POINT = BranchPoint()
+SYMMETRIC_BRANCH_POINT = SymmetricBranchPoint()
+EVEN_BRANCH_POINT = EvenBranchPoint()
+USER_VALUE = ParameterValue(labels.UZ)
+BOUND = ParameterValue(labels.EP)
+
+#: The modules of the kinds an ``events`` entry asks for, tried in this order.
+REQUESTED = (
+    "user_events",
+    "extrema",
+)
+
+
+def _kinds():
+    """The requested kinds' modules (imported on first use: a run that asks for none loads
+    none)."""
+    return [importlib.import_module(f"{__package__}.{name}") for name in REQUESTED]
+
+
+def parse_events(problem, parameter: str, entries) -> tuple[Event, ...]:
+    """The events the entries of ``events`` ask for, in order (the same entry twice, once).
+    PlanError (key ``events``) for an entry no kind reads, or one a kind refuses."""
+    from collections.abc import Iterable
+    if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
+        raise PlanError("events", f"expected a list of entries such as [\"m0 = 0\"], "
+                        f"got {entries!r}")
+    kinds, out = _kinds(), []
+    for text in entries:
+        if not isinstance(text, str):
+            raise PlanError("events", f"expected {_forms(kinds)}, got {text!r}")
+        for kind in kinds:
+            event = kind.EVENT.parse(problem, parameter, text)
+            if event is not None:
+                break
+        else:
+            raise PlanError("events", f"{text!r}: expected {_forms(kinds)}")
+        if event not in out:
+            out.append(event)
+    return tuple(out)
+
+
+def _forms(kinds) -> str:
+    return " or ".join(kind.FORM for kind in kinds)
