@@ -12,7 +12,6 @@ saved).
 from __future__ import annotations
 
 import errno
-import importlib.resources
 import json
 import os
 import signal
@@ -33,8 +32,10 @@ def _fail(msg: str, code: int = EXIT_USER):
 
 
 def shipped_runs() -> dict[str, Path]:
-    """Run files shipped with the package (``runs/*.toml``), by name."""
-    root = importlib.resources.files("elastica_auto.runs")
+    """Run files shipped with the package (``runs/*.toml``), by name. (importlib.resources,
+    with the tempfile, shutil and random it imports, only when a run is looked up here.)"""
+    from importlib.resources import files
+    root = files("elastica_auto.runs")
     return {p.name[:-5]: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
 
 

@@ -114,12 +114,12 @@ def constants(folder: Path, step: Step, fine: bool | dict = False) -> str:
 
 def run(folder: Path, demo: str, steps: list[Step], fine: bool | dict = False):
     """Run the demo's steps in turn, each a fresh process of its executable; returns (wall
-    seconds of the processes, points computed, labels of every step). ``fine``: AUTO's
-    converged reference (`constants`)."""
+    seconds of the processes, the points each step computed, labels of every step).
+    ``fine``: AUTO's converged reference (`constants`)."""
     folder = folder.resolve()
     exe = str(folder / f"{demo}.exe")
     seconds = 0.0
-    points = 0
+    points = []
     labels: list[Label] = []
     previous = None
     for step in steps:
@@ -133,7 +133,7 @@ def run(folder: Path, demo: str, steps: list[Step], fine: bool | dict = False):
         seconds += time.perf_counter() - t0
         if done.returncode:
             raise RuntimeError(f"AUTO's {demo} ({step.constants}) failed: {done.stderr[-500:]}")
-        points += _points(folder / "fort.7")
+        points.append(_points(folder / "fort.7"))
         previous = (folder / "fort.8").read_text()
         labels += read_labels(previous)
     return seconds, points, labels

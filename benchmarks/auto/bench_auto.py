@@ -11,9 +11,10 @@ this engine's default discretisation and tolerances. A round runs AUTO's sequenc
 
 Columns: wall seconds of AUTO's processes and of ours and their ratio; points computed
 (every point of every branch, labelled points included; AUTO's restarts print their start
-again, ours too); unknowns per point (AUTO: NDIM (NTST NCOL + 1) plus its free parameters, of
-the demo's first run; ours: the mean number of mesh nodes times the states the engine solves
-for, free parameters and integral conditions included, over all points); milliseconds per
+again, ours too); unknowns per point (AUTO: NDIM (NTST NCOL + 1) plus its free parameters,
+each run's NTST, averaged over the points; ours: the mean number of mesh nodes times the
+states the engine solves for, free parameters and integral conditions included, over all
+points); milliseconds per
 point; and the accuracy of every fold (LP) and branch point (BP): the largest distance, in
 the continued parameter, of ours and of AUTO's (at the demo's settings) from AUTO's converged
 values, which are AUTO's own run of the same script with ``NTST`` x 8 and ``EPSL = EPSU =
@@ -172,7 +173,7 @@ def main(argv=None) -> int:
                 order = ("auto", "ours") if r % 2 == 0 else ("ours", "auto")
                 for who in order:
                     if who == "auto":
-                        seconds, auto_points, _ = auto07p.run(folder, name, demo.auto)
+                        seconds, auto_steps, _ = auto07p.run(folder, name, demo.auto)
                         auto_s.append(seconds)
                     else:
                         ours_s.append(run_ours(demo, out))
@@ -186,8 +187,11 @@ def main(argv=None) -> int:
         ours_err = accuracy(special, ref)
         auto_err = accuracy(auto_special, ref)
         a, o = statistics.median(auto_s), statistics.median(ours_s)
-        rows.append((name, a, o, auto_points, points, auto_unknowns(folder, demo.auto[0]),
-                     unknowns, special, auto_special, ours_err, auto_err, demo.note))
+        auto_points = sum(auto_steps)
+        auto_mean = sum(n * auto_unknowns(folder, step)
+                        for n, step in zip(auto_steps, demo.auto)) / auto_points
+        rows.append((name, a, o, auto_points, points, auto_mean, unknowns, special,
+                     auto_special, ours_err, auto_err, demo.note))
         print(f"  {name}: AUTO {', '.join(f'{s:.3f}' for s in auto_s)} s; "
               f"ours {', '.join(f'{s:.2f}' for s in ours_s)} s", flush=True)
     print()
@@ -200,7 +204,7 @@ def main(argv=None) -> int:
             text = "-" if e[0] is None else f"{e[0]:.1e}"
             return text + (f" ({e[1]} unmatched)" if e[1] else "")
 
-        print(f"| `{name}` | {a:.3f} | {o:.2f} | {o / a:.0f}x | {ap_}/{op} | {au}/{ou:.0f} | "
+        print(f"| `{name}` | {a:.3f} | {o:.2f} | {o / a:.0f}x | {ap_}/{op} | {au:.0f}/{ou:.0f} | "
               f"{1e3 * a / ap_:.2f}/{1e3 * o / op:.1f} | {len(auto_special)}/{len(special)} | "
               f"{err(oe)} | {err(ae)} |")
     print()
