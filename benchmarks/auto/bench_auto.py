@@ -20,7 +20,8 @@ the continued parameter, of ours and of AUTO's (at the demo's settings) from AUT
 values, which are AUTO's own run of the same script with ``NTST`` x 8 and ``EPSL = EPSU =
 1e-10``, ``EPSS = 1e-8`` (kar: 1e-6), ``NMX`` x 10 (its LP and BP to the 11 digits of
 fort.8). A point with no reference of its type within 1e-3 (1 + |value|) is counted as
-unmatched.
+unmatched. Where the value is known in closed form (exp and pvl: Bratu's fold; nep: p1 =
+pi^2 / 2; lin: p1 = 1, 2, ...), the last column has both programs' distance from it.
 
 Demos left out, and why, are in docs/benchmarks.md ("Against AUTO-07p").
 """
@@ -28,6 +29,7 @@ Demos left out, and why, are in docs/benchmarks.md ("Against AUTO-07p").
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import statistics
@@ -57,31 +59,46 @@ class Demo:
     par: int = 1
     note: str = ""
     fine: dict = field(default_factory=dict)
+    exact: list = field(default_factory=list)
+
+
+def bratu_fold() -> float:
+    """Bratu's fold in closed form: lam = 2 z^2 / cosh(z/2)^2 where z tanh(z/2) = 2
+    (bisection to the last bit)."""
+    lo, hi = 1.0, 4.0
+    while hi - lo > 4e-16 * hi:
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if mid * math.tanh(mid / 2) < 2 else (lo, mid)
+    z = (lo + hi) / 2
+    return 2 * z * z / math.cosh(z / 2) ** 2
 
 
 DEMOS = {
     "exp": Demo([Step("exp"), Step("exp", {"IRS": 15, "NTST": 20}, restart=True)],
                 ["exp.toml", "exp_2.toml"], "lam",
-                note="Bratu (examples/bratu.py, energy-first)"),
+                note="Bratu (examples/bratu.py, energy-first)", exact=[("LP", bratu_fold())]),
     "kar": Demo([Step("kar")], ["kar.toml"], "gamma",
                 note="rotating fluid over a disk, z_inf = 500", fine={"EPSS": 1e-6}),
     "int": Demo([Step("int")], ["int.toml"], "lam",
                 note="Bratu, u(0) = u(1), mean 0; first run only"),
     "non": Demo([Step("non")], ["non.toml"], "p", note="u'' = -p exp(x^3 u)"),
     "nep": Demo([Step("nep.1"), Step("nep.2", {"IRS": "BP1"}, restart=True)],
-                ["nep.toml"], "p1", note="eigenvalue p2 free; switch at the BP"),
+                ["nep.toml"], "p1", note="eigenvalue p2 free; switch at the BP",
+                exact=[("BP", math.pi ** 2 / 2)]),
     "lin": Demo([Step("lin"),
                  Step("lin", {"IRS": "BP1", "NTST": 6, "ISW": -1, "DSMAX": 0.5, "A1": 5.0},
                       restart=True),
                  Step("lin", {"IRS": "UZ1", "ICP": [1, 2], "NTST": 5, "ISW": 1, "DSMAX": 0.5,
                               "A1": 5.0}, restart=True)],
-                ["lin.toml", "lin_2.toml"], "p1", note="integral condition, p3 free"),
+                ["lin.toml", "lin_2.toml"], "p1", note="integral condition, p3 free",
+                exact=[("BP", k) for k in range(1, 20)]),
     "spb": Demo([Step("spb.0"), Step("spb.1", {"IRS": 2}, restart=True),
                  Step("spb.2", {"IRS": "UZ2"}, restart=True),
                  Step("spb.3", {"IRS": 19}, restart=True)],
                 ["spb.toml", "spb_2.toml", "spb_3.toml"], "gamma",
                 note="layers of width 1e-5"),
-    "pvl": Demo([Step("pvl")], ["pvl.toml"], "lam", note="Bratu, AUTO's PVLS as ordinates"),
+    "pvl": Demo([Step("pvl")], ["pvl.toml"], "lam", note="Bratu, AUTO's PVLS as ordinates",
+                exact=[("LP", bratu_fold())]),
 }
 
 
@@ -186,33 +203,37 @@ def main(argv=None) -> int:
                if lab.type in ("LP", "BP")]
         ours_err = accuracy(special, ref)
         auto_err = accuracy(auto_special, ref)
+        exact = (accuracy(special, demo.exact), accuracy(auto_special, demo.exact)) \
+            if demo.exact else None
         a, o = statistics.median(auto_s), statistics.median(ours_s)
         auto_points = sum(auto_steps)
         auto_mean = sum(n * auto_unknowns(folder, step)
                         for n, step in zip(auto_steps, demo.auto)) / auto_points
         rows.append((name, a, o, auto_points, points, auto_mean, unknowns, special,
-                     auto_special, ours_err, auto_err, demo.note))
+                     auto_special, ours_err, auto_err, exact))
         print(f"  {name}: AUTO {', '.join(f'{s:.3f}' for s in auto_s)} s; "
               f"ours {', '.join(f'{s:.2f}' for s in ours_s)} s", flush=True)
     print()
     head = ("demo", "AUTO s", "ours s", "ratio", "points A/o", "unknowns/pt A/o",
-            "ms/pt A/o", "LP+BP A/o", "|o-ref|", "|A-ref|")
+            "ms/pt A/o", "LP+BP A/o", "|o-ref|", "|A-ref|", "|o-exact|, |A-exact|")
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
-    for (name, a, o, ap_, op, au, ou, special, auto_special, oe, ae, note) in rows:
+    for (name, a, o, ap_, op, au, ou, special, auto_special, oe, ae, exact) in rows:
         def err(e):
             text = "-" if e[0] is None else f"{e[0]:.1e}"
             return text + (f" ({e[1]} unmatched)" if e[1] else "")
 
         print(f"| `{name}` | {a:.3f} | {o:.2f} | {o / a:.0f}x | {ap_}/{op} | {au:.0f}/{ou:.0f} | "
               f"{1e3 * a / ap_:.2f}/{1e3 * o / op:.1f} | {len(auto_special)}/{len(special)} | "
-              f"{err(oe)} | {err(ae)} |")
+              f"{err(oe)} | {err(ae)} | "
+              + ("-" if exact is None else f"{err(exact[0])}, {err(exact[1])}") + " |")
     print()
     for (name, *_rest) in rows:
         special, auto_special = _rest[6], _rest[7]
-        if special or auto_special:
-            print(f"  {name}: ours " + ", ".join(f"{t} {v:.10g}" for t, v in special)
-                  + "; AUTO " + ", ".join(f"{t} {v:.10g}" for t, v in auto_special))
+        listed = ("; ours " + ", ".join(f"{t} {v:.10g}" for t, v in special)
+                  + "; AUTO " + ", ".join(f"{t} {v:.10g}" for t, v in auto_special)) \
+            if special or auto_special else ""
+        print(f"  {name} ({DEMOS[name].note}){listed}")
     return 0
 
 
