@@ -11,7 +11,7 @@ and p3 = c^2 / 2.
 
 import numpy as np
 
-from elastica_auto import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter, simpson
 
 STATES = ("u1", "u2")
 
@@ -55,4 +55,13 @@ def exact_start(s, p):
     return np.zeros((2, len(s))) if p["p2"] == 0 and p["p3"] == 0 else None
 
 
-ORDINATES = [Ordinate("du0", r"$u_1'(0)$", lambda s, y, p: y[1, 0], None, "u1' at s = 0")]
+def _l2(s, y, p):
+    return float(np.sqrt(simpson(s, y[:1], y[1:2], lambda u: u[0] ** 2)
+                         + simpson(s, y[1:2], rhs(s, y, p)[1:2], lambda v: v[0] ** 2)))
+
+
+ORDINATES = [
+    Ordinate("du0", r"$u_1'(0)$", lambda s, y, p: y[1, 0], None, "u1' at s = 0"),
+    Ordinate("l2", r"$\|u\|_2$", _l2, None,
+             "sqrt(int (u1^2 + u2^2) ds): AUTO's L2-NORM, which its A1 bounds"),
+]
