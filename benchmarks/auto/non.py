@@ -10,7 +10,7 @@ and returns toward p -> 0 with u growing.
 
 import numpy as np
 
-from elastica_auto import Ordinate, Parameter
+from elastica_auto import Ordinate, Parameter, simpson
 
 STATES = ("u", "v")
 
@@ -45,4 +45,14 @@ def exact_start(s, p):
     return np.zeros((2, len(s))) if p["p"] == 0 else None
 
 
-ORDINATES = [Ordinate("du0", r"$u'(0)$", lambda s, y, p: y[1, 0], None, "slope at x = 0")]
+def _l2(s, y, p):
+    """AUTO's L2-NORM of its three states (u, u', x): sqrt(int (u^2 + u'^2 + x^2) dx), with
+    int x^2 dx = 1/3."""
+    return float(np.sqrt(simpson(s, y[:1], y[1:2], lambda u: u[0] ** 2)
+                         + simpson(s, y[1:2], rhs(s, y, p)[1:2], lambda v: v[0] ** 2) + 1 / 3))
+
+
+ORDINATES = [
+    Ordinate("du0", r"$u'(0)$", lambda s, y, p: y[1, 0], None, "slope at x = 0"),
+    Ordinate("l2", r"$\|(u, u', x)\|_2$", _l2, None, "AUTO's L2-NORM, which its A1 bounds"),
+]
