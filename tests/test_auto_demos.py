@@ -102,7 +102,9 @@ def non_fold_by_shooting(a0, p0):
         a, p = ap
         end = shoot(lambda x, y: rhs(x, y, p), [0.0, a, 0.0, 1.0])
         return [end[0], end[2]]
-    return fsolve(equations, [a0, p0], xtol=1e-14)[1]
+    root, info, ier, message = fsolve(equations, [a0, p0], xtol=1e-12, full_output=True)
+    assert ier == 1 and np.max(np.abs(info["fvec"])) < 1e-10, message
+    return root[1]
 
 
 def test_non_fold_against_shooting(tmp_path):
@@ -130,7 +132,9 @@ def int_fold_by_shooting(lam0, u0, du0):
         end = shoot(lambda x, y: rhs(x, y, lam), [a, b, 0.0, 1, 0, 0, 0, 1, 0])
         jac = np.array([[end[3] - 1, end[6]], [end[5], end[8]]])
         return [end[0] - a, end[2], np.linalg.det(jac)]
-    return fsolve(equations, [u0, du0, lam0], xtol=1e-14)
+    root, info, ier, message = fsolve(equations, [u0, du0, lam0], xtol=1e-12, full_output=True)
+    assert ier == 1 and np.max(np.abs(info["fvec"])) < 1e-10, message
+    return root
 
 
 def test_int_fold_against_shooting(tmp_path):
