@@ -32,8 +32,9 @@ def _fail(msg: str, code: int = EXIT_USER):
 
 
 def shipped_runs() -> dict[str, Path]:
-    """Run files shipped with the package (``runs/*.toml``), by name. (importlib.resources,
-    with the tempfile, shutil and random it imports, only when a run is looked up here.)"""
+    """Run files shipped with the package (``runs/*.toml``), by name. (importlib.resources is
+    imported here, when a run is looked up among them: a run file given by its path does
+    without it.)"""
     from importlib.resources import files
     root = files("elastica_auto.runs")
     return {p.name[:-5]: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}

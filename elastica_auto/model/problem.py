@@ -717,9 +717,8 @@ class Problem:
 
 
 def shipped_equations() -> list[str]:
-    """Names of the equation modules shipped in ``equations/``. (importlib.resources, with the
-    tempfile, shutil and random it imports, only for a shipped module: a run of a module
-    given by its path does without.)"""
+    """Names of the equation modules shipped in ``equations/``. (importlib.resources is
+    imported here, for a shipped module: a module given by its path does without it.)"""
     from importlib.resources import files
     root = files("elastica_auto.equations")
     return sorted(p.name[:-3] for p in root.iterdir()
