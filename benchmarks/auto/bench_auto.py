@@ -23,7 +23,8 @@ fort.8). A point with no reference of its type within 1e-3 (1 + |value|) is coun
 unmatched. Where the value is known in closed form (exp and pvl: Bratu's fold; nep: p1 =
 pi^2 / 2; lin: p1 = 1, 2, ...), the last column has both programs' distance from it.
 
-Demos left out, and why, are in docs/benchmarks.md ("Against AUTO-07p").
+How each demo maps onto the protocol and what differs is in docs/benchmarks.md ("Against
+AUTO-07p").
 """
 
 from __future__ import annotations
