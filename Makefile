@@ -8,7 +8,7 @@ BIN     = $(VENV)/bin
 OUT    ?= out
 FIG    ?= figures
 
-.PHONY: install demo test bench clean
+.PHONY: install demo test bench bench-auto clean
 
 $(BIN)/elastica-auto: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,16 @@ test: install
 bench: install
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/bench.py --memory
+
+# AUTO-07p's boundary value demos against ours (benchmarks/auto/): builds AUTO-07p from a local
+# copy of its source into build/auto-07p (ignored by git; not part of `make test` or `make bench`)
+# and prints the table of docs/benchmarks.md ("Against AUTO-07p"). ROUNDS=1 for a quick look.
+ROUNDS ?= 5
+bench-auto: install
+	@test -n "$(AUTO_SRC)" -o -f build/auto-07p/.built || \
+	  { echo "make bench-auto: give AUTO_SRC=DIR, a copy of AUTO-07p's source"; exit 2; }
+	cd benchmarks/auto && ../../$(BIN)/python bench_auto.py --rounds $(ROUNDS) \
+	  $(if $(AUTO_SRC),--auto-src $(abspath $(AUTO_SRC))) $(if $(DEMOS),--demos $(DEMOS))
 
 clean:
 	rm -rf $(OUT) $(FIG) .pytest_cache
@@ -65,7 +75,7 @@ endef
 # whenever a goal other than those above is made. Make reads them before it makes any goal,
 # even with -n: without a venv it creates one first.
 PAPER_RULES = $(OUT)/.paper-rules.mk
-ifneq ($(filter-out install demo test bench clean,$(MAKECMDGOALS)),)
+ifneq ($(filter-out install demo test bench bench-auto clean,$(MAKECMDGOALS)),)
 include $(PAPER_RULES)
 endif
 $(PAPER_RULES): elastica_auto/plots/paper.py elastica_auto/plots/__main__.py \

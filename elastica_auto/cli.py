@@ -12,7 +12,6 @@ saved).
 from __future__ import annotations
 
 import errno
-import importlib.resources
 import json
 import os
 import signal
@@ -33,8 +32,11 @@ def _fail(msg: str, code: int = EXIT_USER):
 
 
 def shipped_runs() -> dict[str, Path]:
-    """Run files shipped with the package (``runs/*.toml``), by name."""
-    root = importlib.resources.files("elastica_auto.runs")
+    """Run files shipped with the package (``runs/*.toml``), by name. (importlib.resources is
+    imported here, when a run is looked up among them: a run file given by its path does
+    without it.)"""
+    from importlib.resources import files
+    root = files("elastica_auto.runs")
     return {p.name[:-5]: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
 
 

@@ -75,6 +75,30 @@ def test_a_warm_load_does_not_import_sympy(tmp_path, own_cache):
     assert warm.split()[0] == "False" and warm == cold.replace("True", "False", 1)
 
 
+RUN = """
+    import sys
+    from click.testing import CliRunner
+    from elastica_auto.cli import main
+    result = CliRunner().invoke(main, ["run", {run!r}, "--out", {out!r}, "-q"])
+    assert result.exit_code == 0, result.output
+    print(*(name in sys.modules for name in {names!r}))
+"""
+
+
+def test_a_warm_run_imports_only_what_it_uses(tmp_path, own_cache):
+    """Issue 50 (start-up): a one-branch run of an energy-first module given by its path
+    (examples/bratu.toml), its cache warm, imports neither sympy nor what only other runs
+    need: importlib.resources (shipped runs and modules), the socket module (the lock file's
+    host is os.uname's), the energy's declarations (elastica_auto.energy.declare: a
+    derivation's), distributed (a cluster's), scipy.integrate (snap-back scans)."""
+    names = ["sympy", "importlib.resources", "socket", "elastica_auto.energy.declare",
+             "distributed", "scipy.integrate"]
+    code = RUN.format(run=str(EXAMPLES / "bratu.toml"), out=str(tmp_path / "out"), names=names)
+    python(code, tmp_path / "cache")                 # the cache filled (a derivation)
+    warm = python(code, tmp_path / "cache")
+    assert dict(zip(names, warm.split())) == dict.fromkeys(names, "False")
+
+
 def test_a_changed_text_with_the_same_energy_reuses_the_code(tmp_path, own_cache):
     """A module edited outside its energy (a comment) calls ENERGY() again but finds the code
     of the same expressions: nothing is derived (derive is broken to show it)."""

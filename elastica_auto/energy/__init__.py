@@ -25,7 +25,18 @@ The layers, one concern each:
 ``loader``   the hook of `load_problem`: the module's own names first, then the derived
 """
 
-from .declare import Energy, Param, Rotation, compose, rotation_about
 from .loader import derived_names
 
 __all__ = ["Energy", "Param", "Rotation", "compose", "derived_names", "rotation_about"]
+
+#: the names `declare` defines, imported on first use: a warm load of a derived module (the
+#: cache's code, through `loader`) uses none of them, and declaring them (dataclasses) was a
+#: few milliseconds of every run's start
+_DECLARED = ("Energy", "Param", "Rotation", "compose", "rotation_about")
+
+
+def __getattr__(name):
+    if name in _DECLARED:
+        from . import declare
+        return getattr(declare, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -88,7 +88,6 @@ Only equation modules know any physics; everything in `elastica_auto` is generic
 from __future__ import annotations
 
 import functools
-import importlib.resources
 import importlib.util
 import math
 import numbers
@@ -718,8 +717,10 @@ class Problem:
 
 
 def shipped_equations() -> list[str]:
-    """Names of the equation modules shipped in ``equations/``."""
-    root = importlib.resources.files("elastica_auto.equations")
+    """Names of the equation modules shipped in ``equations/``. (importlib.resources is
+    imported here, for a shipped module: a module given by its path does without it.)"""
+    from importlib.resources import files
+    root = files("elastica_auto.equations")
     return sorted(p.name[:-3] for p in root.iterdir()
                   if p.name.endswith(".py") and not p.name.startswith("_"))
 
@@ -770,7 +771,8 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None, 
         if name_or_path not in shipped_equations():
             raise ProblemError(f"unknown equation module {name_or_path!r}; shipped modules: "
                                f"{', '.join(shipped_equations())}, or give a path to a .py file")
-        root = importlib.resources.files("elastica_auto.equations")
+        from importlib.resources import files
+        root = files("elastica_auto.equations")
         path = Path(str(root / f"{name_or_path}.py"))
         source = name_or_path
     spec = importlib.util.spec_from_file_location(f"elastica_auto_eq_{path.stem}", path)

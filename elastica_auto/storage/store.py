@@ -62,7 +62,6 @@ import mmap
 import os
 import re
 import shutil
-import socket
 import tempfile
 from collections.abc import Mapping
 from datetime import datetime, timezone
@@ -152,10 +151,12 @@ def _lock(lock: Path, target: Path) -> int:
 def _sign(fd: int):
     """Write this process's id and host into the lock file ``fd`` it holds, for the message
     of a run that finds it held. Only a message depends on it: a lock file that cannot be
-    written (a full disk) is held all the same."""
+    written (a full disk) is held all the same. The host is ``uname``'s node name, what
+    gethostname() returns on POSIX (fcntl's locks make this module POSIX-only), without
+    importing the socket module for it."""
     with contextlib.suppress(OSError):
         os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
+        os.pwrite(fd, f"{os.getpid()} {os.uname().nodename}\n".encode(), 0)
 
 
 def _holder(fd: int) -> str:
