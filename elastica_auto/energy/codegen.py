@@ -281,6 +281,16 @@ class Module:
                                   '(runtime.gradient_flow).'),
                       f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
                       f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow, {self.zrows!r})")
+        elif not d.free:
+            self.frame_kernels()
+            qrows = [[d.row(q) for q in r.Q] for r in d.rotations]
+            self.emit("", "", "def gradient_flow(p, nodes):",
+                      *_docstring('The energy discretised on ``nodes`` and the overdamped '
+                                  'dynamics of its frames (frame_flow.frame_flow).'),
+                      "    from elastica_auto.energy.frame_flow import frame_flow",
+                      f"    return frame_flow(p, nodes, {PREFIX}frame_density, "
+                      f"{PREFIX}frame_ends, {PREFIX}frame_essential, {self.k}, "
+                      f"{len(d.rotations)}, Flow, {self.zrows!r}, {qrows!r})")
         return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
 
     def header(self):
@@ -659,6 +669,117 @@ class Module:
                               "s = 1, and the energy's constant (the quadratures' starts in "
                               "B1)."),
                   *body, f"    return {{{at0}}}, {{{at1}}}, float({values[-1]})")
+
+    def frame_kernels(self):
+        """The gradient flow's pieces for a module with rotations: the Lagrangian at the
+        intervals' midpoints in the scalar coordinates, their derivatives, the frames' entries
+        and the strains (each given), with its first derivatives; the end terms in the end
+        values and frames, with theirs; the essential values and the clamps'
+        quaternions (`frame_flow.frame_flow`)."""
+        d = self.d
+        k, nrot = self.k, len(d.rotations)
+        names, unpack = self._params()
+        names[d.S] = "s"
+        for i, (z, v) in enumerate(zip(d.Z, d.V)):
+            names[z], names[v] = f"z{i}", f"v{i}"
+        rot_unpack = []
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    rot_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}, {a}, {b}]"))
+            for c in range(3):
+                names[r.U[c]] = f"u{j}_{c}"
+                rot_unpack.append((f"u{j}_{c}", f"u{j}_{c} = U[{j}, {c}]  # {r.name}.u{c + 1}"))
+        unpack = ([(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)]
+                  + [(f"v{i}", f"v{i} = v[{i}]  # {c}'") for i, c in enumerate(d.coordinates)]
+                  + rot_unpack + unpack)
+        block = Block(names)
+        L = d.lagrangian
+        block.add("L", L)
+        for i, z in enumerate(d.Z):
+            block.add(f"Lz[{i}]", sp.diff(L, z))
+        for i, v in enumerate(d.V):
+            block.add(f"Lv[{i}]", sp.diff(L, v))
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    de = sp.diff(L, r.node.R[a, b])
+                    if de != 0:
+                        block.add(f"LR[{j}, {a}, {b}]", de)
+            for c in range(3):
+                de = sp.diff(L, r.U[c])
+                if de != 0:
+                    block.add(f"LU[{j}, {c}]", de)
+        self.function(f"{PREFIX}frame_density(s, z, v, R, U, p)", "The Lagrangian L (with "
+                      "the multipliers' terms) at (z, v = z', the frames R (nrot, 3, 3, m), "
+                      "their strains U (nrot, 3, m), s) and its derivatives in z, v, the "
+                      "frames' entries and the strains.", block, unpack,
+                      before=["    m = len(s)", f"    Lz = numpy.empty(({k}, m))",
+                              f"    Lv = numpy.empty(({k}, m))",
+                              f"    LR = numpy.zeros(({nrot}, 3, 3, m))",
+                              f"    LU = numpy.zeros(({nrot}, 3, m))"],
+                      after=["    L = L + numpy.zeros(m)", "    return L, Lz, Lv, LR, LU"])
+        for end, B in ((0, d.ends["B0"]), (1, d.ends["B1"])):
+            names, unpack = self._params()
+            ends_unpack = [(f"z{i}", f"z{i} = z[{i}]  # {c}({end})")
+                           for i, c in enumerate(d.coordinates)]
+            for i, z in enumerate(d.Z):
+                names[z] = f"z{i}"
+            for j, r in enumerate(d.rotations):
+                frame = r.start if end == 0 else r.end
+                for a in range(3):
+                    for b in range(3):
+                        names[frame.R[a, b]] = f"R{j}_{a}{b}"
+                        ends_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}, {a}, {b}]"))
+            block = Block(names)
+            block.add("B", B)
+            for i, z in enumerate(d.Z):
+                block.add(f"Bz[{i}]", sp.diff(B, z))
+            for j, r in enumerate(d.rotations):
+                frame = r.start if end == 0 else r.end
+                for a in range(3):
+                    for b in range(3):
+                        de = sp.diff(B, frame.R[a, b])
+                        if de != 0:
+                            block.add(f"BR[{j}, {a}, {b}]", de)
+            self.function(f"{PREFIX}frame_end{end}(z, R, p)", f"B{end} at the end values z "
+                          "(k,) and frames R (nrot, 3, 3), its derivatives in them"
+                          + (" (the quadratures' terms are in the density)" if end else "")
+                          + ".", block, ends_unpack + unpack,
+                          before=[f"    Bz = numpy.zeros({k})",
+                                  f"    BR = numpy.zeros(({nrot}, 3, 3))"],
+                          after=["    return float(B), Bz, BR"])
+        self.emit("", "", f"def {PREFIX}frame_ends(za, Ra, zb, Rb, p):",
+                  *_docstring('B0 and B1, each (value, dB/dz, dB/dR), at the end values.'),
+                  f"    return {PREFIX}frame_end0(za, Ra, p), {PREFIX}frame_end1(zb, Rb, p)")
+        names, unpack = self._params()
+        block = Block(names)
+        items = [(0, i, e) for i, e in d.ends["essential"][0].items()] + \
+                [(1, i, e) for i, e in d.ends["essential"][1].items()]
+        for end, i, e in items:
+            block.add(None, e)
+        clamps = [(end, j, qc) for end in (0, 1) for j, qc in d.ends["clamps"][end].items()]
+        for end, j, qc in clamps:
+            for e in qc:
+                block.add(None, e)
+        block.add(None, d.ends["constant"])
+        body = block.lines(unpack)
+        values = block.printed
+        at = [", ".join(f"{i}: {v}" for (e, i, _), v in zip(items, values) if e == end)
+              for end in (0, 1)]
+        rest = values[len(items):]
+        quats = [[], []]
+        for c, (end, j, _) in enumerate(clamps):
+            quats[end].append(f"{j}: numpy.array(({', '.join(rest[4 * c:4 * c + 4])}), "
+                              "dtype=float)")
+        self.emit("", "", f"def {PREFIX}frame_essential(p):",
+                  *_docstring("The scalar coordinates' essential end values {coordinate: "
+                              "value} at s = 0 and s = 1, the energy's constant (the "
+                              "quadratures' starts in B1), the clamps' quaternions {rotation: "
+                              "q} at s = 0 and s = 1."),
+                  *body, f"    return ({{{at[0]}}}, {{{at[1]}}}, float({values[-1]}), "
+                  f"{{{', '.join(quats[0])}}}, {{{', '.join(quats[1])}}})")
 
     def tangent(self):
         """The perturbation (K, m) of a tangent g to the states at y: the scalar

@@ -238,7 +238,8 @@ class Derived:
     energy_ends: sp.Expr
     free: tuple
     parts: dict
-    ends: dict                       # B0, B1' in Z (the gradient flow), essential values
+    ends: dict                       # B0, B1' in Z (the gradient flow), essential values,
+                                     # clamps
     rows: list = field(default_factory=list)
     names: tuple = ()                # the states' names in the rows' order
     rotations: list = field(default_factory=list)
@@ -998,7 +999,7 @@ def derive(energy: Energy) -> Derived:
                      if item == "E" else "; rename one of them (Param(ordinate=...))"))
         names[item] = "ordinate"
 
-    ends_info = dict(B0=B0, B1=B1p, essential=essential,
+    ends_info = dict(B0=B0, B1=B1p, essential=essential, clamps=clamps,
                      constant=sum((c1[j] * initial[j] for j in c1), sp.Integer(0)))
     derived = Derived(
         coordinates=nm.coordinates, momenta=nm.momenta, quadratures=nm.quadratures,
