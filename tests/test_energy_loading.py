@@ -236,10 +236,9 @@ BAD = {
     "second order": ("density=t.diff(s, 2)**2/2 + q*sp.cos(t), coordinates=[t], "
                      "parameters={q: 1.0}", "first derivatives only"),
     # a rotation coordinate (R = Rotation("R"))
-    "rotation: not quadratic in the strains": (
-        "density=R.strain[0]**4/4 + R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
-        "parameters={q: 1.0}", "with a rotation coordinate the Legendre transform is derived "
-        "as a linear solve only"),
+    "rotation: not convex in the strains beyond small ones": (
+        "density=R.strain.dot(R.strain)/2 - R.strain[0]**4/4 + q*R.d3[2], coordinates=[R], "
+        "parameters={q: 1.0}", "not strictly convex in R.u1'"),
     "rotation: not convex in the strains": (
         "density=(R.strain[0]**2 + R.strain[1]**2 - R.strain[2]**2)/2 + q*R.d3[2], "
         "coordinates=[R], parameters={q: 1.0}", "not strictly convex in R.u3'"),

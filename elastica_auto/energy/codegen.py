@@ -267,6 +267,8 @@ class Module:
         self.declarations()
         if d.linear:
             self.linear_system()
+        elif d.rotations:
+            self.rotation_newton_system()
         else:
             self.newton_system()
         self.boundary()
@@ -418,18 +420,31 @@ class Module:
         body moment R^T m held, then the chain through them, df/dq += f_R dR/dq + f_mb
         d(R^T m)/dq and df/dm += f_mb R^T, by one product each (`runtime.chain`): far fewer
         numpy calls than the chain written out entry by entry."""
-        d = self.d
         n = self.n
         block = Block(names)
-        for i, e in enumerate(d.rhs):
+        before, chains, needs = self._partials(block, self.d.rhs, "jac")
+        self.emit("", "", "def rhs_jac(s, y, p):",
+                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
+                              "R^T m held, then through them (runtime.chain)."),
+                  f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))", *before,
+                  *block.lines(unpack, needs), *chains, "    return jac")
+
+    def _partials(self, block, exprs, target):
+        """Add to ``block`` the derivatives of ``exprs`` (in the states, frames and body
+        moments at the nodes) in the states, into ``target[i, j]``, with each frame and body
+        moment held; return the lines that allocate their derivatives in the frames' entries
+        and body moments, the lines that chain them in (`runtime.chain`), and the names
+        those need."""
+        d = self.d
+        for i, e in enumerate(exprs):
             for j, x in enumerate(d.rows):
                 de = sp.diff(e, x)
                 if de != 0:
-                    block.add(f"jac[{i}, {j}]", de)
-        after, needs = [], []
+                    block.add(f"{target}[{i}, {j}]", de)
+        before, chains, needs = [], [], []
         for j, r in enumerate(d.rotations):
-            rows_r = [i for i, e in enumerate(d.rhs) if e.has(*r.node.entries)]
-            rows_m = [i for i, e in enumerate(d.rhs) if e.has(*r.MB)]
+            rows_r = [i for i, e in enumerate(exprs) if e.has(*r.node.entries)]
+            rows_m = [i for i, e in enumerate(exprs) if e.has(*r.MB)]
             q = [d.row(x) for x in r.Q]
             m = [d.row(x) for x in r.Mr]
             if not rows_r and not rows_m:
@@ -438,31 +453,140 @@ class Module:
             fr, fm = "None", "None"
             if rows_r:
                 fr = f"fR{j}"
-                after.insert(0, f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
+                before.append(f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
                 for a, i in enumerate(rows_r):
                     for b in range(3):
                         for c in range(3):
-                            de = sp.diff(d.rhs[i], r.node.R[b, c])
+                            de = sp.diff(exprs[i], r.node.R[b, c])
                             if de != 0:
                                 block.add(f"fR{j}[{a}, {b}, {c}]", de)
             if rows_m:
                 fm = f"fM{j}"
-                after.insert(0, f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
+                before.append(f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
                 for a, i in enumerate(rows_m):
                     for c in range(3):
-                        de = sp.diff(d.rhs[i], r.MB[c])
+                        de = sp.diff(exprs[i], r.MB[c])
                         if de != 0:
                             block.add(f"fM{j}[{a}, {c}]", de)
-            after.append(f"    {PREFIX}runtime.chain(jac, F{j}, y[{self._rows(q)}], "
-                         f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
-                         f"{fm})  # {r.name}")
-        before = [f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))",
-                  *(line for line in after if "numpy.zeros" in line)]
-        chains = [line for line in after if "numpy.zeros" not in line]
+            chains.append(f"    {PREFIX}runtime.chain({target}, F{j}, y[{self._rows(q)}], "
+                          f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
+                          f"{fm})  # {r.name}")
+        return before, chains, needs
+
+    def rotation_newton_system(self):
+        """The system of a module with rotations whose density is not quadratic in the
+        derivatives and strains: the velocities v (zeta' and the strains) from the momenta
+        (m and each rotation's body moment R^T m) by Newton's method per point
+        (`runtime.legendre_inverse`), the equations at (y, v), and their Jacobians by the
+        implicit function theorem. With G(y, v) = dL/dv - (m, R^T m) = 0 defining v,
+        dv/dy = -A^-1 dG/dy (A = d2L/dv2; dG/dy through z, R(q) and R^T m), so df/dy =
+        (df/dy at v held) + (df/dv) dv/dy, and df/dp likewise with dv/dp = -A^-1 dG/dp."""
+        d = self.d
+        n, k, kv = self.n, self.k, self.kv
+        vel = d.velocities
+        # -- the Legendre map at given frames ----------------------------------------------
+        names, unpack = self._params()
+        names[d.S] = "s"
+        for i, z in enumerate(d.Z):
+            names[z] = f"z{i}"
+        for i, v in enumerate(vel):
+            names[v] = f"v{i}"
+        rot_unpack = []
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    rot_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}][{a}, {b}]"))
+        labels = self._velocity_labels()
+        kernel_unpack = ([(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)]
+                         + [(f"v{i}", f"v{i} = v[{i}]  # {c}'") for i, c in enumerate(labels)]
+                         + rot_unpack + unpack)
+        block = Block(names)
+        block.add("L", d.lagrangian)
+        Lv = [sp.diff(d.lagrangian, v) for v in vel]
+        for i, e in enumerate(Lv):
+            block.add(f"Lv[{i}]", e)
+            for j, w in enumerate(vel):
+                block.add(f"Lvv[{i}, {j}]", sp.diff(e, w))
+        self.function(f"{PREFIX}legendre(s, z, v, R, p)", "L, dL/dv (kv, m), d2L/dv2 (kv, kv, "
+                      "m) at the frames R (one (3, 3, m) per rotation): what the Legendre "
+                      "inverse needs.", block, kernel_unpack,
+                      before=[f"    Lv = numpy.empty(({kv}, v.shape[1]))",
+                              f"    Lvv = numpy.empty(({kv}, {kv}, v.shape[1]))"],
+                      after=["    return L, Lv, Lvv"])
+        frames = ", ".join(f"{PREFIX}runtime.frame(y[{self._rows([d.row(q) for q in r.Q])}])"
+                           for r in d.rotations)
+        bodies = ", ".join(
+            f"{PREFIX}runtime.body(F[{j}], y[{self._rows([d.row(m) for m in r.Mr])}])"
+            for j, r in enumerate(d.rotations))
+        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+                  *_docstring("zeta' and the strains from the momenta m and R^T m, by Newton's "
+                              "method on L - (m, R^T m).v (runtime.legendre_inverse), (kv, m)."),
+                  f"    F = [{frames}]",
+                  f"    mom = numpy.concatenate((y[{self._rows(self.mrows)}], {bodies}))",
+                  f"    return {PREFIX}runtime.legendre_inverse(lambda s_, z_, v_, p_: "
+                  f"{PREFIX}legendre(s_, z_, v_, F, p_), s, y[{self._rows(self.zrows)}], mom, p)")
+        # -- the equations at (y, v) ------------------------------------------------------
+        names, unpack = self._states(True)
+        unpack = self._node_rotations(names, unpack)
+        kinematics, after = set(), []
+        for j, r in enumerate(d.rotations):
+            rows = [d.row(q) for q in r.Q]
+            kinematics |= set(rows)
+            o = k + 3 * j
+            after.append(f"    out[{self._rows(rows)}] = {PREFIX}runtime.quaternion_rate("
+                         f"y[{self._rows(rows)}], v[{o}], v[{o + 1}], v[{o + 2}])  # {r.name}")
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            if i not in kinematics:
+                block.add(f"out[{i}]", e)
+        self.function("rhs(s, y, p)", "zeta' = V, m' = dL/dzeta, x' = g, q' = q (x) (0, u) / 2 "
+                      "and m' = the torque D L for a rotation, at the velocities V (zeta' and "
+                      "the strains) from Newton's Legendre inverse.", block, unpack,
+                      before=[f"    v = {PREFIX}velocity(s, y, p)",
+                              "    out = numpy.empty(y.shape)"],
+                      after=[*after, "    return out"])
+        self.alias("rhs")
+        # G = dL/dv - (m, R^T m): the momentum's equation that defines v
+        momenta = [*d.M, *(e for r in d.rotations for e in r.MB)]
+        G = [Lv[a] - momenta[a] for a in range(kv)]
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            for a, v in enumerate(vel):
+                de = sp.diff(e, v)
+                if de != 0:
+                    block.add(f"fv[{i}, {a}]", de)
+        for a, e in enumerate(Lv):
+            for b, v in enumerate(vel):
+                block.add(f"A[{a}, {b}]", sp.diff(e, v))
+        self.function(f"{PREFIX}vpartials(s, y, v, p)", "df/dv (n, kv, m) and A = d2L/dv2 "
+                      "(kv, kv, m) at (y, v).", block, unpack,
+                      before=["    m = y.shape[1]", f"    fv = numpy.zeros(({n}, {kv}, m))",
+                              f"    A = numpy.zeros(({kv}, {kv}, m))"],
+                      after=["    return fv, A"])
+        block = Block(names)
+        before, chains, needs = self._partials(block, [*d.rhs, *G], "jac")
         self.emit("", "", "def rhs_jac(s, y, p):",
-                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
-                              "R^T m held, then through them (runtime.chain)."),
-                  *before, *block.lines(unpack, needs), *chains, "    return jac")
+                  *_docstring("df/dy by the implicit function theorem: the partial "
+                              "derivatives at v held (through each frame R = R(q) and body "
+                              "moment R^T m, runtime.chain), plus df/dv dv/dy with dv/dy = "
+                              "-A^-1 dG/dy, G = dL/dv - (m, R^T m)."),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    jac = numpy.zeros(({n + kv}, {n}, y.shape[1]))", *before,
+                  *block.lines(unpack, needs), *chains,
+                  f"    fv, A = {PREFIX}vpartials(s, y, v, p)",
+                  f"    dv = -{PREFIX}runtime._solve(A, jac[{n}:])",
+                  f"    return jac[:{n}] + numpy.einsum('iam,ajm->ijm', fv, dv)")
+        self._by_parameter(f"{PREFIX}dp(s, y, v, p, name)", "df/dp at v held (n, m) and dG/dp "
+                           "(kv, m) for the parameter name.", [*d.rhs, *G], names, unpack,
+                           f"    out = numpy.zeros(({n + kv}, y.shape[1]))", "out[{i}]")
+        self.emit("", "", "def rhs_dp(s, y, p, name):",
+                  *_docstring("df/dp[name] with dv/dp = -A^-1 dG/dp."),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    out = {PREFIX}dp(s, y, v, p, name)",
+                  f"    fv, A = {PREFIX}vpartials(s, y, v, p)",
+                  f"    dv = -{PREFIX}runtime._solve(A, out[{n}:])",
+                  f"    return out[:{n}] + numpy.einsum('iam,am->im', fv, dv)")
 
     def newton_system(self):
         d = self.d

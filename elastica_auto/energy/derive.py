@@ -42,7 +42,9 @@ A rotation coordinate R (`elastica_auto.energy.Rotation`, docs/energy.md) is a f
 * L is written in the body strains u = (R^T R')^vee and in R itself; R is stored as a
   quaternion q (four states, R = R(q / |q|), ``q' = q (x) (0, u) / 2``), and its momentum is
   the spatial moment m = R L_u (three states): the Legendre transform is on the Lie algebra,
-  ``m_b = R^T m = L_u``, symbolic where L is quadratic in the strains and derivatives;
+  ``m_b = R^T m = L_u``, symbolic where L is quadratic in the strains and derivatives, else
+  by Newton's method per point at the frame R(q) (the system then in (states, v), its
+  Jacobians by the implicit function theorem: `codegen.Module.rotation_newton_system`);
 * spatial variations R_e = exp(e [w]_x) R give ``u_e = u + e R^T w' - (e^2 / 2) R^T (w x
   w')``, so ``m' = tau``, ``tau_c = D_c L`` with ``D_c f = d/de f(exp(e E_c) R)`` at e = 0
   (``E_c = [e_c]_x``), the natural ends ``-m(0) + D B0 = 0``, ``m(1) + D B1 = 0``, and the
@@ -769,10 +771,6 @@ def derive(energy: Energy) -> Derived:
     defaults = {P[name]: _number(decl.default, f"parameter {name}'s default")
                 for name, _, decl in nm.params}
     _check_convex(nm, A, defaults, linear)
-    if rot and not linear:
-        _fail("the density is not quadratic in the derivatives and the strains of "
-              f"{', '.join(r.name for r in rot)}: with a rotation coordinate the Legendre "
-              "transform is derived as a linear solve only (a density quadratic in them)")
     velocity = None
     if linear:
         b = [lv.xreplace({v: 0 for v in velocities}) for lv in Lv]
@@ -1194,5 +1192,7 @@ def _summary(nm, d, L, B0, B1, rates, initial, final, essential, multipliers,
             f"{c} = {u(v)}" for c, v in zip(labels, d.velocity)))
     else:
         lines.append("Legendre inverse: Newton's method per point (L is not quadratic in "
-                     + ", ".join(c + "'" for c in nm.coordinates) + ")")
+                     + ", ".join([*(c + "'" for c in nm.coordinates),
+                                  *(f"{r.name}.u{i + 1}" for r in nm.rot for i in range(3))])
+                     + ")")
     return lines
