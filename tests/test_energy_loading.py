@@ -261,10 +261,11 @@ BAD = {
         "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
         "parameters={q: Param(1.0, period=1, period_shift={R: 1})}",
         "a period turns its quaternion to -q (period_flip)"),
-    "rotation: a constraint's rate with strains": (
-        "density=R.strain.dot(R.strain)/2 + q*R.d3[2], coordinates=[R], "
+    "rotation: a constraint's rate with strains, the density not quadratic in them": (
+        "density=R.strain.dot(R.strain)/2 + R.strain[0]**4/4 + q*R.d3[2], coordinates=[R], "
         "parameters={q: 1.0, r: 0.0}, quadratures={x: R.strain[0]}, fixed0={x: 0}, "
-        "fixed1={x: 0}, multipliers={x: r}", "does not integrate by parts"),
+        "fixed1={x: 0}, multipliers={x: r}",
+        "would need the strains' and derivatives' rates (u', zeta'') computed numerically"),
 }
 
 BAD_HEAD = """

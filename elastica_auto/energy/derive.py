@@ -55,7 +55,10 @@ A rotation coordinate R (`elastica_auto.energy.Rotation`, docs/energy.md) is a f
   natural end at s = 0 gives ``-m(0) + D B0`` and ``|q(0)|^2 - 1`` (the scale of q, which no
   other condition fixes), a clamp at s = 1 the three rows ``Im(conj(q_c) (x) q(1))``; a
   clamp parameter's part of dE/dxi is ``-m(0).w_xi`` (``+m(1).w_xi`` at s = 1) with
-  ``w_xi = 2 Im(dq_c/dxi (x) conj(q_c)) / |q_c|^2``, the clamp's turn per unit xi.
+  ``w_xi = 2 Im(dq_c/dxi (x) conj(q_c)) / |q_c|^2``, the clamp's turn per unit xi;
+* a constraint's rate with strains: ``g_v`` along w' is ``R g_u``, and its total derivative
+  along the solution takes (zeta'', u') from the momentum equations differentiated along
+  it, ``d/ds L_u = R^T tau - u x L_u`` (`_rotation_total`).
 
 Everything is built on sympy ``Dummy`` symbols: the user's names never meet the generated
 code's, and appear in it only as string literals (`elastica_auto.energy.codegen`).
@@ -877,10 +880,15 @@ def derive(energy: Energy) -> Derived:
         # x(1) - c(zeta(1)) = 0 linearised: the end's part -dc/dzeta(1).h(1)
         dc = [-at_end.conf(final[j], a).xreplace(at1_all) for a in items]
         if rot and any(e != 0 for e in gv):
-            _fail(f"the constraint on {nm.quadratures[j]}: its rate contains derivatives or "
-                  "strains, which with a rotation coordinate the derivation does not "
-                  "integrate by parts; write the rate in the coordinates and the frame")
-        if any(e != 0 for e in gv):
+            if not linear:
+                _fail(f"the constraint on {nm.quadratures[j]}: its rate contains derivatives "
+                      "or strains, and the density is not quadratic in them: integrating "
+                      "the constraint by parts along the solution would need the strains' "
+                      "and derivatives' rates (u', zeta'') computed numerically at each point "
+                      "(derived only where the density is quadratic in them); write the rate "
+                      "in the coordinates and the frame, or the density quadratic")
+            fld = [gz[i] - _rotation_total(nm, e, Leff) for i, e in enumerate(gv)]
+        elif any(e != 0 for e in gv):
             # (g_v)' along the solution: zeta' = V, zeta'' = W (runtime.acceleration)
             total = [sum((sp.diff(e, Z[j]) * V[j] + sp.diff(e, V[j]) * W[j]
                           for j in range(k)), sp.diff(e, S)) for e in gv]
@@ -1011,6 +1019,55 @@ def derive(energy: Energy) -> Derived:
                                multipliers, clamps)
     derived.user = nm.user
     return derived
+
+
+def _rotation_total(nm, e, Leff):
+    """d e / ds along a solution, for e in the scalar coordinates, their derivatives, the
+    frames and strains at the nodes, s: e_z zeta' + e_v zeta'' + e_s + e_R : R [u]_x +
+    e_u u', with the accelerations (zeta'', u') from the momentum equations differentiated
+    along the solution (L quadratic in the velocities v = (zeta', u), A = L_vv constant in
+    them):
+
+        d/ds L_zeta' = L_zeta           (the scalar coordinates' m' = L_z),
+        d/ds L_u     = R^T tau - u x L_u (m_b = R^T m: m_b' = R^T m' + R'^T m, R' = R [u]_x),
+
+    each side's s-derivative in the velocities' rates: A (zeta'', u') = r, with r the right
+    sides less the rest of the total derivative of L_v (in zeta, R, s). (The caller puts the
+    Legendre inverse in for the velocities: on the solution.)"""
+    Z, V, S = nm.Z, nm.V, nm.S
+    k = len(Z)
+    strains = [u for r in nm.rot for u in r.U]
+    velocities = [*V, *strains]
+    rates = [sp.Dummy(f"a{i}", real=True) for i in range(len(velocities))]
+
+    def total(expr):
+        """d expr / ds with the velocities' rates as the symbols ``rates``."""
+        out = sp.diff(expr, S)
+        out += sum((sp.diff(expr, z) * v for z, v in zip(Z, V)), sp.Integer(0))
+        out += sum((sp.diff(expr, v) * a for v, a in zip(velocities, rates)), sp.Integer(0))
+        for r in nm.rot:
+            turned = r.node.R * _cross_matrix(r.U)           # R' = R [u]_x
+            out += sum((sp.diff(expr, r.node.R[a, b]) * turned[a, b]
+                        for a in range(3) for b in range(3)), sp.Integer(0))
+        return out
+
+    equations = []
+    for i in range(k):
+        equations.append(total(sp.diff(Leff, V[i])) - sp.diff(Leff, Z[i]))
+    for r in nm.rot:
+        lu = [sp.diff(Leff, u) for u in r.U]
+        tau = [r.node.rotate(Leff, c) for c in range(3)]
+        body_tau = [sum((r.node.R[a, c] * tau[a] for a in range(3)), sp.Integer(0))
+                    for c in range(3)]
+        u_cross = [r.U[1] * lu[2] - r.U[2] * lu[1], r.U[2] * lu[0] - r.U[0] * lu[2],
+                   r.U[0] * lu[1] - r.U[1] * lu[0]]
+        for c in range(3):
+            equations.append(total(lu[c]) - body_tau[c] + u_cross[c])
+    # linear in the rates: A rates + rest = 0
+    A = sp.Matrix([[sp.diff(eq, a) for a in rates] for eq in equations])
+    rest = sp.Matrix([eq.xreplace({a: 0 for a in rates}) for eq in equations])
+    solved = list(A.LUsolve(-rest))
+    return total(e).xreplace(dict(zip(rates, solved)))
 
 
 def _quaternion(nm, value, what) -> list:
