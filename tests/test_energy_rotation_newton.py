@@ -232,3 +232,20 @@ def test_the_column_with_a_cubic_law_buckles_as_derived(cubic, k):
     assert len(near) > 20
     slope = np.polyfit(near[:, 0], near[:, 1], 3)[-2]
     assert slope == pytest.approx(4 * (pc / 8 + 0.75 * k * (math.pi / 2) ** 4), rel=1e-4)
+
+
+def test_the_flow_of_frames_needs_no_inverse(cubic):
+    """The gradient flow of the cubic column (its strains are the frames', no Legendre
+    inverse): force = -grad E / mass against central differences of its energy."""
+    p = {**cubic.defaults(), "P": 3.0}
+    nodes = np.linspace(0, 1, 21)
+    flow = cubic.gradient_flow(p, nodes)
+    rng = np.random.default_rng(6)
+    y = np.zeros((cubic.n, len(nodes)))
+    y[:4] = rng.normal(size=(4, 1)) + 0.4 * rng.normal(size=(4, len(nodes))) * nodes
+    u = flow.to_u(y)
+    d = 1e-6
+    grad = np.array([(flow.energy(u + d * e) - flow.energy(u - d * e)) / (2 * d)
+                     for e in np.eye(len(u))])
+    np.testing.assert_allclose(-flow.mass * flow.force(u), grad,
+                               atol=1e-7 * (1 + np.abs(grad).max()))

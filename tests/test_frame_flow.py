@@ -247,3 +247,20 @@ def test_a_run_file_with_landing_lands_the_spatial_rod(tmp_path, cli_exe, arms):
     for cols, r in zip(marked, landed):
         assert cols[0] == r["lp"]
         assert float(cols[-2]) == pytest.approx(r["energy_released"], rel=1e-4)
+
+
+def test_the_damped_model_of_frames_lands_as_the_planar_ones(rod, planar, arms):
+    """The damped model (c = 2, from rest; the frames' kinetic energy with the mass 4 M of
+    the quaternions) from the first fold of each: the same target (m(0).e_z), its total
+    energy non-increasing step by step."""
+    ends = []
+    for key, problem in (("planar", planar), ("spatial", rod)):
+        branch = next(br for br in arms[key] if snap_lps(br))
+        fold, side = snap_lps(branch)[0]
+        equilibria = enumerate_equilibria(problem, fold.params)
+        landing = land(problem, fold.state, fold.tangent, equilibria, "psi",
+                       beyond_fold(branch, fold, side), damping=2.0)
+        assert landing.target is not None
+        assert np.all(np.diff(landing.energies) <= 1e-9 * abs(landing.energies[0]))
+        ends.append(equilibria[landing.target].ordinates["m0"])
+    assert ends[1] == pytest.approx(ends[0], abs=1e-7)
