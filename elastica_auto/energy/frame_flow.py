@@ -139,8 +139,7 @@ def geometry_jacobian(qa, qb, h):
     dU (3, 8, m) and dRbar (3, 3, 8, m), by the chain rule through a = qa / |qa|,
     b = qb / |qb|, r = conj(a) (x) b and a + b (real arithmetic; the tests compare it with
     the complex step of `geometry`)."""
-    from .runtime import _LINEAR
-    m = qa.shape[1]
+    from .runtime import frame_derivatives
     na, nb = np.sqrt(np.sum(qa * qa, axis=0)), np.sqrt(np.sum(qb * qb, axis=0))
     a, b = qa / na, qb / nb
     eye = np.eye(4)[:, :, None]
@@ -158,9 +157,8 @@ def geometry_jacobian(qa, qb, h):
     dU_dr0 = 2 * fr * rho / h
     dU = np.einsum("cdm,dkm->ckm", dU_drho, dr[1:]) + dU_dr0[:, None] * dr[0][None]
     qbar = a + b
-    n2 = np.sum(qbar * qbar, axis=0)
     Rbar = rotation(qbar)
-    dR_dq = 2 * ((_LINEAR @ qbar).reshape(4, 3, 3, m) - qbar[:, None, None] * Rbar[None]) / n2
+    dR_dq = frame_derivatives(qbar, Rbar)
     dR = np.concatenate((np.einsum("jabm,jkm->abkm", dR_dq, da),
                          np.einsum("jabm,jkm->abkm", dR_dq, db)), axis=2)
     return U, Rbar, dU, dR
