@@ -72,16 +72,21 @@ def arm_energy(mod, p, r):
     return -mod.load(p) @ (p["eps"] * r @ mod.arm_body(p))
 
 
-def hessian(mod, state, n, delta=1e-4):
-    """The Hessian of E_h in (w_1, ..., w_n) (3n x 3n) at the frames of ``state``."""
+def hessian(mod, state, n, delta=1e-4, interval=None, end=None):
+    """The Hessian of E_h in (w_1, ..., w_n) (3n x 3n) at the frames of ``state``;
+    ``interval(p, r0, r1, h)`` and ``end(p, r)`` the terms of another energy discretised
+    alike (default the rod's `interval_energy` and `arm_energy`), ``mod`` giving
+    ``rotation(q)`` and the quaternion's rows 3:7 of the state."""
     p = state.params
     rot = frames(mod, state, n)
     h = 1.0 / n
     r0, r1 = rot[:-1], rot[1:]
     eye = np.eye(6)
+    interval = interval or (lambda p, a, b, h: interval_energy(mod, p, a, b, h))
+    end = end or (lambda p, r: arm_energy(mod, p, r))
 
     def term(x):                                    # x (6,): (w_j, w_(j+1)) for every j
-        return interval_energy(mod, p, expm(x[:3]) @ r0, expm(x[3:]) @ r1, h)
+        return interval(p, expm(x[:3]) @ r0, expm(x[3:]) @ r1, h)
 
     blocks = np.zeros((n, 6, 6))
     for a in range(6):
@@ -96,7 +101,7 @@ def hessian(mod, state, n, delta=1e-4):
     for a in range(3):
         for b in range(a, 3):
             ea, eb = delta * np.eye(3)[a], delta * np.eye(3)[b]
-            d2 = sum(sa * sb * arm_energy(mod, p, expm(sa * ea + sb * eb) @ rot[-1])
+            d2 = sum(sa * sb * end(p, expm(sa * ea + sb * eb) @ rot[-1])
                      for sa in (1, -1) for sb in (1, -1)) / (4 * delta ** 2)
             arm[a, b] = arm[b, a] = d2
     big[-3:, -3:] += arm

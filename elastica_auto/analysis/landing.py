@@ -18,12 +18,14 @@ the stable branch does not go on (the discrete fold lies O(h^2) from the BVP's: 
 own value the discrete system may still have its stable equilibrium, and the rod would return
 to it). The start is the fold's solution ``u_f`` pushed along its null vector ``phi`` (the
 branch's tangent there, whose parameter component vanishes), ``u_0 = u_f + PUSH phi /
-max|phi|``, on the side where the energy there is lower: the one the rod leaves the fold by
+|phi|`` (``|phi|`` its max norm, or the flow's ``size``: the largest angle a frame turns by
+along it), on the side where the energy there is lower: the one the rod leaves the fold by
 (in the saddle-node's normal form ``a_t = mu + a^2``, ``mu > 0`` past the fold, towards
 ``a > 0`` whichever side it starts). It is integrated (BDF, with the sparse Jacobian) until
 ``max |force|`` is below ``FORCE_TOL``; along the way the energy decreases monotonically
 (``dE/dt = -u_t' M u_t``). The end is identified with the nearest enumerated equilibrium at
-the fold (in the max norm of u), which must lie within ``MATCH`` and be stable.
+the fold (in the max norm of u, or the flow's ``distance``: angles for frames), which must lie
+within ``MATCH`` and be stable.
 
 The damped model ``M u_tt + c M u_t = -grad E(u)`` (from rest at ``u_0``) shows what the
 dissipation does: its total energy ``E + u_t' M u_t / 2`` decreases, at rate ``c u_t' M
@@ -45,13 +47,15 @@ from ..core.errors import ENGINE, failure_record
 #: Intervals of the uniform grid of the method of lines (the discrete equilibria are within
 #: O(h^2) of the BVP's; tests/test_landing.py measures the order).
 NODES = 200
-#: Size of the push off the fold along its null vector (max norm of u; radians of theta).
+#: Size of the push off the fold along its null vector (max norm of u, or the flow's
+#: ``size``; radians of theta, of a frame's turn).
 PUSH = 1e-2
 #: How far past the fold's value the parameter is moved (its own units).
 BEYOND = 1e-3
 #: The flow has arrived where max |force| (the discrete equilibrium's residual) is below this.
 FORCE_TOL = 1e-8
-#: The end is an enumerated equilibrium if it is this close to it (max norm of u).
+#: The end is an enumerated equilibrium if it is this close to it (max norm of u, or the
+#: flow's ``distance``).
 MATCH = 0.05
 #: The transit time is when this fraction of the energy released has been released.
 TRANSIT_FRACTION = 0.99
@@ -82,7 +86,11 @@ class Flow:
     ``to_u(y)``: the configuration vector of states ``y`` (n, len(nodes)) given at the nodes;
     ``mass``: the diagonal of the lumped mass ``M``; ``energy(u)``: the discrete energy;
     ``force(u)``: ``-M^{-1} grad E(u)``, the right-hand side of the overdamped dynamics;
-    ``jacobian(u)``: its Jacobian (a scipy sparse matrix).
+    ``jacobian(u)``: its Jacobian (a scipy sparse matrix). Where u is no vector of angles
+    and lengths (a frame's quaternions: `elastica_auto.energy.frame_flow`), ``size(u, du)``
+    is the size of a displacement du at u and ``distance(u, v)`` how far apart two
+    configurations are, in those units (the angle a frame turns by); by default the max norms
+    ``max |du|`` and ``max |u - v|``.
     """
 
     nodes: np.ndarray
@@ -91,6 +99,17 @@ class Flow:
     energy: Callable[[np.ndarray], float]
     force: Callable[[np.ndarray], np.ndarray]
     jacobian: Callable[[np.ndarray], object]
+    size: Callable[[np.ndarray, np.ndarray], float] | None = None
+    distance: Callable[[np.ndarray, np.ndarray], float] | None = None
+
+    def size_of(self, u, du) -> float:
+        """The size of the displacement ``du`` at ``u`` (``size``, or the max norm)."""
+        return float(self.size(u, du) if self.size is not None else np.max(np.abs(du)))
+
+    def distance_of(self, u, v) -> float:
+        """How far apart ``u`` and ``v`` are (``distance``, or the max norm)."""
+        return float(self.distance(u, v) if self.distance is not None
+                     else np.max(np.abs(u - v)))
 
 
 @dataclass
@@ -102,7 +121,8 @@ class Landing:
     ``energy_released``: E(start) - E(end) of the discrete energy; ``transit_time``: when
     ``TRANSIT_FRACTION`` of it was released; ``side``: the sign of the push along the
     tangent stored at the fold; ``times``, ``energies``: the energy along the way (the
-    integrator's steps; the total energy for the damped model)."""
+    integrator's steps; the total energy for the damped model); ``end``: the configuration u
+    where it ended (the discrete equilibrium, the flow's ``to_u`` of a state)."""
 
     target: int | None
     distance: float
@@ -111,6 +131,7 @@ class Landing:
     side: int
     times: np.ndarray
     energies: np.ndarray
+    end: np.ndarray | None = None
 
 
 def land(problem, state, null, equilibria, parameter: str, beyond: int,
@@ -127,7 +148,7 @@ def land(problem, state, null, equilibria, parameter: str, beyond: int,
     flow = problem.gradient_flow(params, s)
     u_fold = flow.to_u(state(s))
     phi = flow.to_u(null(s))
-    phi = phi / np.max(np.abs(phi))
+    phi = phi / flow.size_of(u_fold, phi)
     side = 1 if flow.energy(u_fold + push * phi) <= flow.energy(u_fold - push * phi) else -1
     u0 = u_fold + side * push * phi
     if damping is None:
@@ -142,12 +163,12 @@ def land(problem, state, null, equilibria, parameter: str, beyond: int,
                            "settled by")
     released = energies[0] - flow.energy(u_end)
     reached = np.flatnonzero(energies[0] - energies >= TRANSIT_FRACTION * released)
-    distances = [np.max(np.abs(u_end - flow.to_u(eq.state(s)))) for eq in equilibria]
+    distances = [flow.distance_of(u_end, flow.to_u(eq.state(s))) for eq in equilibria]
     j = int(np.argmin(distances)) if distances else None
     target = j if j is not None and distances[j] < MATCH and equilibria[j].index == 0 else None
     return Landing(target, float(distances[j]) if j is not None else np.inf, float(released),
                    float(times[reached[0]]) if len(reached) else float(times[-1]), side,
-                   times, energies)
+                   times, energies, u_end)
 
 
 def _newton(flow, u, iterations: int = 30):
@@ -199,8 +220,8 @@ def _lowest_saddle(flow, unstable, u_fold) -> float:
     lowest = np.inf
     for u in unstable:
         there = _newton(flow, u)
-        if there is None or np.max(np.abs(there - u)) > MATCH:
-            if np.max(np.abs(u - u_fold)) < FOLD_PARTNER:
+        if there is None or flow.distance_of(there, u) > MATCH:
+            if flow.distance_of(u, u_fold) < FOLD_PARTNER:
                 continue
             return -np.inf
         lowest = min(lowest, flow.energy(there))

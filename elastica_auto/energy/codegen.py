@@ -267,6 +267,8 @@ class Module:
         self.declarations()
         if d.linear:
             self.linear_system()
+        elif d.rotations:
+            self.rotation_newton_system()
         else:
             self.newton_system()
         self.boundary()
@@ -281,6 +283,16 @@ class Module:
                                   '(runtime.gradient_flow).'),
                       f"    return {PREFIX}runtime.gradient_flow(p, nodes, {PREFIX}density, "
                       f"{PREFIX}ends, {PREFIX}essential, {self.k}, Flow, {self.zrows!r})")
+        elif not d.free:
+            self.frame_kernels()
+            qrows = [[d.row(q) for q in r.Q] for r in d.rotations]
+            self.emit("", "", "def gradient_flow(p, nodes):",
+                      *_docstring('The energy discretised on ``nodes`` and the overdamped '
+                                  'dynamics of its frames (frame_flow.frame_flow).'),
+                      "    from elastica_auto.energy.frame_flow import frame_flow",
+                      f"    return frame_flow(p, nodes, {PREFIX}frame_density, "
+                      f"{PREFIX}frame_ends, {PREFIX}frame_essential, {self.k}, "
+                      f"{len(d.rotations)}, Flow, {self.zrows!r}, {qrows!r})")
         return "\n".join(self.lines) + "\n\n" + TRAILER + "\n"
 
     def header(self):
@@ -408,18 +420,31 @@ class Module:
         body moment R^T m held, then the chain through them, df/dq += f_R dR/dq + f_mb
         d(R^T m)/dq and df/dm += f_mb R^T, by one product each (`runtime.chain`): far fewer
         numpy calls than the chain written out entry by entry."""
-        d = self.d
         n = self.n
         block = Block(names)
-        for i, e in enumerate(d.rhs):
+        before, chains, needs = self._partials(block, self.d.rhs, "jac")
+        self.emit("", "", "def rhs_jac(s, y, p):",
+                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
+                              "R^T m held, then through them (runtime.chain)."),
+                  f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))", *before,
+                  *block.lines(unpack, needs), *chains, "    return jac")
+
+    def _partials(self, block, exprs, target):
+        """Add to ``block`` the derivatives of ``exprs`` (in the states, frames and body
+        moments at the nodes) in the states, into ``target[i, j]``, with each frame and body
+        moment held; return the lines that allocate their derivatives in the frames' entries
+        and body moments, the lines that chain them in (`runtime.chain`), and the names
+        those need."""
+        d = self.d
+        for i, e in enumerate(exprs):
             for j, x in enumerate(d.rows):
                 de = sp.diff(e, x)
                 if de != 0:
-                    block.add(f"jac[{i}, {j}]", de)
-        after, needs = [], []
+                    block.add(f"{target}[{i}, {j}]", de)
+        before, chains, needs = [], [], []
         for j, r in enumerate(d.rotations):
-            rows_r = [i for i, e in enumerate(d.rhs) if e.has(*r.node.entries)]
-            rows_m = [i for i, e in enumerate(d.rhs) if e.has(*r.MB)]
+            rows_r = [i for i, e in enumerate(exprs) if e.has(*r.node.entries)]
+            rows_m = [i for i, e in enumerate(exprs) if e.has(*r.MB)]
             q = [d.row(x) for x in r.Q]
             m = [d.row(x) for x in r.Mr]
             if not rows_r and not rows_m:
@@ -428,31 +453,140 @@ class Module:
             fr, fm = "None", "None"
             if rows_r:
                 fr = f"fR{j}"
-                after.insert(0, f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
+                before.append(f"    fR{j} = numpy.zeros(({len(rows_r)}, 3, 3, y.shape[1]))")
                 for a, i in enumerate(rows_r):
                     for b in range(3):
                         for c in range(3):
-                            de = sp.diff(d.rhs[i], r.node.R[b, c])
+                            de = sp.diff(exprs[i], r.node.R[b, c])
                             if de != 0:
                                 block.add(f"fR{j}[{a}, {b}, {c}]", de)
             if rows_m:
                 fm = f"fM{j}"
-                after.insert(0, f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
+                before.append(f"    fM{j} = numpy.zeros(({len(rows_m)}, 3, y.shape[1]))")
                 for a, i in enumerate(rows_m):
                     for c in range(3):
-                        de = sp.diff(d.rhs[i], r.MB[c])
+                        de = sp.diff(exprs[i], r.MB[c])
                         if de != 0:
                             block.add(f"fM{j}[{a}, {c}]", de)
-            after.append(f"    {PREFIX}runtime.chain(jac, F{j}, y[{self._rows(q)}], "
-                         f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
-                         f"{fm})  # {r.name}")
-        before = [f"    jac = numpy.zeros(({n}, {n}, y.shape[1]))",
-                  *(line for line in after if "numpy.zeros" in line)]
-        chains = [line for line in after if "numpy.zeros" not in line]
+            chains.append(f"    {PREFIX}runtime.chain({target}, F{j}, y[{self._rows(q)}], "
+                          f"y[{self._rows(m)}], {q!r}, {m!r}, {rows_r!r}, {fr}, {rows_m!r}, "
+                          f"{fm})  # {r.name}")
+        return before, chains, needs
+
+    def rotation_newton_system(self):
+        """The system of a module with rotations whose density is not quadratic in the
+        derivatives and strains: the velocities v (zeta' and the strains) from the momenta
+        (m and each rotation's body moment R^T m) by Newton's method per point
+        (`runtime.legendre_inverse`), the equations at (y, v), and their Jacobians by the
+        implicit function theorem. With G(y, v) = dL/dv - (m, R^T m) = 0 defining v,
+        dv/dy = -A^-1 dG/dy (A = d2L/dv2; dG/dy through z, R(q) and R^T m), so df/dy =
+        (df/dy at v held) + (df/dv) dv/dy, and df/dp likewise with dv/dp = -A^-1 dG/dp."""
+        d = self.d
+        n, k, kv = self.n, self.k, self.kv
+        vel = d.velocities
+        # -- the Legendre map at given frames ----------------------------------------------
+        names, unpack = self._params()
+        names[d.S] = "s"
+        for i, z in enumerate(d.Z):
+            names[z] = f"z{i}"
+        for i, v in enumerate(vel):
+            names[v] = f"v{i}"
+        rot_unpack = []
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    rot_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}][{a}, {b}]"))
+        labels = self._velocity_labels()
+        kernel_unpack = ([(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)]
+                         + [(f"v{i}", f"v{i} = v[{i}]  # {c}'") for i, c in enumerate(labels)]
+                         + rot_unpack + unpack)
+        block = Block(names)
+        block.add("L", d.lagrangian)
+        Lv = [sp.diff(d.lagrangian, v) for v in vel]
+        for i, e in enumerate(Lv):
+            block.add(f"Lv[{i}]", e)
+            for j, w in enumerate(vel):
+                block.add(f"Lvv[{i}, {j}]", sp.diff(e, w))
+        self.function(f"{PREFIX}legendre(s, z, v, R, p)", "L, dL/dv (kv, m), d2L/dv2 (kv, kv, "
+                      "m) at the frames R (one (3, 3, m) per rotation): what the Legendre "
+                      "inverse needs.", block, kernel_unpack,
+                      before=[f"    Lv = numpy.empty(({kv}, v.shape[1]))",
+                              f"    Lvv = numpy.empty(({kv}, {kv}, v.shape[1]))"],
+                      after=["    return L, Lv, Lvv"])
+        frames = ", ".join(f"{PREFIX}runtime.frame(y[{self._rows([d.row(q) for q in r.Q])}])"
+                           for r in d.rotations)
+        bodies = ", ".join(
+            f"{PREFIX}runtime.body(F[{j}], y[{self._rows([d.row(m) for m in r.Mr])}])"
+            for j, r in enumerate(d.rotations))
+        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+                  *_docstring("zeta' and the strains from the momenta m and R^T m, by Newton's "
+                              "method on L - (m, R^T m).v (runtime.legendre_inverse), (kv, m)."),
+                  f"    F = [{frames}]",
+                  f"    mom = numpy.concatenate((y[{self._rows(self.mrows)}], {bodies}))",
+                  f"    return {PREFIX}runtime.legendre_inverse(lambda s_, z_, v_, p_: "
+                  f"{PREFIX}legendre(s_, z_, v_, F, p_), s, y[{self._rows(self.zrows)}], mom, p)")
+        # -- the equations at (y, v) ------------------------------------------------------
+        names, unpack = self._states(True)
+        unpack = self._node_rotations(names, unpack)
+        kinematics, after = set(), []
+        for j, r in enumerate(d.rotations):
+            rows = [d.row(q) for q in r.Q]
+            kinematics |= set(rows)
+            o = k + 3 * j
+            after.append(f"    out[{self._rows(rows)}] = {PREFIX}runtime.quaternion_rate("
+                         f"y[{self._rows(rows)}], v[{o}], v[{o + 1}], v[{o + 2}])  # {r.name}")
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            if i not in kinematics:
+                block.add(f"out[{i}]", e)
+        self.function("rhs(s, y, p)", "zeta' = V, m' = dL/dzeta, x' = g, q' = q (x) (0, u) / 2 "
+                      "and m' = the torque D L for a rotation, at the velocities V (zeta' and "
+                      "the strains) from Newton's Legendre inverse.", block, unpack,
+                      before=[f"    v = {PREFIX}velocity(s, y, p)",
+                              "    out = numpy.empty(y.shape)"],
+                      after=[*after, "    return out"])
+        self.alias("rhs")
+        # G = dL/dv - (m, R^T m): the momentum's equation that defines v
+        momenta = [*d.M, *(e for r in d.rotations for e in r.MB)]
+        G = [Lv[a] - momenta[a] for a in range(kv)]
+        block = Block(names)
+        for i, e in enumerate(d.rhs):
+            for a, v in enumerate(vel):
+                de = sp.diff(e, v)
+                if de != 0:
+                    block.add(f"fv[{i}, {a}]", de)
+        for a, e in enumerate(Lv):
+            for b, v in enumerate(vel):
+                block.add(f"A[{a}, {b}]", sp.diff(e, v))
+        self.function(f"{PREFIX}vpartials(s, y, v, p)", "df/dv (n, kv, m) and A = d2L/dv2 "
+                      "(kv, kv, m) at (y, v).", block, unpack,
+                      before=["    m = y.shape[1]", f"    fv = numpy.zeros(({n}, {kv}, m))",
+                              f"    A = numpy.zeros(({kv}, {kv}, m))"],
+                      after=["    return fv, A"])
+        block = Block(names)
+        before, chains, needs = self._partials(block, [*d.rhs, *G], "jac")
         self.emit("", "", "def rhs_jac(s, y, p):",
-                  *_docstring("df/dy, (n, n, m): with each frame R = R(q) and body moment "
-                              "R^T m held, then through them (runtime.chain)."),
-                  *before, *block.lines(unpack, needs), *chains, "    return jac")
+                  *_docstring("df/dy by the implicit function theorem: the partial "
+                              "derivatives at v held (through each frame R = R(q) and body "
+                              "moment R^T m, runtime.chain), plus df/dv dv/dy with dv/dy = "
+                              "-A^-1 dG/dy, G = dL/dv - (m, R^T m)."),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    jac = numpy.zeros(({n + kv}, {n}, y.shape[1]))", *before,
+                  *block.lines(unpack, needs), *chains,
+                  f"    fv, A = {PREFIX}vpartials(s, y, v, p)",
+                  f"    dv = -{PREFIX}runtime._solve(A, jac[{n}:])",
+                  f"    return jac[:{n}] + numpy.einsum('iam,ajm->ijm', fv, dv)")
+        self._by_parameter(f"{PREFIX}dp(s, y, v, p, name)", "df/dp at v held (n, m) and dG/dp "
+                           "(kv, m) for the parameter name.", [*d.rhs, *G], names, unpack,
+                           f"    out = numpy.zeros(({n + kv}, y.shape[1]))", "out[{i}]")
+        self.emit("", "", "def rhs_dp(s, y, p, name):",
+                  *_docstring("df/dp[name] with dv/dp = -A^-1 dG/dp."),
+                  f"    v = {PREFIX}velocity(s, y, p)",
+                  f"    out = {PREFIX}dp(s, y, v, p, name)",
+                  f"    fv, A = {PREFIX}vpartials(s, y, v, p)",
+                  f"    dv = -{PREFIX}runtime._solve(A, out[{n}:])",
+                  f"    return out[:{n}] + numpy.einsum('iam,am->im', fv, dv)")
 
     def newton_system(self):
         d = self.d
@@ -659,6 +793,117 @@ class Module:
                               "s = 1, and the energy's constant (the quadratures' starts in "
                               "B1)."),
                   *body, f"    return {{{at0}}}, {{{at1}}}, float({values[-1]})")
+
+    def frame_kernels(self):
+        """The gradient flow's pieces for a module with rotations: the Lagrangian at the
+        intervals' midpoints in the scalar coordinates, their derivatives, the frames' entries
+        and the strains (each given), with its first derivatives; the end terms in the end
+        values and frames, with theirs; the essential values and the clamps'
+        quaternions (`frame_flow.frame_flow`)."""
+        d = self.d
+        k, nrot = self.k, len(d.rotations)
+        names, unpack = self._params()
+        names[d.S] = "s"
+        for i, (z, v) in enumerate(zip(d.Z, d.V)):
+            names[z], names[v] = f"z{i}", f"v{i}"
+        rot_unpack = []
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    names[r.node.R[a, b]] = f"R{j}_{a}{b}"
+                    rot_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}, {a}, {b}]"))
+            for c in range(3):
+                names[r.U[c]] = f"u{j}_{c}"
+                rot_unpack.append((f"u{j}_{c}", f"u{j}_{c} = U[{j}, {c}]  # {r.name}.u{c + 1}"))
+        unpack = ([(f"z{i}", f"z{i} = z[{i}]  # {c}") for i, c in enumerate(d.coordinates)]
+                  + [(f"v{i}", f"v{i} = v[{i}]  # {c}'") for i, c in enumerate(d.coordinates)]
+                  + rot_unpack + unpack)
+        block = Block(names)
+        L = d.lagrangian
+        block.add("L", L)
+        for i, z in enumerate(d.Z):
+            block.add(f"Lz[{i}]", sp.diff(L, z))
+        for i, v in enumerate(d.V):
+            block.add(f"Lv[{i}]", sp.diff(L, v))
+        for j, r in enumerate(d.rotations):
+            for a in range(3):
+                for b in range(3):
+                    de = sp.diff(L, r.node.R[a, b])
+                    if de != 0:
+                        block.add(f"LR[{j}, {a}, {b}]", de)
+            for c in range(3):
+                de = sp.diff(L, r.U[c])
+                if de != 0:
+                    block.add(f"LU[{j}, {c}]", de)
+        self.function(f"{PREFIX}frame_density(s, z, v, R, U, p)", "The Lagrangian L (with "
+                      "the multipliers' terms) at (z, v = z', the frames R (nrot, 3, 3, m), "
+                      "their strains U (nrot, 3, m), s) and its derivatives in z, v, the "
+                      "frames' entries and the strains.", block, unpack,
+                      before=["    m = len(s)", f"    Lz = numpy.empty(({k}, m))",
+                              f"    Lv = numpy.empty(({k}, m))",
+                              f"    LR = numpy.zeros(({nrot}, 3, 3, m))",
+                              f"    LU = numpy.zeros(({nrot}, 3, m))"],
+                      after=["    L = L + numpy.zeros(m)", "    return L, Lz, Lv, LR, LU"])
+        for end, B in ((0, d.ends["B0"]), (1, d.ends["B1"])):
+            names, unpack = self._params()
+            ends_unpack = [(f"z{i}", f"z{i} = z[{i}]  # {c}({end})")
+                           for i, c in enumerate(d.coordinates)]
+            for i, z in enumerate(d.Z):
+                names[z] = f"z{i}"
+            for j, r in enumerate(d.rotations):
+                frame = r.start if end == 0 else r.end
+                for a in range(3):
+                    for b in range(3):
+                        names[frame.R[a, b]] = f"R{j}_{a}{b}"
+                        ends_unpack.append((f"R{j}_{a}{b}", f"R{j}_{a}{b} = R[{j}, {a}, {b}]"))
+            block = Block(names)
+            block.add("B", B)
+            for i, z in enumerate(d.Z):
+                block.add(f"Bz[{i}]", sp.diff(B, z))
+            for j, r in enumerate(d.rotations):
+                frame = r.start if end == 0 else r.end
+                for a in range(3):
+                    for b in range(3):
+                        de = sp.diff(B, frame.R[a, b])
+                        if de != 0:
+                            block.add(f"BR[{j}, {a}, {b}]", de)
+            self.function(f"{PREFIX}frame_end{end}(z, R, p)", f"B{end} at the end values z "
+                          "(k,) and frames R (nrot, 3, 3), its derivatives in them"
+                          + (" (the quadratures' terms are in the density)" if end else "")
+                          + ".", block, ends_unpack + unpack,
+                          before=[f"    Bz = numpy.zeros({k})",
+                                  f"    BR = numpy.zeros(({nrot}, 3, 3))"],
+                          after=["    return float(B), Bz, BR"])
+        self.emit("", "", f"def {PREFIX}frame_ends(za, Ra, zb, Rb, p):",
+                  *_docstring('B0 and B1, each (value, dB/dz, dB/dR), at the end values.'),
+                  f"    return {PREFIX}frame_end0(za, Ra, p), {PREFIX}frame_end1(zb, Rb, p)")
+        names, unpack = self._params()
+        block = Block(names)
+        items = [(0, i, e) for i, e in d.ends["essential"][0].items()] + \
+                [(1, i, e) for i, e in d.ends["essential"][1].items()]
+        for end, i, e in items:
+            block.add(None, e)
+        clamps = [(end, j, qc) for end in (0, 1) for j, qc in d.ends["clamps"][end].items()]
+        for end, j, qc in clamps:
+            for e in qc:
+                block.add(None, e)
+        block.add(None, d.ends["constant"])
+        body = block.lines(unpack)
+        values = block.printed
+        at = [", ".join(f"{i}: {v}" for (e, i, _), v in zip(items, values) if e == end)
+              for end in (0, 1)]
+        rest = values[len(items):]
+        quats = [[], []]
+        for c, (end, j, _) in enumerate(clamps):
+            quats[end].append(f"{j}: numpy.array(({', '.join(rest[4 * c:4 * c + 4])}), "
+                              "dtype=float)")
+        self.emit("", "", f"def {PREFIX}frame_essential(p):",
+                  *_docstring("The scalar coordinates' essential end values {coordinate: "
+                              "value} at s = 0 and s = 1, the energy's constant (the "
+                              "quadratures' starts in B1), the clamps' quaternions {rotation: "
+                              "q} at s = 0 and s = 1."),
+                  *body, f"    return ({{{at[0]}}}, {{{at[1]}}}, float({values[-1]}), "
+                  f"{{{', '.join(quats[0])}}}, {{{', '.join(quats[1])}}})")
 
     def tangent(self):
         """The perturbation (K, m) of a tangent g to the states at y: the scalar

@@ -42,7 +42,9 @@ A rotation coordinate R (`elastica_auto.energy.Rotation`, docs/energy.md) is a f
 * L is written in the body strains u = (R^T R')^vee and in R itself; R is stored as a
   quaternion q (four states, R = R(q / |q|), ``q' = q (x) (0, u) / 2``), and its momentum is
   the spatial moment m = R L_u (three states): the Legendre transform is on the Lie algebra,
-  ``m_b = R^T m = L_u``, symbolic where L is quadratic in the strains and derivatives;
+  ``m_b = R^T m = L_u``, symbolic where L is quadratic in the strains and derivatives, else
+  by Newton's method per point at the frame R(q) (the system then in (states, v), its
+  Jacobians by the implicit function theorem: `codegen.Module.rotation_newton_system`);
 * spatial variations R_e = exp(e [w]_x) R give ``u_e = u + e R^T w' - (e^2 / 2) R^T (w x
   w')``, so ``m' = tau``, ``tau_c = D_c L`` with ``D_c f = d/de f(exp(e E_c) R)`` at e = 0
   (``E_c = [e_c]_x``), the natural ends ``-m(0) + D B0 = 0``, ``m(1) + D B1 = 0``, and the
@@ -53,7 +55,10 @@ A rotation coordinate R (`elastica_auto.energy.Rotation`, docs/energy.md) is a f
   natural end at s = 0 gives ``-m(0) + D B0`` and ``|q(0)|^2 - 1`` (the scale of q, which no
   other condition fixes), a clamp at s = 1 the three rows ``Im(conj(q_c) (x) q(1))``; a
   clamp parameter's part of dE/dxi is ``-m(0).w_xi`` (``+m(1).w_xi`` at s = 1) with
-  ``w_xi = 2 Im(dq_c/dxi (x) conj(q_c)) / |q_c|^2``, the clamp's turn per unit xi.
+  ``w_xi = 2 Im(dq_c/dxi (x) conj(q_c)) / |q_c|^2``, the clamp's turn per unit xi;
+* a constraint's rate with strains: ``g_v`` along w' is ``R g_u``, and its total derivative
+  along the solution takes (zeta'', u') from the momentum equations differentiated along
+  it, ``d/ds L_u = R^T tau - u x L_u`` (`_rotation_total`).
 
 Everything is built on sympy ``Dummy`` symbols: the user's names never meet the generated
 code's, and appear in it only as string literals (`elastica_auto.energy.codegen`).
@@ -238,7 +243,8 @@ class Derived:
     energy_ends: sp.Expr
     free: tuple
     parts: dict
-    ends: dict                       # B0, B1' in Z (the gradient flow), essential values
+    ends: dict                       # B0, B1' in Z (the gradient flow), essential values,
+                                     # clamps
     rows: list = field(default_factory=list)
     names: tuple = ()                # the states' names in the rows' order
     rotations: list = field(default_factory=list)
@@ -768,10 +774,6 @@ def derive(energy: Energy) -> Derived:
     defaults = {P[name]: _number(decl.default, f"parameter {name}'s default")
                 for name, _, decl in nm.params}
     _check_convex(nm, A, defaults, linear)
-    if rot and not linear:
-        _fail("the density is not quadratic in the derivatives and the strains of "
-              f"{', '.join(r.name for r in rot)}: with a rotation coordinate the Legendre "
-              "transform is derived as a linear solve only (a density quadratic in them)")
     velocity = None
     if linear:
         b = [lv.xreplace({v: 0 for v in velocities}) for lv in Lv]
@@ -878,10 +880,15 @@ def derive(energy: Energy) -> Derived:
         # x(1) - c(zeta(1)) = 0 linearised: the end's part -dc/dzeta(1).h(1)
         dc = [-at_end.conf(final[j], a).xreplace(at1_all) for a in items]
         if rot and any(e != 0 for e in gv):
-            _fail(f"the constraint on {nm.quadratures[j]}: its rate contains derivatives or "
-                  "strains, which with a rotation coordinate the derivation does not "
-                  "integrate by parts; write the rate in the coordinates and the frame")
-        if any(e != 0 for e in gv):
+            if not linear:
+                _fail(f"the constraint on {nm.quadratures[j]}: its rate contains derivatives "
+                      "or strains, and the density is not quadratic in them: integrating "
+                      "the constraint by parts along the solution would need the strains' "
+                      "and derivatives' rates (u', zeta'') computed numerically at each point "
+                      "(derived only where the density is quadratic in them); write the rate "
+                      "in the coordinates and the frame, or the density quadratic")
+            fld = [gz[i] - _rotation_total(nm, e, Leff) for i, e in enumerate(gv)]
+        elif any(e != 0 for e in gv):
             # (g_v)' along the solution: zeta' = V, zeta'' = W (runtime.acceleration)
             total = [sum((sp.diff(e, Z[j]) * V[j] + sp.diff(e, V[j]) * W[j]
                           for j in range(k)), sp.diff(e, S)) for e in gv]
@@ -998,7 +1005,7 @@ def derive(energy: Energy) -> Derived:
                      if item == "E" else "; rename one of them (Param(ordinate=...))"))
         names[item] = "ordinate"
 
-    ends_info = dict(B0=B0, B1=B1p, essential=essential,
+    ends_info = dict(B0=B0, B1=B1p, essential=essential, clamps=clamps,
                      constant=sum((c1[j] * initial[j] for j in c1), sp.Integer(0)))
     derived = Derived(
         coordinates=nm.coordinates, momenta=nm.momenta, quadratures=nm.quadratures,
@@ -1012,6 +1019,55 @@ def derive(energy: Energy) -> Derived:
                                multipliers, clamps)
     derived.user = nm.user
     return derived
+
+
+def _rotation_total(nm, e, Leff):
+    """d e / ds along a solution, for e in the scalar coordinates, their derivatives, the
+    frames and strains at the nodes, s: e_z zeta' + e_v zeta'' + e_s + e_R : R [u]_x +
+    e_u u', with the accelerations (zeta'', u') from the momentum equations differentiated
+    along the solution (L quadratic in the velocities v = (zeta', u), A = L_vv constant in
+    them):
+
+        d/ds L_zeta' = L_zeta           (the scalar coordinates' m' = L_z),
+        d/ds L_u     = R^T tau - u x L_u (m_b = R^T m: m_b' = R^T m' + R'^T m, R' = R [u]_x),
+
+    each side's s-derivative in the velocities' rates: A (zeta'', u') = r, with r the right
+    sides less the rest of the total derivative of L_v (in zeta, R, s). (The caller puts the
+    Legendre inverse in for the velocities: on the solution.)"""
+    Z, V, S = nm.Z, nm.V, nm.S
+    k = len(Z)
+    strains = [u for r in nm.rot for u in r.U]
+    velocities = [*V, *strains]
+    rates = [sp.Dummy(f"a{i}", real=True) for i in range(len(velocities))]
+
+    def total(expr):
+        """d expr / ds with the velocities' rates as the symbols ``rates``."""
+        out = sp.diff(expr, S)
+        out += sum((sp.diff(expr, z) * v for z, v in zip(Z, V)), sp.Integer(0))
+        out += sum((sp.diff(expr, v) * a for v, a in zip(velocities, rates)), sp.Integer(0))
+        for r in nm.rot:
+            turned = r.node.R * _cross_matrix(r.U)           # R' = R [u]_x
+            out += sum((sp.diff(expr, r.node.R[a, b]) * turned[a, b]
+                        for a in range(3) for b in range(3)), sp.Integer(0))
+        return out
+
+    equations = []
+    for i in range(k):
+        equations.append(total(sp.diff(Leff, V[i])) - sp.diff(Leff, Z[i]))
+    for r in nm.rot:
+        lu = [sp.diff(Leff, u) for u in r.U]
+        tau = [r.node.rotate(Leff, c) for c in range(3)]
+        body_tau = [sum((r.node.R[a, c] * tau[a] for a in range(3)), sp.Integer(0))
+                    for c in range(3)]
+        u_cross = [r.U[1] * lu[2] - r.U[2] * lu[1], r.U[2] * lu[0] - r.U[0] * lu[2],
+                   r.U[0] * lu[1] - r.U[1] * lu[0]]
+        for c in range(3):
+            equations.append(total(lu[c]) - body_tau[c] + u_cross[c])
+    # linear in the rates: A rates + rest = 0
+    A = sp.Matrix([[sp.diff(eq, a) for a in rates] for eq in equations])
+    rest = sp.Matrix([eq.xreplace({a: 0 for a in rates}) for eq in equations])
+    solved = list(A.LUsolve(-rest))
+    return total(e).xreplace(dict(zip(rates, solved)))
 
 
 def _quaternion(nm, value, what) -> list:
@@ -1193,5 +1249,7 @@ def _summary(nm, d, L, B0, B1, rates, initial, final, essential, multipliers,
             f"{c} = {u(v)}" for c, v in zip(labels, d.velocity)))
     else:
         lines.append("Legendre inverse: Newton's method per point (L is not quadratic in "
-                     + ", ".join(c + "'" for c in nm.coordinates) + ")")
+                     + ", ".join([*(c + "'" for c in nm.coordinates),
+                                  *(f"{r.name}.u{i + 1}" for r in nm.rot for i in range(3))])
+                     + ")")
     return lines

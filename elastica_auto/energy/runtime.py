@@ -393,15 +393,21 @@ def body(R, m):
     return (R * m[:, None, :]).sum(axis=0)
 
 
+def frame_derivatives(q, R):
+    """dR/dq_j (4, 3, 3, m) of the frames R = R(q / |q|) (3, 3, m) at the quaternions q (4,
+    m): 2 (D_j(q) - q_j R) / |q|^2, by one product."""
+    npts = q.shape[1]
+    dR = (_LINEAR @ q).reshape(4, 3, 3, npts) - q[:, None, None, :] * R[None]
+    dR *= 2 / np.einsum("ij,ij->j", q, q)
+    return dR
+
+
 def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
     """Add to ``jac`` (n, n, npts) the derivatives through a frame R = R(q / |q|) (3, 3,
     npts) and its body moment R^T m: for the rows ``rows_r`` with f_r = df/dR (r, 3, 3,
     npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
     ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2."""
-    npts = q.shape[1]
-    scale = 2 / np.einsum("ij,ij->j", q, q)
-    dR = (_LINEAR @ q).reshape(4, 3, 3, npts) - q[:, None, None, :] * R[None]
-    dR *= scale                                                   # dR/dq_j: (4, 3, 3, npts)
+    dR = frame_derivatives(q, R)                                  # dR/dq_j: (4, 3, 3, npts)
     if f_r is not None:
         jac[np.ix_(rows_r, qcols)] += np.einsum("iabm,jabm->ijm", f_r, dR)
     if f_m is not None:
