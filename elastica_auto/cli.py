@@ -535,7 +535,7 @@ def path(equation, at, to, ds_max):
     """Snap-backs along a straight path in parameter space: every fold where a stable
     equilibrium ends as the parameters move from --at to --to, and the stable equilibria
     there (EQUATION: a shipped module name or a .py file with the shooting hook)."""
-    from .path import snaps_along
+    from .api import snaps_along
     from .model.problem import load_problem
     a, b = _values("--at", at), _values("--to", to)
     if not b:

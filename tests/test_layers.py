@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "elastica_auto"
 #: The layers, lowest first. At the bottom the package's ``__init__``: the version and the
 #: table of public names, imported on first use (it imports nothing of the package when it is
 #: imported, and every module of the package imports it first). Then a subpackage of
-#: `elastica_auto` each, and on top the public API (`api`, `cli`, `path`), the figures
+#: `elastica_auto` each, and on top the public API (`api`, `cli`), the figures
 #: (`plots`) and the equation modules (`elastica_auto.equations`, the paper's figures read one).
 #: `energy` (modules derived from an energy) sits right above `core`: `load_problem` (model)
 #: calls its loader, and what its generated modules need from higher layers they pass in.
@@ -122,7 +122,7 @@ def cycles(edges) -> list[list[str]]:
 
 def test_every_module_is_in_a_layer_folder_or_on_top():
     top = {m for m in modules() if layer(m) == "top"}
-    assert top == {"elastica_auto.api", "elastica_auto.cli", "elastica_auto.path"} | {
+    assert top == {"elastica_auto.api", "elastica_auto.cli"} | {
         m for m in top if m.startswith("elastica_auto.plots.") or m == "elastica_auto.plots"}
     assert {layer(m) for m in modules()} == set(LAYERS)
 
