@@ -135,6 +135,14 @@ def test_no_circle_of_imports():
     assert cycles(graph()) == []
 
 
+def test_nothing_imports_the_command_line():
+    """Issue 48 item 5: the command line (`cli`) is the package's outermost shell; what it
+    shares with another module (``python -m elastica_auto.plots`` read the run files'
+    restarts from it) lives below it, in the layer that owns it."""
+    assert [f"{m}:{line}" for m, out in graph().items() for target, _, line in out
+            if target == "elastica_auto.cli"] == []
+
+
 def test_no_private_name_from_another_module():
     assert private(graph()) == []
 

@@ -65,6 +65,15 @@ _CONT = {"parameter", "directions", "bounds", "stop", "uz", "uz_period", "free",
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes", "ncol")
 
 
+def restart_files(doc: dict) -> list[str]:
+    """The branch files a parsed run file's ``start`` and ``switch`` read, as written there."""
+    return sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
+                   for key in ("start", "switch")
+                   for ref in (doc.get(key) if isinstance(doc.get(key), list)
+                               else [doc.get(key)])
+                   if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
+
+
 def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
          restart: str | None = None) -> Plan:
     """Read and validate a run file; restart files are looked up in ``out_dir`` first.
