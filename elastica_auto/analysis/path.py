@@ -39,7 +39,22 @@ PATH = "t"
 
 class PathProblem(Problem):
     """The module's problem along a path: its parameter ``t`` moves the parameters
-    ``varying`` from ``a`` to ``b``; stored parameter values are the effective ones."""
+    ``varying`` from ``a`` to ``b``; stored parameter values are the effective ones. Its
+    hooks are the module's at the effective values (`path_problem`: the equations, the
+    ordinates, the second variation, the shooting scan, the dynamics, the drawing), but
+    those `REFUSED` (the problem interface, `elastica_auto.model.interface`)."""
+
+    REFUSED = {
+        "mirror": "the module's reflection negates or keeps each parameter, and t moves "
+                  "several at once",
+        "symmetry": "a branch along the path is continued without a phase condition (the path "
+                    "may move the parameters the symmetry needs held)",
+        "symmetric_values": "the module's values are those of one of its parameters, not of "
+                            "t",
+    }
+
+    def refusal(self, hook: str) -> str | None:
+        return self.REFUSED.get(hook)
 
     def __init__(self, module, source, a: dict, b: dict):
         self.a, self.b = dict(a), dict(b)
@@ -86,6 +101,12 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
     def exact_start(s, p):
         return base.exact_start(s, eff(p))
 
+    def gradient_flow(p, nodes):
+        return base.gradient_flow(eff(p), nodes)
+
+    def draw(ax, profile, p):
+        return base.draw(ax, profile, eff(p))
+
     parameters = [*base.parameters.values(),
                   Parameter(PATH, 0.0, "t", "free", doc="position on the path, 0 at A, 1 at B")]
     ordinates = [Ordinate(o.name, o.tex, (lambda fn: lambda s, y, p: fn(s, y, eff(p)))(o.fn),
@@ -104,6 +125,10 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
         module.shooting = shooting
     if base.has_second_variation:
         module.second_variation = second_variation
+    if base.has_gradient_flow:
+        module.gradient_flow = gradient_flow
+    if base.has_draw:
+        module.draw, module.DRAW_PROJECTION = draw, base.draw_projection
     return PathProblem(module, base.source, {**a, PATH: 0.0}, {**b, PATH: 1.0})
 
 

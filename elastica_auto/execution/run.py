@@ -31,7 +31,6 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
-from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
 from .jobs import (NOT_COMPUTED, Callbacks, Job, cell, compute_branch, failed_branch,
@@ -102,8 +101,8 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent)
     # free parameters are solved for: a value given to one is no place to move to
-    free = problem.free if isinstance(problem, Augmented) else ()
-    targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
+    targets = {q: v for q, v in spec.params.items()
+               if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
         kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
         state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
@@ -122,7 +121,7 @@ def _from_values(plan: Plan, params: dict) -> State:
     problem, opt = plan.problem, plan.options
     s = np.linspace(0.0, 1.0, opt.ntst + 1)
     y = problem.exact_start(s, params)
-    solve = y is None or isinstance(problem, Augmented)
+    solve = y is None or problem.approximate_start
     what = "its exact start"
     if y is None:
         y, what = problem.guess(s, params), "its guess"
@@ -330,7 +329,7 @@ def _same_point(plan: Plan, one: _Site, other: _Site) -> bool:
     continuation's norm (sqrt(|dy|^2 + dlam^2)), and with the same kernel (`_same_kernel`).
     Never by step length alone: two branch points of one branch one step apart are two."""
     p, q, parameter = one.point, other.point, plan.parameter
-    solved = (parameter, *getattr(plan.problem, "free", ()))
+    solved = (parameter, *plan.problem.solved)
     periods = {k: v.period for k, v in plan.problem.parameters.items()}
     if not all(same_value(p.params[k], q.params[k], periods.get(k)) for k in p.params
                if k not in solved):
