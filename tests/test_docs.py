@@ -117,8 +117,8 @@ def test_the_api_page_names_everything_public():
     source = (REPO / "elastica_auto" / "model" / "problem.py").read_text()
     protocol = set(re.findall(r'getattr\(module, "(\w+)"', source)) | {
         n for n in re.findall(r"\bmodule\.([A-Za-z]\w*)", source)}
-    keys = (runfile._TOP | runfile._CONT | runfile._SELECT | {"scheduler", "from", "to", "num"}
-            | {f.name for f in fields(ContinuationOptions)})
+    keys = (runfile.TOP_KEYS | runfile.CONTINUATION_KEYS | runfile.SELECTOR_KEYS
+            | {"scheduler", "from", "to", "num"} | {f.name for f in fields(ContinuationOptions)})
     tables = {"parameters", "continuation", "options", "execution"}
     expected = {f"`[{n}]`" if n in tables else f"`{n}`"
                 for n in [*elastica_auto.__all__, "FORMAT_VERSION", *protocol, *keys,

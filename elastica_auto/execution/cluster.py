@@ -368,7 +368,9 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         now = time.monotonic()
         if on_tasks is not None and (force or now - last > 0.5):
             last = now
-            on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
+            # a scheduler gone answers without "workers" (the run's watch ends the run)
+            workers = client.scheduler_info().get("workers", {})
+            on_tasks(finished, len(futures), points, len(workers))
 
     def lost(exc: ClusterLost):
         if client.status == "running":

@@ -240,7 +240,7 @@ SAME_KERNEL = 1e-3
 
 
 @dataclass
-class _Site:
+class Site:
     """A branch point as `switch_jobs` compares it: the point, the distance within which it
     is known (``accuracy``), and, once computed, the directions of its kernel (``kernel``:
     an orthonormal pair, or for a turning-point BP its tangent alone; None where unknown)."""
@@ -259,24 +259,24 @@ def _size(state, parameter: str) -> float:
                                + state.params[parameter] ** 2))
 
 
-def _site(plan: Plan, pts, i: int) -> _Site:
-    """The branch point ``pts[i]`` as a `_Site`: located to SAME_POINT_RELATIVE of its size,
+def _site(plan: Plan, pts, i: int) -> Site:
+    """The branch point ``pts[i]`` as a `Site`: located to SAME_POINT_RELATIVE of its size,
     or, labelled at a turning point (TURNING), to the step that reached it (the step of the
     first point after it that ends one, else of the one before)."""
     p = pts[i]
     if not p.note.startswith(TURNING):
-        return _Site(p, SAME_POINT_RELATIVE * _size(p.state, plan.parameter), True)
+        return Site(p, SAME_POINT_RELATIVE * _size(p.state, plan.parameter), True)
     after = [q.ds for q in pts[i + 1:] if q.ds > 0][:1]
     before = [q.ds for q in pts[i - 1::-1] if q.ds > 0][:1] if i else []
-    return _Site(p, (after or before or [0.0])[0], False)
+    return Site(p, (after or before or [0.0])[0], False)
 
 
-def _branch_points(plan: Plan, br: Branch) -> list[_Site]:
-    """The BPs of ``br`` in order, as `_Site`s."""
+def branch_points(plan: Plan, br: Branch) -> list[Site]:
+    """The BPs of ``br`` in order, as `Site`s."""
     return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type == "BP"]
 
 
-def _kernel(plan: Plan, site: _Site) -> list | None:
+def _kernel(plan: Plan, site: Site) -> list | None:
     """The directions of the site's kernel (computed once): the plane of a located branch
     point, the tangent of a turning-point one; None where they cannot be had."""
     if not site.computed:
@@ -290,7 +290,7 @@ def _kernel(plan: Plan, site: _Site) -> list | None:
     return site.kernel
 
 
-def _same_kernel(plan: Plan, one: _Site, other: _Site, s) -> bool:
+def _same_kernel(plan: Plan, one: Site, other: Site, s) -> bool:
     """Whether the kernels of two sites at one place agree, on the mesh ``s``: two planes
     within SAME_KERNEL of each other; a turning point's tangent within max_angle of a plane;
     where either is unknown, or both are turning points' tangents (two directions of one
@@ -323,7 +323,7 @@ def _orthonormal(directions, s) -> list[Tangent]:
     return out
 
 
-def _same_point(plan: Plan, one: _Site, other: _Site) -> bool:
+def same_point(plan: Plan, one: Site, other: Site) -> bool:
     """Two branch points are the same point: at the same values of the parameters held fixed
     (`core.values.same_value`), within the sum of their accuracies of each other in the
     continuation's norm (sqrt(|dy|^2 + dlam^2)), and with the same kernel (`_same_kernel`).
@@ -347,13 +347,13 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                 seen: list | None = None, sources: list | None = None) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
     BPs where that fails are reported in ``warnings``. A BP that is the same point
-    (`_same_point`) as one in ``seen`` (`_Site`s of `_branch_points`) is passed over; each BP
+    (`same_point`) as one in ``seen`` (`Site`s of `branch_points`) is passed over; each BP
     switched at is added to it. ``sources``, if given, gets each job's BP (its site)."""
     jobs = []
     seen = [] if seen is None else seen
     for br in branches:
-        for bp in _branch_points(plan, br)[: plan.switch_count]:
-            if any(_same_point(plan, bp, q) for q in seen):
+        for bp in branch_points(plan, br)[: plan.switch_count]:
+            if any(same_point(plan, bp, q) for q in seen):
                 continue
             seen.append(bp)
             p = bp.point
@@ -377,12 +377,12 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
     return jobs
 
 
-def _loop_points(plan: Plan, br: Branch) -> list[_Site]:
+def _loop_points(plan: Plan, br: Branch) -> list[Site]:
     """Where a closed loop ``br`` meets other branches: its start (the BP it was switched
-    at, its solution exactly) and the BPs along it, as `_Site`s for `_same_point`."""
+    at, its solution exactly) and the BPs along it, as `Site`s for `same_point`."""
     start = br.points[0]
-    return [_Site(start, SAME_POINT_RELATIVE * _size(start.state, plan.parameter), True),
-            *_branch_points(plan, br)]
+    return [Site(start, SAME_POINT_RELATIVE * _size(start.state, plan.parameter), True),
+            *branch_points(plan, br)]
 
 
 def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) -> bool:
@@ -410,12 +410,12 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
         before = len(branches)
 
         def skip(i, done, before=before, sources=sources):
-            return any(_same_point(plan, sources[i], q) for br in done[before:]
+            return any(same_point(plan, sources[i], q) for br in done[before:]
                        if br.closed for q in _loop_points(plan, br))
 
         if run(jobs, skip):
             return True
-        seen.extend(bp for br in level for bp in _branch_points(plan, br))
+        seen.extend(bp for br in level for bp in branch_points(plan, br))
         level = branches[before:]
     return False
 
