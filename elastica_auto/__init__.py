@@ -28,7 +28,7 @@ _PUBLIC = {
     "simpson": "core.solution", "hermite": "core.solution",
     "trapezoid_weights": "core.solution",
     "continuation": "api", "save": "api", "Branches": "api", "Interrupted": "api",
-    "Switch": "execution.plan", "ContinuationOptions": "core.options", "snaps_along": "path",
+    "Switch": "execution.plan", "ContinuationOptions": "core.options", "snaps_along": "api",
     "BranchFile": "storage.store", "Branch": "branches.branch",
     "StoredLabel": "branches.branch",
     "PlanError": "core.errors", "ProblemError": "core.errors", "StoreError": "core.errors",

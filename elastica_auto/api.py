@@ -283,4 +283,19 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     return writer.path
 
 
-__all__ = ["continuation", "save", "Branches", "Interrupted", "ContinuationOptions"]
+def snaps_along(base: Problem, a: dict, b: dict, **options):
+    """The snaps on the segment from ``a`` to ``b`` (parameter values; the others at the
+    module's defaults), in order of t, and the branches followed: ``(snaps, branches)``
+    (`elastica_auto.analysis.path`: every equilibrium at ``a`` continued in the path's
+    parameter ``t`` over [0, 1], then each fold where a stable stretch ends as t increases,
+    with the stable equilibria there). ``options`` are :func:`continuation`'s (``ds_max``,
+    ...)."""
+    from .analysis.path import PATH, path_snaps, path_starts
+    problem, starts = path_starts(base, a, b)
+    branches = continuation(problem, starts, PATH, bounds=(0.0, 1.0), directions="+",
+                            **options)
+    return path_snaps(problem, branches), branches
+
+
+__all__ = ["continuation", "save", "snaps_along", "Branches", "Interrupted",
+           "ContinuationOptions"]

@@ -108,19 +108,12 @@ def _internal(exc: BaseException, what: str):
     sys.exit(EXIT_INTERNAL)
 
 
-def restart_files(doc: dict) -> list[str]:
-    """The branch files a parsed run file's ``start`` and ``switch`` read, as written there."""
-    return sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
-                   for key in ("start", "switch")
-                   for ref in (doc.get(key) if isinstance(doc.get(key), list)
-                               else [doc.get(key)])
-                   if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
-
-
 @main.command("list")
 def list_runs():
     """List the shipped run files (and the branch files each restarts from)."""
     import tomllib
+
+    from .execution.runfile import restart_files
     for name, path in sorted(shipped_runs().items()):
         try:
             doc = tomllib.loads(path.read_text())
@@ -537,7 +530,7 @@ def path(equation, at, to, ds_max):
     """Snap-backs along a straight path in parameter space: every fold where a stable
     equilibrium ends as the parameters move from --at to --to, and the stable equilibria
     there (EQUATION: a shipped module name or a .py file with the shooting hook)."""
-    from .path import snaps_along
+    from .api import snaps_along
     from .model.problem import load_problem
     a, b = _values("--at", at), _values("--to", to)
     if not b:

@@ -318,8 +318,7 @@ def test_a_map_is_mirror_symmetric_and_saved_as_computed(wedge, tmp_path):
 def test_turning_the_arm_snaps_at_the_fold_of_the_rotating_arm(elastica, arm_quarter):
     """eps = 0.25, P = pi^2/4, psi from 0 to 2 pi: one snap, at the fold LP1 of the
     one-parameter run, to one stable equilibrium, which a followed branch passes through."""
-    from elastica_auto.path import snaps_along
-    snaps, _ = snaps_along(elastica, {"P": P1, "eps": 0.25, "psi": 0.0}, {"psi": 2 * math.pi})
+    snaps, _ = ea.snaps_along(elastica, {"P": P1, "eps": 0.25, "psi": 0.0}, {"psi": 2 * math.pi})
     (snap,) = snaps
     lp1 = arm_quarter.label("LP1").state.params["psi"]
     assert abs(snap.params["psi"] - lp1) <= 1e-8 and snap.t == pytest.approx(lp1 / (2 * math.pi))
@@ -331,8 +330,7 @@ def test_turning_the_arm_snaps_at_the_fold_of_the_rotating_arm(elastica, arm_qua
 def test_snaps_on_an_oblique_path_are_folds_by_shooting(elastica):
     """P = 9 pi^2/4, (psi, eps) from (0, 0.2) to (2 pi, 0.5): every snap point is a fold of
     the shooting formulation at its (eps, psi), and lies on the segment."""
-    from elastica_auto.path import snaps_along
-    snaps, _ = snaps_along(elastica, {"P": P2, "eps": 0.2, "psi": 0.0},
+    snaps, _ = ea.snaps_along(elastica, {"P": P2, "eps": 0.2, "psi": 0.0},
                            {"psi": 2 * math.pi, "eps": 0.5})
     assert len(snaps) >= 2
     for s in snaps:

@@ -144,6 +144,21 @@ def test_documented_current_paths_import_without_a_warning(module, names):
             exec(f"from {module} import {name}", namespace)
 
 
+def test_the_path_module_moved_into_the_analysis_layer():
+    """Issue 48 item 5: ``elastica_auto.path`` (an analysis at the top) is
+    ``elastica_auto.analysis.path`` now, ``snaps_along`` a top-level name defined in
+    ``elastica_auto.api``; the old imports give the same objects with a warning each."""
+    from elastica_auto.analysis import path
+    with pytest.warns(DeprecationWarning, match=r"elastica_auto\.path\.snaps_along is "
+                      r"deprecated: import snaps_along from elastica_auto \(elastica_auto\.api\)"):
+        from elastica_auto.path import snaps_along
+    assert snaps_along is elastica_auto.snaps_along
+    with pytest.warns(DeprecationWarning, match=r"import path_problem from "
+                                                r"elastica_auto\.analysis\.path$"):
+        from elastica_auto.path import path_problem
+    assert path_problem is path.path_problem
+
+
 def test_removed_names_say_why():
     with pytest.raises(ImportError, match="corrector.solve_tangent was removed: a step's "
                                           "tangent"):

@@ -9,17 +9,30 @@ from elastica_auto.plots.paper import FIGURES
 from helpers import REPO
 
 DOCS = REPO / "docs"
+#: Folders of the package that are not the engine's (links to the shipped equations and runs).
+NOT_ENGINE = {"equations", "runs"}
 WORDS = {4: "four", 5: "five", 6: "six", 7: "seven", 8: "eight"}
 
 
 def test_the_design_lists_every_module():
+    """Issue 48 item 5: every module of the package, in every folder (not only the top and
+    plots: branches/mirror.py and numerics/ode.py went unnoticed), and every equation module
+    has a row; a layer's ``__init__.py`` is its line in the layers' diagram instead."""
     table = (DOCS / "design.md").read_text()
-    modules = [p.relative_to(REPO).as_posix()
-               for d in ("elastica_auto", "elastica_auto/plots", "equations")
-               for p in sorted((REPO / d).glob("*.py")) if p.name != "__init__.py"]
-    assert modules
+    package = REPO / "elastica_auto"
+    modules = [p.relative_to(REPO).as_posix() for p in sorted(package.rglob("*.py"))
+               if p.parent.name not in NOT_ENGINE and "__pycache__" not in p.parts
+               and (p.name != "__init__.py" or p.parent == package)]
+    modules += [p.relative_to(REPO).as_posix() for p in sorted((REPO / "equations").glob("*.py"))
+                if p.name != "__init__.py"]
+    assert {"elastica_auto/branches/mirror.py", "elastica_auto/numerics/ode.py",
+            "elastica_auto/__init__.py"} <= set(modules)
     missing = [m for m in modules if f"| `{m}` |" not in table]
     assert not missing, f"docs/design.md, module layout: no row for {missing}"
+    diagram = table[table.index("### Layers"):]
+    folders = {p.parent.name for p in package.glob("*/__init__.py")} - NOT_ENGINE
+    assert sorted(f for f in folders if not re.search(rf"^ *{f}\b", diagram, re.M)
+                  and f != "plots") == []
 
 
 def test_the_index_links_every_page():
@@ -104,8 +117,8 @@ def test_the_api_page_names_everything_public():
     source = (REPO / "elastica_auto" / "model" / "problem.py").read_text()
     protocol = set(re.findall(r'getattr\(module, "(\w+)"', source)) | {
         n for n in re.findall(r"\bmodule\.([A-Za-z]\w*)", source)}
-    keys = (runfile._TOP | runfile._CONT | runfile._SELECT | {"scheduler", "from", "to", "num"}
-            | {f.name for f in fields(ContinuationOptions)})
+    keys = (runfile.TOP_KEYS | runfile.CONTINUATION_KEYS | runfile.SELECTOR_KEYS
+            | {"scheduler", "from", "to", "num"} | {f.name for f in fields(ContinuationOptions)})
     tables = {"parameters", "continuation", "options", "execution"}
     expected = {f"`[{n}]`" if n in tables else f"`{n}`"
                 for n in [*elastica_auto.__all__, "FORMAT_VERSION", *protocol, *keys,

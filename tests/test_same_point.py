@@ -143,13 +143,13 @@ def test_a_branch_point_near_another_with_another_kernel_is_not_the_same(tmp_pat
                            {"ds": 0.7, "ds_max": 1.1, "growth": 2})
     trivial = ea.continuation(problem, {"lam": -0.5}, "lam", bounds=(-1, 3), ds=0.7,
                               ds_max=1.1, growth=2)[0]
-    first, second = runs._branch_points(plan, trivial)
-    assert not runs._same_point(plan, first, second)      # both located: 1 apart
+    first, second = runs.branch_points(plan, trivial)
+    assert not runs.same_point(plan, first, second)      # both located: 1 apart
     v_mode = switch_direction(problem, second.point.state, second.point.tangent, "lam",
                               plan.options)
     u_mode = switch_direction(problem, first.point.state, first.point.tangent, "lam",
                               plan.options)
     for direction, same in ((v_mode, False), (u_mode, True)):
-        turning = runs._Site(dataclasses.replace(second.point, note=runs.TURNING,
+        turning = runs.Site(dataclasses.replace(second.point, note=runs.TURNING,
                                                  tangent=direction), 2.0, False)
-        assert runs._same_point(plan, first, turning) is same
+        assert runs.same_point(plan, first, turning) is same

@@ -193,7 +193,7 @@ def copy_key(problem, parameter: str, params: dict) -> tuple:
 def mirror_key(problem, parameter: str, params: dict) -> tuple | None:
     """`copy_key` of the mirror image of ``params`` (the module's ``MIRROR``, where it says
     how the shooting unknowns turn), or None."""
-    mirror = getattr(problem, "mirror", None)
+    mirror = problem.mirror
     if mirror is None or not mirror[2].shooting:
         return None
     return copy_key(problem, parameter, problem.mirrored(np.zeros((problem.n, 0)), params)[1])

@@ -14,6 +14,11 @@ importable from it), plus a name earlier docs imported that the last version no 
 (``stability.nodes_and_midpoints``). Each name maps to the module that defines it now.
 `REMOVED` and `REMOVED_MODULES` hold what has no new place, with the reason given instead.
 Nothing here imports anything: the table is read only when an old path is imported.
+
+One module of the flat layout outlived the split at the top: ``path`` (snap-backs along a
+path in parameter space), an analysis, moved to ``analysis/path.py`` in the same version
+(issue 48), its front end ``snaps_along`` to `elastica_auto.api`; it has its row here like the
+others.
 """
 
 #: The version whose import paths these are (the flat layout), and the first that warns.
@@ -111,6 +116,13 @@ MOVED = {
     },
     "options": {
         "core.options": "CORRECTORS NCOL_RANGE MAX_STEP OptionsError ContinuationOptions",
+    },
+    "path": {
+        "branches.branch": "StoredLabel",
+        "core.errors": "PlanError",
+        "model.problem": "Ordinate Parameter Problem",
+        "analysis.path": "PATH PathProblem path_problem Snap",
+        "api": "snaps_along",
     },
     "plan": {
         "model.augmented": "Augmented",

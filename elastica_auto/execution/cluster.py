@@ -343,8 +343,9 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     `failed_branch`). A cluster without a worker for ``worker_timeout`` seconds (None:
     `WORKER_TIMEOUT`) raises ClusterLost once ``branches`` has the finished branches (saved)
     and, after them, one for each job not done, ending MX with the message `NOT_COMPUTED`."""
-    from .jobs import NOT_COMPUTED, TaskFailure, compute_branch, failed_branch, mirrored_branch
-    offset = len(branches)
+    from .jobs import NOT_COMPUTED, TaskFailure, failed_branch
+    from .schedule import Schedule
+    schedule = Schedule(plan, jobs_list, branches, save, on_branch, skip)
     token = uuid.uuid4().hex[:8]
     # The plan goes with every task (tens of kilobytes): scattered once instead, it would be
     # data the scheduler cannot recompute, and a worker that dies would take it, and every
@@ -352,15 +353,14 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
     # `submit` a task would keep the first worker waiting 0.1 s for a sweep of 64. A mirror
     # job is no task: it is made here at its turn, from the branch before it.
     computed = [i for i, job in enumerate(jobs_list) if not job.mirror]
-    numbers = [offset + i + 1 for i in computed]
+    numbers = [schedule.number(i) for i in computed]
     futures_list = client.map(_task, [plan] * len(computed), numbers,
                               [jobs_list[i] for i in computed], pure=False,
                               key=[f"elastica-branch-{k}-{token}" for k in numbers])
     tasks = dict(zip(computed, futures_list))
     futures = {f: i for i, f in tasks.items()}
     pending, done, points, finished = set(futures), {}, 0, 0
-    made = {}                   # the jobs' branches, for their mirror images
-    last, taken = 0.0, 0        # taken: the jobs appended or left out, in order
+    last = 0.0
     watch = _Watch(client, worker_timeout)
 
     def report(force=False):
@@ -368,22 +368,27 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         now = time.monotonic()
         if on_tasks is not None and (force or now - last > 0.5):
             last = now
-            on_tasks(finished, len(futures), points, len(client.scheduler_info()["workers"]))
+            # a scheduler gone answers without "workers" (the run's watch ends the run)
+            workers = client.scheduler_info().get("workers", {})
+            on_tasks(finished, len(futures), points, len(workers))
 
     def lost(exc: ClusterLost):
         if client.status == "running":
             client.cancel(list(pending))
         # the finished branches, beyond a gap in the plan's order too, then the jobs not
         # done (mirror images included): the file records what is missing
-        branches.extend(done[i] for i in sorted(done))
-        for i in range(taken, len(jobs_list)):
-            if i not in done:
-                br = failed_branch(plan, jobs_list[i], TaskFailure(
-                    "ClusterLost", "the cluster had no worker", lost=True))
-                br.message = NOT_COMPUTED
-                branches.append(br)
-        save()
+        missing = [failed_branch(plan, jobs_list[i], TaskFailure(
+            "ClusterLost", "the cluster had no worker", lost=True))
+            for i in range(schedule.taken, len(jobs_list)) if i not in done]
+        for br in missing:
+            br.message = NOT_COMPUTED
+        schedule.rest(done, missing)
         raise exc
+
+    def cancel(i):
+        if i in tasks:
+            client.cancel(tasks[i])
+            pending.discard(tasks[i])
 
     stop = stop if stop is not None else threading.Event()
     while pending and not stop.is_set():
@@ -412,9 +417,9 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
                 # its data went with the workers as the cluster ended (no KilledWorker: not
                 # the task's fault): submitted again, for workers that come back; with none,
                 # the watch ends the run and the branch is recorded as not computed
-                again = client.submit(_task, plan, offset + i + 1, jobs_list[i], pure=False,
-                                      key=f"elastica-branch-{offset + i + 1}-"
-                                          f"{uuid.uuid4().hex[:8]}")
+                again = client.submit(_task, plan, schedule.number(i), jobs_list[i],
+                                      pure=False, key=f"elastica-branch-{schedule.number(i)}-"
+                                                      f"{uuid.uuid4().hex[:8]}")
                 tasks[i] = again
                 futures[again] = i
                 pending.add(again)
@@ -424,39 +429,15 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
             done[i] = br
             finished += 1
             points += len(br.points)
-        # in order: a job whose turn has come is appended once done, or left out (and its
-        # task cancelled, done or not) if ``skip`` says so; its turn comes when every job
-        # before it is taken, so ``skip`` reads the branches it is decided on
-        while taken < len(jobs_list):
-            if skip is not None and skip(taken, branches):
-                if taken in tasks:
-                    client.cancel(tasks[taken])
-                    pending.discard(tasks[taken])
-                done.pop(taken, None)
-            elif jobs_list[taken].mirror or taken in done:
-                if jobs_list[taken].mirror:
-                    job, source = jobs_list[taken], made.get(taken - 1)
-                    br = (mirrored_branch(plan, offset + taken + 1, job, source)
-                          if source is not None else
-                          compute_branch(plan, offset + taken + 1, job))
-                    if br.interrupted:   # a signal while it was made here: the run ends,
-                        stop.set()       # with the branches the cluster finished
-                        break
-                    done[taken] = br
-                made[taken] = done[taken]
-                branches.append(done.pop(taken))
-                save()
-                if on_branch is not None:
-                    on_branch(len(branches), branches[-1])
-            else:
-                break
-            taken += 1
+        # in order (`Schedule`): a job left out at its turn has its task cancelled, done or
+        # not; a mirror image is made here at its turn, and a signal meanwhile ends the run
+        # with the branches the cluster finished (not the image)
+        if schedule.take(done, on_skip=cancel, keep_interrupted=False):
+            stop.set()
         report()
     if stop.is_set():
         client.cancel(list(pending))
-        if done:  # finished beyond a gap in the plan's order
-            branches.extend(done[i] for i in sorted(done))
-            save()
+        schedule.rest(done)     # finished beyond a gap in the plan's order
         return True
     report(force=True)
     return False

@@ -19,7 +19,6 @@ from typing import Iterable, Mapping, Union
 
 import numpy as np
 
-from ..model.augmented import Augmented
 from ..branches import restart
 from ..core.errors import PlanError, ProblemError
 from ..branches.events import UserValues
@@ -27,6 +26,7 @@ from ..branches.kinds import Event
 from ..branches.registry import parse_events
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions, OptionsError
+from ..model.interface import ProblemInterface
 from ..model.problem import Problem
 from ..branches.stepper import Course, Limit, Stops
 from ..core.solution import State
@@ -262,7 +262,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     ``damping_folds`` (default every fold ending a stable branch). Raises
     :class:`PlanError` naming the argument at fault.
     """
-    if not isinstance(problem, (Problem, Augmented)):
+    if not isinstance(problem, ProblemInterface):
         raise PlanError("problem", f"expected a problem from load_problem(), got "
                         f"{type(problem).__name__}")
     if request.landing and (isinstance(parameter, (list, tuple)) or not (
@@ -281,7 +281,7 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     if request.map and _starts is None:
         raise PlanError("map", "stability maps are drawn from fold curves: give two parameters "
                         "and LP starts")
-    if parameter in getattr(problem, "free", ()) and isinstance(problem, Augmented):
+    if parameter in problem.solved:
         raise PlanError("parameter", f"{parameter!r} is a free parameter (solved for); "
                         "continue in another one")
     opts = _options(options)
@@ -510,7 +510,7 @@ def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
     "or equal" (``>`` ends the branch where NAME = VALUE on the way up), so ``>=`` is refused
     with the entry to write instead; every refusal names the forms a stop takes."""
     at, limits = None, []
-    names = [*problem.ordinate_names, *(problem.free if isinstance(problem, Augmented) else ())]
+    names = [*problem.ordinate_names, *problem.solved]
     for item in stop:
         if not isinstance(item, str):
             raise PlanError("stop", f"expected {STOP_FORMS}, got {item!r}")
@@ -601,7 +601,7 @@ def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
     if len(label.state.y) > problem.n \
             and tuple(label.states[: problem.n]) == tuple(problem.states):
         label = _module_states(label, problem.n)
-    if isinstance(problem, Augmented):   # its free parameters by name, not by position
+    if problem.n0 < problem.n:   # states it carries (free parameters) by name, not by position
         label = restart.by_name(problem, label)
     if len(label.state.y) != problem.n:
         raise PlanError("start", f"{label.name} has {len(label.state.y)} states, "

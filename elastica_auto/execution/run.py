@@ -31,12 +31,12 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
-from ..model.augmented import Augmented
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
 from .jobs import (NOT_COMPUTED, Callbacks, Job, cell, compute_branch, failed_branch,
-                   mark_mirrors, mirrored_branch, usable_cores)
+                   mark_mirrors, usable_cores)
 from .plan import BranchSpec, Plan, Start
+from .schedule import Schedule
 
 
 @dataclass
@@ -101,8 +101,8 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent)
     # free parameters are solved for: a value given to one is no place to move to
-    free = problem.free if isinstance(problem, Augmented) else ()
-    targets = {q: v for q, v in spec.params.items() if q not in free and v != state.params[q]}
+    targets = {q: v for q, v in spec.params.items()
+               if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
         kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
         state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
@@ -121,7 +121,7 @@ def _from_values(plan: Plan, params: dict) -> State:
     problem, opt = plan.problem, plan.options
     s = np.linspace(0.0, 1.0, opt.ntst + 1)
     y = problem.exact_start(s, params)
-    solve = y is None or isinstance(problem, Augmented)
+    solve = y is None or problem.approximate_start
     what = "its exact start"
     if y is None:
         y, what = problem.guess(s, params), "its guess"
@@ -240,7 +240,7 @@ SAME_KERNEL = 1e-3
 
 
 @dataclass
-class _Site:
+class Site:
     """A branch point as `switch_jobs` compares it: the point, the distance within which it
     is known (``accuracy``), and, once computed, the directions of its kernel (``kernel``:
     an orthonormal pair, or for a turning-point BP its tangent alone; None where unknown)."""
@@ -259,24 +259,24 @@ def _size(state, parameter: str) -> float:
                                + state.params[parameter] ** 2))
 
 
-def _site(plan: Plan, pts, i: int) -> _Site:
-    """The branch point ``pts[i]`` as a `_Site`: located to SAME_POINT_RELATIVE of its size,
+def _site(plan: Plan, pts, i: int) -> Site:
+    """The branch point ``pts[i]`` as a `Site`: located to SAME_POINT_RELATIVE of its size,
     or, labelled at a turning point (TURNING), to the step that reached it (the step of the
     first point after it that ends one, else of the one before)."""
     p = pts[i]
     if not p.note.startswith(TURNING):
-        return _Site(p, SAME_POINT_RELATIVE * _size(p.state, plan.parameter), True)
+        return Site(p, SAME_POINT_RELATIVE * _size(p.state, plan.parameter), True)
     after = [q.ds for q in pts[i + 1:] if q.ds > 0][:1]
     before = [q.ds for q in pts[i - 1::-1] if q.ds > 0][:1] if i else []
-    return _Site(p, (after or before or [0.0])[0], False)
+    return Site(p, (after or before or [0.0])[0], False)
 
 
-def _branch_points(plan: Plan, br: Branch) -> list[_Site]:
-    """The BPs of ``br`` in order, as `_Site`s."""
+def branch_points(plan: Plan, br: Branch) -> list[Site]:
+    """The BPs of ``br`` in order, as `Site`s."""
     return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type == "BP"]
 
 
-def _kernel(plan: Plan, site: _Site) -> list | None:
+def _kernel(plan: Plan, site: Site) -> list | None:
     """The directions of the site's kernel (computed once): the plane of a located branch
     point, the tangent of a turning-point one; None where they cannot be had."""
     if not site.computed:
@@ -290,7 +290,7 @@ def _kernel(plan: Plan, site: _Site) -> list | None:
     return site.kernel
 
 
-def _same_kernel(plan: Plan, one: _Site, other: _Site, s) -> bool:
+def _same_kernel(plan: Plan, one: Site, other: Site, s) -> bool:
     """Whether the kernels of two sites at one place agree, on the mesh ``s``: two planes
     within SAME_KERNEL of each other; a turning point's tangent within max_angle of a plane;
     where either is unknown, or both are turning points' tangents (two directions of one
@@ -323,13 +323,13 @@ def _orthonormal(directions, s) -> list[Tangent]:
     return out
 
 
-def _same_point(plan: Plan, one: _Site, other: _Site) -> bool:
+def same_point(plan: Plan, one: Site, other: Site) -> bool:
     """Two branch points are the same point: at the same values of the parameters held fixed
     (`core.values.same_value`), within the sum of their accuracies of each other in the
     continuation's norm (sqrt(|dy|^2 + dlam^2)), and with the same kernel (`_same_kernel`).
     Never by step length alone: two branch points of one branch one step apart are two."""
     p, q, parameter = one.point, other.point, plan.parameter
-    solved = (parameter, *getattr(plan.problem, "free", ()))
+    solved = (parameter, *plan.problem.solved)
     periods = {k: v.period for k, v in plan.problem.parameters.items()}
     if not all(same_value(p.params[k], q.params[k], periods.get(k)) for k in p.params
                if k not in solved):
@@ -347,13 +347,13 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                 seen: list | None = None, sources: list | None = None) -> list[Job]:
     """``switch = N``: both directions of the other branch at the first N BPs of each branch;
     BPs where that fails are reported in ``warnings``. A BP that is the same point
-    (`_same_point`) as one in ``seen`` (`_Site`s of `_branch_points`) is passed over; each BP
+    (`same_point`) as one in ``seen`` (`Site`s of `branch_points`) is passed over; each BP
     switched at is added to it. ``sources``, if given, gets each job's BP (its site)."""
     jobs = []
     seen = [] if seen is None else seen
     for br in branches:
-        for bp in _branch_points(plan, br)[: plan.switch_count]:
-            if any(_same_point(plan, bp, q) for q in seen):
+        for bp in branch_points(plan, br)[: plan.switch_count]:
+            if any(same_point(plan, bp, q) for q in seen):
                 continue
             seen.append(bp)
             p = bp.point
@@ -377,12 +377,12 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
     return jobs
 
 
-def _loop_points(plan: Plan, br: Branch) -> list[_Site]:
+def _loop_points(plan: Plan, br: Branch) -> list[Site]:
     """Where a closed loop ``br`` meets other branches: its start (the BP it was switched
-    at, its solution exactly) and the BPs along it, as `_Site`s for `_same_point`."""
+    at, its solution exactly) and the BPs along it, as `Site`s for `same_point`."""
     start = br.points[0]
-    return [_Site(start, SAME_POINT_RELATIVE * _size(start.state, plan.parameter), True),
-            *_branch_points(plan, br)]
+    return [Site(start, SAME_POINT_RELATIVE * _size(start.state, plan.parameter), True),
+            *branch_points(plan, br)]
 
 
 def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) -> bool:
@@ -410,12 +410,12 @@ def switch_levels(plan: Plan, branches: list[Branch], warnings: list[str], run) 
         before = len(branches)
 
         def skip(i, done, before=before, sources=sources):
-            return any(_same_point(plan, sources[i], q) for br in done[before:]
+            return any(same_point(plan, sources[i], q) for br in done[before:]
                        if br.closed for q in _loop_points(plan, br))
 
         if run(jobs, skip):
             return True
-        seen.extend(bp for br in level for bp in _branch_points(plan, br))
+        seen.extend(bp for br in level for bp in branch_points(plan, br))
         level = branches[before:]
     return False
 
@@ -678,10 +678,10 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     if first is None:
         interrupted = result.interrupted
     elif client is None:
-        interrupted = _in_process(plan, first, branches, save, progress, on_branch)
+        interrupted = in_process(plan, first, branches, save, progress, on_branch)
         if not interrupted and plan.switch_count:
             interrupted = switch_levels(plan, branches, result.warnings, lambda jobs_list, skip: (
-                _in_process(plan, jobs_list, branches, save, progress, on_branch, skip)))
+                in_process(plan, jobs_list, branches, save, progress, on_branch, skip)))
     else:
         from .cluster import close, run_on_cluster
         interrupted = True      # until the jobs have run
@@ -826,6 +826,14 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
     return pool
 
 
+# -- the default run: this process computes at once, a local cluster joins when it pays ------
+#
+# `_Alongside` is made of five parts, each a class with the state it reads and writes (which
+# `_Alongside.__init__` makes): when the cluster is started (`_Starting`), the messages to
+# and from it (`_Messages`), the branches (`_Branches`, taken in the plan's order by the
+# `Schedule`), the snap-back scans (`_Scans`) and the analysis' other tasks (`_Tasks`). They
+# share the lock, the queue of results and the background cluster.
+
 #: The default run starts its local cluster only once the work left for it is estimated at
 #: more than this many seconds (`_Alongside`): its start-up takes about 1.6 s of wall time
 #: and as much CPU as three interpreters importing distributed, which on 2 cores is taken
@@ -858,70 +866,14 @@ class _Idle:
         pass
 
 
-class _Alongside:
-    """Branches computed in this process from the start, and by a local Dask cluster
-    (`elastica_auto.execution.cluster.Background`) once it has started in the background,
-    one task per worker at a time, each taking the next branch of the plan: nothing waits
-    for the cluster, and a run done before it is up never uses it. (Taken in plan order, the
-    long branches of a grid listed by increasing load go last to both; handed from the end
-    of the list, the two longest of rotating_arm went to the cluster one after the other
-    while this process, done with the rest, waited for them: 4.0 s of branches there
-    against 3.0 s here.) The branches are saved in the plan's order as they
-    complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
-    As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
-    go to the cluster too, if it is up; those of a branch computed here are guessed while
-    it is computed, for a worker that would otherwise wait (`_guess`); a scan still waiting
-    for a worker when this process has no branch left to take is computed here
-    (`_scan_here`). If the cluster ends (or never starts), this process computes what it
-    had been given.
-
-    The cluster is started when it pays (``pays`` seconds, `CLUSTER_PAYS`; at once for 0):
-    once the work of a kind (branches, scans, tasks) not taken yet, each estimated at the
-    mean time of those this process finished, or at the time the one in hand has taken so
-    far if longer, comes to more than ``pays``. (Mirror images, made here at their turn,
-    are not counted: they cost nothing.)
-
-    A task whose worker died is computed here quietly; one that raised on the cluster
-    (`jobs.TaskFailure`) gives a branch ending MX with the exception, or, a scan or another
-    task, is computed here with a line in ``warnings`` naming the exception."""
-
-    def __init__(self, plan, workers: int, background, pays: float = 0.0,
-                 warnings: list[str] | None = None):
-        import queue
-        self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
-        self.warnings = [] if warnings is None else warnings
-        # the scans that raised on the cluster: not sent again (`snap_targets` computes
-        # them here)
-        self.failed: set[tuple] = set()
-        self.pays, self.started = pays, False
-        self._make = lambda: background(workers, self._on_result)
-        # the branches: the jobs of the current `run` (its ``level``: a result of an earlier
-        # one, left out while its worker computed it, is dropped), the next to take from
-        # each end, those on the cluster as (level, job), and those handed back
-        self.jobs, self.front, self.back, self.offset, self.level = [], 0, -1, 0, 0
-        self.claimed, self.returned = set(), []
-        self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
-        self.sent: set[tuple] = set()      # the parameters of the scans sent (`copy_key`)
-        self.pending_params: dict[tuple, dict] = {}
-        # scans guessed while this process computes a branch (`_guess`): key -> (branch,
-        # parameters, copy_key), those not handed out yet (key, parameters), those on the
-        # cluster, their results not wanted (yet), and the wanted ones still on the cluster
-        self.guesses: dict[tuple, tuple] = {}
-        self.early: list[tuple] = []
-        self.guessing: set[tuple] = set()
-        self.spare: dict[tuple, object] = {}
-        self.awaited: dict[tuple, dict] = {}
-        self.cursor: tuple = (None, 1)    # the branch `_guess` reads, its next point
-        # the tasks of `map`: the function, its arguments, the next to take, those on the
-        # cluster, and those handed back (the cluster ended, or the task failed there)
-        self.task_fn, self.tasks, self.task_front = None, [], 0
-        self.task_claimed, self.task_returned = set(), []
-        # the seconds this process spent on each kind of work ("branch", "scan", "task") and
-        # how many of it it finished
-        self.spent: dict[str, list[float]] = {}
-        self.background = _Idle()
-        if pays <= 0:
-            self._start()
+class _Starting:
+    """When the cluster is started: when it pays (``pays`` seconds, `CLUSTER_PAYS`; at once
+    for 0), that is once the work of a kind (branches, scans, tasks) not taken yet, each
+    estimated at the mean time of those this process finished, or at the time the one in
+    hand has taken so far if longer, comes to more than ``pays``. (Mirror images, made here
+    at their turn, are not counted: they cost nothing.) Its state: ``pays``, ``started``,
+    ``spent`` (kind -> [seconds, count] of the work this process finished) and
+    ``background`` (`_Idle` until started)."""
 
     def _start(self):
         """Start the cluster (once)."""
@@ -951,6 +903,15 @@ class _Alongside:
         cost[1] += 1
         self._consider(kind, left())
         return out
+
+
+class _Messages:
+    """The messages to and from the background cluster: results arrive on its reading
+    thread (`_on_result`), which queues them (``results``) and feeds the cluster again;
+    `_feed` hands each idle worker the next piece of work, in the order branches, wanted
+    scans, the analysis' tasks, guessed scans; the main thread files each result where it
+    belongs (`_take`). A worker that ended hands its work back (``returned``,
+    ``task_returned``); the scans it had are computed by `snap_targets` instead."""
 
     def _on_result(self, tag, ok, value):
         """From the background's reading thread: a result, or the cluster up (tag None, ok)
@@ -1074,6 +1035,15 @@ class _Alongside:
             br = failed_branch(self.plan, job, value)
         done[what] = br
 
+
+class _Branches:
+    """The branches: this process takes the next job from the front of the plan (or one
+    handed back), the cluster's workers likewise (`_Messages._feed`), and the `Schedule`
+    takes their branches into the file in the plan's order. Its state: the jobs of the
+    current `run` (``jobs``, its ``level``: a result of an earlier level, left out while
+    its worker computed it, is dropped), the next to take (``front``, up to ``back``), those
+    on the cluster as (level, job) (``claimed``), and those handed back (``returned``)."""
+
     def run(self, jobs_list, branches, save, progress, on_branch, stop, skip=None) -> bool:
         """Compute ``jobs_list``, appending the branches to ``branches`` in order and calling
         ``save()`` after each, but those for which ``skip(i, branches)`` is true when their
@@ -1088,21 +1058,16 @@ class _Alongside:
             self.offset = len(branches)
             self._feed()
         done: dict[int, Branch] = {}
-        n, offset = len(jobs_list), len(branches)
-        taken = [0]                              # the jobs appended or left out, in order
-
-        decided: dict[int, bool] = {}            # the branches do not change meanwhile
-        made: dict[int, Branch] = {}             # the jobs' branches, for their mirror images
+        schedule = Schedule(self.plan, jobs_list, branches, save, on_branch, skip, progress)
 
         def branches_left():
             with self.lock:
                 ahead = range(self.front, self.back + 1)
                 return sum(not jobs_list[i].mirror for i in ahead) + len(self.returned)
 
-        def skipped(i):
-            if i not in decided:
-                decided[i] = skip is not None and skip(i, branches)
-            return decided[i]
+        def left_out(i):        # not handed out after its turn
+            with self.lock:
+                self.front = max(self.front, i + 1)
 
         def flush():
             while True:
@@ -1110,40 +1075,15 @@ class _Alongside:
                     self._take(self.results.get_nowait(), done)
                 except queue.Empty:
                     break
-            # in order: a job whose turn has come is appended once done, or left out if
-            # ``skip`` says so, computed or not (not handed out after that; the cluster's
-            # result for it, if it had it, is dropped); its turn comes when every job before
-            # it is taken, so ``skip`` reads the branches it is decided on. A mirror job is
-            # made here at its turn, from the branch before it.
-            while taken[0] < n:
-                i = taken[0]
-                if skipped(i):
-                    with self.lock:
-                        self.front = max(self.front, i + 1)
-                    done.pop(i, None)
-                elif jobs_list[i].mirror or i in done:
-                    if i not in done:   # made here: a signal meanwhile ends the run
-                        source = made.get(i - 1)
-                        done[i] = (mirrored_branch(self.plan, offset + i + 1, jobs_list[i],
-                                                   source, progress, stop.is_set)
-                                   if source is not None else
-                                   compute_branch(self.plan, offset + i + 1, jobs_list[i],
-                                                  progress, stop.is_set))
-                        if done[i].interrupted:
-                            stop.set()
-                    made[i] = done[i]
-                    branches.append(done.pop(i))
-                    save()
-                    if on_branch is not None and not branches[-1].interrupted:
-                        on_branch(len(branches), branches[-1])
-                    self._scan(branches[-1])
-                else:
-                    break
-                taken[0] += 1
-            for i in [i for i in done if i < taken[0]]:
+            # the cluster's result for a job left out, if it had it, is dropped; a mirror
+            # job is made at its turn, from the branch before it (a signal meanwhile ends
+            # the run)
+            if schedule.take(done, stop=stop.is_set, on_skip=left_out, on_taken=self._scan):
+                stop.set()
+            for i in [i for i in done if i < schedule.taken]:
                 del done[i]
 
-        while not stop.is_set() and taken[0] < n:
+        while not stop.is_set() and not schedule.finished:
             with self.lock:
                 if self.returned:
                     i = self.returned.pop(0)
@@ -1159,8 +1099,8 @@ class _Alongside:
                         pass
                 flush()
                 continue
-            if i < taken[0] or jobs_list[i].mirror:   # left out meanwhile (given back by
-                continue                         # the cluster), or made at its turn
+            if i < schedule.taken or jobs_list[i].mirror:   # left out meanwhile (given back
+                continue                         # by the cluster), or made at its turn
             t0 = time.perf_counter()
 
             def watched(*args, t0=t0):
@@ -1169,7 +1109,7 @@ class _Alongside:
                 if not self.started:
                     self._consider("branch", branches_left(), time.perf_counter() - t0)
             br = self._timed("branch", branches_left, compute_branch, self.plan,
-                             offset + i + 1, jobs_list[i], watched, stop.is_set,
+                             schedule.number(i), jobs_list[i], watched, stop.is_set,
                              self._guess)
             done[i] = br
             flush()
@@ -1178,11 +1118,18 @@ class _Alongside:
         if stop.is_set():
             self.background.close()
             flush()
-            if done:  # finished beyond a gap in the plan's order
-                branches.extend(done[i] for i in sorted(done))
-                save()
+            schedule.rest(done)    # finished beyond a gap in the plan's order
             return True
         return False
+
+
+class _Scans:
+    """The snap-back scans: as each branch is taken, those its folds need
+    (`analysis.snaps.scans`) go to the cluster (`_scan`); those of a branch computed here
+    are guessed while it is computed (`_guess`), for a worker that would otherwise wait; a
+    scan still waiting for a worker when this process has nothing else to do is computed
+    here (`_scan_here`); `wait_for_scans` collects the rest. Their results, ``scans``, are
+    `snap_targets`'s ``cache``."""
 
     def _scan(self, br: Branch):
         """The scans ``br``'s folds need that no earlier branch needed, to the cluster; not
@@ -1285,6 +1232,44 @@ class _Alongside:
                 self.spare[key] = value
         return True
 
+    def wait_for_scans(self, stop) -> bool:
+        """The scans not done yet: this process takes those not sent to the cluster (no
+        import; tens of ms for the planar rod, half a second for the spatial one) and waits
+        for those sent; False if interrupted meanwhile. A scan leaves ``asked`` once its
+        result is in the queue, so the results still there are taken before returning
+        (dropped, one finished as this process finished its own was computed again by
+        `snap_targets`)."""
+        import queue
+        with self.lock:
+            self.early.clear()                   # every branch is in: no more guesses
+        while not stop.is_set():
+            with self.lock:
+                if not self.background.ready.is_set():   # ended: none will come back
+                    self.awaited.clear()
+                finished = not self.asked and not self.unsent and not self.awaited
+                if not finished:
+                    self._feed()
+            if finished:
+                while True:
+                    try:
+                        self._take(self.results.get_nowait(), {})
+                    except queue.Empty:
+                        return True
+            if self._scan_here():
+                continue
+            try:
+                self._take(self.results.get(timeout=0.05), {})
+            except queue.Empty:
+                pass
+        return False
+
+
+class _Tasks:
+    """The analysis' other tasks (the landings, the maps' enumerations), shared with the
+    cluster's idle workers as the branches are (`map`): ``task_fn``, ``tasks``, the next to
+    take (``task_front``), those on the cluster (``task_claimed``) and those handed back
+    (``task_returned``)."""
+
     def map(self, function, args_list, on_done) -> list:
         """``function(*args)`` for each of ``args_list``, in this process and on the
         cluster's idle workers (once it is up), each taking the next from the front of the
@@ -1337,66 +1322,92 @@ class _Alongside:
             self.task_fn, self.tasks = None, []
         return [done[i] for i in range(n)]
 
-    def wait_for_scans(self, stop) -> bool:
-        """The scans not done yet: this process takes those not sent to the cluster (no
-        import; tens of ms for the planar rod, half a second for the spatial one) and waits
-        for those sent; False if interrupted meanwhile. A scan leaves ``asked`` once its
-        result is in the queue, so the results still there are taken before returning
-        (dropped, one finished as this process finished its own was computed again by
-        `snap_targets`)."""
+
+class _Alongside(_Starting, _Messages, _Branches, _Scans, _Tasks):
+    """Branches computed in this process from the start, and by a local Dask cluster
+    (`elastica_auto.execution.cluster.Background`) once it has started in the background,
+    one task per worker at a time, each taking the next branch of the plan: nothing waits
+    for the cluster, and a run done before it is up never uses it. (Taken in plan order, the
+    long branches of a grid listed by increasing load go last to both; handed from the end
+    of the list, the two longest of rotating_arm went to the cluster one after the other
+    while this process, done with the rest, waited for them: 4.0 s of branches there
+    against 3.0 s here.) The branches are saved in the plan's order as they
+    complete, so the file is the one ``jobs = 1`` writes (but for each branch's ``worker``).
+    As each branch is saved, the snap-back scans its folds need (`analysis.snaps.scans`)
+    go to the cluster too, if it is up; those of a branch computed here are guessed while
+    it is computed, for a worker that would otherwise wait (`_guess`); a scan still waiting
+    for a worker when this process has no branch left to take is computed here
+    (`_scan_here`). If the cluster ends (or never starts), this process computes what it
+    had been given.
+
+    The cluster is started when it pays (`_Starting`). A task whose worker died is computed
+    here quietly; one that raised on the cluster (`jobs.TaskFailure`) gives a branch ending
+    MX with the exception, or, a scan or another task, is computed here with a line in
+    ``warnings`` naming the exception."""
+
+    def __init__(self, plan, workers: int, background, pays: float = 0.0,
+                 warnings: list[str] | None = None):
+        """The pool of ``plan``, its cluster of ``workers`` made by ``background(workers,
+        on_result)`` (`cluster.Background`) when it pays (`_Starting`); a task that raised
+        on it is reported in ``warnings``. The state of each part, as its docstring says."""
         import queue
-        with self.lock:
-            self.early.clear()                   # every branch is in: no more guesses
-        while not stop.is_set():
-            with self.lock:
-                if not self.background.ready.is_set():   # ended: none will come back
-                    self.awaited.clear()
-                finished = not self.asked and not self.unsent and not self.awaited
-                if not finished:
-                    self._feed()
-            if finished:
-                while True:
-                    try:
-                        self._take(self.results.get_nowait(), {})
-                    except queue.Empty:
-                        return True
-            if self._scan_here():
-                continue
-            try:
-                self._take(self.results.get(timeout=0.05), {})
-            except queue.Empty:
-                pass
-        return False
+        # shared: the lock (the reading thread's messages), their queue, the warnings
+        self.plan, self.lock, self.results = plan, threading.Lock(), queue.Queue()
+        self.warnings = [] if warnings is None else warnings
+        # _Starting
+        self.pays, self.started = pays, False
+        self._make = lambda: background(workers, self._on_result)
+        # the seconds this process spent on each kind of work ("branch", "scan", "task") and
+        # how many of it it finished
+        self.spent: dict[str, list[float]] = {}
+        self.background = _Idle()
+        # _Branches: the jobs of the current `run` (its ``level``: a result of an earlier
+        # one, left out while its worker computed it, is dropped), the next to take from
+        # each end, those on the cluster as (level, job), and those handed back
+        self.jobs, self.front, self.back, self.offset, self.level = [], 0, -1, 0, 0
+        self.claimed, self.returned = set(), []
+        # _Scans: the results, the keys seen, those waiting for a worker, those on it
+        self.scans, self.seen, self.unsent, self.asked = {}, set(), [], set()
+        self.sent: set[tuple] = set()      # the parameters of the scans sent (`copy_key`)
+        self.pending_params: dict[tuple, dict] = {}
+        # the scans that raised on the cluster: not sent again (`snap_targets` computes
+        # them here)
+        self.failed: set[tuple] = set()
+        # scans guessed while this process computes a branch (`_guess`): key -> (branch,
+        # parameters, copy_key), those not handed out yet (key, parameters), those on the
+        # cluster, their results not wanted (yet), and the wanted ones still on the cluster
+        self.guesses: dict[tuple, tuple] = {}
+        self.early: list[tuple] = []
+        self.guessing: set[tuple] = set()
+        self.spare: dict[tuple, object] = {}
+        self.awaited: dict[tuple, dict] = {}
+        self.cursor: tuple = (None, 1)    # the branch `_guess` reads, its next point
+        # _Tasks: the function, its arguments, the next to take, those on the cluster, and
+        # those handed back (the cluster ended, or the task failed there)
+        self.task_fn, self.tasks, self.task_front = None, [], 0
+        self.task_claimed, self.task_returned = set(), []
+        if pays <= 0:
+            self._start()
 
 
-
-def _in_process(plan, jobs_list, branches, save, progress, on_branch, skip=None) -> bool:
-    """Compute ``jobs_list`` one after the other in this process (appending to ``branches``,
-    ``save()`` after each), but the jobs for which ``skip(i, branches)`` is true when their
-    turn comes (`switch_levels`); True if interrupted (the branch in progress is kept up to
-    its last point). A Ctrl-C while a computed branch is saved and reported waits for them."""
-    made: dict[int, Branch] = {}        # the jobs' branches, for their mirror images
-    for i, job in enumerate(jobs_list):
-        if skip is not None and skip(i, branches):
-            continue
-        k = len(branches) + 1
-        # one context from the branch's start to its save: compute_branch's own raises in the
+def in_process(plan: Plan, jobs_list: list[Job], branches: list[Branch],
+               save: Callable[[], None], progress=None, on_branch=None, skip=None) -> bool:
+    """Compute ``jobs_list`` one after the other in this process, each at its turn of the
+    `Schedule` (appended to ``branches``, ``save()`` after each, reported to ``on_branch``),
+    but the jobs for which ``skip(i, branches)`` is true when their turn comes
+    (`switch_levels`); True if interrupted (the branch in progress is kept up to its last
+    point). A Ctrl-C while a computed branch is saved and reported waits for them."""
+    schedule = Schedule(plan, jobs_list, branches, save, on_branch, skip, progress)
+    while not schedule.finished:
+        # one context from a branch's start to its save: compute_branch's own raises in the
         # continuation, and this one records a signal wherever else it lands
         with Interruptions() as late:
-            if job.mirror and i - 1 in made:
-                br = mirrored_branch(plan, k, job, made[i - 1], progress, late.stop.is_set)
-            else:
-                br = compute_branch(plan, k, job, progress, late.stop.is_set)
-            made[i] = br
-            branches.append(br)
-            save()
-            if on_branch is not None and not br.interrupted:
-                on_branch(k, br)
-        if br.interrupted or late.stop.is_set():
+            interrupted = schedule.take({}, here=True, stop=late.stop.is_set, limit=1)
+        if interrupted or late.stop.is_set():
             return True
     return False
 
 
 __all__ = ["execute", "compute", "compute_branch", "build_start", "switch_jobs", "switch_levels",
-           "Job", "RunResult",
+           "in_process", "Job", "RunResult",
            "StartError", "RunFileError"]

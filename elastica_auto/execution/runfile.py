@@ -57,12 +57,24 @@ from ..storage.store import BranchFile, StoredLabel
 __all__ = ["load", "evaluate", "Plan", "BranchSpec", "Start", "RunFileError"]
 
 
-_TOP = {"description", "equation", "start", "switch", "switch_depth", "parameters",
+#: The keys of a run file (docs/run-files.md, promised by docs/api.md): at the top, of a
+#: start selector, and of ``[continuation]``; ``[options]`` takes `ContinuationOptions`'s
+#: fields.
+TOP_KEYS = {"description", "equation", "start", "switch", "switch_depth", "parameters",
         "continuation", "options", "execution"}
-_SELECT = {"file", "type", "where", "index", "distinct", "limit"}
-_CONT = {"parameter", "directions", "bounds", "stop", "events", "uz", "uz_period", "free",
-         "map", "landing", "damping", "damping_folds"}
+SELECTOR_KEYS = {"file", "type", "where", "index", "distinct", "limit"}
+CONTINUATION_KEYS = {"parameter", "directions", "bounds", "stop", "events", "uz", "uz_period",
+                     "free", "map", "landing", "damping", "damping_folds"}
 _INTEGER_OPTIONS = ("max_points", "ntst", "max_nodes", "ncol")
+
+
+def restart_files(doc: dict) -> list[str]:
+    """The branch files a parsed run file's ``start`` and ``switch`` read, as written there."""
+    return sorted({ref.split(":")[0] if isinstance(ref, str) else ref.get("file", "")
+                   for key in ("start", "switch")
+                   for ref in (doc.get(key) if isinstance(doc.get(key), list)
+                               else [doc.get(key)])
+                   if isinstance(ref, dict) or (isinstance(ref, str) and ":" in ref)})
 
 
 def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
@@ -102,7 +114,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
 
 def _toml_key(key: str) -> str:
     """The run-file key of an argument of ``continuation()``."""
-    if key in _CONT:
+    if key in CONTINUATION_KEYS:
         return f"[continuation] {key}"
     if key.startswith("params"):
         return f"[parameters] {key[len('params.'):]}".rstrip()
@@ -115,7 +127,7 @@ def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | Non
     or the one named (``options.ds_max=0.3``). VALUE is read as TOML (``0.3``,
     ``[0.25, 0.5]``, ``"pi/2"``) or else taken as a string (``pi/2``, ``both``)."""
     tables = {"options": {f.name for f in fields(ContinuationOptions)},
-              "continuation": _CONT, "parameters": None}
+              "continuation": CONTINUATION_KEYS, "parameters": None}
     notes = []
     if restart is not None:
         fname, colon, label = restart.rpartition(":")
@@ -192,8 +204,8 @@ class _Document:
         except tomllib.TOMLDecodeError as exc:
             raise RunFileError(f"{path}: not valid TOML ({exc})") from exc
         for key in self.doc:
-            if key not in _TOP:
-                self.fail(key, f"unknown key; expected one of {sorted(_TOP)}")
+            if key not in TOP_KEYS:
+                self.fail(key, f"unknown key; expected one of {sorted(TOP_KEYS)}")
         self.seen = []  # (parameters, ordinates) of the equilibria selected so far
         self._problem: Problem | None = None
         self._branch_files: dict[Path, BranchFile] = {}  # by resolved path: each opened once
@@ -247,8 +259,9 @@ class _Document:
         :class:`~elastica_auto.execution.plan.Request` (directions, bounds, stop, uz, ...)."""
         cont = self.table("continuation")
         for key in cont:
-            if key not in _CONT:
-                self.fail(f"[continuation] {key}", f"unknown key; expected one of {sorted(_CONT)}")
+            if key not in CONTINUATION_KEYS:
+                self.fail(f"[continuation] {key}",
+                          f"unknown key; expected one of {sorted(CONTINUATION_KEYS)}")
         if "parameter" not in cont:
             self.fail("[continuation] parameter", "missing; name the continued parameter")
         parameter = cont["parameter"]
@@ -456,8 +469,8 @@ class _Document:
         order; with ``distinct``, one per equilibrium (also across selectors: periodic copies
         and the same equilibrium reached by two selectors count once); at most ``limit``."""
         for k in sel:
-            if k not in _SELECT:
-                self.fail(f"{key}.{k}", f"unknown key; expected one of {sorted(_SELECT)}")
+            if k not in SELECTOR_KEYS:
+                self.fail(f"{key}.{k}", f"unknown key; expected one of {sorted(SELECTOR_KEYS)}")
         if "file" not in sel:
             self.fail(key, "a start selector needs file = \"FILE.h5\"")
         bf = self.branch_file(f"{key}.file", problem,

@@ -28,28 +28,33 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.errors import ProblemError
+from .interface import Wrapper
+
+#: The name of `Wrapper` before the problem interface (the old path
+#: ``elastica_auto.augmented.NamesOfBase``, docs/api.md's deprecated paths).
+NamesOfBase = Wrapper
 
 
-class NamesOfBase:
-    """The parameters' and ordinates' names and defaults of ``self.base``: for a problem
-    built around a module's problem (:class:`Augmented`, `elastica_auto.model.symmetry.Phased`)
-    whose extra unknowns are states, not parameters."""
-
-    @property
-    def parameter_names(self):
-        return self.base.parameter_names
-
-    @property
-    def ordinate_names(self):
-        return self.base.ordinate_names
-
-    def defaults(self):
-        return self.base.defaults()
-
-
-class Augmented(NamesOfBase):
+class Augmented(Wrapper):
     """``base`` (a :class:`~elastica_auto.model.problem.Problem`) with its integral conditions and
-    the free parameters ``free`` as extra states (see the module docstring)."""
+    the free parameters ``free`` as extra states (see the module docstring): its ``solved``
+    are ``free``, its starts are solved from (``approximate_start``). It forwards the
+    module's drawing and refuses the hooks that read or move the states it adds
+    (`REFUSED`)."""
+
+    REFUSED = {
+        "shooting": "the shooting scan enumerates the module's states at fixed parameters, "
+                    "and the free parameters are solved for",
+        "gradient_flow": "the module's dynamics hold every parameter fixed, the free ones too",
+        "symmetry": "the group acts on the module's states; the running integrals and the "
+                    "free parameters carried as states have no declared image under it",
+        "symmetric_values": "they place branch points where the symmetry holds, and the "
+                            "symmetry is refused",
+        "mirror": "the reflection is declared on the module's states and parameters; the "
+                  "running integrals and the free parameters carried as states have no "
+                  "declared image under it",
+    }
+    approximate_start = True
 
     def __init__(self, base, free):
         free = tuple(free)
@@ -75,6 +80,7 @@ class Augmented(NamesOfBase):
         self._mu = np.arange(self.n0 + self.q, self.n)          # rows of mu in y
         self.integral_names = ()
         self.doc = base.doc
+        self.solved = free
 
     @property
     def extra_conditions(self) -> int:
@@ -168,12 +174,6 @@ class Augmented(NamesOfBase):
 
     def second_variation(self, s, y, p):
         return self.base.second_variation(s, y[: self.n0], self._p(p, y))
-
-    #: The shooting scan enumerates the module's states at fixed parameters; with free
-    #: parameters it has no meaning.
-    has_shooting = False
-    #: Nor have the module's dynamics (`elastica_auto.analysis.landing`), which hold them fixed.
-    has_gradient_flow = False
 
     def exact_start(self, s, p):
         """The module's exact start, completed with the running integrals (trapezoidal) and

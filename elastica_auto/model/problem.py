@@ -101,6 +101,7 @@ from typing import Callable
 import numpy as np
 
 from ..core.errors import ProblemError
+from .interface import ProblemInterface
 from .second_variation import Constraint, SecondVariation  # noqa: F401  (for modules)
 
 ENTERS = ("fixed", "free", "ode")
@@ -232,8 +233,9 @@ def _fd_step(v):
     return 1e-6 * (1.0 + np.abs(v))
 
 
-class Problem:
-    """An equation module wrapped with validation and finite-difference fallbacks.
+class Problem(ProblemInterface):
+    """An equation module wrapped with validation and finite-difference fallbacks: the
+    module's own problem (`elastica_auto.model.interface`; it refuses no hook).
 
     Parameters
     ----------
@@ -348,6 +350,7 @@ class Problem:
             raise ProblemError(f"{source}: FREE names unknown parameters {unknown}; "
                                f"PARAMETERS are {', '.join(self.parameters)}")
         self.nbc = self.n
+        self.n0 = self.n
         self._check_shapes()
 
     def _checked_mirror(self, mirror):

@@ -46,7 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .augmented import NamesOfBase
+from .interface import Wrapper
 from ..core.errors import ProblemError
 from ..core.solution import State, Tangent, trapezoid_weights
 
@@ -70,10 +70,23 @@ def _size(s, y) -> float:
     return math.sqrt(float(np.sum(trapezoid_weights(s) * np.sum(y * y, axis=0))))
 
 
-class Phased(NamesOfBase):
+class Phased(Wrapper):
     """``base`` (a :class:`~elastica_auto.model.problem.Problem`) with the phase condition on the
     generator at ``reference`` and the unfolding parameter: states (y, w, mu), the module's
-    states, the running phase integral and mu (module docstring)."""
+    states, the running phase integral and mu (module docstring). It forwards the module's
+    drawing and refuses the hooks the phase condition changes (`REFUSED`)."""
+
+    REFUSED = {
+        "shooting": "a branch continued along the symmetry's circles is one of its circles' "
+                    "points; the scan at fixed parameters is the module's",
+        "gradient_flow": "the dynamics are the module's, without the phase condition",
+        "symmetry": "its circles are this problem's own: the phase condition fixes the point "
+                    "on each, the unfolding parameter is a state",
+        "symmetric_values": "along the circles the symmetry holds at every value of the "
+                            "parameter: no branch point is placed at the module's values",
+        "mirror": "the phase condition is taken at one reference state, which the reflection "
+                  "moves",
+    }
 
     def __init__(self, base, reference: State, direction: Tangent | None = None):
         self.base, self.reference, self.direction = base, reference, direction
@@ -87,6 +100,23 @@ class Phased(NamesOfBase):
         self._g_ref = {}
 
     extra_conditions = 0
+
+    def with_free(self, free=None):
+        """This problem: its unknowns beyond the module's states are the phase integral and
+        the unfolding parameter, which no run frees."""
+        if free:
+            raise ProblemError(f"{self.source}: a branch along the symmetry's circles takes "
+                               "no free parameters")
+        return self
+
+    def exact_start(self, s, p):
+        """None: a branch along the circles starts from a state of the module, lifted
+        (`lift`)."""
+        return None
+
+    def guess(self, s, p):
+        """None, as `exact_start`."""
+        return None
 
     def point_params(self, params, y):
         return self.base.point_params(params, y[: self.n0])
@@ -167,8 +197,6 @@ class Phased(NamesOfBase):
 
     def second_variation(self, s, y, p):
         return self.base.second_variation(s, y[: self.n0], p)
-
-    has_shooting = has_gradient_flow = has_symmetry = False
 
     # -- to and from the module's states ------------------------------------------------------
     def lift(self, state: State) -> State:

@@ -19,7 +19,6 @@ import tomllib
 import warnings
 from pathlib import Path
 
-from ..cli import restart_files
 from ..core.errors import EXIT_ANALYSIS_FAILED, StoreError
 from .layout import NotDrawn
 from .paper import FIGURES, in_paper_order
@@ -86,6 +85,7 @@ def make_rules(runs_dir) -> str:
     branch files its run file restarts from, ``PAPER_RUNS`` lists the runs the figures need
     (each after those it restarts from) and each figure of `FIGURES` is one
     ``$(call FIGURE,name,runs)``."""
+    from ..execution.runfile import restart_files
     restarts = {}
     for path in sorted(Path(runs_dir).glob("*.toml")):
         files = restart_files(tomllib.loads(path.read_text()))

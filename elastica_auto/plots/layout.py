@@ -32,6 +32,7 @@ from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
 
 from ..core.errors import ProblemError
+from ..model.interface import ProblemInterface
 from ..model.problem import Problem, load_problem, shipped_equations
 from ..storage.store import BranchFile, StoredBranch
 from .diagram import line_index, same_value, save_figure
@@ -73,7 +74,7 @@ def equation_problem(equation: str | Problem) -> Problem:
     ``equation``: ``equation`` itself if it is a problem (one the caller loaded), else the
     shipped module of that name; UntrustedEquation for any other name. A branch file can
     come from anyone, and the module it names would run as soon as it is imported."""
-    if isinstance(equation, Problem):
+    if isinstance(equation, ProblemInterface):
         return equation
     return _shipped_problem(equation)
 

@@ -446,11 +446,12 @@ def equation_module(equation, bf: BranchFile | None = None):
     imported: the caller trusts it), checked to be the module of ``bf`` by its file name, as
     for a restart (before it is imported). ProblemError (one line) otherwise."""
     from ..core.errors import ProblemError
-    from ..model.problem import Problem, load_problem
-    given = equation.source if isinstance(equation, Problem) else os.fspath(equation)
+    from ..model.interface import ProblemInterface
+    from ..model.problem import load_problem
+    given = equation.source if isinstance(equation, ProblemInterface) else os.fspath(equation)
     if bf is not None and Path(bf.equation).stem != Path(given).stem:
         raise ProblemError(f"{bf.path} was computed with {bf.equation!r}, not {given!r}")
-    return equation if isinstance(equation, Problem) else load_problem(equation)
+    return equation if isinstance(equation, ProblemInterface) else load_problem(equation)
 
 
 def view(branches_or_file, path: str | os.PathLike | None = None, *, x: str | None = None,

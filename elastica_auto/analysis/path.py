@@ -1,5 +1,6 @@
 """Snap-backs along a path: which folds a straight path in parameter space crosses, and
-where the structure can snap to at each.
+where the structure can snap to at each (the analysis; ``elastica_auto.snaps_along``, in
+`elastica_auto.api`, runs it: `path_starts`, the continuation in ``t``, then `path_snaps`).
 
 A path from the parameter values A to B is the segment p(t) = A + t (B - A), t in [0, 1]
 (angles included: a path in psi from 0 to 4 pi turns the arm twice). `path_problem` is the
@@ -25,9 +26,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .branches.branch import StoredLabel
-from .core.errors import PlanError
-from .model.problem import Ordinate, Parameter, Problem
+from ..branches.branch import StoredLabel
+from ..core.errors import PlanError
+from ..core.solution import State
+from ..model.problem import Ordinate, Parameter, Problem
+from .equilibria import enumerate_equilibria
+from .snaps import snap_targets
 
 #: The name of the path parameter.
 PATH = "t"
@@ -35,7 +39,22 @@ PATH = "t"
 
 class PathProblem(Problem):
     """The module's problem along a path: its parameter ``t`` moves the parameters
-    ``varying`` from ``a`` to ``b``; stored parameter values are the effective ones."""
+    ``varying`` from ``a`` to ``b``; stored parameter values are the effective ones. Its
+    hooks are the module's at the effective values (`path_problem`: the equations, the
+    ordinates, the second variation, the shooting scan, the dynamics, the drawing), but
+    those `REFUSED` (the problem interface, `elastica_auto.model.interface`)."""
+
+    REFUSED = {
+        "mirror": "the module's reflection negates or keeps each parameter, and t moves "
+                  "several at once",
+        "symmetry": "a branch along the path is continued without a phase condition (the path "
+                    "may move the parameters the symmetry needs held)",
+        "symmetric_values": "the module's values are those of one of its parameters, not of "
+                            "t",
+    }
+
+    def refusal(self, hook: str) -> str | None:
+        return self.REFUSED.get(hook)
 
     def __init__(self, module, source, a: dict, b: dict):
         self.a, self.b = dict(a), dict(b)
@@ -82,6 +101,12 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
     def exact_start(s, p):
         return base.exact_start(s, eff(p))
 
+    def gradient_flow(p, nodes):
+        return base.gradient_flow(eff(p), nodes)
+
+    def draw(ax, profile, p):
+        return base.draw(ax, profile, eff(p))
+
     parameters = [*base.parameters.values(),
                   Parameter(PATH, 0.0, "t", "free", doc="position on the path, 0 at A, 1 at B")]
     ordinates = [Ordinate(o.name, o.tex, (lambda fn: lambda s, y, p: fn(s, y, eff(p)))(o.fn),
@@ -100,6 +125,10 @@ def path_problem(base: Problem, a: dict, b: dict) -> PathProblem:
         module.shooting = shooting
     if base.has_second_variation:
         module.second_variation = second_variation
+    if base.has_gradient_flow:
+        module.gradient_flow = gradient_flow
+    if base.has_draw:
+        module.draw, module.DRAW_PROJECTION = draw, base.draw_projection
     return PathProblem(module, base.source, {**a, PATH: 0.0}, {**b, PATH: 1.0})
 
 
@@ -115,13 +144,10 @@ class Snap:
     targets: list[dict] = field(default_factory=list)
 
 
-def snaps_along(base: Problem, a: dict, b: dict, **options):
-    """The snaps on the segment from ``a`` to ``b`` (parameter values; the others at the
-    module's defaults), in order of t, and the branches followed: ``(snaps, branches)``.
-    ``options`` are `elastica_auto.continuation`'s options (``ds_max``, ...)."""
-    from .api import continuation
-    from .analysis.equilibria import enumerate_equilibria
-    from .analysis.snaps import snap_targets
+def path_starts(base: Problem, a: dict, b: dict) -> tuple[PathProblem, list[StoredLabel]]:
+    """The path from ``a`` to ``b`` (parameter values; the others at the module's defaults)
+    as a problem in ``t`` (`path_problem`), and every equilibrium at ``a`` as a start of it
+    (a label ``EQ1``, ``EQ2``, ... at ``t = 0``): what the continuation in ``t`` starts from."""
     if not (base.has_shooting and base.has_second_variation):
         raise PlanError("path", f"{base.source} has no shooting or second_variation hook: "
                         "its equilibria at the start cannot be enumerated")
@@ -136,10 +162,15 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
     at_a = enumerate_equilibria(base, a)
     if not at_a:
         raise PlanError("path", "no equilibrium found at the start of the path")
-    starts = [StoredLabel(f"EQ{k}", 0, 0, _on(eq.state, problem), None, None, None,
+    starts = [StoredLabel(f"EQ{k}", 0, 0, _on(eq.state), None, None, None,
                           base.source, tuple(base.states)) for k, eq in enumerate(at_a, 1)]
-    branches = continuation(problem, starts, PATH, bounds=(0.0, 1.0), directions="+",
-                            **options)
+    return problem, starts
+
+
+def path_snaps(problem: PathProblem, branches) -> list[Snap]:
+    """The snaps on the path of ``problem`` that ``branches`` (continued in ``t`` from
+    `path_starts`) cross, in order of t: each fold where a stable stretch ends as t
+    increases, with its stable equilibria (`snap_targets`), each fold and target once."""
     rows = snap_targets(problem, branches)
     snaps: dict[tuple, Snap] = {}
     for row in rows:
@@ -155,12 +186,11 @@ def snaps_along(base: Problem, a: dict, b: dict, **options):
         snap = snaps.setdefault(key, Snap(float(t[k]), dict(lp.params), dict(lp.ordinates)))
         if not any(_same_row(row, other) for other in snap.targets):
             snap.targets.append(row)
-    return sorted(snaps.values(), key=lambda s: s.t), branches
+    return sorted(snaps.values(), key=lambda s: s.t)
 
 
-def _on(state, problem):
+def _on(state) -> State:
     """An equilibrium at A as a state of the path problem (t = 0)."""
-    from .core.solution import State
     return State(state.s, state.y, state.yp, {**state.params, PATH: 0.0})
 
 
