@@ -20,7 +20,9 @@ Each derived module is checked against something derived here, independently of 
 * exact conservation along every solution: the total torque sum_i T_i vanishes (the density
   depends on the relative rotations only, and the tip is free), and the Hamiltonian
   sum_i L T_i^2 / (2 GJ_i) - L W(psi) does not depend on s;
-* the index two ways (the direct count and the fold rule) at every point off the folds.
+* the index two ways (the direct count and the fold rule) at every point off the folds,
+  and against the negative eigenvalues of the Hessian of the energy discretised here
+  (midpoint rule on the stored profile), for two tubes and three.
 """
 
 from __future__ import annotations
@@ -263,3 +265,73 @@ def test_three_tubes_folds_against_shooting():
     # the total torque vanishes on every solution
     for q in br.points:
         assert np.max(np.abs(np.sum(q.profile[3:6], axis=0))) < 1e-12
+
+
+# ---- the index against the Hessian of the energy discretised here -------------------------
+
+def discrete_hessian(p, n_tubes):
+    """E_h(psi) = sum_j h [ sum_i GJ_i ((psi_i,j+1 - psi_i,j) / h)^2 / (2 L) + L W(psi_mid) ]
+    + sum_i GJ_i (psi_i,0 - beta_i)^2 / (2 Lt) on the profile grid (the midpoint rule, written
+    here from the model, not from the derived code), as a function returning its Hessian at
+    the nodes' values psi (n_tubes, N + 1): the twist and the springs are quadratic, and W's
+    second derivatives in psi_i - psi_j are EI_i EI_j kappa_i kappa_j cos(psi_j - psi_i) / K
+    at the midpoints, shared by the two nodes of each interval."""
+    EI = np.array([p[f"EI{i}"] for i in range(1, n_tubes + 1)])
+    kap = np.array([p[f"kappa{i}"] for i in range(1, n_tubes + 1)])
+    GJ = np.array([p[f"GJ{i}"] for i in range(1, n_tubes + 1)])
+    L, Lt = p["L"], p["Lt"]
+    k = np.outer(EI * kap, EI * kap) / EI.sum()
+
+    def hessian(psi):
+        m = psi.shape[1]
+        h = 1.0 / (m - 1)
+        H = np.zeros((n_tubes * m, n_tubes * m))
+        ix = np.arange(m).reshape(1, m) + m * np.arange(n_tubes).reshape(n_tubes, 1)
+        for i in range(n_tubes):
+            for j in range(m - 1):
+                a, b = ix[i, j], ix[i, j + 1]
+                c = GJ[i] / (L * h)
+                H[a, a] += c
+                H[b, b] += c
+                H[a, b] -= c
+                H[b, a] -= c
+            H[ix[i, 0], ix[i, 0]] += GJ[i] / Lt
+        mid = 0.5 * (psi[:, 1:] + psi[:, :-1])
+        for i in range(n_tubes):
+            for q in range(i + 1, n_tubes):
+                # L h W contains -k_iq cos(psi_q - psi_i): its second derivative in the
+                # difference d = psi_q - psi_i is k_iq cos(d), d's gradient (e_q - e_i) / 2
+                # at each of the interval's two nodes
+                w = L * h * k[i, q] * np.cos(mid[q] - mid[i]) / 4
+                for j in range(m - 1):
+                    nodes = (ix[i, j], ix[i, j + 1], ix[q, j], ix[q, j + 1])
+                    sign = (-1, -1, 1, 1)
+                    for a, sa in zip(nodes, sign):
+                        for b, sb in zip(nodes, sign):
+                            H[a, b] += w[j] * sa * sb
+        return H
+
+    return hessian
+
+
+@pytest.mark.parametrize("n_tubes", [2, 3])
+def test_index_is_the_discretised_energys(tubes, n_tubes):
+    """At every point of the base's turn off the folds, the index equals the number of
+    negative eigenvalues of the Hessian of the energy discretised on the stored profile (100
+    intervals): the two-tube robot (defaults) and the three-tube one."""
+    if n_tubes == 2:
+        problem, name, p = tubes, "beta", dict(DEFAULTS)
+    else:
+        problem, name = ea.load_problem(EXAMPLES / "three_tubes.py"), "beta3"
+        p = three_tube_params(problem)
+    (br,) = ea.continuation(problem, {name: 0.0}, name, bounds=(-0.1, TWO_PI + 0.1),
+                            directions="+")
+    hessian = discrete_hessian(p, n_tubes)
+    counted = 0
+    for pt in br.points:
+        if pt.type == "LP":
+            continue
+        eig = np.linalg.eigvalsh(hessian(pt.profile[:n_tubes]))
+        assert int(np.sum(eig < 0)) == pt.index, (pt.params[name], eig[:3])
+        counted += pt.index
+    assert counted > 0                       # the unstable stretch is among them

@@ -13,7 +13,8 @@ Checked against what is derived here, independently of the module:
   variational equations);
 * the fold curve in (k0, q) ends at k0 = 0 in a cusp at Greenhill's load, with k_f growing
   like (q - q_c)^(3/2) (the unfolded pitchfork);
-* the index two ways at every point off the folds, and 0 -> 1 at the snap.
+* the index two ways at every point off the folds, and 0 -> 1 at the snap; and against the
+  negative eigenvalues of the Hessian of the energy discretised here (midpoint rule).
 """
 
 from __future__ import annotations
@@ -162,3 +163,34 @@ def test_fold_curve_ends_in_a_cusp_at_greenhills_load(column, snap):
               for k, q in zip(c.columns["k0"], c.columns["q"]) if 1e-3 < q - q_c < 0.3]
     assert len(ratios) >= 2
     assert max(ratios) / min(ratios) < 1.1
+
+
+def discrete_hessian(theta, q):
+    """The Hessian of E_h = sum_j h [ ((theta_j+1 - theta_j) / h - k0)^2 / 2 + q (1 - s_mid)
+    cos(theta_mid) ] (the midpoint rule, written here from the model) in the free nodes'
+    values (theta_0 = 0 is held by the clamp), at the nodes' values ``theta`` on a uniform
+    grid: 1/h on the bending's tridiagonal, and -q (1 - s_mid) cos(theta_mid) h / 4 on each
+    interval's 2 x 2 block (k0 enters only the gradient)."""
+    m = len(theta)
+    h = 1.0 / (m - 1)
+    s_mid = (np.arange(m - 1) + 0.5) * h
+    pot = -q * (1 - s_mid) * np.cos(0.5 * (theta[1:] + theta[:-1])) * h / 4
+    H = np.zeros((m, m))
+    for j in range(m - 1):
+        H[j:j + 2, j:j + 2] += np.array([[1, -1], [-1, 1]]) / h + pot[j]
+    return H[1:, 1:]
+
+
+def test_index_is_the_discretised_energys(snap):
+    """At every point of the snap runs off the folds, the index equals the number of negative
+    eigenvalues of the Hessian of the energy discretised on the stored profile (100
+    intervals)."""
+    unstable = 0
+    for b in snap:
+        for p in b.points:
+            if p.type == "LP":
+                continue
+            eig = np.linalg.eigvalsh(discrete_hessian(p.profile[0], p.params["q"]))
+            assert int(np.sum(eig < 0)) == p.index, (p.params, eig[:2])
+            unstable += p.index
+    assert unstable > 0
