@@ -11,7 +11,7 @@ Checked against what is derived here, independently of the module:
   m' = -q (1 - s) sin(theta) from the clamp in m(0), the fold where k0 is extremal along the
   curve of equilibria m(1) = 0 (a scan and a root bracket of dk0/dm(0) = -r_m / r_k0, from the
   variational equations);
-* the fold curve in (k0, q) ends at k0 = 0 in a cusp at Greenhill's load, with k_f growing
+* the fold curve in (k0, q) turns at k0 = 0 in a cusp at Greenhill's load, with k_f growing
   like (q - q_c)^(3/2) (the unfolded pitchfork);
 * the index two ways at every point off the folds, and 0 -> 1 at the snap; and against the
   negative eigenvalues of the Hessian of the energy discretised here (midpoint rule).
