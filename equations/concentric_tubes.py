@@ -41,9 +41,10 @@ Turned through beta = pi (the tubes' curvatures opposed), the tip lags the base;
 is snap-free for every beta while lambda < arctan(1 / (sqrt(c) Lt)), and beyond it a fold
 pair encloses beta = pi: the tip snaps (the derivation: docs/soft-robots.md).
 
-By hand: the straight start (each tube unturned, or tube 2 at beta = k pi), and the extra
+By hand: the straight start (each tube unturned, or tube 2 at beta = k pi), the extra
 ordinates ``tip`` (the relative rotation at the tip, alpha(1)), ``base`` (alpha(0)) and
-``lam`` (lambda, a function of the parameters, to plot a fold curve against).
+``lam`` (lambda, a function of the parameters, to plot a fold curve against), and the
+drawing of the robot's backbone in space (``backbone``, ``draw``).
 
 Defaults: tubes of one material and section (EI1 = EI2 = 1; GJ = EI / (1 + nu) for a thin
 tube, nu = 0.3), kappa1 = kappa2 = 1, L = Lt = 1: lambda = sqrt(1.3) = 1.1402 past the bound
@@ -131,3 +132,55 @@ def exact_start(s, p):
         return None
     zero = np.zeros_like(s)
     return np.vstack((zero, np.full_like(s, p["beta"]), zero, zero))
+
+
+#: Configurations are drawn in space (docs/equation-modules.md, ``DRAW_PROJECTION``).
+DRAW_PROJECTION = "3d"
+#: Colours of the drawing: the transmission, the curved section, the tip.
+TRANSMISSION_COLOR, BACKBONE_COLOR, TIP_COLOR = "0.55", "black", "#e66101"
+
+
+def backbone(profile, p):
+    """The backbone's centreline (3, m) on the profile grid, from the base of the curved
+    section at the origin along e_z (the transmission lies on the negative z axis).
+
+    The rotations psi_i are measured from a frame R(s) that does not twist (its curvature has
+    no component along the tangent d3), and tube i's pre-curvature is kappa_i e(psi_i) in its
+    cross-section, so the shared curvature in that frame is u = (sum_i EI_i kappa_i (cos psi_i,
+    sin psi_i) / K, 0): R' = R [u]_x, r' = R e_z per unit length (d3' = -u_x d2 + u_y d1).
+    Integrated on the grid by rotations through the midpoint curvature (R_(j+1) = R_j
+    exp(L h [u_mid]_x), Rodrigues' formula) and the trapezoidal rule for r: second order."""
+    psi1, psi2 = profile[0], profile[1]
+    K = p["EI1"] + p["EI2"]
+    u = np.array([p["EI1"] * p["kappa1"] * np.cos(psi1) + p["EI2"] * p["kappa2"] * np.cos(psi2),
+                  p["EI1"] * p["kappa1"] * np.sin(psi1) + p["EI2"] * p["kappa2"] * np.sin(psi2),
+                  np.zeros_like(psi1)]) / K
+    m = profile.shape[1]
+    step = p["L"] / (m - 1)
+    R, r = np.eye(3), np.zeros((3, m))
+    for j in range(m - 1):
+        w = 0.5 * (u[:, j] + u[:, j + 1]) * step
+        angle = np.linalg.norm(w)
+        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        if angle > 0:
+            W = (np.sin(angle) / angle * W
+                 + (1 - np.cos(angle)) / angle ** 2 * W @ W)
+        R_next = R @ (np.eye(3) + W)
+        r[:, j + 1] = r[:, j] + 0.5 * step * (R[:, 2] + R_next[:, 2])
+        R = R_next
+    return r
+
+
+def draw(ax, profile, p):
+    """The robot in space: the straight transmission (grey, from z = -Lt), the curved section's
+    backbone and its tip. On 2D axes, the projection on the x-y plane (seen along the
+    transmission)."""
+    r = backbone(profile, p)
+    if getattr(ax, "name", "") == "3d":
+        ax.plot((0, 0), (0, 0), (-p["Lt"], 0), color=TRANSMISSION_COLOR, lw=1.2,
+                gid="transmission")
+        ax.plot(*r, color=BACKBONE_COLOR, lw=1.4, gid="backbone")
+        ax.plot(*r[:, -1:], "o", ms=2.5, color=TIP_COLOR)
+    else:
+        ax.plot(r[0], r[1], color=BACKBONE_COLOR, lw=1.4, gid="backbone")
+        ax.plot(r[0, -1], r[1, -1], "o", ms=2.5, color=TIP_COLOR)

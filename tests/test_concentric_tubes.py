@@ -335,3 +335,25 @@ def test_index_is_the_discretised_energys(tubes, n_tubes):
         assert int(np.sum(eig < 0)) == pt.index, (pt.params[name], eig[:3])
         counted += pt.index
     assert counted > 0                       # the unstable stretch is among them
+
+
+def test_the_drawn_backbone_is_the_arc_of_the_shared_curvature():
+    """Unturned tubes (beta = 0) share the constant curvature (EI1 kappa1 + EI2 kappa2) / K
+    about d1: the backbone is a circular arc in the y-z plane, r(l) = (0, -(1 - cos(u l)) / u,
+    sin(u l) / u); opposed ones (beta = pi) bend with (EI1 kappa1 - EI2 kappa2) / K. The drawn
+    backbone's tip against these to the grid's second order."""
+    from matplotlib.figure import Figure
+    p = dict(OTHER)
+    grid = np.linspace(0.0, 1.0, 101)
+    for beta, u in ((0.0, (p["EI1"] * p["kappa1"] + p["EI2"] * p["kappa2"])),
+                    (math.pi, (p["EI1"] * p["kappa1"] - p["EI2"] * p["kappa2"]))):
+        u /= p["EI1"] + p["EI2"]
+        profile = ct.exact_start(grid, {**p, "beta": beta})
+        ax = Figure().add_subplot(projection="3d")
+        ct.draw(ax, profile, {**p, "beta": beta})
+        (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "backbone"]
+        x, y, z = line.get_data_3d()
+        length = p["L"]
+        assert np.allclose((x[-1], y[-1], z[-1]),
+                           (0.0, -(1 - math.cos(u * length)) / u, math.sin(u * length) / u),
+                           atol=1e-4)

@@ -858,8 +858,9 @@ def fig_configurations_3d(data_dir, out_dir):
 @figure("concentric-tubes", "",
         "concentric-tube robot (`concentric_tubes`, two tubes, defaults): (a) the actuator's "
         "torque and (b) the tip's relative rotation against the base rotation `beta`, styled by "
-        "index, with the fold pair where the tip snaps; (c) the fold curve in `(beta, lambda)` "
-        "and the closed-form snap-free bound where it turns (the cusp)",
+        "index, with the fold pair where the tip snaps and numbered configurations in space; (c) "
+        "the fold curve in `(beta, lambda)` and the closed-form snap-free bound where it turns "
+        "(the cusp)",
         ["concentric_tubes", "concentric_tubes_folds"])
 def fig_concentric_tubes(data_dir, out_dir):
     from ..equations.concentric_tubes import snap_free_bound
@@ -872,9 +873,11 @@ def fig_concentric_tubes(data_dir, out_dir):
         for sub, yname, ytex, tag in zip(subs, ("torque", "tip"),
                                          (r"torque $\partial E/\partial\beta$",
                                           r"tip rotation $\psi_2(1)-\psi_1(1)$"), "ab"):
+            insets = [ins for br in turn.branches
+                      for ins in family_insets(turn, br, "beta", yname, (0, TWO_PI), 4)]
             draw_panel(sub, Panel(items, "beta", yname, r"$\beta$", ytex,
                                   f"({tag}) one turn of tube 2's base", xpi=True,
-                                  legend_loc="upper left"))
+                                  insets=insets, legend_loc="upper left"))
         ax = subs[2].add_subplot()
         for br in folds.branches:
             ax.plot(br.columns["beta"], br.columns["lam"], color="black", lw=1.2)
