@@ -287,14 +287,17 @@ def discrete_hessian(p, n_tubes):
         h = 1.0 / (m - 1)
         H = np.zeros((n_tubes * m, n_tubes * m))
         ix = np.arange(m).reshape(1, m) + m * np.arange(n_tubes).reshape(n_tubes, 1)
+        j = np.arange(m - 1)
+
+        def add(nodes, signs, weight):
+            """weight_j (sum_a sign_a e_(nodes_a,j)) (sum_b sign_b e_(nodes_b,j))^T, each j."""
+            for a, sa in zip(nodes, signs):
+                for b, sb in zip(nodes, signs):
+                    np.add.at(H, (a, b), sa * sb * weight)
+
         for i in range(n_tubes):
-            for j in range(m - 1):
-                a, b = ix[i, j], ix[i, j + 1]
-                c = GJ[i] / (L * h)
-                H[a, a] += c
-                H[b, b] += c
-                H[a, b] -= c
-                H[b, a] -= c
+            # the twist GJ_i / (2 L) ((psi_i,j+1 - psi_i,j) / h)^2 h and the spring at s = 0
+            add((ix[i, j], ix[i, j + 1]), (-1, 1), np.full(m - 1, GJ[i] / (L * h)))
             H[ix[i, 0], ix[i, 0]] += GJ[i] / Lt
         mid = 0.5 * (psi[:, 1:] + psi[:, :-1])
         for i in range(n_tubes):
@@ -302,13 +305,8 @@ def discrete_hessian(p, n_tubes):
                 # L h W contains -k_iq cos(psi_q - psi_i): its second derivative in the
                 # difference d = psi_q - psi_i is k_iq cos(d), d's gradient (e_q - e_i) / 2
                 # at each of the interval's two nodes
-                w = L * h * k[i, q] * np.cos(mid[q] - mid[i]) / 4
-                for j in range(m - 1):
-                    nodes = (ix[i, j], ix[i, j + 1], ix[q, j], ix[q, j + 1])
-                    sign = (-1, -1, 1, 1)
-                    for a, sa in zip(nodes, sign):
-                        for b, sb in zip(nodes, sign):
-                            H[a, b] += w[j] * sa * sb
+                add((ix[i, j], ix[i, j + 1], ix[q, j], ix[q, j + 1]), (-1, -1, 1, 1),
+                    L * h * k[i, q] * np.cos(mid[q] - mid[i]) / 4)
         return H
 
     return hessian
