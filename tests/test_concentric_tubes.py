@@ -37,7 +37,8 @@ from scipy.optimize import brentq
 import elastica_auto as ea
 from elastica_auto.energy import cache as energy_cache
 from elastica_auto.equations import concentric_tubes as ct
-from helpers import EXAMPLES
+from elastica_auto.execution import runfile
+from helpers import EXAMPLES, REPO, run_plan
 
 TWO_PI = 2 * math.pi
 DEFAULTS = dict(kappa1=1.0, kappa2=1.0, EI1=1.0, EI2=1.0, GJ1=1 / 1.3, GJ2=1 / 1.3, L=1.0,
@@ -355,3 +356,21 @@ def test_the_drawn_backbone_is_the_arc_of_the_shared_curvature():
         assert np.allclose((x[-1], y[-1], z[-1]),
                            (0.0, -(1 - math.cos(u * length)) / u, math.sin(u * length) / u),
                            atol=1e-4)
+
+
+def test_the_shipped_runs_give_the_documented_answers(tmp_path):
+    """runs/concentric_tubes and concentric_tubes_folds in restart order: the fold pair at the
+    shooting's beta = pi +- d, 0 -> 1 then 1 -> 0, and the fold curve's turn at the closed-form
+    bound (docs/soft-robots.md gives these numbers)."""
+    out = {}
+    for run in ("concentric_tubes", "concentric_tubes_folds"):
+        plan = runfile.load(REPO / "runs" / f"{run}.toml", out_dir=tmp_path)
+        out[run] = run_plan(plan, tmp_path).result.branches
+    (turn,) = out["concentric_tubes"]
+    ((_, beta),) = shooting_folds(DEFAULTS)
+    lps = [p for p in turn.points if p.type == "LP"]
+    assert [p.params["beta"] for p in lps] == pytest.approx([beta, TWO_PI - beta], abs=1e-8)
+    assert [turn.transition(p) for p in lps] == ["0 -> 1", "1 -> 0"]
+    (cusp,) = [p for b in out["concentric_tubes_folds"] for p in b.points
+               if p.type in ("CP", "BP")]
+    assert cusp.ordinates["lam"] == pytest.approx(ct.snap_free_bound(DEFAULTS), abs=1e-8)

@@ -29,7 +29,8 @@ from scipy.special import jv
 
 import elastica_auto as ea
 from elastica_auto.energy import cache as energy_cache
-from helpers import EXAMPLES
+from elastica_auto.execution import runfile
+from helpers import EXAMPLES, REPO, run_plan
 
 ODE = dict(method="DOP853", rtol=1e-12, atol=1e-13)
 Q = 10.0
@@ -194,3 +195,25 @@ def test_index_is_the_discretised_energys(snap):
             assert int(np.sum(eig < 0)) == p.index, (p.params, eig[:2])
             unstable += p.index
     assert unstable > 0
+
+
+def test_the_shipped_runs_give_the_documented_answers(tmp_path):
+    """runs/curved_heavy_column, curved_heavy_snap and curved_heavy_folds in restart order:
+    Greenhill's branch point, the snap of the stable buckled columns at q = 10 at the
+    shooting's k_f (0 -> 1), and one fold curve through both folds with its cusp at
+    Greenhill's load (docs/soft-robots.md gives these numbers)."""
+    out = {}
+    for run in ("curved_heavy_column", "curved_heavy_snap", "curved_heavy_folds"):
+        plan = runfile.load(REPO / "runs" / f"{run}.toml", out_dir=tmp_path)
+        out[run] = run_plan(plan, tmp_path).result.branches
+    q_c = greenhill()
+    (bp,) = [p for b in out["curved_heavy_column"] for p in b.points if p.type == "BP"]
+    assert bp.params["q"] == pytest.approx(q_c, rel=1e-8)
+    k_f, _ = shooting_fold(Q)
+    snaps = [(p.params["k0"], b.transition(p)) for b in out["curved_heavy_snap"]
+             for p in b.points if p.type == "LP"]
+    assert sorted({round(k, 6) for k, _ in snaps}) == [round(-k_f, 6), round(k_f, 6)]
+    assert all(abs(abs(k) - k_f) < 1e-8 for k, _ in snaps)
+    assert len(out["curved_heavy_folds"]) == 2           # one curve, from LP1 both ways
+    (cusp,) = [p for b in out["curved_heavy_folds"] for p in b.points if p.type == "CP"]
+    assert cusp.params["q"] == pytest.approx(q_c, abs=1e-8)
