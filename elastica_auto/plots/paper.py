@@ -852,3 +852,57 @@ def fig_configurations_3d(data_dir, out_dir):
                      "equilibria of the rotating arm,\nindex in plane + out of plane",
                      fontsize=9)
         return save(fig, out_dir, "configurations_3d")
+
+
+# ------------------------------------------------- beyond the paper: a concentric-tube robot
+@figure("concentric-tubes", "",
+        "concentric-tube robot (`concentric_tubes`, two tubes, defaults): (a) the actuator's "
+        "torque and (b) the tip's relative rotation against the base rotation `beta`, styled by "
+        "index, with the fold pair where the tip snaps and numbered configurations in space; (c) "
+        "the fold curve in `(beta, lambda)` and the closed-form snap-free bound where it turns "
+        "(the cusp)",
+        ["concentric_tubes", "concentric_tubes_folds"])
+def fig_concentric_tubes(data_dir, out_dir):
+    from ..equations.concentric_tubes import snap_free_bound
+    from .style import CP_COLOR
+    turn, folds = _open(data_dir, "concentric_tubes"), _open(data_dir, "concentric_tubes_folds")
+    items = [(turn, br) for br in turn.branches]
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(13.5, 4.4), layout="constrained")
+        subs = fig.subfigures(1, 3, wspace=0.02)
+        for sub, yname, ytex, tag in zip(subs, ("torque", "tip"),
+                                         (r"torque $\partial E/\partial\beta$",
+                                          r"tip rotation $\psi_2(1)-\psi_1(1)$"), "ab"):
+            insets = [ins for br in turn.branches
+                      for ins in family_insets(turn, br, "beta", yname, (0, TWO_PI), 4)]
+            draw_panel(sub, Panel(items, "beta", yname, r"$\beta$", ytex,
+                                  f"({tag}) one turn of tube 2's base", xpi=True,
+                                  insets=insets, legend_loc="upper left"))
+        ax = subs[2].add_subplot()
+        for br in folds.branches:
+            ax.plot(br.columns["beta"], br.columns["lam"], color="black", lw=1.2)
+        params = {name: float(folds.branches[0].columns[name][0])
+                  for name in ("kappa1", "kappa2", "EI1", "EI2", "GJ1", "GJ2", "Lt")}
+        bound = snap_free_bound(params)
+        ax.axhline(bound, color=CP_COLOR, lw=0.8, ls="--",
+                   label=rf"$\lambda^*=\arctan(1/(\sqrt{{c}}\,L_t))={bound:.4f}$")
+        for br in folds.branches:
+            for i, name in enumerate(br.label_names()):
+                if name[:2] in ("BP", "CP"):
+                    ax.plot(br.columns["beta"][i], br.columns["lam"][i], "o", ms=5,
+                            mfc="white", mec=CP_COLOR, zorder=5)
+        ax.set_xlim(0, TWO_PI)
+        _pi_axis(ax)
+        ax.set_xlabel(r"$\beta$", labelpad=1)
+        ax.set_ylabel(r"$\lambda = L\sqrt{c}$")
+        ax.set_title(r"(c) the fold curve, $L$ from 0.3 to 2", fontsize=9)
+        ax.legend(loc="upper center", fontsize=8, frameon=False)
+        return save(fig, out_dir, "concentric_tubes")
+
+
+def _pi_axis(ax):
+    """Ticks at multiples of pi/2 on the x axis, labelled in pi."""
+    ax.xaxis.set_major_locator(MultipleLocator(PI / 2))
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(
+        lambda v, _: {0: "0", 1: r"$\pi/2$", 2: r"$\pi$", 3: r"$3\pi/2$", 4: r"$2\pi$"}.get(
+            round(v / (PI / 2)), "")))
