@@ -545,8 +545,8 @@ def path(equation, at, to, ds_max):
     except USER_ERRORS as exc:
         _fail(str(exc))
     except (Exception, SystemExit) as exc:   # the module failing on the path: one line
-        from .core.errors import ENGINE, failure_record
-        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        from .core.errors import ENGINE, failure_record, module_files
+        record = failure_record(exc, module_files(problem.module))
         if record["kind"] == ENGINE:
             _internal(exc, "path")
         _fail(f"{problem.source}: the path failed: {record['exception']}: "

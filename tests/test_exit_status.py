@@ -142,6 +142,43 @@ def test_a_module_calling_sys_exit_fails_its_branch_not_the_command(tmp_path, cl
     assert sorted(p.name for p in out.iterdir()) == ["mine.h5"]
 
 
+def test_an_energy_modules_derived_code_failing_is_the_modules_failure(tmp_path, cli_exe):
+    """An energy module whose density divides by a parameter, run with that parameter 0:
+    the generated code (a file of the cache, not the module's) raises ZeroDivisionError.
+    That is the module's failure (its branch MX, status 1, the derived code's line named),
+    not an internal error (status 4 and "a bug: please report"), which it was."""
+    (tmp_path / "stiff.py").write_text(textwrap.dedent("""
+        def ENERGY():
+            import sympy as sp
+            from elastica_auto.energy import Energy
+            s, q, k = sp.symbols("s q k", real=True)
+            theta = sp.Function("theta")(s)
+            return Energy(density=theta.diff(s)**2 / (2 * k) + q * sp.cos(theta),
+                          s=s, coordinates=[theta], parameters={q: 0.0, k: 1.0},
+                          fixed0={theta: 0})
+
+        def exact_start(s, p):
+            import numpy as np
+            return np.zeros((2, len(s)))
+        """))
+    (tmp_path / "stiff.toml").write_text(textwrap.dedent("""
+        equation = "stiff.py"
+        [parameters]
+        q = 0.0
+        k = 0.0
+        [continuation]
+        parameter = "q"
+        bounds = [-1, 1]
+        """))
+    out = tmp_path / "out"
+    proc = run_cli(cli_exe, "run", tmp_path / "stiff.toml", "--out", out, "-j", "1")
+    assert proc.returncode == 1, (proc.stdout, proc.stderr)
+    assert "internal error" not in proc.stdout + proc.stderr
+    diagnostics = json.loads(BranchFile(out / "stiff.h5").branches[0].attrs["diagnostics"])
+    assert diagnostics["kind"] == MODULE and diagnostics["exception"] == "ZeroDivisionError"
+    assert re.fullmatch(r"energy-[0-9a-f]+\.py:\d+ in \w+.*", diagnostics["where"])
+
+
 # -- an internal error (issue 45 item 2) --------------------------------------------------------
 
 def _engine_bug(monkeypatch, after: int):

@@ -42,7 +42,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.errors import ENGINE, failure_record
+from ..core.errors import ENGINE, failure_record, module_files
 
 #: Intervals of the uniform grid of the method of lines (the discrete equilibria are within
 #: O(h^2) of the BVP's; tests/test_landing.py measures the order).
@@ -361,7 +361,7 @@ def landing_task(problem, state, null, equilibria, parameter, beyond, damping
     try:
         return land(problem, state, null, equilibria, parameter, beyond, damping=damping)
     except (Exception, SystemExit) as exc:
-        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        record = failure_record(exc, module_files(problem.module))
         if record["kind"] == ENGINE:
             raise
         record["message"] = (f"{record['exception']}: " + " ".join(record["error"].split())

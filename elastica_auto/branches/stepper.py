@@ -58,7 +58,7 @@ from .registry import (BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, SYMMETRIC_B
                        USER_VALUE)
 from ..core import labels
 from ..numerics.newton import Row
-from ..core.errors import ENGINE, debugging, failure_record
+from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
@@ -304,7 +304,7 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
         _end_early(branch, problem, walk, origin, INTERRUPTED)
     except (Exception, SystemExit) as exc:   # whatever fails fails this branch only
         # (SystemExit: the module calling sys.exit, which would end the command with status 0)
-        record = failure_record(exc, getattr(problem.module, "__file__", None))
+        record = failure_record(exc, module_files(problem.module))
         if record["kind"] == ENGINE and debugging():
             raise
         error = " ".join(record["error"].split())  # one line, as every message of a branch

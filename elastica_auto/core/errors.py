@@ -108,21 +108,35 @@ def error_text(exc: BaseException) -> str:
 MODULE, NUMERICAL, ENGINE = "module", "numerical", "engine"
 
 
-def failure_kind(exc: BaseException, module_file: str | None) -> str:
-    """Who raised ``exc``: `MODULE`, the equation module (a frame of ``module_file`` is on
-    the traceback, or the engine refused what the module returned: ProblemError, or the
-    module called ``sys.exit``); `NUMERICAL`, a computation that failed for numerical
-    reasons (`NumericalFailure`, LAPACK's LinAlgError, a floating-point trap, memory
-    exhausted by the size of the problem); else `ENGINE`, the engine's own code raising,
-    which is a bug: the command reports it apart (`EXIT_INTERNAL`) rather than as a hard
-    problem."""
+def module_files(module) -> tuple[str, ...]:
+    """The files whose code is the equation module's: its own, and for an energy module the
+    code derived from its energy (``__derived_file__``: a division by a parameter set to 0
+    there is the module's, not the engine's)."""
+    return tuple(f for f in (getattr(module, "__file__", None),
+                             getattr(module, "__derived_file__", None)) if f)
+
+
+def _files(module_file) -> tuple[str, ...]:
+    if module_file is None:
+        return ()
+    return (module_file,) if isinstance(module_file, str) else tuple(module_file)
+
+
+def failure_kind(exc: BaseException, module_file: str | tuple[str, ...] | None) -> str:
+    """Who raised ``exc``: `MODULE`, the equation module (a frame of ``module_file``, one
+    file or several: `module_files`, is on the traceback, or the engine refused what the
+    module returned: ProblemError, or the module called ``sys.exit``); `NUMERICAL`, a
+    computation that failed for numerical reasons (`NumericalFailure`, LAPACK's LinAlgError,
+    a floating-point trap, memory exhausted by the size of the problem); else `ENGINE`, the
+    engine's own code raising, which is a bug: the command reports it apart
+    (`EXIT_INTERNAL`) rather than as a hard problem."""
     import traceback
     if isinstance(exc, (ProblemError, SystemExit)):
         return MODULE
-    if module_file is not None:
-        for frame in traceback.extract_tb(exc.__traceback__):
-            if frame.filename == module_file:
-                return MODULE
+    files = _files(module_file)
+    for frame in traceback.extract_tb(exc.__traceback__):
+        if frame.filename in files:
+            return MODULE
     if isinstance(exc, (NumericalFailure, FloatingPointError, MemoryError)):
         return NUMERICAL
     if type(exc).__name__ == "LinAlgError":        # numpy's or scipy's: no import here
@@ -130,7 +144,7 @@ def failure_kind(exc: BaseException, module_file: str | None) -> str:
     return ENGINE
 
 
-def failure_record(exc: BaseException, module_file: str | None) -> dict:
+def failure_record(exc: BaseException, module_file: str | tuple[str, ...] | None) -> dict:
     """What is kept of a failure (a branch's ``diagnostics``, a run's ``missing``): the
     exception's type and message, ``kind`` (`failure_kind`), ``where`` (the module's line
     if it raised, named with the hook the engine called, else the innermost frame),
@@ -139,7 +153,8 @@ def failure_record(exc: BaseException, module_file: str | None) -> dict:
     import traceback
     frames = traceback.extract_tb(exc.__traceback__)
     kind = failure_kind(exc, module_file)
-    own = [f for f in frames if f.filename == module_file]
+    files = _files(module_file)
+    own = [f for f in frames if f.filename in files]
     if own:   # the innermost line of the module, and the hook the engine called
         at = own[-1]
         hook = "" if own[0].name == at.name else f", called from {own[0].name}"

@@ -183,6 +183,9 @@ def merge(module, source: str, code: str, filename: str | None = None):
 
 
 def _give(module, derived):
+    # the derived code's file is the module's: a failure there is the module's own
+    # (`elastica_auto.core.errors.module_files`), not an internal error
+    module.__derived_file__ = derived.__file__
     if getattr(module, "symmetry", None) is not None:
         derived._derived_symmetry = module.symmetry
     left_out = {dep for name, deps in DEPENDENTS.items() if hasattr(module, name)

@@ -19,7 +19,7 @@ from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
 from ..branches.stepper import Origin, continue_branch, start_point
-from ..core.errors import ENGINE, debugging, failure_record
+from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.interrupts import Interruptions
 from ..numerics.stability import label_stability
 from .plan import BranchSpec, Plan
@@ -130,7 +130,7 @@ def _labelling_failed(br: Branch, problem, exc: BaseException):
     raising, say): the branch ends MX there, its points kept, the failure recorded as a
     failure in the continuation is (`elastica_auto.branches.stepper.continue_branch`); the
     last point, if labelled already, is followed by an MX copy of itself (no module call)."""
-    record = failure_record(exc, getattr(problem.module, "__file__", None))
+    record = failure_record(exc, module_files(problem.module))
     if record["kind"] == ENGINE and debugging():
         raise exc
     internal = "internal error: " if record["kind"] == ENGINE else ""

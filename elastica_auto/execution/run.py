@@ -27,7 +27,8 @@ from ..branches.stepper import INTERRUPTED, Origin
 from ..branches.switching import kernel_plane, switch_direction
 from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
                            EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
-                           StartError, WriteError, debugging, failure_record)
+                           StartError, WriteError, debugging, failure_record,
+                           module_files)
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
@@ -181,7 +182,7 @@ def start_job(plan: Plan, spec: BranchSpec) -> Job:
     except (StartError, *USER_ERRORS):
         raise
     except (Exception, SystemExit) as exc:
-        record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+        record = failure_record(exc, module_files(plan.problem.module))
         if record["kind"] == ENGINE:
             raise
         raise StartError(f"{spec.start}: {record['exception']}: "
@@ -365,8 +366,7 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
                     warnings.append(str(exc))
                     continue
                 except (Exception, SystemExit) as exc:  # the module failing at the BP
-                    record = failure_record(exc, getattr(plan.problem.module, "__file__",
-                                                         None))
+                    record = failure_record(exc, module_files(plan.problem.module))
                     if record["kind"] == ENGINE:
                         raise
                     warnings.append(f"switch at {p.name}: {record['exception']}: "
@@ -546,7 +546,7 @@ def _stopped(plan: Plan, result: RunResult, writer, save: Callable[[], None],
     stopped the run in the file's ``missing`` (as ``what = "branches"``), and the run ends
     as an interrupted one does: an earlier ``<run>.h5`` is left as it was (`store.Writer`).
     With ``--debug`` an internal error is raised once the branches are saved."""
-    record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+    record = failure_record(exc, module_files(plan.problem.module))
     internal = "internal error: " if record["kind"] == ENGINE else ""
     record.update(what="branches", message=(
         f"the run stopped: {internal}{record['exception']}: "
@@ -742,7 +742,7 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
     branches = result.branches
 
     def failed(what: str, name: str, exc: BaseException):
-        record = failure_record(exc, getattr(plan.problem.module, "__file__", None))
+        record = failure_record(exc, module_files(plan.problem.module))
         if record["kind"] == ENGINE and debugging():
             raise exc
         internal = "internal error: " if record["kind"] == ENGINE else ""

@@ -711,8 +711,8 @@ class Problem(ProblemInterface):
         except ProblemError:
             raise
         except (Exception, SystemExit) as exc:  # a user module raising on valid input
-            from ..core.errors import failure_record
-            record = failure_record(exc, getattr(self.module, "__file__", None))
+            from ..core.errors import failure_record, module_files
+            record = failure_record(exc, module_files(self.module))
             raise ProblemError(f"{self.source}: calling {calling[0]} on a test state (the "
                                f"defaults, y = 0.1) failed: {record['exception']}: "
                                + " ".join(record["error"].split())
