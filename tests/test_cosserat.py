@@ -239,3 +239,69 @@ def test_the_planar_index_is_the_discretised_energy_s_inertia(planar):
         decided += 1
         seen.add(direct)
     assert decided >= 6 and min(seen) == 0 and max(seen) >= 2
+
+
+# ---- the spatial rod ---------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def rod():
+    return ea.load_problem(ROD)
+
+
+def test_the_spatial_rod_s_folds_are_the_kirchhoff_rod_s(rod):
+    """The identity of the planar rod's test above in space: with S I and no weight, n = F,
+    r' = d3 + F / S and m' = -r' x n = -d3 x F, the Kirchhoff rod's balance: at S = 50 every
+    fold of rotating_arm_3d's pairs (b2 = 2; the fourth pair's long branch left to the
+    docs' command) is the Kirchhoff rod's to 1e-7, with its index and parts, and gamma less
+    P / S."""
+    kirchhoff = ea.load_problem("kirchhoff_lever_arm")
+    for eps, P in ARM[:3]:
+        ref, ref_index = _folds(kirchhoff, {"eps": eps, "P": P, "b2": 2.0})
+        got, got_index = _folds(rod, {"eps": eps, "P": P, "b2": 2.0, "S": 50.0})
+        assert len(got) == len(ref) and got_index[0] == ref_index[0]
+        for (psi, index, gamma), (mine, mine_index, my_gamma) in zip(ref, got):
+            assert abs(mine - psi) < 1e-7
+            assert mine_index == index
+            assert abs(my_gamma - (gamma - P / 50.0)) < 1e-6
+
+
+def _rod_h(p, y):
+    """The Hamiltonian m_b.u + n.r' - L of the spatial rod at the states y (rows r, q, m, n),
+    the Legendre inverse written out (u = K^-1 m_b + u_hat, r' = n / S + R v_hat)::
+
+        H = m_b.K^-1 m_b / 2 + m_b.u_hat + |n|^2 / (2 S) + n_b.v_hat - g y."""
+    from elastica_auto.equations.kirchhoff_lever_arm import rotation
+    rot = rotation(y[3:7])
+    mb = np.einsum("jim,jm->im", rot, y[7:10])
+    nb = np.einsum("jim,jm->im", rot, y[10:13])
+    k = np.array((1.0, p["b2"], p["c"]))[:, None]
+    uh = np.array((p["u1"], p["u2"], p["u3"]))[:, None]
+    vh = np.array((p["v1"], p["v2"], p["v3"]))[:, None]
+    return (np.sum(mb * mb / k, axis=0) / 2 + np.sum(mb * uh, axis=0)
+            + np.sum(y[10:13] ** 2, axis=0) / (2 * p["S"]) + np.sum(nb * vh, axis=0)
+            - p["g"] * y[1])
+
+
+def test_the_heavy_spatial_rod_balances_forces_and_keeps_its_hamiltonian(rod):
+    """A heavy, pre-curved rod (g = 3, u1 = 0.4 continued from the straight rod, S = 300)
+    whose load is tilted out of its plane (beta from 0 to 0.6: non-planar states): at every
+    point n(s) = F - g (1 - s) e_y to rounding and H constant along s to 1e-6 (relative),
+    |q| = 1 to 1e-9; with the weight's sign broken in H, not."""
+    from elastica_auto.equations.kirchhoff_lever_arm import load
+    p = {**rod.defaults(), "eps": 0.3, "P": 4.0, "g": 3.0, "S": 300.0, "b2": 1.5}
+    bent = ea.continuation(rod, p, "u1", bounds=(0, 0.4), ds_max=0.2)
+    end = bent[0].labelled[-1]
+    assert end.type == "EP" and abs(end.params["u1"] - 0.4) < 1e-9
+    (branch,) = ea.continuation(rod, bent.label(end.name), "beta", bounds=(0.0, 0.6),
+                                ds_max=0.2)
+    assert len(branch.points) > 3 and abs(branch.points[-1].params["beta"] - 0.6) < 1e-9
+    assert abs(branch.points[-1].ordinates["z1"]) > 1e-2
+    grid = np.linspace(0, 1, branch.points[0].profile.shape[1])
+    for pt in branch.points:
+        q, y = pt.params, pt.profile
+        force = load(q)[:, None] - q["g"] * np.outer((0.0, 1.0, 0.0), 1 - grid)
+        assert np.allclose(y[10:13], force, atol=1e-10)
+        assert pt.ordinates["qnorm"] < 1e-9
+        h = _rod_h(q, y)
+        assert np.ptp(h) < 1e-6 * (1 + np.max(np.abs(h)))
+        assert np.ptp(_rod_h({**q, "g": -q["g"]}, y)) > 1e-3
