@@ -107,13 +107,15 @@ def exact_start(s, p):
     weight lie along d3(0) (theta0 = alpha mod pi with P != 0 or P = 0; sin theta0 = 0 or
     g = 0), the arm along d3 (sin psi = 0 or eps P = 0), no intrinsic curvature or shear (u1 =
     v2 = 0). Then n(s) = F - g (1 - s) e_y is along d3, n.d3 = EA (v - v3) gives the stretch
-    v = v3 + n.d3 / EA, m = 0, and r = d3 int_0^s v. None otherwise (tests to 1e-12)."""
+    v = v3 + n.d3 / EA, m = 0, and r = d3 int_0^s v. None otherwise, and where a
+    stiffness is zero (the generated code divides by GA and EA)."""
     t = p["theta0"]
     d3 = np.array((-math.sin(t), math.cos(t)))
     f = p["P"] * np.array((math.sin(p["alpha"]), -math.cos(p["alpha"])))
     if (abs(f[0] * d3[1] - f[1] * d3[0]) > 1e-12 * max(1.0, abs(p["P"]))
             or abs(p["g"] * d3[0]) > 1e-12 or abs(p["eps"] * p["P"] * math.sin(p["psi"])) > 1e-12
-            or p["u1"] != 0 or p["v2"] != 0):
+            or p["u1"] != 0 or p["v2"] != 0
+            or p["EA"] == 0 or p["GA"] == 0):
         return None
     s = np.asarray(s, dtype=float)
     n3 = f @ d3 - p["g"] * (1 - s) * d3[1]                 # n.d3 along the rod

@@ -142,14 +142,15 @@ def exact_start(s, p):
     load, and no intrinsic bending or shear (u1 = u2 = v1 = v2 = 0). Then n(s) = F - g (1 - s)
     e_y is along d3(0), the stretch v(s) = v3 + n.d3 / S, m = 0, r = d3(0) int_0^s v, and q(s)
     = q_c (x) (cos(u3 s / 2), 0, 0, sin(u3 s / 2)) (the intrinsic twist turns the frame about
-    the straight axis). None otherwise (tests to 1e-12)."""
+    the straight axis). None otherwise, and for S = 0 (the generated code divides by S)."""
     qc = clamp_quaternion(p)
     d3 = rotation(qc)[:, 2]
     f = load(p)
     if (np.linalg.norm(np.cross(f, d3)) > 1e-12 * max(1.0, abs(p["P"]))
             or abs(p["g"]) * math.hypot(d3[0], d3[2]) > 1e-12
             or abs(p["eps"] * p["P"] * math.sin(p["psi"])) > 1e-12
-            or p["u1"] != 0 or p["u2"] != 0 or p["v1"] != 0 or p["v2"] != 0):
+            or p["u1"] != 0 or p["u2"] != 0 or p["v1"] != 0 or p["v2"] != 0
+            or p["S"] == 0):
         return None
     s = np.asarray(s, dtype=float)
     n3 = f @ d3 - p["g"] * (1 - s) * d3[1]

@@ -305,3 +305,23 @@ def test_the_heavy_spatial_rod_balances_forces_and_keeps_its_hamiltonian(rod):
         h = _rod_h(q, y)
         assert np.ptp(h) < 1e-6 * (1 + np.max(np.abs(h)))
         assert np.ptp(_rod_h({**q, "g": -q["g"]}, y)) > 1e-3
+
+
+@pytest.mark.parametrize("which", ["planar", "rod"])
+def test_the_straight_starts_solve_the_derived_equations(which, planar, rod):
+    """The straight, compressed (or stretched) heavy rod of each ``exact_start`` along the
+    load line (upright and hanging, a weight, a stretch, a load and, in space, a twist):
+    y' = rhs(s, y) against central differences of the start (1e-7) and bc(y(0), y(1)) = 0 to
+    1e-12; None where the load leaves the line."""
+    problem = planar if which == "planar" else rod
+    s = np.linspace(0, 1, 41)
+    h = 1e-5
+    for theta0, P, g in ((0.0, 3.0, 2.0), (math.pi, -2.0, 1.5), (0.0, -4.0, 0.0)):
+        p = {**problem.defaults(), "theta0": theta0, "alpha": theta0, "P": P, "g": g,
+             "psi": math.pi, "v3": 1.1}
+        p.update({"EA": 40.0, "GA": 15.0} if which == "planar" else {"S": 30.0, "u3": 0.7})
+        y = problem.exact_start(s, p)
+        slope = (problem.exact_start(s + h, p) - problem.exact_start(s - h, p)) / (2 * h)
+        assert np.max(np.abs(slope - problem.rhs(s, y, p))) < 1e-7
+        assert np.max(np.abs(problem.bc(y[:, 0], y[:, -1], p))) < 1e-12
+        assert problem.exact_start(s, {**p, "alpha": theta0 + 0.1}) is None
