@@ -30,10 +30,11 @@ and the turn about e_z: in-plane) and ``index_out``; where each parameter enters
 distinguished ordinate (named as the Kirchhoff rod names them); the energy E. As S grows, r'
 -> d3 and the rod becomes the Kirchhoff rod, at O(1/S) (docs/soft-robots.md).
 
-By hand: the straight start, the planar mirror, the drawing (the Kirchhoff rod's), and the
-ordinates z1 (out-of-plane tip displacement) and qnorm (the drift of |q| from 1). No
-``symmetry`` hook (the isotropic rod's turn about the load line; docs/soft-robots.md) and no
-``shooting`` (snap-back targets).
+By hand: the straight start, the planar mirror, the isotropic rod's turn about the load line
+(``symmetry``, ``symmetric_values``: where it holds, the derived second variation leaves its
+zero mode out of the count), the drawing (the Kirchhoff rod's), and the ordinates z1
+(out-of-plane tip displacement) and qnorm (the drift of |q| from 1). No ``shooting``
+(snap-back targets).
 """
 
 import math
@@ -42,8 +43,9 @@ import numpy as np
 
 from elastica_auto import Mirror, Ordinate
 from elastica_auto.energy import derived_names
+from elastica_auto.equations import kirchhoff_lever_arm as kirchhoff
 from elastica_auto.equations.kirchhoff_lever_arm import (
-    QUATERNION, arm_body, clamp_quaternion, load, qmul, rotation)
+    QUATERNION, arm_body, clamp_axis, clamp_quaternion, load, qmul, rotation)
 
 
 def ENERGY():
@@ -159,6 +161,66 @@ def exact_start(s, p):
     twist = np.vstack((np.cos(half), np.zeros_like(s), np.zeros_like(s), np.sin(half)))
     return np.vstack((np.outer(d3, along), qmul(qc[:, None], twist), np.zeros((3, len(s))),
                       np.outer(d3, n3)))
+
+
+# ---- the isotropic rod's turn about the load line (as the Kirchhoff rod's: docs/kirchhoff.md,
+# "Symmetry") ---------------------------------------------------------------------------------
+
+def is_symmetric(p) -> bool:
+    """Whether the rotation about the clamp axis e = d3(0), the frames counter-rotated about
+    their own d3, maps solutions to solutions: the Kirchhoff rod's conditions (b2 = 1, u1 = u2
+    = 0, the load along e, the arm along the tip's d3 or of length 0), no intrinsic shear (v1
+    = v2 = 0: v_hat along e3, which the counter-rotation keeps) and the weight along e (g = 0
+    or e = +-e_y)."""
+    if not kirchhoff.is_symmetric(p) or p["v1"] != 0 or p["v2"] != 0:
+        return False
+    e = clamp_axis(p)
+    return p["g"] == 0 or math.hypot(e[0], e[2]) <= kirchhoff.SYMMETRIC
+
+
+def symmetric_values(name, lo, hi, p):
+    """The values of ``name`` in [lo, hi] where :func:`is_symmetric` holds, the others at
+    ``p``: the multiples of pi of the arm angle psi (the arm along d3(1)) where the rest is
+    symmetric and the arm has a length; none for the other parameters."""
+    if name != "psi" or p["eps"] == 0 or not is_symmetric({**p, "psi": 0.0}):
+        return []
+    return [k * math.pi for k in range(math.ceil(lo / math.pi), math.floor(hi / math.pi) + 1)]
+
+
+def symmetry(s, y, p):
+    """The rotation T_theta about e = d3(0) through the clamp, the frames counter-rotated
+    about their own d3: r -> Q r, m -> Q m, n -> Q n, q -> q_Q (x) q (x) q_3(-theta)
+    (Q = Rot(e, theta)). It keeps the clamp, the energy (K = diag(1, 1, c), S |v - e3|^2 are
+    invariant under turns about e3 in the body), the load and the weight along e and the arm
+    along d3. Generator g = (e x r, (e^ (x) q - q (x) e3^) / 2, e x m, e x n) (e^ the pure
+    quaternion); unfolding b = grad J of
+
+        J = m.d3 - (m + r x n).e,
+
+    conserved for every state: (m.d3)' = -(r' x n).d3 + m_b.(u x e3) = 0 with r' = n / S + d3
+    and u = K^-1 m_b, b2 = 1; (m + r x n)' = r x n' = g r x e_y, whose e-component vanishes for
+    e = +-e_y. J is zero at both ends (d3(0) = e, r(0) = 0; m(1) = eps d3(1) x F, F along e):
+    the unfolded solutions have mu = 0. None where the parameters break the symmetry."""
+    from elastica_auto.model.symmetry import Symmetry
+    if not is_symmetric(p):
+        return None
+    e = clamp_axis(p)
+    r, q, m, n = y[0:3], y[3:7], y[7:10], y[10:13]
+    zero = np.zeros_like(q[:1])
+    e_hat = np.vstack((zero, np.outer(e, np.ones(q.shape[1]))))
+    e3_hat = np.vstack((zero, zero, zero, zero + 1.0))
+    g = np.vstack((np.cross(e, r, axis=0), 0.5 * (qmul(e_hat, q) - qmul(q, e3_hat)),
+                   np.cross(e, m, axis=0), np.cross(e, n, axis=0)))
+    w, x, yq, z = q
+    n2 = w * w + x * x + yq * yq + z * z
+    d3 = rotation(q)[:, 2]
+    # d(m.d3)/dq, d3 = R(q / |q|) e3 (the Kirchhoff rod's formula)
+    grad_q = (2 * (m[0] * np.array((yq, z, w, x)) + m[1] * np.array((-x, -w, z, yq))
+                   + m[2] * np.array((w, -x, -yq, z))) - 2 * np.sum(m * d3, axis=0) * q) / n2
+    ee = np.outer(e, np.ones(q.shape[1]))
+    b = np.vstack((np.cross(ee, n, axis=0), grad_q, d3 - e[:, None],
+                   np.cross(r, ee, axis=0)))
+    return Symmetry(g, b)
 
 
 #: The engine gives ``draw`` 3D axes (matplotlib's mplot3d).

@@ -464,3 +464,27 @@ def test_the_spatial_index_is_the_discretised_rod_s_inertia(rod):
         decided += 1
         seen.add(direct)
     assert decided >= 4 and len(seen) >= 3
+
+
+def _labels(problem, params):
+    """(type, psi, index) of every LP and BP of the psi branch from the straight rod, and the
+    index at the points between them."""
+    (branch,) = ea.continuation(problem, {**problem.defaults(), **params}, "psi",
+                                bounds=(-6 * math.pi, 6 * math.pi), ds_max=1.0)
+    return ([(pt.type, pt.params["psi"]) for pt in branch.points if pt.type in ("LP", "BP")],
+            [pt.index for pt in branch.points if pt.type not in ("LP", "BP")])
+
+
+def test_the_isotropic_rod_s_symmetric_points_are_the_kirchhoff_rod_s(rod):
+    """b2 = 1: at psi = k pi the bent rod with its arm along d3(1) lies on a circle of
+    equilibria (the turn about the load line); with the module's symmetry hook its zero mode
+    is left out of the count and the branch points are placed there. The labels (folds and
+    branch points, their psi to 1e-7) and the index at every other point are the Kirchhoff
+    rod's at S = 50 (P = pi^2/4, both arms). Without the hook the labels differ."""
+    kirchhoff = ea.load_problem("kirchhoff_lever_arm")
+    for eps, P in (ARM[0], ARM[2]):
+        ref, ref_index = _labels(kirchhoff, {"eps": eps, "P": P, "b2": 1.0})
+        got, got_index = _labels(rod, {"eps": eps, "P": P, "b2": 1.0, "S": 50.0})
+        assert [t for t, _ in got] == [t for t, _ in ref] and "BP" in [t for t, _ in ref]
+        assert max(abs(a - b) for (_, a), (_, b) in zip(got, ref)) < 1e-7
+        assert got_index == ref_index
