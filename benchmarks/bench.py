@@ -32,7 +32,8 @@
 8. The cost of a step as the system grows (``--size`` prints only this): one continuation
    step on a fixed mesh of 100 intervals for n = 4 (the elastica), 6 (the rotating disk of
    ``examples/karman_disk.py`` with its free parameter), 10 (the spatial rod; the planar
-   elastica's fold-curve system) and 20 (five copies of the elastica stacked as one system),
+   elastica's fold-curve system), 13 (the spatial Cosserat rod, S = 1000) and 20 (five copies
+   of the elastica stacked as one system),
    for the cubic scheme (ncol 0) and Gauss collocation (ncol 4): median ms per step, and the
    mean split into assembly (residuals and Jacobian blocks), factorisation, solves, the
    error estimate and test functions, the index, and the rest (Newton's bookkeeping). CPU

@@ -230,6 +230,11 @@ def _size_systems():
     params = {**rod.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
     out.append((f"n = {rod.n}, spatial rod", rod, "psi",
                 State.from_values(rod, s, rod.exact_start(s, params), params), 0.03, True))
+    cosserat = load_problem("cosserat_rod")
+    params = {**cosserat.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4}
+    out.append((f"n = {cosserat.n}, Cosserat rod", cosserat, "psi",
+                State.from_values(cosserat, s, cosserat.exact_start(s, params), params), 0.03,
+                True))
     arm = ea.continuation(elastica, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
                           bounds=(-2 * math.pi, 2 * math.pi))
     (curve,) = ea.continuation(elastica, arm.label("LP1"), ["psi", "eps"], bounds=(0, 1),
