@@ -1,5 +1,8 @@
-"""The two correctors behind the stepper: solves at fixed parameters, pseudo-arclength steps,
-solves on a hyperplane, and fold location, each returning a :class:`Solution`.
+"""The two correctors behind the stepper, each implementing the corrector interface
+(:class:`~elastica_auto.numerics.corrector.Corrector`): solves at fixed parameters,
+pseudo-arclength steps, solves on a hyperplane, fold location, each returning a
+:class:`Solution`, and the linearisations the test functions, the kernel at a branch point
+and the error estimates are read from.
 
 ``corrector = "collocation"`` (the default, :class:`Collocation`): Newton's method on the
 collocation equations assembled directly (:mod:`elastica_auto.numerics.newton`), one banded LU per
@@ -10,12 +13,14 @@ minimally augmented system, on a mesh that resolves the solution and its null ve
 ``fold_tol``.
 
 ``corrector = "solve_bvp"`` (:class:`SolveBVP`): the same discretisation solved by
-`scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), folds by its extended system: an
-independent check of the first.
+`scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), starts, steps and folds (by its
+extended system) alike: an independent check of the first, sharing none of its solves.
 
 Either way a :class:`Solution` carries the factorised bordered Jacobian at the point, on the
-point's mesh, from which the stepper reads the unit tangent (the fold test function is its
-parameter component) and the sign of the determinant (the branch-point test function).
+point's mesh (``lin``: read by the corrector only), from which the corrector reads the unit
+tangent (the fold test function is its parameter component) and the sign of the determinant
+(the branch-point test function). Each corrector makes its linearisations by a
+:class:`Linearizer` of its own discretisation.
 """
 
 from __future__ import annotations
@@ -67,8 +72,9 @@ class CorrectorFailure(NumericalFailure):
 @dataclass
 class Solution:
     """A solution on its mesh with its linearisation: ``lin`` is the bordered Jacobian at the
-    point with the border row of the condition that defined it (factorised), ``tangent`` the
-    unit tangent oriented along that row, ``rms`` the error estimate per interval."""
+    point with the border row of the condition that defined it (factorised; the corrector's
+    own, read by nothing outside ``numerics/``), ``tangent`` the unit tangent oriented along
+    that row, ``rms`` the error estimate per interval."""
 
     state: State
     tangent: Tangent
