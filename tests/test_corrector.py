@@ -324,3 +324,101 @@ def test_a_switch_under_solve_bvp_is_the_collocation_correctors(elastica):
     assert len(found[0]) == 2 and [m for m, _ in found[0]] == [m for m, _ in found[1]]
     for (_, a), (_, b) in zip(*found):
         assert abs(a - b) <= 1e-6
+
+
+# ---- the corrector interface ----------------------------------------------------------------
+
+CONFIGURATIONS = [("collocation", 0), ("collocation", 4), ("solve_bvp", 0)]
+
+
+@pytest.mark.parametrize("corrector, ncol", CONFIGURATIONS)
+def test_every_corrector_has_the_interfaces_operations(elastica, corrector, ncol):
+    """Every operation of `numerics.corrector.Corrector` is one of the corrector's own, and the
+    solve_bvp corrector inherits nothing from the collocation corrector (it did: its starts
+    and tangents were the collocation Newton's)."""
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.numerics.corrector import Corrector
+    from elastica_auto.numerics.correctors import Collocation, SolveBVP, make_corrector
+    corr = make_corrector(elastica, "P", ContinuationOptions(corrector=corrector, ncol=ncol))
+    operations = [n for n, v in vars(Corrector).items() if callable(v) and not n.startswith("_")]
+    assert len(operations) == 14
+    for name in operations + list(Corrector.__annotations__):
+        assert hasattr(corr, name), name
+    assert not issubclass(SolveBVP, Collocation)
+
+
+@pytest.mark.parametrize("corrector, ncol", CONFIGURATIONS)
+def test_the_kernel_at_eulers_load_is_the_buckling_mode(elastica, corrector, ncol):
+    """The straight rod (eps = 0) at Euler's load P = pi^2/4 of the clamped-free column,
+    linearised along the trivial branch's tangent (its parameter alone): the interface's
+    kernel is the buckling mode theta = c sin(pi s / 2), kappa = theta', with no parameter
+    part (a symmetric pitchfork), its relative residual at rounding or discretisation level;
+    at P = 2, a regular point, the "kernel" leaves a residual of order one. On 100 intervals
+    the discrete mode is off by the discretisation error: h^4 (pi/2)^4 ~ 6e-8 for the cubic
+    scheme (solve_bvp's own, so the same for both of its correctors), h^8 for Gauss at 4."""
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State, Tangent
+    from elastica_auto.numerics.correctors import make_corrector
+    s = np.linspace(0.0, 1.0, 101)
+    t1 = Tangent(s, np.zeros((4, len(s))), np.zeros((4, len(s))), 1.0)
+    corr = make_corrector(elastica, "P", ContinuationOptions(corrector=corrector, ncol=ncol))
+    bound = 1e-7 if ncol == 0 else 1e-12
+    for P in (math.pi ** 2 / 4, 2.0):
+        p = {**elastica.defaults(), "P": P, "eps": 0.0, "psi": 0.0, "alpha": 0.0, "theta0": 0.0}
+        straight = State.from_values(elastica, s, np.vstack((0 * s, 0 * s, 0 * s, s)), p)
+        sol = corr.linearize(straight, t1)
+        assert sol.tangent.lam == pytest.approx(1.0) and sol.lam == P
+        direction, residual = corr.kernel(sol)
+        c = direction.y[0][np.argmax(np.abs(direction.y[0]))]
+        mode = np.sin(np.pi * s / 2)
+        if P == 2.0:
+            assert residual > 1e-2
+            continue
+        assert residual <= 1e-8
+        assert np.max(np.abs(direction.y[0] / c - mode)) <= bound
+        assert np.max(np.abs(direction.y[1] / c - np.pi / 2 * np.cos(np.pi * s / 2))) <= 2 * bound
+        assert abs(direction.lam) <= bound
+        assert corr.kernel_error(sol).max() <= 1e-6
+
+
+def test_the_solve_bvp_corrector_solves_nothing_by_the_collocation_newton(tmp_path,
+                                                                           monkeypatch):
+    """Under corrector = "solve_bvp" with the collocation corrector's Newton iterations
+    (points, steps, folds) made to fail: a start solved from a guess (Bratu's lower solution
+    at z = 1, from 0.8 of it, on 11 nodes) is the closed form's u = -2 ln(cosh(z (x - 1/2)) /
+    cosh(z / 2)) to tol = 1e-5 (a start from a guess was the collocation Newton's), and
+    Bratu's branch steps and folds by solve_bvp alone, its fold the closed form's (lam at
+    z tanh(z / 2) = 2) to 1e-9, the accuracy of a fold located to fold_tol = 1e-7 on the
+    residual of a 4th-order scheme (its parameter error ~ fold_tol^(4/3))."""
+    from scipy.optimize import brentq
+    from test_user_module import lam_of
+    import elastica_auto as ea
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State
+    from elastica_auto.numerics import correctors
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the collocation Newton under corrector = 'solve_bvp'")
+
+    monkeypatch.setattr(correctors, "newton", refused)
+    monkeypatch.setattr(correctors, "fold_newton", refused)
+    problem = ea.load_problem(str(EXAMPLES / "bratu.py"))
+    z, x = 1.0, np.linspace(0.0, 1.0, 11)
+
+    def exact(x):
+        u = -2 * np.log(np.cosh(z * (x - 0.5)) / math.cosh(z / 2))
+        return np.vstack((u, -2 * z * np.tanh(z * (x - 0.5))))
+
+    corr = correctors.make_corrector(problem, "lam", ContinuationOptions(corrector="solve_bvp"))
+    guess = State.from_values(problem, x, 0.8 * exact(x), {"lam": lam_of(z)})
+    sol = corr.point(guess)
+    assert sol.lam == lam_of(z) and sol.tangent.lam > 0    # oriented along lam = value
+    assert np.max(np.abs(sol.state.y - exact(sol.mesh))) <= 1e-5
+    plan = runfile.load(EXAMPLES / "bratu.toml")
+    p = dataclasses.replace(plan, options=dataclasses.replace(plan.options,
+                                                             corrector="solve_bvp"))
+    (br,) = run_plan(p, tmp_path / "out").result.branches
+    assert br.end == "EP", br.message
+    (lp,) = br.folds
+    z_c = brentq(lambda z: z * math.tanh(z / 2) - 2, 1.0, 4.0, xtol=1e-15)
+    assert abs(lp.params["lam"] - lam_of(z_c)) <= 1e-9

@@ -242,7 +242,7 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
     """Nodes, stages and the parameter: the correction from the condensed banded system (and
     the stage correction recovered from it) against a dense solve of the whole uncondensed
     Newton system, its Jacobian by central differences of the residuals."""
-    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.numerics.correctors import Linearizer
     from elastica_auto.numerics.newton import Linearization
 
     rng = np.random.default_rng(10 + k)
@@ -251,7 +251,7 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
     K = disc.stages(y, p) + 0.01 * rng.standard_normal((4, k, 3))
     lam = p["P"]          # P enters the equation (psi only the end)
     row = Row(rng.standard_normal(y.shape), 0.7, 0.3)
-    split = Collocation(elastica, "P", ContinuationOptions(ncol=k)).split
+    split = Linearizer(elastica, "P", k).split
     lin = Linearization(disc, "P", p, y, lam, row, split, K)
     dY, dlam, dK = lin.correct(row, disc.evaluate(y, p, K), row.residual(y, lam))
 

@@ -235,3 +235,63 @@ def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     module = copy / where
     module.write_text(module.read_text() + f"\n\ndef _bad():\n    {line}\n")
     assert check(copy)
+
+
+#: The names a corrector is held by outside ``numerics/`` (``corr``, ``self.corr``,
+#: ``walk.corr``, ``corrector``): every attribute read on them must be an operation or field of
+#: the corrector interface (`elastica_auto.numerics.corrector.Corrector`).
+CORRECTOR_HOLDERS = {"corr", "corrector"}
+#: What only a corrector reads: a solution's linearisation (``sol.lin``), a linearisation's
+#: or corrector's discretisation (``.disc``), the corrector's own linearizer.
+CORRECTOR_INTERNALS = {"lin", "disc", "_linearizer"}
+
+
+def corrector_interface() -> set[str]:
+    """The operations and fields of the corrector interface."""
+    from elastica_auto.numerics.corrector import Corrector
+    return {n for n in vars(Corrector) if not n.startswith("_")} | set(
+        Corrector.__annotations__)
+
+
+def corrector_reads(root: Path = PACKAGE) -> list[str]:
+    """Attribute reads outside ``numerics/`` that reach into a corrector: on a name that holds
+    one (CORRECTOR_HOLDERS), anything but the interface; anywhere, CORRECTOR_INTERNALS."""
+    allowed = corrector_interface()
+    found = []
+    for m, path in modules(root).items():
+        if layer(m) == "numerics":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.Attribute):
+                continue
+            held = node.value
+            holder = (held.id if isinstance(held, ast.Name)
+                      else held.attr if isinstance(held, ast.Attribute) else None)
+            if (holder in CORRECTOR_HOLDERS and node.attr not in allowed) \
+                    or node.attr in CORRECTOR_INTERNALS:
+                found.append(f"{m}:{node.lineno} reads .{node.attr}")
+    return found
+
+
+def test_nothing_outside_numerics_reads_a_correctors_internals():
+    assert corrector_reads() == []
+
+
+@pytest.mark.parametrize("where, line", [
+    ("branches/stepper.py", "return corr.disc(s)"),
+    ("branches/events.py", "return self.corr.split"),
+    ("branches/switching.py", "return walk.corr.solution(d, p, y, lam, row)"),
+    ("branches/events.py", "return sol.lin.sign"),
+    ("analysis/equilibria.py", "return corrector._linearizer"),
+    ("branches/restart.py", "return lin.disc.s"),
+])
+def test_the_corrector_check_catches_what_it_forbids(tmp_path, where, line):
+    """A copy of the package with one read of a corrector's internals: the patterns the
+    stepper, events and switching used before the interface."""
+    copy = tmp_path / "elastica_auto"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
+    assert corrector_reads(copy) == []
+    module = copy / where
+    module.write_text(module.read_text() + f"\n\ndef _bad(corr, self, walk, sol, lin, corrector):"
+                                           f"\n    {line}\n")
+    assert corrector_reads(copy)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
-from ..numerics.newton import NEWTON_TOL, Linearization, Row, kernel
+from ..numerics.newton import NEWTON_TOL
 from ..core.solution import State, Tangent, difference, inner
 from ..model.symmetry import moves
 
@@ -270,15 +270,9 @@ def _slope_root(corr, step: Step) -> Solution:
 
 def _det_on(corr, sol: Solution, row_direction: Tangent, s) -> tuple[int, float]:
     """(sign, log|det|) of the bordered Jacobian at ``sol`` on mesh ``s`` with the border row
-    of ``row_direction``: a test function that varies smoothly along a step on one mesh."""
-    lin = sol.lin
-    t = row_direction.on(s)
-    if not (np.array_equal(lin.disc.s, s) and lin.row.d == t.lam
-            and np.array_equal(lin.row.c, lin.disc.weights * t.y)):
-        disc = corr.disc(s)
-        lin = Linearization(disc, corr.parameter, sol.state.params, sol.state(s), sol.lam,
-                            Row(disc.weights * t.y, t.lam, 0.0), corr.split)
-    return lin.sign, lin.fact.logdet
+    of ``row_direction`` (the corrector's linearisation): a test function that varies
+    smoothly along a step on one mesh."""
+    return corr.determinant(sol, row_direction, s)
 
 
 #: The half-widths, as fractions of the step, of the brackets in which the branch point is
@@ -311,15 +305,11 @@ def locate_branch_point(corr, step: Step) -> Located:
     there (b's mesh did not resolve the kernel to ``fold_tol``, as at every branch point of
     the shipped 3D runs), that is the second mesh; else a and b are solved again on the last
     mesh with every interval halved. CorrectorFailure where the change does not survive."""
-    name = step.name
     s, brackets, xtol = step.b.mesh, [(0.0, step.dist)], COARSE_XTOL
     for _ in range(4):
         bp, solved_here = _branch_point_on(corr, step, s, brackets, xtol)
         sol = bp.solution
-        v, v_lam = kernel(sol.lin)
-        disc = sol.lin.disc
-        rms = np.maximum(sol.rms, disc.linear_rms_residuals(sol.state.y, sol.state.params,
-                                                           v, v_lam, name))
+        rms = np.maximum(sol.rms, corr.kernel_error(sol))
         brackets = [(max(bp.sigma - w * step.dist, 0.0), min(bp.sigma + w * step.dist,
                                                                step.dist))
                     for w in NEAR] + [(0.0, step.dist)]
@@ -330,7 +320,7 @@ def locate_branch_point(corr, step: Step) -> Located:
                 _check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
         # the solution's own mesh: solve_bvp's corrector refines the one it is given
-        s, xtol = corr.fold_mesh(disc.s, rms), BP_XTOL
+        s, xtol = corr.fold_mesh(sol.mesh, rms), BP_XTOL
     raise CorrectorFailure(f"branch point: error estimate {rms.max():.2e} > fold_tol after "
                            "4 meshes")
 
@@ -475,7 +465,7 @@ def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
                   {**y.params, name: value})
     margin = 0.05 * (s1 - s0) + 1e-12
     try:
-        state = corr.at_value(guess, y.params, value, lin=step.b.lin)
+        state = corr.at_value(guess, y.params, value, near=step.b)
         sigma = step.sigma(state)
         if s0 - margin <= sigma <= s1 + margin:
             return state, min(max(sigma, s0), s1)
@@ -492,7 +482,7 @@ def locate_value(corr, step: Step, x: State, y: State, s0: float, s1: float,
     except CorrectorFailure:
         raise CorrectorFailure(f"{name} does not cross {value:.6g} in this step") from None
     sol = at.solution
-    return corr.at_value(sol.state, y.params, value, lin=sol.lin), at.sigma
+    return corr.at_value(sol.state, y.params, value, near=sol), at.sigma
 
 
 def locate_limit(corr, problem, step: Step, limit) -> Located:

@@ -26,7 +26,7 @@ import numpy as np
 from .branch import Branch, StoredLabel
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
-from ..numerics.newton import NEWTON_TOL, Row, newton
+from ..numerics.newton import NEWTON_TOL
 from ..core.errors import PlanError, StartError
 from ..core.options import ContinuationOptions, OptionsError
 from ..core.solution import State, Tangent
@@ -116,19 +116,16 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
         name = (label.tangent_parameter if tangent is not None
                 and label.tangent_parameter in problem.parameters else parameter)
         corrector = make_corrector(problem, name, own)
-        disc = corrector.disc(state.s)
         lam = float(state.params[name])
-        row = (Row.hyperplane(disc, state, tangent, name, 0.0) if name == label.tangent_parameter
-               and tangent is not None else Row.value(disc, lam))
-        res = newton(disc, name, state.params, state.y, lam, row, None, corrector.split,
-                     tol=min(NEWTON_TOL, 1e-3 * own.tol))
+        normal = tangent if name == label.tangent_parameter else None
+        res = corrector.solve_again(state, normal, min(NEWTON_TOL, 1e-3 * own.tol))
         moved = max(float(np.max(np.abs(res.Y - state.y) / (1.0 + np.abs(state.y)))),
                     abs(res.lam - lam) / (1.0 + abs(lam)))
         if not res.converged:
             # where the linearisation is singular whatever the border (a branch point: its
             # kernel has two dimensions) Newton cannot converge from a solution either: the
             # equations' residual there is what tells a solution from one that is not
-            why = _residual_too_large(disc, state, own.tol, res.message)
+            why = _residual_too_large(res, own.tol)
         elif not moved < own.tol:
             why = (f"solved again, it moves by {moved:.3g} (its tolerance: {own.tol:g}), "
                    f"{_where_most(res.Y - state.y, state.y, label.states)}")
@@ -137,20 +134,17 @@ def check_stored(problem, label: StoredLabel, parameter: str, options: Continuat
                          f"problem: {why}")
 
 
-def _residual_too_large(disc, state, tol: float, newton: str) -> str | None:
-    """Why the residual of the discretised equations at ``state`` says it is not a solution
-    (``newton``: why Newton from it did not converge), or None: each collocation residual
-    relative to 1 + |y| at its interval's first node, each boundary residual relative to
-    1 + max |y|, at most ``tol`` (a solution's are of the order of Newton's tolerance, an
-    edited one's of its edit over the mesh's step)."""
-    ev = disc.evaluate(state.y, state.params)
-    scale = 1.0 + np.abs(state.y)
-    worst = max(float(np.max(np.abs(ev.col) / scale[:, :-1])),
-                float(np.max(np.abs(ev.bc)) / (1.0 + float(np.max(np.abs(state.y))))))
-    if worst <= tol:
+def _residual_too_large(res, tol: float) -> str | None:
+    """Why the residual of the discretised equations at the state Newton started from says it
+    is not a solution (``res``: the corrector's `solve_again` that did not converge, with
+    that residual: each collocation residual relative to 1 + |y| at its interval's first
+    node, each boundary residual relative to 1 + max |y|), or None: at most ``tol`` (a
+    solution's are of the order of Newton's tolerance, an edited one's of its edit over the
+    mesh's step)."""
+    if res.residual <= tol:
         return None
-    return (f"Newton from it does not converge ({newton}), and the residual of its "
-            f"equations is {worst:.3g} (its tolerance: {tol:g})")
+    return (f"Newton from it does not converge ({res.message}), and the residual of its "
+            f"equations is {res.residual:.3g} (its tolerance: {tol:g})")
 
 
 def _own_options(options: ContinuationOptions, stored: dict) -> ContinuationOptions:

@@ -57,7 +57,6 @@ from .kinds import Event, Hit, Limit
 from .registry import (BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, SYMMETRIC_BRANCH_POINT,
                        USER_VALUE)
 from ..core import labels
-from ..numerics.newton import Row
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
@@ -139,32 +138,22 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
     stationary to first order (|t_lam| <= STATIONARY: a fold, a cusp, a hysteresis point),
     the sign of t_lam is rounding and says nothing; t is then oriented along ``guess``, or
     else by :func:`_orientation`, which does not depend on the sign the solver returned."""
-    name = corr.parameter
-    disc = corr.disc(start.s)
-    lam = start.params[name]
     if exact:
-        t = guess.on(disc.s)
-        sol = corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
-        sol.tangent = t
+        sol = corr.linearize(start, guess)
+        sol.tangent = guess.on(sol.mesh)
         sol.extra["singular"] = True
         return sol
-    if guess is not None:
-        g = guess.on(disc.s)
-        row = Row(disc.weights * g.y, g.lam, 0.0)
-    else:
-        row = Row.value(disc, 0.0)
-    t = corr.solution(disc, start.params, start.y, lam, row).tangent
+    t = corr.linearize(start, guess).tangent
     if abs(t.lam) > STATIONARY:
         sign = 1.0 if t.lam * direction > 0 else -1.0
     elif guess is not None:  # t is oriented along the stored tangent: <guess, t> > 0
         sign = float(direction)
     else:
-        sign = direction * _orientation(corr, disc, start, t)
-    t = t.scaled(sign)
-    return corr.solution(disc, start.params, start.y, lam, Row(disc.weights * t.y, t.lam, 0.0))
+        sign = direction * _orientation(corr, start, t)
+    return corr.linearize(start, t.scaled(sign))
 
 
-def _orientation(corr, disc, start: State, t: Tangent) -> float:
+def _orientation(corr, start: State, t: Tangent) -> float:
     """+1 if t, else -1 (-t), is the way a stationary start goes up in the parameter.
 
     A probe on the hyperplanes at +-ds along t (ds the options' first step): at a cusp or
@@ -173,9 +162,7 @@ def _orientation(corr, disc, start: State, t: Tangent) -> float:
     fails, or a rise is within RISE_NOISE, the side of t whose largest component (in absolute
     value, over every state and node; the first of equals) is positive: a choice made by the
     solution, not by the sign the solver returned."""
-    name = corr.parameter
-    sol = corr.solution(disc, start.params, start.y, start.params[name],
-                        Row(disc.weights * t.y, t.lam, 0.0))
+    sol = corr.linearize(start, t)
     ds = abs(corr.options.ds)
     try:
         rise = [corr.on_plane(sol, t, side * ds, regrid=False).lam - sol.lam
@@ -378,12 +365,9 @@ class _Points:
     ``base_point``, ``arclength``, ``all_folds``, ``counted_values``."""
 
     def _add(self, state: State, **fields) -> Point:
-        if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)) \
-                and hasattr(self.corr, "disc"):
+        if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)):
             # a start, user or end point of a fold curve: its error estimate, as for a step
-            disc = self.corr.disc(state.s)
-            fields["fold_residual"] = float(np.max(disc.rms_residuals(state.y, state.yp,
-                                                                       state.params)))
+            fields["fold_residual"] = float(np.max(self.corr.error_estimate(state)))
         return self.branch.insert(new_point(self.problem, state, **fields))
 
     def end_at_base(self, kind: str, message: str):
@@ -952,9 +936,7 @@ class _Return:
                  + t.lam * (point.params[name] - prev.params[name]))
         if along < 0:
             t = t.scaled(-1.0)
-        disc = self.corr.disc(sol.mesh)
-        sol = self.corr.solution(disc, sol.state.params, sol.state.y, sol.lam,
-                                 Row(disc.weights * t.on(sol.mesh).y, t.lam, 0.0))
+        sol = self.corr.linearize(sol.state, t)
         self.base_point, self.a, self.arclength, self.curvature, self.first = \
             point, sol, point.arclength, None, False
         self.period = None
@@ -1039,10 +1021,7 @@ class _Translates:
             return False
         sec, dist = secant(p.state, q.state, name)
         if inner(p.tangent, sec, sec.s) < 0:
-            t = p.tangent.scaled(-1.0)
-            disc = corr.disc(p.mesh)
-            p = corr.solution(disc, p.state.params, p.state.y, p.lam,
-                              Row(disc.weights * t.on(p.mesh).y, t.lam, 0.0))
+            p = corr.linearize(p.state, p.tangent.scaled(-1.0))
         opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
                                   ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
         sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..numerics.correctors import make_corrector
-from ..numerics.newton import Row, kernel, unit
 from ..core.options import ContinuationOptions
 from ..model.problem import Problem
 from ..core.solution import State, Tangent
@@ -29,40 +28,16 @@ from ..core.solution import State, Tangent
 KERNEL_RTOL = 1e-8
 
 
-def kernel_residual(blocks, v, v_lam: float, name: str) -> float:
-    """The residual of ``(v, v_lam)`` in the linearised equations ``F_y v + F_lam v_lam = 0``
-    of ``blocks``, relative to the size of their terms (the largest row of
-    ``|F_y| |v| + |F_lam| |v_lam|``); 0 for a zero vector of a zero Jacobian."""
-    col, bc = blocks.times(v)
-    col = col + blocks.dcol[name] * v_lam
-    bc = bc + blocks.dbc[name] * v_lam
-    a = np.abs(v)
-    size_col = (np.einsum("iab,bi->ai", np.abs(blocks.d0), a[:, :-1])
-                + np.einsum("iab,bi->ai", np.abs(blocks.d1), a[:, 1:])
-                + np.abs(blocks.dcol[name]) * abs(v_lam))
-    size_bc = (np.abs(blocks.ga) @ a[:, 0] + np.abs(blocks.gb) @ a[:, -1]
-               + np.abs(blocks.dbc[name]) * abs(v_lam))
-    size = max(float(np.max(size_col)), float(np.max(size_bc)))
-    residual = max(float(np.max(np.abs(col))), float(np.max(np.abs(bc))))
-    return residual / size if size > 0 else (0.0 if residual == 0 else np.inf)
-
-
 def switch_direction(problem: Problem, state: State, t1: Tangent, name: str,
                      options: ContinuationOptions) -> Tangent | None:
     """Unit direction of the other branch at the branch point ``state`` (first branch's
     tangent ``t1``), or None if the bordered Jacobian there is not singular enough to have
     one (the point is not a branch point: KERNEL_RTOL)."""
     corr = make_corrector(problem, name, options)
-    disc = corr.disc(state.s)
-    t = t1.on(disc.s)
-    sol = corr.solution(disc, state.params, state.y, state.params[name],
-                        Row(disc.weights * t.y, t.lam, 0.0))
-    v, v_lam = kernel(sol.lin)
-    direction = unit(disc, sol.lin.blocks, v, v_lam, name)
+    direction, residual = corr.kernel(corr.linearize(state, t1))
     # the kernel of a singular matrix satisfies the linearised equations; a regular one's
     # "kernel" from a random right-hand side does not
-    if not np.isfinite(direction.lam) or not kernel_residual(
-            sol.lin.blocks, direction.y, direction.lam, name) <= KERNEL_RTOL:
+    if not np.isfinite(direction.lam) or not residual <= KERNEL_RTOL:
         return None
     return direction
 

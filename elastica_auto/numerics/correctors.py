@@ -1,5 +1,8 @@
-"""The two correctors behind the stepper: solves at fixed parameters, pseudo-arclength steps,
-solves on a hyperplane, and fold location, each returning a :class:`Solution`.
+"""The two correctors behind the stepper, each implementing the corrector interface
+(:class:`~elastica_auto.numerics.corrector.Corrector`): solves at fixed parameters,
+pseudo-arclength steps, solves on a hyperplane, fold location, each returning a
+:class:`Solution`, and the linearisations the test functions, the kernel at a branch point
+and the error estimates are read from.
 
 ``corrector = "collocation"`` (the default, :class:`Collocation`): Newton's method on the
 collocation equations assembled directly (:mod:`elastica_auto.numerics.newton`), one banded LU per
@@ -10,12 +13,14 @@ minimally augmented system, on a mesh that resolves the solution and its null ve
 ``fold_tol``.
 
 ``corrector = "solve_bvp"`` (:class:`SolveBVP`): the same discretisation solved by
-`scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), folds by its extended system: an
-independent check of the first.
+`scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), starts, steps and folds (by its
+extended system) alike: an independent check of the first, sharing none of its solves.
 
 Either way a :class:`Solution` carries the factorised bordered Jacobian at the point, on the
-point's mesh, from which the stepper reads the unit tangent (the fold test function is its
-parameter component) and the sign of the determinant (the branch-point test function).
+point's mesh (``lin``: read by the corrector only), from which the corrector reads the unit
+tangent (the fold test function is its parameter component) and the sign of the determinant
+(the branch-point test function). Each corrector makes its linearisations by a
+:class:`Linearizer` of its own discretisation.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import numpy as np
 from . import bordered
 from .collocation import Discretisation, equidistributed_mesh
 from .gauss import GaussDiscretisation
-from .newton import NEWTON_TOL, Linearization, Row, fold_newton, newton
+from .newton import NEWTON_TOL, Linearization, Row, fold_newton, kernel, newton, unit
 from ..core.errors import NumericalFailure
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, inner
@@ -67,8 +72,9 @@ class CorrectorFailure(NumericalFailure):
 @dataclass
 class Solution:
     """A solution on its mesh with its linearisation: ``lin`` is the bordered Jacobian at the
-    point with the border row of the condition that defined it (factorised), ``tangent`` the
-    unit tangent oriented along that row, ``rms`` the error estimate per interval."""
+    point with the border row of the condition that defined it (factorised; the corrector's
+    own, read by nothing outside ``numerics/``), ``tangent`` the unit tangent oriented along
+    that row, ``rms`` the error estimate per interval."""
 
     state: State
     tangent: Tangent
@@ -109,24 +115,25 @@ def _boundary_pattern(problem):
     return ga, gb
 
 
-class Collocation:
-    """The collocation corrector for continuing ``problem`` in ``parameter``: Gauss
-    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.numerics.gauss`), or
-    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.numerics.collocation`)."""
+class Linearizer:
+    """The linearisations a corrector answers with, on the meshes of one discretisation:
+    Gauss collocation at ``ncol`` points per interval, or with ``ncol = 0`` the cubic
+    (Lobatto IIIA) scheme, which is solve_bvp's own. Every :class:`Solution` carries one: the
+    bordered Jacobian ``[[F_y, F_lam], [c, d]]`` of the discrete equations at the point,
+    factorised (:class:`~elastica_auto.numerics.newton.Linearization`), from which the tangent,
+    the determinant's sign and log, the kernel at a branch point and the error estimates are
+    read. Each corrector owns one (composition, not inheritance: the solve_bvp corrector
+    shares none of the collocation corrector's Newton iteration, meshes or steps)."""
 
-    name = "collocation"
-    #: whether ``options.ncol`` chooses the discretisation (else always the cubic scheme)
-    uses_ncol = True
-
-    def __init__(self, problem, parameter: str, options: ContinuationOptions):
-        self.problem, self.parameter, self.options = problem, parameter, options
-        self.ncol = options.ncol if self.uses_ncol else 0
+    def __init__(self, problem, parameter: str, ncol: int):
+        self.problem, self.parameter, self.ncol = problem, parameter, ncol
         self._seen = _boundary_pattern(problem)
+        #: the boundary rows by the end they involve (`bordered.split_rows`)
         self.split = bordered.split_rows(*self._seen)
         self._discs: dict[bytes, Discretisation] = {}
 
-    # -- meshes ---------------------------------------------------------------------------------
     def disc(self, s) -> Discretisation:
+        """The discretisation on the mesh ``s`` (a few kept: the same meshes recur)."""
         key = np.asarray(s, dtype=float).tobytes()
         d = self._discs.get(key)
         if d is None:
@@ -136,7 +143,7 @@ class Collocation:
                                     if self.ncol else Discretisation(self.problem, s))
         return d
 
-    def _linearize(self, disc, params, Y, lam, row, interior=None) -> Linearization:
+    def linearization(self, disc, params, Y, lam, row, interior=None) -> Linearization:
         lin = Linearization(disc, self.parameter, params, Y, lam, row, self.split, interior)
         st, blocks = lin.fact.st, lin.blocks
         if blocks.gb[st.left].any() or blocks.ga[st.right].any():
@@ -152,9 +159,18 @@ class Collocation:
         """Linearise at a converged (Y, lam) with border ``row``; tangent and error estimate.
         ``interior``: the discretisation's interior unknowns there (Gauss collocation's
         stage values; solved for Y if not given)."""
-        lin = self._linearize(disc, params, Y, lam, row, interior)
+        lin = self.linearization(disc, params, Y, lam, row, interior)
         rms = disc.rms_residuals(Y, lin.ev.f, lin.params, lin.ev)
         return Solution(lin.state(), lin.tangent(), lin, rms, niter)
+
+    def linearize(self, state: State, along: Tangent | None) -> Solution:
+        """``state`` (a solution on its mesh) linearised with the border row along ``along``,
+        ``(weights t_y, t_lam)`` on the mesh, or the row ``lam = value`` where None; the
+        tangent oriented along that row."""
+        disc = self.disc(state.s)
+        lam = state.params[self.parameter]
+        row = Row.value(disc, lam) if along is None else _tangent_row(disc, along)
+        return self.solution(disc, state.params, state.y, lam, row)
 
     def relinearize(self, a: Solution, s) -> Solution:
         """``a`` interpolated onto the mesh ``s`` and linearised there with its own tangent as
@@ -167,6 +183,143 @@ class Collocation:
         out.extra = dict(a.extra)
         return out
 
+    def error_estimate(self, state: State) -> np.ndarray:
+        """The error estimate per interval of ``state`` on its own mesh (the one ``tol``
+        bounds; from its node slopes ``state.yp``)."""
+        return self.disc(state.s).rms_residuals(state.y, state.yp, state.params)
+
+    def determinant(self, sol: Solution, along: Tangent, s) -> tuple[int, float]:
+        """(sign, log|det|) of the bordered Jacobian at ``sol`` on the mesh ``s`` with the
+        border row along ``along``: ``sol``'s own factorisation where it is that one, else
+        ``sol`` interpolated onto ``s`` and factorised there. On one mesh and one row, a test
+        function that varies smoothly along a step (its sign: the branch-point test)."""
+        lin = sol.lin
+        t = along.on(s)
+        if not (np.array_equal(lin.disc.s, s) and lin.row.d == t.lam
+                and np.array_equal(lin.row.c, lin.disc.weights * t.y)):
+            disc = self.disc(s)
+            lin = Linearization(disc, self.parameter, sol.state.params, sol.state(s), sol.lam,
+                                Row(disc.weights * t.y, t.lam, 0.0), self.split)
+        return lin.sign, lin.fact.logdet
+
+    def kernel(self, sol: Solution) -> tuple[Tangent, float]:
+        """At a branch point (``sol``'s bordered Jacobian singular): the unit kernel direction
+        of ``[F_y, F_lam]`` orthogonal to the border row (the other branch's), and its residual
+        in the linearised equations relative to the size of their terms
+        (:func:`kernel_residual`: rounding at a branch point, 1e-2 or more where the matrix is
+        regular and the "kernel" is a solve's answer to a random right-hand side)."""
+        lin = sol.lin
+        v, v_lam = kernel(lin)
+        direction = unit(lin.disc, lin.blocks, v, v_lam, self.parameter)
+        if not np.isfinite(direction.lam):
+            return direction, np.inf
+        return direction, kernel_residual(lin.blocks, direction.y, direction.lam,
+                                          self.parameter)
+
+    def kernel_error(self, sol: Solution) -> np.ndarray:
+        """The error estimate per interval of the kernel direction at the branch point
+        ``sol`` (the solution of the linearised equations the other branch leaves along):
+        what, with ``sol.rms``, a located branch point must have resolved."""
+        lin = sol.lin
+        v, v_lam = kernel(lin)
+        return lin.disc.linear_rms_residuals(sol.state.y, sol.state.params, v, v_lam,
+                                             self.parameter)
+
+    def solve_again(self, state: State, normal: Tangent | None, tol: float) -> Resolved:
+        """Newton on the discrete equations from the solution ``state`` on its own mesh (no
+        regrid), its parameter fixed, or on the hyperplane through it normal to ``normal``
+        (the parameter free): whether ``state`` solves the equations this discretisation
+        computed it by. ``tol``: Newton's (scaled correction)."""
+        disc = self.disc(state.s)
+        name = self.parameter
+        lam = float(state.params[name])
+        row = (Row.value(disc, lam) if normal is None
+               else Row.hyperplane(disc, state, normal, name, 0.0))
+        res = newton(disc, name, state.params, state.y, lam, row, None, self.split, tol=tol)
+        if res.converged:
+            return Resolved(True, res.Y, res.lam, "")
+        # the equations' residual at state: each collocation residual relative to 1 + |y| at
+        # its interval's first node, each boundary residual relative to 1 + max |y|
+        ev = disc.evaluate(state.y, state.params)
+        scale = 1.0 + np.abs(state.y)
+        worst = max(float(np.max(np.abs(ev.col) / scale[:, :-1])),
+                    float(np.max(np.abs(ev.bc)) / (1.0 + float(np.max(np.abs(state.y))))))
+        return Resolved(False, res.Y, res.lam, res.message, worst)
+
+
+@dataclass
+class Resolved:
+    """The outcome of :meth:`Linearizer.solve_again`: where Newton converged (``Y``, ``lam``),
+    or the last iterate, Newton's message and ``residual``, the largest relative residual of
+    the discrete equations at the state it started from (NaN where it converged)."""
+
+    converged: bool
+    Y: np.ndarray
+    lam: float
+    message: str
+    residual: float = float("nan")
+
+
+def kernel_residual(blocks, v, v_lam: float, name: str) -> float:
+    """The residual of ``(v, v_lam)`` in the linearised equations ``F_y v + F_lam v_lam = 0``
+    of ``blocks``, relative to the size of their terms (the largest row of
+    ``|F_y| |v| + |F_lam| |v_lam|``); 0 for a zero vector of a zero Jacobian."""
+    col, bc = blocks.times(v)
+    col = col + blocks.dcol[name] * v_lam
+    bc = bc + blocks.dbc[name] * v_lam
+    a = np.abs(v)
+    size_col = (np.einsum("iab,bi->ai", np.abs(blocks.d0), a[:, :-1])
+                + np.einsum("iab,bi->ai", np.abs(blocks.d1), a[:, 1:])
+                + np.abs(blocks.dcol[name]) * abs(v_lam))
+    size_bc = (np.abs(blocks.ga) @ a[:, 0] + np.abs(blocks.gb) @ a[:, -1]
+               + np.abs(blocks.dbc[name]) * abs(v_lam))
+    size = max(float(np.max(size_col)), float(np.max(size_bc)))
+    residual = max(float(np.max(np.abs(col))), float(np.max(np.abs(bc))))
+    return residual / size if size > 0 else (0.0 if residual == 0 else np.inf)
+
+
+class _Linearized:
+    """The operations of the corrector interface that only read linearisations
+    (:class:`~elastica_auto.numerics.corrector.Corrector`), forwarded to the corrector's own
+    :class:`Linearizer` ``self._linearizer``."""
+
+    _linearizer: Linearizer
+
+    def linearize(self, state: State, along: Tangent | None) -> Solution:
+        return self._linearizer.linearize(state, along)
+
+    def relinearize(self, a: Solution, s) -> Solution:
+        return self._linearizer.relinearize(a, s)
+
+    def error_estimate(self, state: State) -> np.ndarray:
+        return self._linearizer.error_estimate(state)
+
+    def determinant(self, sol: Solution, along: Tangent, s) -> tuple[int, float]:
+        return self._linearizer.determinant(sol, along, s)
+
+    def kernel(self, sol: Solution) -> tuple[Tangent, float]:
+        return self._linearizer.kernel(sol)
+
+    def kernel_error(self, sol: Solution) -> np.ndarray:
+        return self._linearizer.kernel_error(sol)
+
+    def solve_again(self, state: State, normal: Tangent | None, tol: float) -> Resolved:
+        return self._linearizer.solve_again(state, normal, tol)
+
+
+class Collocation(_Linearized):
+    """The collocation corrector for continuing ``problem`` in ``parameter``: Gauss
+    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.numerics.gauss`), or
+    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.numerics.collocation`); both
+    behind the discretisation interface (``evaluate``, ``blocks``, ``stages``, the error
+    estimates), solved by the same Newton iteration."""
+
+    name = "collocation"
+
+    def __init__(self, problem, parameter: str, options: ContinuationOptions):
+        self.problem, self.parameter, self.options = problem, parameter, options
+        self._linearizer = Linearizer(problem, parameter, options.ncol)
+
     def _solve(self, s, params, guess: State, lam: float, make_row, lin=None,
                tol=None, regrid=True, row_of=None) -> Solution:
         """Newton from ``guess`` on mesh ``s`` with the condition ``make_row(disc)``; then, if
@@ -174,27 +327,27 @@ class Collocation:
         solution is linearised with the border row ``row_of(disc)`` (default: the
         condition's)."""
         tol = self.options.tol if tol is None else tol
-        disc = self.disc(s)
+        disc = self._linearizer.disc(s)
         Y = guess(disc.s)
         niter = 0
         for _ in range(MESH_ROUNDS):
             row = make_row(disc)
             res = self._newton(disc, params, Y, lam, row, lin)
             niter += res.niter
-            sol = self.solution(disc, params, res.Y, res.lam,
+            sol = self._linearizer.solution(disc, params, res.Y, res.lam,
                                 row if row_of is None else row_of(disc), niter, res.interior)
             sol.extra["contraction"] = res.contraction
             worst = float(sol.rms.max())
             if not regrid or worst <= tol:
                 return sol
-            disc = self.disc(self.regrid(disc.s, sol.rms))
+            disc = self._linearizer.disc(self.regrid(disc.s, sol.rms))
             Y, lam, lin = sol.state(disc.s), res.lam, None
         raise CorrectorFailure(f"error estimate {worst:.2e} > tol after {MESH_ROUNDS} meshes")
 
     def _newton(self, disc, params, Y, lam, row, lin):
         # Newton stops three orders below the discretisation tolerance (NEWTON_TOL at the
         # default tol = 1e-5), so that a tighter tol also gives a tighter solution.
-        res = newton(disc, self.parameter, params, Y, lam, row, lin, self.split,
+        res = newton(disc, self.parameter, params, Y, lam, row, lin, self._linearizer.split,
                      tol=min(NEWTON_TOL, 1e-3 * self.options.tol))
         if not res.converged:
             raise CorrectorFailure(res.message, res.correction)
@@ -203,7 +356,7 @@ class Collocation:
     def regrid(self, s, rms, tol=None):
         opt = self.options
         return equidistributed_mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
-                                    opt.ntst, opt.max_nodes - 1, self.disc(s).order)
+                                    opt.ntst, opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def fold_mesh(self, s, rms):
         """The mesh, equidistributed from the error estimate ``rms`` on ``s``, on which a fold
@@ -212,7 +365,7 @@ class Collocation:
         kernel within fold_tol only)."""
         opt = self.options
         return equidistributed_mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
-                                    opt.max_nodes - 1, self.disc(s).order)
+                                    opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def next_mesh(self, a: Solution):
         """The mesh for the step from ``a``: its own while its error estimate stays between
@@ -228,12 +381,15 @@ class Collocation:
         return new if len(new) <= COARSEN_SIZE * len(a.mesh) else a.mesh
 
     # -- the solves the stepper asks for --------------------------------------------------------
-    def at_value(self, guess: State, params: dict, value: float, lin=None) -> State:
+    def at_value(self, guess: State, params: dict, value: float,
+                 near: Solution | None = None) -> State:
         """The solution with the continued parameter at ``value`` on the guess's mesh, from
-        ``guess``; ``lin``: a factorisation nearby to start the chord iterations with."""
-        disc = self.disc(guess.s)
+        ``guess``; ``near``: a solution nearby whose factorisation starts the chord
+        iterations."""
+        disc = self._linearizer.disc(guess.s)
         row = Row.value(disc, value)
-        res = self._newton(disc, params, guess.y, value, row, lin)
+        res = self._newton(disc, params, guess.y, value, row,
+                           None if near is None else near.lin)
         p = {**params, self.parameter: value}
         return State(disc.s, res.Y, self.problem.rhs(disc.s, res.Y, p),
                      self.problem.point_params(p, res.Y))
@@ -300,11 +456,11 @@ class Collocation:
         approximates the null vector), on a mesh that resolves the solution and its null
         vector to ``fold_tol``."""
         opt, name = self.options, self.parameter
-        disc = self.disc(near.mesh)
+        disc = self._linearizer.disc(near.mesh)
         Y, lam, t = near.state.y, near.lam, near.tangent
         params = near.state.params
         for _ in range(MESH_ROUNDS):
-            res = fold_newton(disc, name, params, Y, lam, t, self.split)
+            res = fold_newton(disc, name, params, Y, lam, t, self._linearizer.split)
             if not res.converged:
                 raise CorrectorFailure(f"fold not located: {res.message}")
             p = {**params, name: res.lam}
@@ -314,7 +470,7 @@ class Collocation:
             state = State(disc.s, res.Y, ev.f, self.problem.point_params(p, res.Y))
             if rms.max() <= opt.fold_tol:
                 return FoldPoint(state, res.phi, float(rms.max()))
-            disc = self.disc(self.fold_mesh(disc.s, rms))
+            disc = self._linearizer.disc(self.fold_mesh(disc.s, rms))
             Y, lam, t = state(disc.s), res.lam, res.phi
         raise CorrectorFailure(f"fold: error estimate {rms.max():.2e} > fold_tol after "
                                f"{MESH_ROUNDS} meshes")
@@ -330,23 +486,44 @@ class FoldPoint:
     residual: float
 
 
-class SolveBVP(Collocation):
-    """The solve_bvp corrector: steps, value solves and folds by `scipy.integrate.solve_bvp`;
-    tangents and test functions by the same linearisation as the collocation corrector, on
-    solve_bvp's mesh."""
+class SolveBVP(_Linearized):
+    """The solve_bvp corrector: starts, value solves, steps and folds by
+    `scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), meshes by solve_bvp's own
+    refinement (and :func:`~elastica_auto.numerics.bvp.coarsen` between steps). It shares no
+    solve with the collocation corrector, so that the two check each other. Its
+    linearisation (tangents, the determinant's sign, the kernel at a branch point) is that of
+    solve_bvp's own discrete equations, the cubic Lobatto IIIA scheme of
+    :mod:`~elastica_auto.numerics.collocation`, on solve_bvp's mesh, by a
+    :class:`Linearizer` of its own: solve_bvp computes a Jacobian but gives none back, and the
+    stepper needs one at every point."""
 
     name = "solve_bvp"
-    uses_ncol = False
+
+    def __init__(self, problem, parameter: str, options: ContinuationOptions):
+        self.problem, self.parameter, self.options = problem, parameter, options
+        self._linearizer = Linearizer(problem, parameter, 0)
 
     def _bvp_solution(self, res, row_of) -> Solution:
         if not res.success:
             raise CorrectorFailure(res.message)
         st = res.state
-        disc = self.disc(st.s)
-        return self.solution(disc, st.params, st.y, st.params[self.parameter], row_of(disc),
-                             res.niter)
+        disc = self._linearizer.disc(st.s)
+        return self._linearizer.solution(disc, st.params, st.y, st.params[self.parameter],
+                                 row_of(disc), res.niter)
 
-    def at_value(self, guess: State, params: dict, value: float, lin=None) -> State:
+    def point(self, guess: State) -> Solution:
+        """The solution at the guess's parameters by solve_bvp from the guess (its mesh
+        refined by solve_bvp to ``tol``), linearised with the row ``lam = value``."""
+        from .bvp import solve_fixed
+        opt = self.options
+        lam = guess.params[self.parameter]
+        res = solve_fixed(self.problem, guess, guess.params, opt.tol, opt.max_nodes)
+        return self._bvp_solution(res, lambda disc: Row.value(disc, lam))
+
+    def at_value(self, guess: State, params: dict, value: float,
+                 near: Solution | None = None) -> State:
+        """The solution at ``value`` by solve_bvp from ``guess`` (``near`` unused: solve_bvp
+        makes its own Jacobians)."""
         from .bvp import solve_fixed
         res = solve_fixed(self.problem, guess, {**params, self.parameter: value},
                           self.options.tol, self.options.max_nodes)
@@ -355,13 +532,15 @@ class SolveBVP(Collocation):
         return res.state
 
     def step(self, a: Solution, ds: float, curvature: Tangent | None = None) -> Solution:
-        """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` by solve_bvp, predicted as the
-        collocation corrector's (the inherited step would run the collocation Newton, and
-        the cross-check of the two correctors would not be one)."""
+        """Keller's pseudo-arclength step ``<x - a, t_a> = ds`` by solve_bvp, predicted at
+        ``a + ds t_a`` (``+ ds^2 / 2 curvature``) as the collocation corrector's."""
         return self.on_plane(a, a.tangent, ds, curvature=curvature)
 
     def on_plane(self, a: Solution, direction: Tangent, sigma: float, s=None,
                  regrid: bool = True, curvature: Tangent | None = None) -> Solution:
+        """The solution on the hyperplane ``<x - a, direction> = sigma`` by solve_bvp, started
+        on the mesh ``s`` (default a's); ``regrid`` unused: solve_bvp refines the mesh it is
+        given whenever its residual asks for it."""
         from .bvp import solve_arclength
         opt = self.options
         mesh = a.mesh if s is None else s
@@ -377,10 +556,22 @@ class SolveBVP(Collocation):
             disc, a.state, direction, self.parameter, sigma))
 
     def next_mesh(self, a: Solution):
+        """a's mesh, with every other node dropped where the residual is far below ``tol``
+        (solve_bvp itself only ever adds nodes)."""
         from .bvp import coarsen
         return coarsen(a.mesh, a.rms, self.options.tol, self.options.ntst + 1)
 
+    def fold_mesh(self, s, rms):
+        """The mesh a branch point is solved again on: equidistributed from the residual
+        ``rms`` on ``s`` for FOLD_TARGET of ``fold_tol`` (solve_bvp refines it further where
+        its own residual asks for it)."""
+        opt = self.options
+        return equidistributed_mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
+                                    opt.max_nodes - 1, Discretisation.order)
+
     def fold(self, near: Solution) -> FoldPoint:
+        """The fold near ``near`` by solve_bvp on the fold's extended system (the BVP, its null
+        vector and its normalisation, the parameter free), to ``fold_tol``."""
         from .bvp import solve_fold
         opt = self.options
         res = solve_fold(self.problem, near.state, near.tangent, self.parameter, opt.fold_tol,
@@ -397,4 +588,6 @@ CORRECTORS = {c.name: c for c in (Collocation, SolveBVP)}
 
 
 def make_corrector(problem, parameter: str, options: ContinuationOptions):
+    """The corrector ``options.corrector`` names, for continuing ``problem`` in ``parameter``
+    (:class:`~elastica_auto.numerics.corrector.Corrector`)."""
     return CORRECTORS[options.corrector](problem, parameter, options)
