@@ -238,12 +238,14 @@ def test_an_interruption_after_a_branch_is_computed_keeps_it(tmp_path, monkeypat
     and just after the branch lay between two signal handlers)."""
     from elastica_auto.execution import jobs as jobs_module
     from elastica_auto.execution import run as run_module
+    from elastica_auto.execution import schedule as schedule_module
     from elastica_auto.storage import store
     (tmp_path / "two.toml").write_text(SMALL.replace("eps = 0.25", "eps = [0.25, 0.5]"))
     plan = runfile.load(tmp_path / "two.toml")
+    # "computed": where the in-process run's schedule has a branch computed (`Schedule`)
     target, after = {"continuation's end": ((jobs_module, "continue_branch"), True),
                      "labelling": ((jobs_module, "label_stability"), False),
-                     "computed": ((run_module, "compute_branch"), True),
+                     "computed": ((schedule_module, "compute_branch"), True),
                      "saving": ((store.Writer, "save"), False)}[where]
     real = getattr(*target)
 
