@@ -1,0 +1,160 @@
+"""The tendon-driven robot (equations/tendon_robot.py; issue 49 item 2; docs/soft-robots.md,
+"Tendon-driven robots") against what is independent of its derivation:
+
+* a closed form: with no weight, the total force and moment vanish everywhere, so the strains
+  are the same at every s (the minimiser of the density: u2 = tau1 delta / b2, v = (1 -
+  tau1 / S) e3 for tendon 1 alone) and the backbone is an arc of a circle;
+* a shooting solution written here (not the engine's): the strains (v, u) as states, their
+  derivatives from the balances in the body (n_b' = -u x n_b + R^T (0, g, 0), m_b' = -u x m_b
+  - v x n_b) through the 6x6 Hessian of the density (the tendons' P_i / |t_i| terms: the
+  Rucker-Webster form of the tendon robot), integrated by solve_ivp, the base strains found by
+  scipy.optimize.root from the naive guess (straight, unstrained): the tip against the
+  engine's with a weight at the tip;
+* conservation along computed solutions: n = (0, -P, 0) and m + r x n = r(1) x n(1) at every
+  point (no distributed load).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import root
+
+import elastica_auto as ea
+from helpers import REPO
+
+ROBOT = REPO / "equations" / "tendon_robot.py"
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return ea.load_problem(ROBOT)
+
+
+def _hat(a):
+    return np.array(((0, -a[2], a[1]), (a[2], 0, -a[0]), (-a[1], a[0], 0)))
+
+
+def _offsets(p):
+    return [p["delta"] * np.array((math.cos(i * math.pi / 2), math.sin(i * math.pi / 2), 0.0))
+            for i in range(4)]
+
+
+def _body(v, u, p):
+    """n_b = S (v - e3) + sum tau_i t_i / |t_i|, m_b = K u + sum tau_i d_i x t_i / |t_i|
+    (written here from the energy) and their Jacobian in (v, u)."""
+    K = np.diag((1.0, p["b2"], p["c"]))
+    nb = p["S"] * (v - np.array((0, 0, 1.0)))
+    mb = K @ u
+    J = np.zeros((6, 6))
+    J[:3, :3] = p["S"] * np.eye(3)
+    J[3:, 3:] = K
+    for i, d in enumerate(_offsets(p)):
+        tau = p[f"tau{i + 1}"]
+        if tau == 0:
+            continue
+        t = v + np.cross(u, d)
+        length = np.linalg.norm(t)
+        unit = t / length
+        proj = (np.eye(3) - np.outer(unit, unit)) / length      # d(unit)/dt
+        D = _hat(d)                                              # u x d = -D u
+        nb += tau * unit
+        mb += tau * np.cross(d, unit)
+        J[:3, :3] += tau * proj
+        J[:3, 3:] -= tau * proj @ D
+        J[3:, :3] += tau * D @ proj
+        J[3:, 3:] -= tau * D @ proj @ D
+    return nb, mb, J
+
+
+def _rhs(s, y, p):
+    R, v, u = y[3:12].reshape(3, 3), y[12:15], y[15:18]
+    nb, mb, J = _body(v, u, p)
+    dnb = -np.cross(u, nb) + R.T @ np.array((0, p["g"], 0))
+    dmb = -np.cross(u, mb) - np.cross(v, nb)
+    dvu = np.linalg.solve(J, np.concatenate((dnb, dmb)))
+    return np.concatenate((R @ v, (R @ _hat(u)).ravel(), dvu))
+
+
+def _shoot(p, base):
+    y0 = np.concatenate((np.zeros(3), np.eye(3).ravel(), base))
+    return solve_ivp(_rhs, (0, 1), y0, args=(p,), method="DOP853", rtol=1e-11, atol=1e-12)
+
+
+def _residual(base, p):
+    sol = _shoot(p, base)
+    if sol.status != 0:
+        return np.full(6, 1e6)
+    y = sol.y[:, -1]
+    R = y[3:12].reshape(3, 3)
+    nb, mb, _ = _body(y[12:15], y[15:18], p)
+    return np.concatenate((nb - R.T @ np.array((0, -p["P"], 0)), mb))
+
+
+def shooting_tip(p):
+    """The tip r(1) by shooting from the naive guess (straight, unstrained), or None where
+    root does not converge."""
+    guess = np.array((0, 0, 1.0, 0, 0, 0))
+    found = root(_residual, guess, args=(p,), method="hybr", options={"xtol": 1e-12})
+    if not found.success or np.max(np.abs(found.fun)) > 1e-8:
+        return None
+    return _shoot(p, found.x).y[:3, -1]
+
+
+def test_without_weight_the_backbone_is_an_arc(robot):
+    """Tendon 1 (at d1) alone, g = P = 0: the tip on the arc of curvature u2 = tau1 delta /
+    b2 and length v3 = 1 - tau1 / S, x(1) = v3 (1 - cos u2) / u2, z(1) = v3 sin u2 / u2,
+    beyond a full turn (u2 = 2 pi at tau1 = 126), with index 0."""
+    p = robot.defaults()
+    taus = [20.0, 60.0, 130.0, 180.0]
+    br = ea.continuation(robot, {"tau1": 0.0}, "tau1", bounds=(0, 200), uz=taus,
+                         ds_max=10.0)[0]
+    hits = [pt for pt in br.points if pt.type == "UZ"]
+    assert [pt.params["tau1"] for pt in hits] == pytest.approx(taus)
+    for pt in hits:
+        tau = pt.params["tau1"]
+        u2, v3 = tau * p["delta"] / p["b2"], 1 - tau / p["S"]
+        tip = (v3 * (1 - math.cos(u2)) / u2, 0.0, v3 * math.sin(u2) / u2)
+        got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
+        assert got == pytest.approx(tip, abs=1e-7)
+        assert pt.index == 0
+    assert set(br.columns["index"]) == {0}
+
+
+@pytest.fixture(scope="module")
+def lifting(robot):
+    """Tendon 2 (at d2 = e_y) lifting a weight P = 1 at the tip: the weight applied first
+    (continued in P), then the tension."""
+    weighed = ea.continuation(robot, {"tau2": 0.0}, "P", bounds=(0, 1.0), ds_max=0.5)
+    return ea.continuation(robot, weighed.label("EP2"), "tau2", bounds=(0, 60),
+                           uz=[2.0, 5.0, 10.0, 20.0, 40.0], ds_max=5.0)[0]
+
+
+def test_the_tip_is_the_shooting_solution_s(robot, lifting):
+    """At tensions where the shooting converges from the naive guess, the engine's tip is
+    the shooting's to 1e-6 (the engine's mesh tolerance; the shooting's rtol is 1e-11)."""
+    compared = 0
+    for pt in lifting.points:
+        if pt.type != "UZ":
+            continue
+        tip = shooting_tip({**robot.defaults(), **pt.params})
+        if tip is None:
+            continue
+        compared += 1
+        got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
+        np.testing.assert_allclose(got, tip, atol=1e-6)
+    assert compared >= 3
+
+
+def test_force_and_moment_are_conserved(robot, lifting):
+    """No distributed load: n(s) = (0, -P, 0) and m(s) + r(s) x n(s) = r(1) x n(1) at every
+    mesh point of every computed solution."""
+    for pt in lifting.points[::3]:
+        r, m, n = pt.profile[0:3], pt.profile[7:10], pt.profile[10:13]
+        np.testing.assert_allclose(n, np.outer((0, -pt.params["P"], 0), np.ones(n.shape[1])),
+                                   atol=1e-8)
+        total = m + np.cross(r, n, axis=0)
+        np.testing.assert_allclose(total, total[:, -1:] * np.ones(n.shape[1]), atol=1e-7)
