@@ -158,3 +158,18 @@ def test_force_and_moment_are_conserved(robot, lifting):
                                    atol=1e-8)
         total = m + np.cross(r, n, axis=0)
         np.testing.assert_allclose(total, total[:, -1:] * np.ones(n.shape[1]), atol=1e-7)
+
+
+def test_where_newton_s_inverse_sticks_the_branch_ends_mx_not_internal(robot):
+    """Past tau1 = 229 (1.8 turns) the Legendre inverse's Newton iteration sticks at a
+    tendon's zero length (the kink of |t|, where its Hessian is unbounded) at states between
+    the nodes: the error estimate is NaN there. The corrector treats that as a failed step
+    (shortens it, then ends the branch MX with that reason), never as an internal error.
+    (The branch's solutions up to there are the closed-form arc's.)"""
+    br = ea.continuation(robot, {"tau1": 0.0}, "tau1", bounds=(0, 300),
+                         ds_max=10.0)[0]
+    last = br.points[-1]
+    assert last.type == "MX"
+    assert "error estimate is not finite" in br.message
+    assert "internal" not in br.message.lower()
+    assert 217 < last.params["tau1"] < 285.7
