@@ -173,3 +173,125 @@ def test_where_newton_s_inverse_sticks_the_branch_ends_mx_not_internal(robot):
     assert "error estimate is not finite" in br.message
     assert "internal" not in br.message.lower()
     assert 217 < last.params["tau1"] < 285.7
+
+
+def _random_state(rng, p):
+    """A smooth random configuration (no equilibrium): the frame q(s) a normalised quadratic,
+    r(s) = int_0^s R v with random smooth body strains v; the momenta the Legendre map of the
+    energy gives it (n = R n_b(v, u), m = R m_b(v, u), `_body`). Returns (frames and positions
+    at any s, the states at any s)."""
+    import elastica_auto.equations.kirchhoff_lever_arm as frames
+    c = rng.normal(size=(3, 4))
+    e = rng.normal(size=(3, 3)) * 0.15
+    x, w = np.polynomial.legendre.leggauss(12)
+
+    def unit(s):
+        q = c[0][:, None] + c[1][:, None] * s + c[2][:, None] * s ** 2
+        return q / np.sqrt(np.sum(q * q, axis=0))
+
+    def body(s):
+        return np.vstack((e[0, 0] + e[0, 1] * s, e[1, 0] * np.cos(2 * s) + e[1, 1],
+                          1 + e[2, 0] * s + e[2, 1] * s ** 2))
+
+    def rate(s):
+        return np.einsum("ijm,jm->im", frames.rotation(unit(s)), body(s))
+
+    def position(s):
+        out = np.zeros((3, len(s)))
+        for k, sk in enumerate(s):
+            out[:, k] = rate(0.5 * sk * (x + 1)) @ (0.5 * sk * w)
+        return out
+
+    def configuration(s):
+        s = np.asarray(s, dtype=float)
+        return frames.rotation(unit(s)).transpose(2, 0, 1), position(s)
+
+    def state(s):
+        s = np.asarray(s, dtype=float)
+        q = unit(s)
+        dq = unit(s + 1e-30j).imag / 1e-30
+        u = 2 * frames.qmul(np.vstack((q[0], -q[1:])), dq)[1:]
+        rot = frames.rotation(q)
+        v = body(s)
+        nm = np.array([np.concatenate(_body(v[:, k], u[:, k], p)[:2]) for k in range(len(s))]).T
+        n = np.einsum("ijm,jm->im", rot, nm[:3])
+        m = np.einsum("ijm,jm->im", rot, nm[3:])
+        return np.vstack((position(s), q * (1 + 0.3 * np.sin(2 * s)), m, n))
+    return configuration, state
+
+
+def _discrete_hessian(p, configuration, n, delta=1e-4):
+    """The Hessian in (r_j, w_j), j = 1..n, of the robot discretised on n intervals: frames
+    R_j -> exp([w_j]_x) R_j and positions r_j at s_j = j / n (R_0, r_0 clamped), curvatures
+    u_j = log(R_j^T R_(j+1)) / h, the midpoint frame M_j = R_j exp(log(R_j^T R_(j+1)) / 2)
+    and v_j = M_j^T (r_(j+1) - r_j) / h (the midpoint rule)::
+
+        E_h = sum_j h [ u_j.K u_j/2 + S |v_j - e3|^2/2 + sum_i tau_i |v_j + u_j x d_i| ]
+
+    (the weights g y and P y(1) are linear: no Hessian), each interval's 12 x 12 block by
+    central differences."""
+    from rod_hessian import expm, logm
+    s = np.linspace(0, 1, n + 1)
+    frames, r = configuration(s)
+    h = 1.0 / n
+    kk = np.array((1.0, p["b2"], p["c"]))
+    e3 = np.array((0, 0, 1.0))
+
+    def interval(z):
+        ra, wa, rb, wb = z[0:3].T, z[3:6].T, z[6:9].T, z[9:12].T
+        fa, fb = expm(wa) @ frames[:-1], expm(wb) @ frames[1:]
+        rel = logm(np.swapaxes(fa, -1, -2) @ fb)
+        u = rel / h
+        mid = fa @ expm(0.5 * rel)
+        v = np.einsum("mji,mj->mi", mid, (rb - ra) / h)
+        density = 0.5 * np.einsum("mi,i,mi->m", u, kk, u) + 0.5 * p["S"] * np.sum(
+            (v - e3) ** 2, axis=1)
+        for i, d in enumerate(_offsets(p)):
+            density = density + p[f"tau{i + 1}"] * np.linalg.norm(v + np.cross(u, d), axis=1)
+        return h * density
+
+    zero = np.zeros((3, n))
+    pair = np.vstack((r[:, :-1], zero, r[:, 1:], zero))
+    block = np.zeros((n, 12, 12))
+    for i in range(12):
+        for k in range(i, 12):
+            total = 0.0
+            for si in (1, -1):
+                for sk in (1, -1):
+                    z = pair.copy()
+                    z[i] += si * delta
+                    z[k] += sk * delta
+                    total = total + si * sk * interval(z)
+            block[:, i, k] = block[:, k, i] = total / (4 * delta ** 2)
+    big = np.zeros((6 * (n + 1), 6 * (n + 1)))
+    for j in range(n):
+        big[6 * j:6 * j + 12, 6 * j:6 * j + 12] += block[j]
+    return big[6:, 6:]
+
+
+def test_the_index_is_the_discretised_energy_s_inertia(robot):
+    """At random frame and position fields (no equilibria, |q| != 1 in the states) and random
+    tensions, offsets, stiffnesses, the direct count of the derived second variation equals
+    the number of negative eigenvalues of the finite-difference Hessian of the robot
+    discretised above on 160 intervals, where its lowest eigenvalues are decided (each at
+    least 5 times its change from 80); at least four decided states, with at least two
+    different indices."""
+    from elastica_auto.numerics.stability import count_form
+    rng = np.random.default_rng(4950)
+    decided, seen = 0, set()
+    for _ in range(6):
+        p = {**robot.defaults(), "delta": rng.uniform(0.03, 0.3), "b2": rng.uniform(0.5, 2.5),
+             "c": rng.uniform(0.4, 1.5), "S": rng.uniform(50, 200),
+             **{f"tau{i}": rng.uniform(0, 20) for i in range(1, 5)}}
+        configuration, state = _random_state(rng, p)
+        eig = {nn: np.linalg.eigvalsh(_discrete_hessian(p, configuration, nn) * nn)
+               for nn in (80, 160)}
+        low = eig[160][:8]
+        if np.any(np.abs(low) < 5 * np.abs(low - eig[80][:8])):
+            continue
+        direct = count_form(lambda pts: robot.second_variation(pts, state(pts), p),
+                            np.linspace(0, 1, 101)).index
+        assert direct == int(np.sum(eig[160] < 0))
+        decided += 1
+        seen.add(direct)
+    assert decided >= 4 and len(seen) >= 2
