@@ -161,10 +161,11 @@ def test_force_and_moment_are_conserved(robot, lifting):
 
 
 def test_where_newton_s_inverse_sticks_the_branch_ends_mx_not_internal(robot):
-    """Past tau1 = 229 (1.8 turns) the Legendre inverse's Newton iteration sticks at a
-    tendon's zero length (the kink of |t|, where its Hessian is unbounded) at states between
-    the nodes: the error estimate is NaN there. The corrector treats that as a failed step
-    (shortens it, then ends the branch MX with that reason), never as an internal error.
+    """Near tau1 = 238 (1.9 turns, the tendon's length 0.17 per unit) the states between the
+    nodes fall where the Legendre inverse's minimiser is the tendon's zero length (the kink of
+    |t|), which Newton does not reach: the error estimate is NaN there. The corrector treats
+    that as a failed step (shortens it, then ends the branch MX with that reason), never as
+    an internal error.
     (The branch's solutions up to there are the closed-form arc's.)"""
     br = ea.continuation(robot, {"tau1": 0.0}, "tau1", bounds=(0, 300),
                          ds_max=10.0)[0]
