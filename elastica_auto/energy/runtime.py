@@ -53,12 +53,29 @@ def _solve(a, b):
 def legendre_inverse(legendre, s, z, m, p):
     """v with dL/dv (z, v, s) = m at every point, (k, m'): ``legendre(s, z, v, p)`` returns
     L (m'), dL/dv (k, m') and d2L/dv2 (k, k, m'). NaN where it does not converge or
-    d2L/dv2 is not positive definite (the derivation checked convexity at samples only)."""
+    d2L/dv2 is not positive definite (the derivation checked convexity at samples only).
+
+    Newton starts at v = 0, except where L or its derivatives are not finite there: a density
+    with the length of a vector of the velocities (a tendon's |v + u x d|, with v = R^T r') is
+    not differentiable where that vector vanishes, which for a rod is r' = 0, u = 0. There it
+    starts far out, at v = 1e3 (1, ..., 1): a norm's gradient is bounded (tau) and its
+    curvature tau / |t| small there, so the first step lands near the minimiser of the
+    quadratic part with the norms linearised, on the side of each kink where the solution
+    is. Started near a kink instead (v = (1, ..., 1) in a turned frame), Newton can walk into
+    it and stick: across the kink the Hessian is unbounded and the steps vanish. A minimiser
+    at a kink (a tendon of zero length) is not found at all (the residual does not vanish
+    there): NaN."""
     z, m = np.asarray(z, dtype=float), np.asarray(m, dtype=float)
     k, npts = m.shape
     s = np.broadcast_to(np.asarray(s, dtype=float), (npts,))
     v = np.zeros((k, npts))
-    L, Lv, Lvv = legendre(s, z, v, p)
+    with np.errstate(all="ignore"):
+        L, Lv, Lvv = legendre(s, z, v, p)
+    singular = ~(np.isfinite(L) & np.all(np.isfinite(Lv), axis=0)
+                 & np.all(np.isfinite(Lvv), axis=(0, 1)))
+    if np.any(singular):
+        v[:, singular] = 1e3
+        L, Lv, Lvv = legendre(s, z, v, p)
     phi = L - np.sum(m * v, axis=0)
     done = np.zeros(npts, dtype=bool)
     bad = np.zeros(npts, dtype=bool)

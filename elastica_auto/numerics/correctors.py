@@ -161,6 +161,11 @@ class Linearizer:
         stage values; solved for Y if not given)."""
         lin = self.linearization(disc, params, Y, lam, row, interior)
         rms = disc.rms_residuals(Y, lin.ev.f, lin.params, lin.ev)
+        if not np.all(np.isfinite(rms)):
+            # the equations not finite between the nodes (an energy module's Legendre inverse
+            # that did not converge there): no error estimate, and no solution to step from
+            raise CorrectorFailure("the error estimate is not finite (the equations are not "
+                                   "finite between the nodes)")
         return Solution(lin.state(), lin.tangent(), lin, rms, niter)
 
     def linearize(self, state: State, along: Tangent | None) -> Solution:
