@@ -528,3 +528,31 @@ def test_an_unwritable_cache_only_costs_the_check(tmp_path, checks, monkeypatch)
     BranchFile(path)
     BranchFile(path)
     assert checks == ["fresh.h5", "fresh.h5"]
+
+
+def test_the_folder_of_checked_files_stays_small_at_a_small_cost(tmp_path, monkeypatch):
+    """The remembered files are pruned to the KEEP most recently used once there are more
+    than MAX_ENTRIES, and a write lists the folder only when its entry's digest starts with
+    "00" (one in PRUNE_EVERY): listing it at every write once it had grown past
+    MAX_ENTRIES (a test suite's 14,000 entries) tripled a small run's time."""
+    from elastica_auto.storage import verified
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv("ELASTICA_AUTO_CHECKSUMS", raising=False)
+    monkeypatch.setattr(verified, "MAX_ENTRIES", 40)
+    monkeypatch.setattr(verified, "KEEP", 10)
+    where = verified.folder()
+    where.mkdir(parents=True)
+    for i in range(45):
+        (where / f"{i:02d}").touch()
+        os.utime(where / f"{i:02d}", ns=(10 ** 18 + i, 10 ** 18 + i))
+    listed, scandir = [], os.scandir
+    monkeypatch.setattr(os, "scandir", lambda path: listed.append(path) or scandir(path))
+    st = os.stat(where / "00")
+    monkeypatch.setattr(verified, "_entry", lambda st: where / "feed")
+    verified.remember(st)
+    assert listed == [] and len(list(scandir(where))) == 46
+    monkeypatch.setattr(verified, "_entry", lambda st: where / "00ff")
+    verified.remember(st)          # a write in PRUNE_EVERY: the folder is pruned
+    assert listed == [where]
+    assert {p.name for p in where.iterdir()} == {"feed", "00ff"} | {f"{i:02d}"
+                                                                   for i in range(37, 45)}

@@ -17,8 +17,11 @@ so a damaged file cannot pass for a checked one by its times being set back.) By
 on the disk itself, below the file system, change neither: those are found by HDF5, which
 checks each chunk's checksum whenever it reads it, so no command computes anything from them.
 
-A folder that cannot be written only costs the check next time. Entries older than
-`MAX_AGE` are removed once the folder holds more than `MAX_ENTRIES`.
+A folder that cannot be written only costs the check next time. The folder is kept to at
+most about `MAX_ENTRIES` entries: one write in `PRUNE_EVERY` (those whose entry's digest
+starts with "00", so that no write pays for listing the folder but those) removes the
+least recently used entries beyond `KEEP`. An entry removed only costs the check of its
+file at its next opening.
 ``ELASTICA_AUTO_CHECKSUMS=always`` checks every file on every opening, remembering nothing.
 """
 
@@ -27,15 +30,16 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
-import time
 from pathlib import Path
 
 #: The environment variable that makes every opening check every chunk ("always").
 ENV = "ELASTICA_AUTO_CHECKSUMS"
-#: The folder is pruned when it holds more entries than this ...
+#: The folder is pruned when it holds more entries than this, ...
 MAX_ENTRIES = 4096
-#: ... of those not used (remembered or looked up) for this many seconds.
-MAX_AGE = 30 * 86400
+#: ... to this many, the most recently used (remembered or looked up) kept; ...
+KEEP = 2048
+#: ... looked at by one write in this many (the entries whose digest starts with "00").
+PRUNE_EVERY = 256
 
 
 def always() -> bool:
@@ -78,17 +82,22 @@ def remember(st: os.stat_result):
         entry.touch()
     except OSError:
         return
-    _prune(entry.parent)
+    if entry.name.startswith("00"):          # one write in PRUNE_EVERY, by the digest
+        prune(entry.parent)
 
 
-def _prune(where: Path):
-    """Remove the entries not used for MAX_AGE, where there are more than MAX_ENTRIES."""
+def prune(where: Path):
+    """Remove the least recently used entries beyond KEEP, where there are more than
+    MAX_ENTRIES (an entry's modification time is its last use)."""
     with contextlib.suppress(OSError):
         entries = list(os.scandir(where))
         if len(entries) <= MAX_ENTRIES:
             return
-        cutoff = time.time() - MAX_AGE
+        used = []
         for e in entries:
             with contextlib.suppress(OSError):
-                if e.stat().st_mtime < cutoff:
-                    os.unlink(e.path)
+                used.append((e.stat().st_mtime_ns, e.path))
+        used.sort()
+        for _, path in used[:max(0, len(used) - KEEP)]:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
