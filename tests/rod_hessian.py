@@ -108,6 +108,31 @@ def hessian(mod, state, n, delta=1e-4, interval=None, end=None):
     return big[3:, 3:]                               # w_0 = 0: the clamp
 
 
+def chain_hessian(interval, pair, delta):
+    """The Hessian of sum_j interval(pair)_j, a chain of interval terms, in its nodes'
+    unknowns: column j of ``pair`` (2k rows) holds node j's k unknowns then node j+1's,
+    ``interval`` maps such an array to each interval's energy (n,). By central differences,
+    each pair of one interval's unknowns perturbed at once in every interval; assembled
+    over the nodes: ((n + 1) k) square, node 0 first."""
+    width, n = pair.shape
+    k = width // 2
+    block = np.zeros((n, width, width))
+    for i in range(width):
+        for j in range(i, width):
+            total = 0.0
+            for si in (1, -1):
+                for sj in (1, -1):
+                    z = pair.copy()
+                    z[i] += si * delta
+                    z[j] += sj * delta
+                    total = total + si * sj * interval(z)
+            block[:, i, j] = block[:, j, i] = total / (4 * delta ** 2)
+    big = np.zeros((k * (n + 1), k * (n + 1)))
+    for j in range(n):
+        big[k * j:k * j + width, k * j:k * j + width] += block[j]
+    return big
+
+
 def eigenvalues(mod, state, n):
     """The eigenvalues of the discrete second variation with the lumped mass, ascending."""
     mass = np.full(3 * n, 1.0 / n)

@@ -25,6 +25,7 @@ import pytest
 import elastica_auto as ea
 from elastica_auto.numerics.stability import count_form
 from helpers import REPO
+from rod_hessian import chain_hessian
 
 PLANAR = REPO / "equations" / "cosserat_planar.py"
 ROD = REPO / "equations" / "cosserat_rod.py"
@@ -185,20 +186,7 @@ def _planar_hessian(p, fields, n, delta=1e-4):
                     + p["EA"] * (v3 - p["v3"]) ** 2 / 2 + p["g"] * 0.5 * (a[2] + b[2]))
 
     pair = np.vstack((z[:, :-1], z[:, 1:]))                     # (6, n)
-    block = np.zeros((n, 6, 6))
-    for i in range(6):
-        for k in range(i, 6):
-            total = 0.0
-            for si in (1, -1):
-                for sk in (1, -1):
-                    q = pair.copy()
-                    q[i] += si * delta
-                    q[k] += sk * delta
-                    total = total + si * sk * interval(q[:3], q[3:])
-            block[:, i, k] = block[:, k, i] = total / (4 * delta ** 2)
-    big = np.zeros((3 * (n + 1), 3 * (n + 1)))
-    for j in range(n):
-        big[3 * j:3 * j + 6, 3 * j:3 * j + 6] += block[j]
+    big = chain_hessian(lambda q: interval(q[:3], q[3:]), pair, delta)
     # the arm: -F.eps (sin(psi - theta_n), cos(psi - theta_n)), second derivative in theta_n
     f = p["P"] * np.array((math.sin(p["alpha"]), -math.cos(p["alpha"])))
     t = theta[-1]
@@ -402,21 +390,7 @@ def _rod_hessian(rod_module, p, configuration, n, delta=1e-4):
                     + p["g"] * 0.5 * (ra[:, 1] + rb[:, 1]))
 
     zero = np.zeros((3, n))
-    pair = np.vstack((r[:, :-1], zero, r[:, 1:], zero))
-    block = np.zeros((n, 12, 12))
-    for i in range(12):
-        for k in range(i, 12):
-            total = 0.0
-            for si in (1, -1):
-                for sk in (1, -1):
-                    z = pair.copy()
-                    z[i] += si * delta
-                    z[k] += sk * delta
-                    total = total + si * sk * interval(z)
-            block[:, i, k] = block[:, k, i] = total / (4 * delta ** 2)
-    big = np.zeros((6 * (n + 1), 6 * (n + 1)))
-    for j in range(n):
-        big[6 * j:6 * j + 12, 6 * j:6 * j + 12] += block[j]
+    big = chain_hessian(interval, np.vstack((r[:, :-1], zero, r[:, 1:], zero)), delta)
     force, arm = rod_module.load(p), p["eps"] * rod_module.arm_body(p)
 
     def tip(wv):

@@ -231,7 +231,7 @@ def _discrete_hessian(p, configuration, n, delta=1e-4):
 
     (the weights g y and P y(1) are linear: no Hessian), each interval's 12 x 12 block by
     central differences."""
-    from rod_hessian import expm, logm
+    from rod_hessian import chain_hessian, expm, logm
     s = np.linspace(0, 1, n + 1)
     frames, r = configuration(s)
     h = 1.0 / n
@@ -252,22 +252,7 @@ def _discrete_hessian(p, configuration, n, delta=1e-4):
         return h * density
 
     zero = np.zeros((3, n))
-    pair = np.vstack((r[:, :-1], zero, r[:, 1:], zero))
-    block = np.zeros((n, 12, 12))
-    for i in range(12):
-        for k in range(i, 12):
-            total = 0.0
-            for si in (1, -1):
-                for sk in (1, -1):
-                    z = pair.copy()
-                    z[i] += si * delta
-                    z[k] += sk * delta
-                    total = total + si * sk * interval(z)
-            block[:, i, k] = block[:, k, i] = total / (4 * delta ** 2)
-    big = np.zeros((6 * (n + 1), 6 * (n + 1)))
-    for j in range(n):
-        big[6 * j:6 * j + 12, 6 * j:6 * j + 12] += block[j]
-    return big[6:, 6:]
+    return chain_hessian(interval, np.vstack((r[:, :-1], zero, r[:, 1:], zero)), delta)[6:, 6:]
 
 
 def test_the_index_is_the_discretised_energy_s_inertia(robot):
