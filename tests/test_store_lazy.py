@@ -439,6 +439,53 @@ def test_a_solution_repeated_at_a_period_is_stored_once(tmp_path):
                 np.testing.assert_array_equal(getattr(a, q), getattr(b, q), err_msg=name)
 
 
+def test_some_points_profiles_read_without_the_others(tmp_path, monkeypatch):
+    """`StoredBranch.profiles_at` (what a page or a figure reads: its labels' profiles) gives
+    ``profiles[rows]`` for any rows (unsorted, repeated, negative), in formats 3 and 2, and
+    reads only the stored profiles those rows use, each once: of a branch whose points repeat
+    a period on, the distinct ones. A row outside the branch is an IndexError; a point whose
+    ``profile_rows`` entry lies outside the stored profiles, a damaged file."""
+    import math
+    from elastica_auto.storage import store
+    problem = ea.load_problem("elastica_lever_arm")
+    branches = ea.continuation(problem, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
+                               bounds=(-4 * math.pi, 4 * math.pi), max_points=400)
+    path = ea.save(branches, tmp_path / "arm.h5")
+    with h5py.File(path, "r") as f:
+        stored_rows = f["branches/001/profile_rows"][()]
+    computed = np.array([p.profile for p in branches[0].points])
+    n = len(computed)
+    i = int(np.flatnonzero(stored_rows != np.arange(n))[0])    # a point repeating another's
+    j = int(np.flatnonzero(stored_rows == stored_rows[i])[0])
+    rows = [i, 3, j, 3, -1, 0]
+    read = []
+    part_rows = store._part_rows
+
+    def counted(g, name, wanted):
+        read.append((name, list(wanted)))
+        return part_rows(g, name, wanted)
+    monkeypatch.setattr(store, "_part_rows", counted)
+    (b,) = BranchFile(path).branches
+    np.testing.assert_array_equal(b.profiles_at(rows), computed[rows])
+    assert read == [("profiles", sorted({int(stored_rows[r]) for r in rows}))]
+    assert len(read[0][1]) < len({r % n for r in rows})    # i and j share their profile
+    np.testing.assert_array_equal(b.profiles_at(2), computed[[2]])
+    assert b.profiles_at([]).shape == (0, *computed.shape[1:])
+    for outside in ([n], [-n - 1]):
+        with pytest.raises(IndexError):
+            b.profiles_at(outside)
+    (b2,) = BranchFile(FORMAT2).branches[:1]
+    with h5py.File(FORMAT2, "r") as f:
+        np.testing.assert_array_equal(b2.profiles_at([5, 1, 5]),
+                                      f["branches/001/profiles"][()][[5, 1, 5]])
+    with h5py.File(path, "r+") as f:
+        del f["branches/001/profile_rows"]
+        f["branches/001/profile_rows"] = np.where(np.arange(n) == 3, 10 ** 6, stored_rows)
+    with pytest.raises(StoreError) as err:
+        BranchFile(path).branches[0].profiles_at([3])
+    assert "damaged" in str(err.value) and "\n" not in str(err.value)
+
+
 def test_a_mesh_index_out_of_range_is_damage(copy):
     """A label's ``mesh`` index past the stored solutions reads as a damaged file (one line),
     not as an empty or shifted solution."""

@@ -233,7 +233,7 @@ class Pt:
                       problem: Problem | None = None) -> Configuration:
         """The stored solution of this point, to draw (``extra``: see `Configuration`) by
         ``problem`` (default: the module the file names, if it is shipped)."""
-        return Configuration(problem or self.bf.equation, self.br.profiles[self.i],
+        return Configuration(problem or self.bf.equation, self.br.profiles_at(self.i)[0],
                              self.params, extra)
 
 
@@ -295,7 +295,8 @@ def interpolated(bf, br, i, w, name, value):
     cols = {k: (1 - w) * float(br.columns[k][i]) + w * float(br.columns[k][j])
             for k in bf.parameters + bf.ordinates}
     cols[name] = value
-    prof = (1 - w) * br.profiles[i] + w * br.profiles[j]
+    here, there = br.profiles_at([i, j])
+    prof = (1 - w) * here + w * there
     return cols, prof
 
 

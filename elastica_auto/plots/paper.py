@@ -109,8 +109,9 @@ def tip_trace(bf: BranchFile, br: StoredBranch, lp: int, side: str,
             hi += 1
         rows = range(hi, lo - 1, -1)
     lam = br.columns[br.parameter]
-    return np.array([arm_end(br.profiles[i], Pt(bf, br, i).params) for i in rows
-                     if span is None or abs(lam[i] - lam[lp]) <= span]).T
+    rows = [i for i in rows if span is None or abs(lam[i] - lam[lp]) <= span]
+    return np.array([arm_end(profile, Pt(bf, br, i).params)
+                     for i, profile in zip(rows, br.profiles_at(rows))]).T
 
 
 def traced(trace: np.ndarray) -> Callable:

@@ -143,11 +143,16 @@ def configuration_images(bf: BranchFile, problem=None, workers: int | None = Non
     if not bf.labels:
         return Images()
     by_number = {b.number: b for b in bf.branches}
-    # what each drawing needs, read here: a drawing process reads no file
+    # what each drawing needs, read here (a drawing process reads no file): the labels'
+    # profiles, those of a branch at one reading
+    rows: dict[int, list[int]] = {}
+    for br, pt in bf.labels.values():
+        rows.setdefault(br, []).append(pt - 1)
+    profiles = {br: iter(by_number[br].profiles_at(r)) for br, r in rows.items()}
     drawings = []
-    for name, (br, pt) in bf.labels.items():
+    for br, pt in bf.labels.values():
         b = by_number[br]
-        drawings.append((b.profiles[pt - 1],
+        drawings.append((next(profiles[br]),
                          {q: float(b.columns[q][pt - 1]) for q in bf.parameters}))
     workers = drawing_workers(len(drawings)) if workers is None else workers
     if workers > 1:
