@@ -15,7 +15,9 @@ point, solution or not, their Newton corrections of (u, mu, lam) agree, and so d
 of their Jacobians (the running integrals and the copies of mu per node are eliminated by
 unit-triangular row operations). Checked on AUTO's demos ``lin`` (one integral, its value
 free) and ``nep`` (one boundary condition more than states, the eigenvalue free), and the
-shipped example ``bratu_mean`` (an integral and a free parameter that enters the equation).
+shipped examples ``bratu_mean`` (an integral and a free parameter that enters the equation)
+and ``bratu_level`` (an integral and a free parameter in the boundary conditions), whose fold
+is also located both ways.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ CASES = {
     "lin": (REPO / "benchmarks" / "auto" / "lin.py", "p1", {"p1": 1.3, "p2": 0.1, "p3": 0.2}),
     "nep": (REPO / "benchmarks" / "auto" / "nep.py", "p1", {"p1": 0.7, "p2": 9.0}),
     "bratu_mean": (REPO / "examples" / "bratu_mean.py", None, None),
+    "bratu_level": (REPO / "examples" / "bratu_level.py", "lam", {"lam": 2.0, "M": 0.3}),
 }
 
 
@@ -128,10 +131,93 @@ def test_structures_have_the_same_unknowns_per_node():
     unknowns per node for (n states, 1 + r + q columns, 1 + q border rows) as the engine's
     for (n + q + r + q states, 1 column, 1 row): carrying them as states is the banded
     rewriting itself."""
-    for name in ("lin", "nep", "bratu_mean"):
+    for name in CASES:
         base, aug, lam, p = _case(name)
         q, k = aug.q, len(aug.free)
         split_aug = ((), (), ())        # no mixed rows: the count is the node block's
         ours = bordered.structure(aug.n, 5, 1, split_aug).nn
         theirs_states = base.n + (1 + k) + (1 + q)
         assert ours == theirs_states, name
+
+
+def _bratu_level(x, z, M):
+    """examples/bratu_level.py's closed-form family (its docstring): (u, v), lam, c at z."""
+    u = -2 * np.log(np.cosh(z * (x - 0.5)) / np.cosh(z / 2))
+    v = -2 * z * np.tanh(z * (x - 0.5))
+    xs = np.linspace(0.0, 1.0, 4001)        # the mean of u - c, near enough for a start
+    mean = float(np.mean(-2 * np.log(np.cosh(z * (xs - 0.5)) / np.cosh(z / 2))))
+    c = M - mean
+    lam = 2 * z * z / np.cosh(z / 2) ** 2 * np.exp(-c)
+    return np.vstack((u + c, v)), lam, c
+
+
+def test_a_fold_of_the_augmented_system_is_the_bordered_ones():
+    """examples/bratu_level.py (an integral condition, the level c free) folds in lam at fixed
+    M. On one mesh, the fold the engine locates (bordered Newton on the minimally augmented
+    system of the Augmented problem, `numerics.newton.fold_newton`) against the fold of the
+    bordered system of the module docstring, found without any fold locator: that system
+    solved by dense Newton with the border row u'(0) = a instead of the continuation's, for
+    a range of a, lam(a) maximised by golden section (lam is flat at its maximum, so an a
+    found to 1e-6 gives lam to ~1e-12)."""
+    from elastica_auto.core.solution import Tangent
+    from elastica_auto.numerics.newton import fold_newton
+
+    base = load_problem(REPO / "examples" / "bratu_level.py")
+    aug = base.with_free()
+    M, n, m = 0.3, base.n, 17
+    s = np.linspace(0.0, 1.0, m) ** 1.2
+    p = {**base.defaults(), "M": M}
+    row_c = np.zeros((n, m))
+    row_c[1, 0] = 1.0                       # the border row picks u'(0)
+
+    def solve_at_slope(a, z0):
+        y, lam, c = _bratu_level(s, z0, M)
+        z = np.concatenate((y.ravel(), [c, lam]))
+        for _ in range(30):
+            def residual(zz):
+                return _bordered_residual(base, aug.free, "lam", s, p,
+                                          zz[: n * m].reshape(n, m), zz[n * m: n * m + 1],
+                                          zz[-1], (row_c, np.zeros(1), 0.0, a))
+            dz = np.linalg.solve(_bordered_jacobian(residual, z), residual(z))
+            z = z - dz
+            if np.abs(dz).max() < 1e-14 * (1 + np.abs(z).max()):
+                break
+        assert np.abs(residual(z)).max() < 1e-12
+        return z
+
+    z_star = 4.7            # near the continuous problem's fold, where z I(z) = 1
+    lo, hi = 8.3, 10.1      # u'(0) = 2 z tanh(z / 2) there: 9.2; this brackets it
+    golden = (np.sqrt(5) - 1) / 2
+
+    def lam_of(a):
+        return solve_at_slope(a, z_star)[-1]
+
+    x1, x2 = hi - golden * (hi - lo), lo + golden * (hi - lo)
+    f1, f2 = lam_of(x1), lam_of(x2)
+    while hi - lo > 1e-7:
+        if f1 > f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - golden * (hi - lo)
+            f1 = lam_of(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + golden * (hi - lo)
+            f2 = lam_of(x2)
+    lam_bordered = max(f1, f2)
+
+    # the engine's, from the bordered system's solution at the slope found, the difference of
+    # two solutions beside it the approximate null vector
+    a_star = (lo + hi) / 2
+
+    def augmented_state(a):
+        zz = solve_at_slope(a, z_star)
+        y = np.vstack((zz[: n * m].reshape(n, m), np.full(m, zz[n * m])))
+        return aug.complete(s, y, {**p, "lam": zz[-1]}), zz[-1]
+
+    Y, lam0 = augmented_state(a_star + 0.05)
+    T = augmented_state(a_star + 0.01)[0] - augmented_state(a_star - 0.01)[0]
+    disc = Discretisation(aug, s)
+    split = bordered.split_rows(*aug.bc_jac(Y[:, 0], Y[:, -1], p))
+    res = fold_newton(disc, "lam", p, Y, lam0, Tangent(s, T, np.zeros_like(T), 0.0), split)
+    assert res.converged, res.message
+    assert abs(res.lam - lam_bordered) < 1e-10
