@@ -221,3 +221,75 @@ def test_a_fold_of_the_augmented_system_is_the_bordered_ones():
     res = fold_newton(disc, "lam", p, Y, lam0, Tangent(s, T, np.zeros_like(T), 0.0), split)
     assert res.converged, res.message
     assert abs(res.lam - lam_bordered) < 1e-10
+
+
+@pytest.mark.parametrize("name", ["lin", "bratu_level"])
+def test_gauss_collocation_newton_step_is_the_bordered_one(name):
+    """The same with Gauss collocation at k = 4 points: the bordered system's unknowns are
+    the node values, the module's stage values K (n, k, m-1), mu and lam; its rows the stage
+    equations ``K_j - y_i - h sum_l a_jl F_l``, the node equations ``y_{i+1} - y_i - h sum_l
+    b_l F_l``, the boundary conditions, the integral rows ``sum_i h_i sum_l b_l phi(K_l)``
+    (Gauss-Legendre on the collocation polynomial) and the continuation's row. The engine's
+    correction (condensed, its stage correction recovered) of y, K, mu and lam is the
+    bordered one."""
+    from elastica_auto.numerics.gauss import GaussDiscretisation, tableau
+
+    base, aug, lam, p = _case(name)
+    n, m, k, nf = base.n, 7, 4, len(aug.free)
+    tau, A, b, _, _ = tableau(k)
+    s = np.linspace(0.0, 1.0, m) ** 1.3
+    h = np.diff(s)
+    s_stage = (s[:-1] + np.multiply.outer(tau, h))            # (k, m-1)
+    u = np.vstack([np.sin((j + 1) * np.pi * s) * (0.3 + 0.1 * j) + 0.05 * j for j in range(n)])
+    K = np.stack([np.sin((j + 1) * np.pi * s_stage) * (0.3 + 0.1 * j) + 0.05 * j + 0.01
+                  for j in range(n)])                          # (n, k, m-1): not solved
+    mu = np.array([p[q] + 0.01 * (j + 1) for j, q in enumerate(aug.free)])
+    lam_value = p[lam] + 0.05
+    c = np.cos(np.arange(n * m).reshape(n, m))
+    e, d, beta = 0.3 + np.arange(nf), 0.7, 0.2
+    nK = n * k * (m - 1)
+
+    def residual(z):
+        y = z[: n * m].reshape(n, m)
+        KK = z[n * m: n * m + nK].reshape(n, k, m - 1)
+        mm = z[n * m + nK: n * m + nK + nf]
+        q = {**p, **dict(zip(aug.free, mm)), lam: z[-1]}
+        F = base.rhs(s_stage.ravel(), KK.reshape(n, -1), q).reshape(n, k, m - 1)
+        stage = KK - y[:, None, :-1] - np.matmul(A, F) * h
+        col = y[:, 1:] - y[:, :-1] - (b @ F) * h
+        parts = [stage.ravel(), col.ravel(), base.bc(y[:, 0], y[:, -1], q)]
+        if base.integral_names:
+            phi = base.integrals(s_stage.ravel(), KK.reshape(n, -1), q)
+            parts.append((phi.reshape(-1, k, m - 1) * b[None, :, None] * h).sum(axis=(1, 2)))
+        parts.append([float((c * y).sum() + e @ mm + d * z[-1] - beta)])
+        return np.concatenate(parts)
+
+    z = np.concatenate((u.ravel(), K.ravel(), mu, [lam_value]))
+    J = _bordered_jacobian(residual, z)
+    assert J.shape[0] == J.shape[1]
+    dz = np.linalg.solve(J, residual(z))
+
+    Y = np.zeros((aug.n, m))
+    Y[:n] = u
+    Y[n: n + aug.q] = 0.1 * s * (1.5 - s)
+    Y[aug.n - nf:] = mu[:, None]
+    KA = np.zeros((aug.n, k, m - 1))
+    KA[:n] = K
+    KA[n: n + aug.q] = 0.02
+    KA[aug.n - nf:] = mu[:, None, None]
+    disc = GaussDiscretisation(aug, s, k)
+    c_aug = np.zeros((aug.n, m))
+    c_aug[:n] = c
+    c_aug[aug.n - nf:] = e[:, None] * disc.weights / disc.weights.sum()
+    params = {**p, lam: lam_value}
+    split = bordered.split_rows(*aug.bc_jac(Y[:, 0], Y[:, -1], params))
+    row = Row(c_aug, d, beta)
+    lin = Linearization(disc, lam, params, Y, lam_value, row, split, KA)
+    dY, dlam, dK = lin.correct(row, lin.ev, row.residual(Y, lam_value))
+
+    scale = np.abs(dz).max()
+    assert np.abs(dY[:n].ravel() - dz[: n * m]).max() < 1e-7 * scale
+    assert np.abs(dK[:n].ravel() - dz[n * m: n * m + nK]).max() < 1e-7 * scale
+    for j in range(nf):
+        assert np.abs(dY[aug.n - nf + j] - dz[n * m + nK + j]).max() < 1e-7 * scale
+    assert abs(dlam - dz[-1]) < 1e-7 * scale
