@@ -237,6 +237,65 @@ def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     assert check(copy)
 
 
+#: The modules still comparing label strings themselves (issue 48: the stepper's detection
+#: switches, with its driving of folds and branch points).
+LABEL_STRINGS_LEFT = {"elastica_auto.branches.stepper"}
+
+
+def label_strings(root: Path = PACKAGE) -> list[str]:
+    """Label-type strings (``"LP"``, ``"BP"``, ... : `elastica_auto.core.labels.KINDS`)
+    compared with, looked up by, or matched as a name's prefix outside `core.labels`, as
+    "module:line": what a kind is for the code is its `Kind`'s property or constant, so that
+    a new kind is its row of the table and its event's module, not an edit of every reader.
+    A string in a message or a column heading is no comparison and passes."""
+    from elastica_auto.core.labels import KINDS
+
+    def kind(node) -> bool:
+        elts = node.elts if isinstance(node, (ast.Tuple, ast.List, ast.Set)) else [node]
+        return any(isinstance(e, ast.Constant) and e.value in KINDS for e in elts)
+
+    found = []
+    for m, path in modules(root).items():
+        if m == "elastica_auto.core.labels":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Compare):
+                hit = any(kind(x) for x in (node.left, *node.comparators))
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                hit = node.func.attr in ("startswith", "endswith") and any(map(kind, node.args))
+            elif isinstance(node, ast.Subscript):
+                hit = kind(node.slice)
+            else:
+                continue
+            if hit:
+                found.append(f"{m}:{node.lineno}")
+    return found
+
+
+def test_label_kinds_are_read_by_name_outside_the_table():
+    left = {f.split(":")[0] for f in label_strings()}
+    assert left <= LABEL_STRINGS_LEFT, sorted(f for f in label_strings()
+                                              if f.split(":")[0] not in LABEL_STRINGS_LEFT)
+
+
+@pytest.mark.parametrize("where, line", [
+    ("plots/diagram.py", 'return t == "LP"'),
+    ("analysis/snaps.py", 'return t in ("LP", "BP")'),
+    ("execution/run.py", 'return name.startswith("BP")'),
+    ("execution/plan.py", 'return opts.detect["LP"]'),
+])
+def test_the_label_check_catches_what_it_forbids(tmp_path, where, line):
+    """A copy of the package with one label compared as a string, in each form the readers
+    used before the table's properties."""
+    copy = tmp_path / "elastica_auto"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
+    name = "elastica_auto." + where[:-3].replace("/", ".")
+    assert not [f for f in label_strings(copy) if f.startswith(name + ":")]
+    module = copy / where
+    module.write_text(module.read_text() + f"\n\ndef _bad(t, name, opts):\n    {line}\n")
+    assert [f for f in label_strings(copy) if f.startswith(name + ":")]
+
+
 #: The names a corrector is held by outside ``numerics/`` (``corr``, ``self.corr``,
 #: ``walk.corr``, ``corrector``): every attribute read on them must be an operation or field of
 #: the corrector interface (`elastica_auto.numerics.corrector.Corrector`).

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core import labels
 from ..core.solution import State
 from ..numerics.ode import dop853
 from ..numerics.stability import index
@@ -399,7 +400,7 @@ def snap_lps(branch):
     """LPs of ``branch`` that bound an index-0 segment: (point, stable side 'before'/'after')."""
     out = []
     for k, p in enumerate(branch.points):
-        if p.type != "LP" or k == 0 or k + 1 >= len(branch.points):
+        if p.type not in labels.FOLDS or k == 0 or k + 1 >= len(branch.points):
             continue
         side = stable_side(p.index, branch.points[k + 1].index)
         if side is not None:

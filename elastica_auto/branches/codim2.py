@@ -42,6 +42,7 @@ import types
 
 import numpy as np
 
+from ..core import labels
 from ..core.errors import PlanError, ProblemError, StartError
 from ..model.augmented import Augmented
 from ..model.problem import Ordinate, Parameter, Problem
@@ -369,7 +370,7 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
     n, lam = own.n, problem.free[0]
     points = branch.points
     for i, p in enumerate(points):
-        if p.type != "LP" or p.tangent is None:
+        if p.type not in labels.FOLDS or p.tangent is None:
             continue
         t = p.tangent
         states = np.trapezoid(np.sum(t.y[:row] ** 2, axis=0), t.s)
@@ -377,8 +378,8 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
         note = f"d{lam}/ds = {slope:.1e} of the tangent"
         near = _neighbours(points, i)
         if _is_cusp(p, near, lam, t.y[row, 0]):
-            p.type = "CP"
+            p.type = labels.CP
         if _on_family(p, near, own, n):
-            p.type = "BP"
+            p.type = labels.BP
             note += "; on the exact family: the fold curve meets its branch-point curve"
         p.note = "; ".join(filter(None, (p.note, note)))

@@ -25,6 +25,7 @@ from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin
 from ..branches.switching import kernel_plane, switch_direction
+from ..core import labels
 from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
                            EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
                            StartError, WriteError, debugging, failure_record,
@@ -59,7 +60,7 @@ class RunResult:
 
     @property
     def failed(self) -> list[int]:
-        return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
+        return [k for k, b in enumerate(self.branches, 1) if b.end in labels.FAILED]
 
     @property
     def internal(self) -> list[str]:
@@ -98,19 +99,19 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     if spec.start.kind in ("fold", "bp"):
         return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
     if spec.start.kind == "switch":
-        if not spec.start.label.startswith("BP"):
+        if labels.kind_of(spec.start.label) not in labels.SWITCHES:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent)
     # free parameters are solved for: a value given to one is no place to move to
     targets = {q: v for q, v in spec.params.items()
                if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
-        kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
+        kind = "singular" if labels.kind_of(spec.start.label) in labels.SINGULAR else "regular"
         state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
                              tangent_parameter=stored.tangent_parameter, where=str(spec.start))
     if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
-    singular = spec.start.label[:2] in ("LP", "BP") and not targets
+    singular = labels.kind_of(spec.start.label) in labels.TURNS and not targets
     return _checked(plan, Job(spec, Origin(state, tangent,
                                            "singular" if singular else "regular")))
 
@@ -274,7 +275,7 @@ def _site(plan: Plan, pts, i: int) -> Site:
 
 def branch_points(plan: Plan, br: Branch) -> list[Site]:
     """The BPs of ``br`` in order, as `Site`s."""
-    return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type == "BP"]
+    return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type in labels.SWITCHES]
 
 
 def _kernel(plan: Plan, site: Site) -> list | None:
@@ -1188,7 +1189,7 @@ class _Scans:
         name = br.parameter
         for k in range(j, len(pts) - 1):
             p = pts[k]
-            if p.type not in ("LP", "BP") or stable_side(pts[k - 1].index_direct,
+            if p.type not in labels.TURNS or stable_side(pts[k - 1].index_direct,
                                                          pts[k + 1].index_direct) is None:
                 continue
             key = scan_key(problem, name, p.params)

@@ -47,6 +47,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Sequence
 
+from ..core import labels
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
 from ..core.options import DETECTABLE, ContinuationOptions
@@ -411,7 +412,7 @@ class _Document:
         elif isinstance(switch, list):
             for item in switch:
                 label = self.file_label("switch", problem, self.string("switch", item))
-                if not label.name.startswith("BP"):
+                if labels.kind_of(label.name) not in labels.SWITCHES:
                     self.fail("switch", f"{item!r}: branch switching needs a BP label")
                 parsed.append(Switch(label))
         else:
@@ -475,7 +476,7 @@ class _Document:
             self.fail(key, "a start selector needs file = \"FILE.h5\"")
         bf = self.branch_file(f"{key}.file", problem,
                               self.string(f"{key}.file", sel["file"]))
-        kind = self.string(f"{key}.type", sel.get("type", "UZ"))
+        kind = self.string(f"{key}.type", sel.get("type", labels.UZ))
         where = sel.get("where", {})
         if not isinstance(where, dict):
             self.fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")

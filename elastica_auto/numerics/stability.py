@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
@@ -727,7 +728,7 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             last = spans[k]
             after = _count_past(pts, last + 1, enters, lam, ords)
             for j in range(k, last + 1):
-                if pts[j].type == "BP":
+                if pts[j].type in labels.SWITCHES:
                     out.append(current)
                 elif current >= 0 and after >= 0:
                     out.append(min(current, after))
@@ -736,7 +737,7 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             current, k = after, last + 1
             continue
         out.append(current)
-        if pts[k].type == "LP" and current >= 0:
+        if pts[k].type in labels.FOLDS and current >= 0:
             change = fold_sign(enters, lam, ords, k) if ords is not None else 0
             current = current + change if change else -1
         if current < 0 and k + 1 < len(pts):
@@ -753,7 +754,7 @@ def _count_past(pts, j, enters, lam, ords) -> int:
     is no such point or a change is not known (an LP at the branch's end, no distinguished
     ordinate)."""
     change = 0
-    while j < len(pts) and pts[j].type == "LP":
+    while j < len(pts) and pts[j].type in labels.FOLDS:
         sign = fold_sign(enters, lam, ords, j) if ords is not None else 0
         if not sign:
             return -1
@@ -769,7 +770,7 @@ def _on_branch_points(pts, lam) -> dict[int, int]:
     neighbours at the same parameter value (user points placed on it)."""
     spans = {}
     for k, p in enumerate(pts):
-        if p.type != "BP":
+        if p.type not in labels.SWITCHES:
             continue
         lo = hi = k
         while lo > 0 and abs(lam[lo - 1] - lam[k]) <= 1e-9 * (1.0 + abs(lam[k])):
@@ -807,7 +808,7 @@ def label_stability(branch, problem) -> None:
     rule = fold_rule(branch, problem, seed.index_direct)
     for k, (p, r) in enumerate(zip(pts, rule)):
         p.index_rule = r
-        if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):
+        if p.type in labels.TURNS or (k == 0 and branch.singular_start):
             p.index = r
         elif r == p.index_direct:
             p.index = r
