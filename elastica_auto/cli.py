@@ -247,7 +247,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, worke
         kept = f"; the earlier {out} is unchanged" if result.path != out else ""
         click.echo(f"\ninterrupted: {saved}{kept}", err=True)
         sys.exit(EXIT_INTERRUPTED)
-    _report_run(plan, result)
+    report_run(plan, result)
     if result.failed:
         click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
     for m in result.missing:
@@ -288,7 +288,7 @@ def _report_branch(number: str, br, varying):
                                for p in br.disagreements[:5]))
 
 
-def _report_run(plan, result):
+def report_run(plan, result):
     """What a finished run found besides its branches (warnings, snap-back targets, damped
     landings, stability maps), then its totals."""
     for w in result.warnings:

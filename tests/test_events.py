@@ -143,17 +143,17 @@ _ROOTS = [
 @pytest.mark.parametrize("xtol", [1e-8, 1e-12])
 def test_the_root_finder_of_the_events_brackets_each_root_to_its_tolerance(f, lo, hi, root,
                                                                           simple, xtol):
-    """`events._brent` (every located event but folds): within xtol of the closed-form
+    """`events.brent` (every located event but folds): within xtol of the closed-form
     root, at an abscissa f was evaluated at; a simple root in a few evaluations, any other
     in no more than four per halving of the bracket (at a multiple root interpolation
     creeps towards it, with a bisection about every fourth step)."""
-    from elastica_auto.branches.events import _brent
+    from elastica_auto.branches.events import brent
     seen = []
 
     def counted(x):
         seen.append(x)
         return f(x)
 
-    x = _brent(counted, lo, hi, f(lo), f(hi), xtol)
+    x = brent(counted, lo, hi, f(lo), f(hi), xtol)
     assert abs(x - root) <= xtol and x in [*seen, lo, hi]
     assert len(seen) <= (10 if simple else 4 * math.ceil(math.log2((hi - lo) / xtol)))

@@ -94,7 +94,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     branches.
     """
     path = Path(path)
-    doc = _Document(path, out_dir)
+    doc = Document(path, out_dir)
     apply_overrides(doc, overrides, restart)
     problem = doc.equation()
     parameter, cont = doc.continuation(problem)
@@ -122,7 +122,7 @@ def _toml_key(key: str) -> str:
     return "[options]" if key == "options" else key
 
 
-def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | None):
+def apply_overrides(doc: Document, overrides: Sequence[str], restart: str | None):
     """``NAME=VALUE`` into the table that has NAME: ``[options]`` for an option,
     ``[parameters]`` for a parameter of the module, ``[continuation]`` for one of its keys,
     or the one named (``options.ds_max=0.3``). VALUE is read as TOML (``0.3``,
@@ -185,7 +185,7 @@ def _comment(text: str) -> str:
                    for c in text)
 
 
-class _Document:
+class Document:
     """A run file's parsed TOML, with checks that name the file and the key."""
 
     def __init__(self, path: Path, out_dir: Path | None):

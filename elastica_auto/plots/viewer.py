@@ -297,7 +297,7 @@ def _numbers(a) -> list:
     return [float(v) if math.isfinite(v) else None for v in np.asarray(a, dtype=float)]
 
 
-def _style(k: int) -> dict:
+def trace_style(k: int) -> dict:
     """Plotly line keywords of stability index ``k``: `style.index_style`, its dashes (in
     line widths, as matplotlib scales them) in pixels."""
     from matplotlib.colors import to_hex
@@ -393,7 +393,7 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
         "x": xname, "y": yname, "fold": fold, "periods": periods,
         "panels": panels, "branches": branches,
         "labels": {name: list(where) for name, where in bf.labels.items()},
-        "styles": {str(k): _style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
+        "styles": {str(k): trace_style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
         "markers": {kind: _marker(kind) for kind in MARKERS},
         "turns": [*sorted(TURNS), UNLOCATED],
         "snaps": snaps, "snap_color": SNAP_COLOR,
