@@ -231,11 +231,6 @@ def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     assert check(copy)
 
 
-#: The modules still comparing label strings themselves (issue 48: the stepper's detection
-#: switches, with its driving of folds and branch points).
-LABEL_STRINGS_LEFT = {"elastica_auto.branches.stepper"}
-
-
 def label_strings(root: Path = PACKAGE) -> list[str]:
     """Label-type strings (``"LP"``, ``"BP"``, ... : `elastica_auto.core.labels.KINDS`)
     compared with, looked up by, or matched as a name's prefix outside `core.labels`, as
@@ -267,9 +262,7 @@ def label_strings(root: Path = PACKAGE) -> list[str]:
 
 
 def test_label_kinds_are_read_by_name_outside_the_table():
-    left = {f.split(":")[0] for f in label_strings()}
-    assert left <= LABEL_STRINGS_LEFT, sorted(f for f in label_strings()
-                                              if f.split(":")[0] not in LABEL_STRINGS_LEFT)
+    assert label_strings() == []
 
 
 @pytest.mark.parametrize("where, line", [
