@@ -21,6 +21,7 @@ from pathlib import Path
 import click
 
 from . import __version__
+from .core import labels
 from .core.errors import (DEBUG_ENV, EXIT_ANALYSIS_FAILED, EXIT_CLUSTER_LOST, EXIT_INTERNAL,
                           EXIT_INTERRUPTED, EXIT_OK, EXIT_USER, EXIT_WRITE, USER_ERRORS,
                           ClusterLost, RunFileError, StoreError, WriteError, debugging)
@@ -246,7 +247,7 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, worke
         kept = f"; the earlier {out} is unchanged" if result.path != out else ""
         click.echo(f"\ninterrupted: {saved}{kept}", err=True)
         sys.exit(EXIT_INTERRUPTED)
-    _report_run(plan, result)
+    report_run(plan, result)
     if result.failed:
         click.echo(f"failed branches (MX): {', '.join(map(str, result.failed))}", err=True)
     for m in result.missing:
@@ -272,8 +273,8 @@ def _report_branch(number: str, br, varying):
         f" {br.transition(p)}".rstrip() for p in br.folds)
     start = f" from {br.start}" if br.start != "trivial" else ""
     bps = ", ".join(f"{p.name} {br.transition(p)}".rstrip()
-                    for p in br.points if p.type == "BP")
-    cps = ", ".join(p.name for p in br.points if p.type == "CP")
+                    for p in br.points if p.type in labels.SWITCHES)
+    cps = ", ".join(p.name for p in br.points if p.type == labels.CP)
     click.echo(f"branch {number} {_fmt_params(br.points[0].params, varying)}{start} "
                f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
                f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
@@ -287,14 +288,14 @@ def _report_branch(number: str, br, varying):
                                for p in br.disagreements[:5]))
 
 
-def _report_run(plan, result):
+def report_run(plan, result):
     """What a finished run found besides its branches (warnings, snap-back targets, damped
     landings, stability maps), then its totals."""
     for w in result.warnings:
         click.echo(f"warning: {w}")
     if result.snaps:
         ends = {(r["branch"], r["lp"]) for r in result.snaps}
-        bps = sum(lp.startswith("BP") for _, lp in ends)
+        bps = sum(labels.kind_of(lp) in labels.SWITCHES for _, lp in ends)
         where = f"{len(ends) - bps} folds" + (f" and {bps} branch points" if bps else "")
         click.echo(f"snap-back: {len(result.snaps)} stable targets at {where} ending a "
                    f"stable branch (elastica-auto snaps {result.path})")
@@ -311,7 +312,7 @@ def _report_run(plan, result):
     click.echo(f"{plan.name}: {kept}{len(result.branches)} branches, "
                f"{sum(len(b.points) for b in result.branches)} points, "
                f"{sum(len(b.folds) for b in result.branches)} folds, "
-               + (f"{ncp} cusps, " if (ncp := sum(p.type == "CP" for b in result.branches
+               + (f"{ncp} cusps, " if (ncp := sum(p.type == labels.CP for b in result.branches
                                                   for p in b.points)) else "")
                + f"{result.seconds:.2f} s "
                f"-> {result.path}")
@@ -354,7 +355,7 @@ def show(file, all_points, tracebacks):
                    + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
     internal = []
     for b in bf.branches:
-        if b.attrs["end"] == "MX" or b.attrs.get("warnings", "[]") != "[]":
+        if b.attrs["end"] in labels.FAILED or b.attrs.get("warnings", "[]") != "[]":
             click.echo(f"branch {b.number}: {b.attrs['end']}: {b.attrs['message']}")
         diagnostics = json.loads(b.attrs.get("diagnostics", "{}") or "{}")
         if diagnostics.get("kind") == "engine":

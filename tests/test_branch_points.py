@@ -45,13 +45,13 @@ def test_a_sign_change_is_kept_only_where_a_second_mesh_sees_it(tmp_path, monkey
     from elastica_auto.branches import events
     from elastica_auto.numerics.correctors import CorrectorFailure
     checked = []
-    real = events._check_on_finer_mesh
+    real = events.check_on_finer_mesh
 
     def spy(corr, step, s):
         checked.append(len(s))
         return real(corr, step, s)
 
-    monkeypatch.setattr(events, "_check_on_finer_mesh", spy)
+    monkeypatch.setattr(events, "check_on_finer_mesh", spy)
     bps = [p.params["p"] for p in _trivial_branch(tmp_path / "fine").points if p.type == "BP"]
     np.testing.assert_allclose(bps, [math.pi ** 2, 4 * math.pi ** 2], rtol=1e-9)
     assert checked == []
@@ -61,7 +61,7 @@ def test_a_sign_change_is_kept_only_where_a_second_mesh_sees_it(tmp_path, monkey
     def fails(corr, step, s):
         raise CorrectorFailure("the determinant's change of sign does not survive")
 
-    monkeypatch.setattr(events, "_check_on_finer_mesh", fails)
+    monkeypatch.setattr(events, "check_on_finer_mesh", fails)
     rejected = _trivial_branch(tmp_path / "rejected", fold_tol=1e-3)
     assert "BP" not in [p.type for p in rejected.points]
     assert sum("not located: the determinant's change of sign does not survive" in w
@@ -224,7 +224,7 @@ class _FirstOfEachLevel:
     def _answer(self, tag, function, args):
         import threading
         value = (function(*args), "stand-in")
-        others = self.on_result.__self__.back >= 1     # the run's `_Alongside`, this level
+        others = self.on_result.__self__.back >= 1     # the run's `Alongside`, this level
 
         def answer():
             if tag[1][1] == 0 and others:

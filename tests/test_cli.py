@@ -207,14 +207,14 @@ def test_the_snap_back_line_counts_folds_and_branch_points(capsys):
     one point count that point once."""
     from types import SimpleNamespace
 
-    from elastica_auto.cli import _report_run
+    from elastica_auto.cli import report_run
     rows = [{"branch": 1, "lp": "LP1"}, {"branch": 1, "lp": "LP1"}, {"branch": 2, "lp": "LP1"},
             {"branch": 2, "lp": "BP3"}]
     result = SimpleNamespace(warnings=[], snaps=rows, landings=[], maps=[], kept=0,
                              branches=[], seconds=1.0, path="out/x.h5")
-    _report_run(SimpleNamespace(name="x"), result)
+    report_run(SimpleNamespace(name="x"), result)
     assert ("snap-back: 4 stable targets at 2 folds and 1 branch points ending a stable "
             "branch (elastica-auto snaps out/x.h5)") in capsys.readouterr().out
-    _report_run(SimpleNamespace(name="x"), SimpleNamespace(**{**vars(result),
+    report_run(SimpleNamespace(name="x"), SimpleNamespace(**{**vars(result),
                                                               "snaps": rows[:3]}))
     assert "3 stable targets at 2 folds ending" in capsys.readouterr().out

@@ -482,13 +482,13 @@ def test_a_default_run_of_one_branch_starts_no_cluster(tmp_path, monkeypatch):
 
 
 def test_the_default_run_s_cluster_starts_when_the_work_left_pays_for_it():
-    """`_Alongside` starts its cluster once the mean time of what this process finished,
+    """`Alongside` starts its cluster once the mean time of what this process finished,
     times what is left of that kind, or the time of the one in hand, exceeds ``pays``."""
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     started = []
 
     def make(pays):
-        return _Alongside(None, 1, lambda n, on: started.append(n) or _FakeBackground(1, on),
+        return Alongside(None, 1, lambda n, on: started.append(n) or _FakeBackground(1, on),
                           pays=pays)
     pool = make(3.0)
     assert not pool.started and not pool.background.ready.is_set() and started == []
@@ -593,13 +593,13 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, worke
     with the branches that jobs = 1 computes."""
     from elastica_auto.execution import runfile
     from elastica_auto.core.interrupts import Interruptions
-    from elastica_auto.execution.run import RunResult, _Alongside, start_job, execute
+    from elastica_auto.execution.run import RunResult, Alongside, start_job, execute
     from elastica_auto.analysis.snaps import scans
     from helpers import elastica_run_file
     run = elastica_run_file(tmp_path / "two.toml", uz=[0], mirror=False)
     one = execute(runfile.load(run), tmp_path / "one", jobs=1)
     plan = runfile.load(run)
-    pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
+    pool = Alongside(plan, 1, lambda n, on: _FakeBackground(workers, on, ends))
     first = [start_job(plan, spec) for spec in plan.branches]
     result = RunResult(None, [], 0.0)
     with Interruptions() as signals:
@@ -616,17 +616,17 @@ def test_the_default_run_computes_here_what_its_cluster_does_not(tmp_path, worke
 
 @pytest.mark.parametrize("cluster", ["works", "fails", "ends"])
 def test_a_default_run_shares_its_other_tasks_with_its_cluster(cluster):
-    """_Alongside.map (the damped model's landings): each task is taken from the front of
+    """Alongside.map (the damped model's landings): each task is taken from the front of
     the list by this process or by an idle worker of the cluster, the results come back in
     order and each is reported once; a task whose worker dies, or that a cluster that ends
     took with it, is computed here."""
     import threading
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     from helpers import WorkingBackground
     background = {"works": lambda n, on: WorkingBackground(n, on),
                   "fails": lambda n, on: WorkingBackground(n, on, fails=True),
                   "ends": lambda n, on: _FakeBackground(1, on, ends=True)}[cluster]
-    pool = _Alongside(None, 1, background)
+    pool = Alongside(None, 1, background)
     reported = []
     got = pool.map(threading.get_ident, [()] * 5, lambda i, r: reported.append((i, r)))
     assert sorted(i for i, _ in reported) == list(range(5))
@@ -641,11 +641,11 @@ def test_a_default_run_shares_its_other_tasks_with_its_cluster(cluster):
 
 
 def test_a_branch_of_an_earlier_level_is_dropped_when_it_comes_back():
-    """A worker's branch for a job of an earlier `_Alongside.run` (left out while it computed
+    """A worker's branch for a job of an earlier `Alongside.run` (left out while it computed
     it, and so never waited for) is not taken as the current run's job of the same number;
     the current run's own is."""
-    from elastica_auto.execution.run import _Alongside
-    pool = _Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
+    from elastica_auto.execution.run import Alongside
+    pool = Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
     pool.jobs, pool.level, done = ["job 0 of level 3"], 3, {}
     pool._take((("branch", (2, 0)), True, ("a level-2 branch", "inproc://w")), done)
     assert done == {}
@@ -658,11 +658,11 @@ def test_a_branch_of_an_earlier_level_is_dropped_when_it_comes_back():
 
 def test_a_scan_the_cluster_finished_is_taken_not_computed_again():
     """A scan whose result the cluster delivered (in the queue, no longer asked for) while
-    this process was busy is taken by `_Alongside.wait_for_scans`, not left for
+    this process was busy is taken by `Alongside.wait_for_scans`, not left for
     `snap_targets` to compute again."""
     import threading
-    from elastica_auto.execution.run import _Alongside
-    pool = _Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
+    from elastica_auto.execution.run import Alongside
+    pool = Alongside(None, 1, lambda n, on: _FakeBackground(1, on))
     key, params = (("P", 2.0),), {"P": 2.0}
     pool.pending_params[key] = params
     pool.asked.add(key)
@@ -678,7 +678,7 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
         tmp_path, monkeypatch, wanted, fails, mirror):
     """A branch continued in this process, a stand-in worker idle from the start: the scans
     at the folds that end a stable segment (by the direct count) are handed to the worker
-    as each fold is found, before the branch is done, and `_Alongside.wait_for_scans` ends
+    as each fold is found, before the branch is done, and `Alongside.wait_for_scans` ends
     with each scan the labelled branch wants (`analysis.snaps.scans`, at its parameters)
     as `enumerate_equilibria` gives it, none computed here; guesses the branch does not
     want (``first``: it wants only its first) are not kept, nor computed here. A worker that
@@ -691,7 +691,7 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
     from elastica_auto.core.interrupts import Interruptions
     from elastica_auto.execution import run as run_module
     from elastica_auto.execution import runfile
-    from elastica_auto.execution.run import RunResult, _Alongside, start_job
+    from elastica_auto.execution.run import RunResult, Alongside, start_job
     from helpers import WorkingBackground, elastica_run_file
     computing, handed, where = threading.Event(), [], []
     compute, enumerate_ = run_module.compute_branch, run_module.enumerate_equilibria
@@ -724,7 +724,7 @@ def test_the_scans_of_a_branch_computed_here_go_to_an_idle_worker_while_it_is_co
     plan = runfile.load(elastica_run_file(tmp_path / "one.toml", eps="0.5", P="9*pi^2/4",
                                           directions="forward", bounds=("-6*pi", "6*pi"),
                                           mirror=mirror))
-    pool = _Alongside(plan, 1, lambda n, on: Recording(n, on, fails=fails))
+    pool = Alongside(plan, 1, lambda n, on: Recording(n, on, fails=fails))
     result = RunResult(None, [], 0.0)
     with Interruptions() as signals:
         assert not pool.run([start_job(plan, spec) for spec in plan.branches],
@@ -790,13 +790,13 @@ def test_a_guessed_scan_is_kept_only_at_the_parameters_the_branch_wants(monkeypa
     import types
 
     from elastica_auto.execution import run as run_module
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     key, wanted = (("psi", 1.0),), {"psi": 1.0}
     guessed = wanted if same else {"psi": 1.0 + 2 * np.pi}
     monkeypatch.setattr(run_module, "scans", lambda problem, br: {key: wanted})
     monkeypatch.setattr(run_module, "copy_key", lambda problem, name, params: key)
     plan = types.SimpleNamespace(problem=None, options=types.SimpleNamespace(mirror=False))
-    pool = _Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
+    pool = Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
     br = types.SimpleNamespace(parameter="psi")
     pool.guesses[key] = (br, guessed, key)
     pool.spare[key] = ["the guess's equilibria"]
@@ -824,7 +824,7 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
     from elastica_auto.core.interrupts import Interruptions
     from elastica_auto.execution import run as run_module
     from elastica_auto.execution import runfile
-    from elastica_auto.execution.run import RunResult, _Alongside, execute, start_job
+    from elastica_auto.execution.run import RunResult, Alongside, execute, start_job
     from helpers import WorkingBackground, elastica_run_file
     # two arm lengths: no scan key of one branch is the other's (as both directions' are,
     # by the mirror image), so each guess computed here is the scan its branch keeps
@@ -865,7 +865,7 @@ def test_scans_waiting_for_a_busy_worker_are_computed_here_meanwhile(tmp_path, m
             return super().submit(tag, function, args)
 
     monkeypatch.setattr(run_module, "enumerate_equilibria", enumerated)
-    pool = _Alongside(plan, 1, lambda n, on: Holding(n, on))
+    pool = Alongside(plan, 1, lambda n, on: Holding(n, on))
     result = RunResult(None, [], 0.0)
     with Interruptions() as signals:
         assert not pool.run([start_job(plan, spec) for spec in plan.branches],
@@ -978,7 +978,7 @@ def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypat
     from elastica_auto.execution.jobs import NOT_COMPUTED
     from elastica_auto.execution.run import execute
     address, procs = _start_cluster(tmp_path / "cluster")
-    fetch, fetches, ended = cluster._fetched, [], []
+    fetch, fetches, ended = cluster.fetched, [], []
 
     def fetched(future):
         fetches.append(future.key)
@@ -994,7 +994,7 @@ def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypat
         except ClusterLost as exc:
             ended.append(exc)
 
-    monkeypatch.setattr(cluster, "_fetched", fetched)
+    monkeypatch.setattr(cluster, "fetched", fetched)
     thread = threading.Thread(target=run, daemon=True)   # a hung run fails the test
     try:
         thread.start()
@@ -1228,12 +1228,12 @@ def test_a_branch_task_that_raises_ends_its_branch_with_the_exception(tmp_path, 
 
 def test_a_default_run_s_task_that_raises_on_its_cluster_is_said_and_computed_here(tmp_path):
     """issue 45 item 3, the default run's background cluster (`cluster.Background`, its
-    worker a thread of the helper process): of two tasks of `_Alongside.map`, this process
+    worker a thread of the helper process): of two tasks of `Alongside.map`, this process
     takes one and waits until the worker has taken the other, which raises there (only
     outside this process). Both results are this process's, and a warning names the
     worker's exception."""
     from elastica_auto.execution.cluster import Background
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     here, tried = os.getpid(), tmp_path / "tried"
 
     def work(i):
@@ -1247,7 +1247,7 @@ def test_a_default_run_s_task_that_raises_on_its_cluster_is_said_and_computed_he
             time.sleep(0.01)
         return i, os.getpid()
 
-    pool = _Alongside(None, 1, Background)
+    pool = Alongside(None, 1, Background)
     try:
         got = pool.map(work, [(0,), (1,)], lambda i, r: None)
     finally:
@@ -1270,7 +1270,7 @@ def test_a_scan_that_raises_on_the_default_run_s_cluster_is_said_and_not_sent_ag
 
     from elastica_auto.execution import run as run_module
     from elastica_auto.execution.jobs import TaskFailure
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     key, params = (("psi", 1.0),), {"psi": 1.0}
     monkeypatch.setattr(run_module, "scans", lambda problem, br: {key: params})
     monkeypatch.setattr(run_module, "copy_key", lambda problem, name, params: key)
@@ -1279,7 +1279,7 @@ def test_a_scan_that_raises_on_the_default_run_s_cluster_is_said_and_not_sent_ag
     lost = TaskFailure("KilledWorker", "the worker died", lost=True)
     pools = {}
     for failure in (lost, raised):
-        pool = pools[failure.lost] = _Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
+        pool = pools[failure.lost] = Alongside(plan, 1, lambda n, on: _FakeBackground(0, on))
         if kind == "scan":
             pool.pending_params[key] = params
         else:

@@ -71,13 +71,13 @@ def test_collocation_jacobian_is_the_derivative_of_the_equations(elastica):
 
 @pytest.mark.parametrize("ncol", [0, 4])
 def test_the_fold_newton_border_row_is_the_gradient_of_its_test_function(elastica, ncol):
-    """`newton._fold_gradient` (the last row of the fold Newton matrix) against central
-    differences of the test function g itself (`newton._null_vector`, b and c held fixed) at
+    """`newton.fold_gradient` (the last row of the fold Newton matrix) against central
+    differences of the test function g itself (`newton.null_vector`, b and c held fixed) at
     a state that solves nothing: in lam, and along a random direction of the node values;
     for the cubic scheme and for Gauss collocation (whose condensed equations' mixed
     derivatives commute too)."""
     from elastica_auto.numerics.gauss import GaussDiscretisation
-    from elastica_auto.numerics.newton import _fold_gradient, _null_vector
+    from elastica_auto.numerics.newton import fold_gradient, null_vector
     rng = np.random.default_rng(3)
     s, y, p = _state(elastica, 41, rng)
     disc = GaussDiscretisation(elastica, s, ncol) if ncol else Discretisation(elastica, s)
@@ -91,12 +91,12 @@ def test_the_fold_newton_border_row_is_the_gradient_of_its_test_function(elastic
         q = {**p, name: lam}
         bl = disc.blocks(disc.evaluate(Y, q), q)
         fixed = Blocks(bl.d0, bl.d1, bl.ga, bl.gb, {name: b_col}, {name: b_bc}, bl.jac, bl.fp)
-        return _null_vector(disc, fixed, name, c, split)[1]
+        return null_vector(disc, fixed, name, c, split)[1]
 
-    v, _, w_col, w_bc, _ = _null_vector(disc, Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb,
+    v, _, w_col, w_bc, _ = null_vector(disc, Blocks(blocks.d0, blocks.d1, blocks.ga, blocks.gb,
                                                   {name: b_col}, {name: b_bc}, blocks.jac,
                                                   blocks.fp), name, c, split)
-    g_y, g_lam = _fold_gradient(disc, name, p, y, blocks, v, w_col, w_bc)
+    g_y, g_lam = fold_gradient(disc, name, p, y, blocks, v, w_col, w_bc)
     h, lam = 1e-5, p[name]
     central = (g_at(y, lam + h) - g_at(y, lam - h)) / (2 * h)
     # (the one-sided difference is within ~1e-7 of the derivative; measured 4e-8)
@@ -113,7 +113,7 @@ def test_a_fold_newton_step_is_newtons_step_on_the_augmented_system(elastica):
     border column F_lam taken at that point, as the iteration's gradient holds it), solved
     densely."""
     import elastica_auto as ea
-    from elastica_auto.numerics.newton import _null_vector, fold_newton
+    from elastica_auto.numerics.newton import null_vector, fold_newton
     arm = ea.continuation(elastica, {"eps": 0.25, "P": math.pi ** 2 / 4}, "psi",
                           bounds=(-2 * math.pi, 2 * math.pi))
     near = arm.label("LP1")
@@ -132,7 +132,7 @@ def test_a_fold_newton_step_is_newtons_step_on_the_augmented_system(elastica):
         ev = disc.evaluate(Y, q)
         bl = disc.blocks(ev, q)
         fixed = Blocks(bl.d0, bl.d1, bl.ga, bl.gb, {name: b_col}, {name: b_bc}, bl.jac, bl.fp)
-        return np.concatenate((ev.col.ravel(), ev.bc, [_null_vector(disc, fixed, name, c,
+        return np.concatenate((ev.col.ravel(), ev.bc, [null_vector(disc, fixed, name, c,
                                                                     split)[1]]))
 
     z0 = np.append(y0.ravel(), lam0)

@@ -122,7 +122,7 @@ def test_a_border_update_that_would_lose_its_digits_is_refused():
     singular_c, singular_d = c0 - u_y / weight, float(d0[0] - u_p[0] / weight)
     with pytest.raises(bordered.IllConditionedUpdate):
         fact.solve_with_border(singular_c, [singular_d], col, bc, [g])
-    dy, dp = newton._with_border(fact, lin.blocks, "lam", lin.split, singular_c, singular_d,
+    dy, dp = newton.with_border(fact, lin.blocks, "lam", lin.split, singular_c, singular_d,
                                  col, bc, g)
     assert np.all(np.isfinite(dy)) and np.isfinite(dp).all()
     # a well-conditioned exchange: the update, the fallback and a direct solve agree

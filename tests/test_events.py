@@ -107,11 +107,11 @@ def test_a_closed_loop_ends_where_it_started(tmp_path, monkeypatch, direction, w
     goes round once, through its two folds at lam = +-1, and ends (EP) at its own start
     point: not round and round until max_points. Each of the two checks closes it alone:
     the start ahead of the last point within the next step, or passed inside a step."""
-    from elastica_auto.branches.stepper import _Walk
+    from elastica_auto.branches.stepper import Walk
     if way == "ahead":
-        monkeypatch.setattr(_Walk, "_closure_event", lambda self, step: None)
+        monkeypatch.setattr(Walk, "_closure_event", lambda self, step: None)
     elif way == "in a step":
-        monkeypatch.setattr(_Walk, "_close_ahead", lambda self, ds: False)
+        monkeypatch.setattr(Walk, "_close_ahead", lambda self, ds: False)
     path = tmp_path / "circle.py"
     path.write_text(CIRCLE)
     problem = ea.load_problem(str(path))
@@ -143,17 +143,17 @@ _ROOTS = [
 @pytest.mark.parametrize("xtol", [1e-8, 1e-12])
 def test_the_root_finder_of_the_events_brackets_each_root_to_its_tolerance(f, lo, hi, root,
                                                                           simple, xtol):
-    """`events._brent` (every located event but folds): within xtol of the closed-form
+    """`events.brent` (every located event but folds): within xtol of the closed-form
     root, at an abscissa f was evaluated at; a simple root in a few evaluations, any other
     in no more than four per halving of the bracket (at a multiple root interpolation
     creeps towards it, with a bisection about every fourth step)."""
-    from elastica_auto.branches.events import _brent
+    from elastica_auto.branches.events import brent
     seen = []
 
     def counted(x):
         seen.append(x)
         return f(x)
 
-    x = _brent(counted, lo, hi, f(lo), f(hi), xtol)
+    x = brent(counted, lo, hi, f(lo), f(hi), xtol)
     assert abs(x - root) <= xtol and x in [*seen, lo, hi]
     assert len(seen) <= (10 if simple else 4 * math.ceil(math.log2((hi - lo) / xtol)))

@@ -133,7 +133,7 @@ def _fast_and_whole(make_plan, tmp_path, monkeypatch):
     from elastica_auto.branches import stepper
     fast = run_plan(make_plan(), tmp_path / "fast").result.branches
     with monkeypatch.context() as m:
-        m.setattr(stepper._Walk, "_repeat_period", lambda self, course, singular: None)
+        m.setattr(stepper.Walk, "_repeat_period", lambda self, course, singular: None)
         full = run_plan(make_plan(), tmp_path / "full").result.branches
     return fast, full
 
@@ -415,17 +415,17 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     (Without the probe the translate check is all there is: where every translate of a pair
     is passed over, as at eps = 0.3615 with ds_max = 1, nothing brings it back.) The check
     compares periods computed apart, so the branches are computed whole here: a branch that
-    repeats is otherwise its first period copied (`_Walk._repeat`), and a pair its steps
+    repeats is otherwise its first period copied (`Walk._repeat`), and a pair its steps
     pass over is then missing from every copy, the probe being what finds it. In this
     process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
     from elastica_auto.branches import stepper
 
     def patch(translates: bool):
         monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
-        monkeypatch.setattr(stepper._Walk, "_repeat_period",
+        monkeypatch.setattr(stepper.Walk, "_repeat_period",
                             lambda self, course, singular: None)
         if not translates:
-            monkeypatch.setattr(stepper._Walk, "_complete_translates", lambda self: None)
+            monkeypatch.setattr(stepper.Walk, "_complete_translates", lambda self: None)
 
     patch(translates=False)
     missed = _cusp_folds(tmp_path / "without", ds_max=1.0)

@@ -28,7 +28,7 @@ import pytest
 
 import elastica_auto as ea
 from elastica_auto.analysis.equilibria import beyond_fold, enumerate_equilibria, snap_lps
-from elastica_auto.analysis.landing import BEYOND, NODES, _overdamped, land
+from elastica_auto.analysis.landing import BEYOND, NODES, overdamped_path, land
 from elastica_auto.core.solution import State
 from elastica_auto.energy import frame_flow as ff
 from elastica_auto.energy.loader import execute
@@ -165,8 +165,8 @@ def test_a_planar_field_of_the_spatial_rod_flows_as_the_planar_elastica(rod, pla
     scale = np.abs(f2.force(u2)).max()
     np.testing.assert_allclose(omega[3], f2.force(u2), atol=1e-13 * scale)
     np.testing.assert_allclose(omega[:3], 0, atol=1e-13 * scale)
-    _, e2, end2 = _overdamped(f2, u2)
-    _, e3, end3 = _overdamped(f3, u3)
+    _, e2, end2 = overdamped_path(f2, u2)
+    _, e3, end3 = overdamped_path(f3, u3)
     assert np.all(np.diff(e3) <= 1e-13 * abs(e3[0]))
     np.testing.assert_allclose(_angles(end3.reshape(4, -1)), end2, atol=1e-7)
     assert e3[-1] == pytest.approx(e2[-1], rel=1e-12)

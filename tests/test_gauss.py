@@ -251,7 +251,7 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
     K = disc.stages(y, p) + 0.01 * rng.standard_normal((4, k, 3))
     lam = p["P"]          # P enters the equation (psi only the end)
     row = Row(rng.standard_normal(y.shape), 0.7, 0.3)
-    split = Linearizer(elastica, "P", k).split
+    split = Linearizer(elastica, "P", lambda problem, s: GaussDiscretisation(problem, s, k)).split
     lin = Linearization(disc, "P", p, y, lam, row, split, K)
     dY, dlam, dK = lin.correct(row, disc.evaluate(y, p, K), row.residual(y, lam))
 
@@ -266,3 +266,31 @@ def test_the_condensed_newton_correction_solves_the_full_system(elastica, k):
     np.testing.assert_allclose(dY, dx[:y.size].reshape(y.shape), rtol=0, atol=1e-7)
     np.testing.assert_allclose(dK, dx[y.size:-1].reshape(K.shape), rtol=0, atol=1e-7)
     assert abs(dlam - dx[-1]) < 1e-7
+
+
+@pytest.mark.parametrize("k, intervals, order", [(0, (8, 16), 4), (3, (4, 8), 6)])
+def test_the_corrector_ncol_makes_solves_on_its_own_discretisation(k, intervals, order):
+    """``ncol = k`` makes the Gauss corrector (k > 0) or the cubic collocation one (0), each
+    behind the corrector interface: a value solve through it on a fixed mesh has node errors
+    against Bratu's closed form that fall like h^4 (the cubic scheme) or h^(2k)."""
+    from elastica_auto.core.solution import State
+    from elastica_auto.numerics.correctors import Collocation, Gauss, make_corrector
+
+    bratu = load_problem(str(EXAMPLES / "bratu.py"))
+    corr = make_corrector(bratu, "lam", ContinuationOptions(ncol=k))
+    assert type(corr) is (Gauss if k else Collocation)
+    z = 1.5
+    lam = 2 * z * z / math.cosh(z / 2) ** 2
+
+    def exact(x):
+        return np.vstack((-2 * np.log(np.cosh(z * (x - 0.5)) / math.cosh(z / 2)),
+                          -2 * z * np.tanh(z * (x - 0.5))))
+
+    err = []
+    for m in intervals:
+        s = np.linspace(0.0, 1.0, m + 1)
+        guess = State.from_values(bratu, s, exact(s) + 0.01 * np.sin(np.pi * s), {"lam": lam})
+        got = corr.at_value(guess, {"lam": lam}, lam)
+        assert np.array_equal(got.s, s)
+        err.append(np.max(np.abs(got.y - exact(s))))
+    assert abs(math.log2(err[0] / err[1]) - order) < 0.3, err

@@ -245,7 +245,7 @@ def fd_compare(mod, problem, state):
         index = (stability.index(problem, state), int(np.sum(fine < 0)))
     low = fine[fine < 25]
     gaps = [(x + y) / 2 for x, y in zip(low[:-1], low[1:]) if y - x > 2 * SAFETY * err]
-    evaluate = stability._on_state(problem, state)
+    evaluate = stability.form_on_state(problem, state)
     engine = [stability.count_form(evaluate, state.s, shift=mu).index for mu in gaps]
     return index, (engine, [int(np.sum(fine < mu)) for mu in gaps])
 
@@ -412,7 +412,7 @@ def tilted(modules, generic):
 
 def spectrum_counts(rod, state, shifts=(2.0, 10.0, 30.0, 60.0)):
     """The numbers of eigenvalues of the second variation below each shift."""
-    evaluate = stability._on_state(rod, state)
+    evaluate = stability.form_on_state(rod, state)
     return [stability.count_form(evaluate, state.s, shift=mu).index for mu in shifts]
 
 
@@ -876,7 +876,7 @@ def test_isotropic_buckled_branch_with_a_phase_condition(modules, isotropic):
     assert smallest > 1e-3 and index == uz.index == 0
     low = spectrum[spectrum < 60]
     shifts = [(x + y) / 2 for x, y in zip(low[:-1], low[1:]) if y - x > 0.5]
-    evaluate = stability._on_state(rod, st)
+    evaluate = stability.form_on_state(rod, st)
     engine = [stability.count_form(evaluate, st.s, shift=mu).index for mu in shifts]
     print("shifts", np.round(shifts, 3), "engine", engine)
     assert len(shifts) >= 3
@@ -928,13 +928,13 @@ def test_a_branch_s_split_index_is_the_engine_s_count(monkeypatch):
     from elastica_auto.energy import runtime
     rod = load_problem(K3)
     calls = []
-    counted = runtime._part_counts       # what the derived index_in, index_out count with
+    counted = runtime.part_counts       # what the derived index_in, index_out count with
 
     def part_counts(*args, **kwargs):
         calls.append(args)
         return counted(*args, **kwargs)
     counted.cache_clear()
-    monkeypatch.setattr(runtime, "_part_counts", part_counts)
+    monkeypatch.setattr(runtime, "part_counts", part_counts)
     (br,) = ea.continuation(rod, BASE, "psi", bounds=(-0.6, 0.6), max_points=40, ds_max=0.05)
     stepped = [p for p in br.points if not p.type]
     assert len(stepped) >= 15

@@ -94,7 +94,7 @@ def test_shooting_residual_vanishes_at_collocation_solutions(arms):
     integrating from it meets the tip condition to the collocation's accuracy; at a
     non-planar state (the arm tilted by chi) as well, where k2 != 0."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.analysis.equilibria import _integrate
+    from elastica_auto.analysis.equilibria import integrate
     _, rod, _, rods = arms
     states = [br.label(p.name).state for br, p in labelled(rods, "UZ")[:4]]
     br, pt = labelled(rods, "UZ")[1]
@@ -113,9 +113,9 @@ def test_shooting_residual_vanishes_at_collocation_solutions(arms):
         assert abs(mod.load(p) @ y[7:10, 0]) < 1e-8              # m(0).F = 0
         y0 = initial(k[:, None])
         assert np.max(np.abs(y0[:, 0] - y[:, 0])) < 1e-8
-        assert np.max(np.abs(residual(y0, _integrate(rod, p, y0)))) < 1e-6
+        assert np.max(np.abs(residual(y0, integrate(rod, p, y0)))) < 1e-6
         # and a wrong start does not satisfy it
-        assert np.max(np.abs(residual(y0 + 0.05, _integrate(rod, p, y0 + 0.05)))) > 1e-3
+        assert np.max(np.abs(residual(y0 + 0.05, integrate(rod, p, y0 + 0.05)))) > 1e-3
 
 
 def jacobi_count(mod, state):
@@ -238,10 +238,10 @@ def test_a_branch_point_s_degenerate_root_is_one_equilibrium(arms):
 
 
 def test_close_roots_are_merged_only_where_r_stays_small_between_them():
-    """`_merged`: of a cubic root's settled candidates (r = (x, y^3), 1e-4 apart) one is
+    """`merged_roots`: of a cubic root's settled candidates (r = (x, y^3), 1e-4 apart) one is
     kept, the one of least |r|; two simple roots 5e-4 of the box apart (r = (x, (y - a)(y -
     a - 0.002))) are both kept, as are roots further apart than MERGE_SPAN."""
-    from elastica_auto.analysis.equilibria import _merged
+    from elastica_auto.analysis.equilibria import merged_roots
 
     width, tol = np.array((4.0, 4.0)), 4e-9
 
@@ -249,12 +249,12 @@ def test_close_roots_are_merged_only_where_r_stays_small_between_them():
         return np.vstack((k[0], k[1] ** 3))
     k = np.array(((0.0, 0.0, 0.0, 1.0), (-1e-4, 2e-6, 1e-4, 0.0)))
     size = np.max(np.abs(cubic(k)), axis=0)
-    np.testing.assert_array_equal(_merged(cubic, k, size, width, tol), k[:, [1, 3]])
+    np.testing.assert_array_equal(merged_roots(cubic, k, size, width, tol), k[:, [1, 3]])
 
     def pair(k):
         return np.vstack((k[0], (k[1] - 0.1) * (k[1] - 0.102)))
     k = np.array(((0.0, 0.0), (0.1, 0.102)))
-    np.testing.assert_array_equal(_merged(pair, k, np.zeros(2), width, tol), k)
+    np.testing.assert_array_equal(merged_roots(pair, k, np.zeros(2), width, tol), k)
 
 
 def test_a_candidate_circling_a_root_found_is_given_up():
@@ -262,7 +262,7 @@ def test_a_candidate_circling_a_root_found_is_given_up():
     y = 2e-3 (5e-4 of the box) circles the root (0, 0) for ever, its |r| falling by 2.6% a
     step (no stall, no Aitken: the steps alternate). Once the candidate started on y = 0 has
     found the root, the other is given up after STRAGGLE_STEPS, not after all 40."""
-    from elastica_auto.analysis.equilibria import STRAGGLE_STEPS, _Box, _newton
+    from elastica_auto.analysis.equilibria import STRAGGLE_STEPS, Box, box_newton
 
     calls = []
 
@@ -270,8 +270,8 @@ def test_a_candidate_circling_a_root_found_is_given_up():
         calls.append(k.shape[1])
         return np.vstack((k[0], np.sign(k[1]) * np.abs(k[1]) ** (1 / 1.95)))
     lo, hi = np.array((-2.0, -2.0)), np.array((2.0, 2.0))
-    box = _Box(lo, hi, hi - lo, (hi - lo) / 100)
-    got = _newton(r, np.array(((0.3, 0.01), (0.0, 2e-3))), box, 1e-9, 1e-12, 40)
+    box = Box(lo, hi, hi - lo, (hi - lo) / 100)
+    got = box_newton(r, np.array(((0.3, 0.01), (0.0, 2e-3))), box, 1e-9, 1e-12, 40)
     assert got.shape == (2, 1) and np.max(np.abs(got)) < 1e-12
     assert len(calls) == STRAGGLE_STEPS
 
@@ -441,7 +441,7 @@ def test_the_rod_s_shooting_reflection_holds_where_it_is_given():
     reflection (1, -1); where one of beta, chi, phi0, u2, u3 breaks it (b2 = 2), the
     residuals do not, and the hook gives none."""
     import elastica_auto.equations.kirchhoff_lever_arm as mod
-    from elastica_auto.analysis.equilibria import _integrate
+    from elastica_auto.analysis.equilibria import integrate
 
     rod = load_problem(K3)
     base = {**rod.defaults(), "eps": 0.5, "P": 9 * math.pi ** 2 / 4, "b2": 2.0, "psi": 1.3,
@@ -453,7 +453,7 @@ def test_the_rod_s_shooting_reflection_holds_where_it_is_given():
 
         def r(k):
             y0 = initial(k)
-            return residual(y0, _integrate(rod, p, y0))
+            return residual(y0, integrate(rod, p, y0))
         return float(np.max(np.abs(r(_mirrored(k)) - _mirrored(r(k)))))
 
     keeping = [base, {**base, "u1": 0.7, "beta": math.pi, "chi": math.pi, "phi0": math.pi}]

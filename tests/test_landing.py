@@ -151,7 +151,7 @@ def test_below_the_lowest_saddle_the_damped_well_is_decided(arm, elastica, monke
     the rod has settled does, and where it does with the integrator's tolerances / 100."""
     folds = _folds(arm[0], elastica)
     # the folds whose start lies above the lowest saddle: there the stop is a real shortcut
-    p, beyond, eqs = next(f for f in folds if landing_module._lowest_saddle(
+    p, beyond, eqs = next(f for f in folds if landing_module.lowest_saddle(
         *_flow_at(elastica, f)) < _start_energy(elastica, f))
     # the lowest saddle against the energy of the module's docstring on the shooting
     # equilibria, by quadrature on a fine grid (the discrete one is O(h^2) away)
@@ -166,13 +166,13 @@ def test_below_the_lowest_saddle_the_damped_well_is_decided(arm, elastica, monke
                 + q["eps"] * q["P"] * np.cos(q["psi"] + q["alpha"] - theta[-1]))
     lowest = min(energy(e) for e in eqs
                  if e.index > 0 and np.max(np.abs(e.state(s)[0] - p.state(s)[0])) > 0.2)
-    assert landing_module._lowest_saddle(*_flow_at(elastica, (p, beyond, eqs))) == \
+    assert landing_module.lowest_saddle(*_flow_at(elastica, (p, beyond, eqs))) == \
         pytest.approx(lowest, abs=1e-3 * (1 + abs(lowest)))
     first = land(elastica, p.state, p.tangent, eqs, "psi", beyond, damping=DAMPING)
     assert first.target is not None
     e = first.energies
     assert np.all(np.diff(e) <= 1e-6 * (1 + np.abs(e[:-1])))
-    monkeypatch.setattr(landing_module, "_lowest_saddle", lambda *args: -np.inf)
+    monkeypatch.setattr(landing_module, "lowest_saddle", lambda *args: -np.inf)
     settled = land(elastica, p.state, p.tangent, eqs, "psi", beyond, damping=DAMPING)
     assert settled.target == first.target
     assert len(settled.times) > len(first.times)
@@ -216,12 +216,12 @@ def test_the_damped_landings_are_the_same_whoever_computes_them(arm, elastica):
     and the snap-back table's overdamped landings, are the same, in the same order, as
     computed one after the other."""
     from elastica_auto.analysis.landing import damping_sweep
-    from elastica_auto.execution.run import _Alongside
+    from elastica_auto.execution.run import Alongside
     from helpers import WorkingBackground
     branches = arm[0]
     folds = [p.name for p, _ in snap_lps(branches[0])][:2]
     serial = damping_sweep(elastica, branches, [20.0], folds)
-    pool = _Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
+    pool = Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
     shared = damping_sweep(elastica, branches, [20.0], folds, mapper=pool.map)
     assert len(serial) == 2 and all(r["landed"] == 1 for r in serial)
     assert pool.background.tasks                          # the worker computed some
@@ -231,7 +231,7 @@ def test_the_damped_landings_are_the_same_whoever_computes_them(arm, elastica):
             assert a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]), (k, a[k], b[k])
     # and the overdamped landings of the snap-back table (the fixture's, one by one)
     from elastica_auto.analysis.snaps import snap_targets
-    pool = _Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
+    pool = Alongside(None, 1, lambda n, on: WorkingBackground(n, on))
     rows = snap_targets(elastica, branches[:1], landing=True, mapper=pool.map)
     assert pool.background.tasks
     cols = ("lp", "k", "landed", "energy_released", "transit_time")

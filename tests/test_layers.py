@@ -143,11 +143,6 @@ def test_nothing_imports_the_command_line():
             if target == "elastica_auto.cli"] == []
 
 
-#: The checks on problem kinds that the layer `branches` still makes (issue 48: its stepper
-#: and events are being rewritten apart from this change): each "module: kind" once.
-KIND_CHECKS_LEFT = {"elastica_auto.branches.codim2: Augmented"}
-
-
 def problem_kinds(root: Path = PACKAGE) -> set[str]:
     """The classes of the package that implement the problem interface: those deriving
     (through the package's classes, by name) from ``ProblemInterface``."""
@@ -192,8 +187,7 @@ def test_no_isinstance_on_problem_kinds_outside_the_model_layer():
     """Issue 48 item 3: what differs between the kinds of problem is in their answers to the
     interface (`elastica_auto.model.interface`), not in checks of their class."""
     assert {"Problem", "Augmented", "Phased", "PathProblem"} <= problem_kinds()
-    left = {f"{c.split(':')[0]}: {c.split()[-1]}" for c in kind_checks()}
-    assert left <= KIND_CHECKS_LEFT, sorted(left - KIND_CHECKS_LEFT)
+    assert kind_checks() == []
 
 
 def test_no_private_name_from_another_module():
@@ -222,8 +216,8 @@ def test_a_requested_event_kind_imports_only_the_event_type_and_core():
     ("numerics/newton.py", "from ..execution.run import execute", lambda r: upward(graph(r))),
     ("numerics/newton.py", "from .stability import _kernel", lambda r: private(graph(r))),
     ("numerics/collocation.py", "from .newton import newton", lambda r: cycles(graph(r))),
-    ("execution/run.py", "return isinstance(problem, Augmented)",
-     lambda r: [c for c in kind_checks(r) if not c.startswith("elastica_auto.branches.")]),
+    ("execution/run.py", "return isinstance(problem, Augmented)", lambda r: kind_checks(r)),
+    ("branches/codim2.py", "return isinstance(base, Augmented)", lambda r: kind_checks(r)),
 ])
 def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     """A copy of the package with one bad line, inside a function as the lazy imports are:
@@ -235,6 +229,58 @@ def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     module = copy / where
     module.write_text(module.read_text() + f"\n\ndef _bad():\n    {line}\n")
     assert check(copy)
+
+
+def label_strings(root: Path = PACKAGE) -> list[str]:
+    """Label-type strings (``"LP"``, ``"BP"``, ... : `elastica_auto.core.labels.KINDS`)
+    compared with, looked up by, or matched as a name's prefix outside `core.labels`, as
+    "module:line": what a kind is for the code is its `Kind`'s property or constant, so that
+    a new kind is its row of the table and its event's module, not an edit of every reader.
+    A string in a message or a column heading is no comparison and passes."""
+    from elastica_auto.core.labels import KINDS
+
+    def kind(node) -> bool:
+        elts = node.elts if isinstance(node, (ast.Tuple, ast.List, ast.Set)) else [node]
+        return any(isinstance(e, ast.Constant) and e.value in KINDS for e in elts)
+
+    found = []
+    for m, path in modules(root).items():
+        if m == "elastica_auto.core.labels":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Compare):
+                hit = any(kind(x) for x in (node.left, *node.comparators))
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                hit = node.func.attr in ("startswith", "endswith") and any(map(kind, node.args))
+            elif isinstance(node, ast.Subscript):
+                hit = kind(node.slice)
+            else:
+                continue
+            if hit:
+                found.append(f"{m}:{node.lineno}")
+    return found
+
+
+def test_label_kinds_are_read_by_name_outside_the_table():
+    assert label_strings() == []
+
+
+@pytest.mark.parametrize("where, line", [
+    ("plots/diagram.py", 'return t == "LP"'),
+    ("analysis/snaps.py", 'return t in ("LP", "BP")'),
+    ("execution/run.py", 'return name.startswith("BP")'),
+    ("execution/plan.py", 'return opts.detect["LP"]'),
+])
+def test_the_label_check_catches_what_it_forbids(tmp_path, where, line):
+    """A copy of the package with one label compared as a string, in each form the readers
+    used before the table's properties."""
+    copy = tmp_path / "elastica_auto"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
+    name = "elastica_auto." + where[:-3].replace("/", ".")
+    assert not [f for f in label_strings(copy) if f.startswith(name + ":")]
+    module = copy / where
+    module.write_text(module.read_text() + f"\n\ndef _bad(t, name, opts):\n    {line}\n")
+    assert [f for f in label_strings(copy) if f.startswith(name + ":")]
 
 
 #: The names a corrector is held by outside ``numerics/`` (``corr``, ``self.corr``,

@@ -8,7 +8,7 @@ against the grown, untried ds; the retries an event may take were spent by corre
 failures at lengths the branch never had; a UZ value the step's ends bracket but no solution
 between them crosses was a warning. Now the lookahead measures against the start's own
 distance, the retries count below the last accepted step, a step longer than 1.5 times it is
-checked halfway (`stepper._Walk._arc_checked`) and such a UZ value rejects the step.
+checked halfway (`stepper.Walk._arc_checked`) and such a UZ value rejects the step.
 """
 
 from __future__ import annotations

@@ -94,14 +94,14 @@ def test_steps_shrink_as_an_eighth_order_method_does():
 
 
 def test_the_stage_sums_in_blocks_are_the_whole_product():
-    """`_combine` (the stages' weighted sums, in blocks of columns BLAS multiplies on one
+    """`combine` (the stages' weighted sums, in blocks of columns BLAS multiplies on one
     thread) against numpy's product of the whole, over sizes below, at and across the
     block's width, the last block short."""
-    from elastica_auto.numerics.ode import SINGLE_THREAD_GEMV, _combine
+    from elastica_auto.numerics.ode import SINGLE_THREAD_GEMV, combine
     rng = np.random.default_rng(7)
     for j in (1, 5, 11, 12):
         cols = SINGLE_THREAD_GEMV // j
         for n in (1, cols, cols + 1, 3 * cols - 7):
             w, flat = rng.standard_normal(j), rng.standard_normal((j, n))
             want = w @ flat
-            assert np.max(np.abs(_combine(w, flat) - want)) <= 1e-14 * np.max(np.abs(flat))
+            assert np.max(np.abs(combine(w, flat) - want)) <= 1e-14 * np.max(np.abs(flat))

@@ -56,6 +56,26 @@ def test_every_kind_implements_the_interface(kinds):
     assert free["fold curve"].solved == ("psi",) and free["module"].solved == ()
 
 
+def test_the_module_problem_is_the_one_a_kind_is_built_on(kinds, elastica):
+    """``module_problem``: the module's own problem, whose states are the first ``n0`` of the
+    kind's, and whose ordinates at a kind's state (its first ``n0`` rows, at the parameters
+    the kind reads from it) are the kind's own."""
+    for name, problem, base in kinds:
+        own = problem.module_problem
+        assert own.module_problem is own, name
+        assert tuple(problem.states[: own.n]) == tuple(own.states), name
+        if base is not None and name != "path":
+            assert own is base, name
+    fold = dict((n, p) for n, p, _ in kinds)["fold curve"]
+    # the fold system is a module of its own (states y and the null vector v), not the
+    # elastica's: its ordinates are the elastica's of y
+    assert fold.module_problem is not elastica and fold.module_problem.n == 2 * elastica.n
+    # through two wrappers: the phase condition around the pinned arm's free parameters
+    free, module = next((p, b) for n, p, b in kinds if n == "free parameters")
+    twice = Phased(free, None)       # (its reference state is read only when it is solved)
+    assert twice.module_problem is module and twice.n0 == free.n > module.n
+
+
 def test_no_hook_is_dropped_silently(kinds):
     """For each hook the module has: the built problem has it too, or says why not."""
     for name, problem, base in kinds:

@@ -228,7 +228,7 @@ def test_the_command_line_is_recorded_as_comments_only(tmp_path):
     each --set or --from is one line."""
     path = tmp_path / "small.toml"
     path.write_text(SMALL)
-    doc = runfile._Document(path, None)
+    doc = runfile.Document(path, None)
     restart = "x\n[options]\nds_max = 0.01\n\x1c\u2028/f.h5:UZ1"
     runfile.apply_overrides(doc, ["ds=0.1"], restart)
     record = doc.text[len(SMALL):]

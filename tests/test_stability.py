@@ -713,7 +713,7 @@ def test_fold_transitions_match_the_dense_count_on_either_side(rotating_arm, tri
 
 
 def test_smallest_eigenvalue_of_small_blocks_matches_lapack():
-    """The closed forms of the 2 x 2 and 3 x 3 smallest eigenvalue (stability._min_eig)
+    """The closed forms of the 2 x 2 and 3 x 3 smallest eigenvalue (stability.min_eig)
     against LAPACK's, on random symmetric blocks and on rotated diag(1, 1, c) and diag(c, c, 1)
     (a double eigenvalue above or at the bottom: the arccos is steep there), to rounding."""
     rng = np.random.default_rng(7)
@@ -727,7 +727,7 @@ def test_smallest_eigenvalue_of_small_blocks_matches_lapack():
                 blocks.append((q * np.array(diag)) @ q.transpose(0, 2, 1))
         for a in blocks:
             ref = np.linalg.eigvalsh(a)
-            err = np.abs(stability._min_eig(a) - ref[:, 0]) / np.abs(ref).max(axis=1)
+            err = np.abs(stability.min_eig(a) - ref[:, 0]) / np.abs(ref).max(axis=1)
             assert np.max(err) < 1e-14, (k, np.max(err))
 
 

@@ -55,7 +55,7 @@ def reads(monkeypatch):
     reads nothing)."""
     from elastica_auto.storage import store
     names = []
-    getitem, dataset, part = h5py.Dataset.__getitem__, store._dataset, store._part
+    getitem, dataset, part = h5py.Dataset.__getitem__, store.checked_dataset, store.part_columns
 
     def counted(self, args, *rest, **kw):
         names.append(self.name)
@@ -71,8 +71,8 @@ def reads(monkeypatch):
         return part(g, name, a, b)
 
     monkeypatch.setattr(h5py.Dataset, "__getitem__", counted)
-    monkeypatch.setattr(store, "_dataset", counted_dataset)
-    monkeypatch.setattr(store, "_part", counted_part)
+    monkeypatch.setattr(store, "checked_dataset", counted_dataset)
+    monkeypatch.setattr(store, "part_columns", counted_part)
     return names
 
 
@@ -361,12 +361,12 @@ def test_a_file_packs_its_solutions(bratu_file):
 
 
 def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
-    """`store._put` (a branch's numeric datasets, made by h5py's low-level calls): each
+    """`store.put` (a branch's numeric datasets, made by h5py's low-level calls): each
     dataset has the type, shape, values, layout and filters of the one h5py's
     ``create_dataset`` makes with the same chunks, shuffle, gzip at DEFLATE_LEVEL and
     Fletcher32 (an empty one: contiguous, no filters), empty and non-contiguous arrays
     included."""
-    from elastica_auto.storage.store import DEFLATE_LEVEL, _put
+    from elastica_auto.storage.store import DEFLATE_LEVEL, put
     arrays = {"f": np.linspace(0, 1, 7), "i32": np.arange(5, dtype=np.int32),
               "i64": np.arange(3, dtype=np.int64), "empty": np.zeros(0),
               "empty2": np.zeros((4, 0)), "nan": np.array([np.nan, 1.0]),
@@ -374,7 +374,7 @@ def test_a_dataset_made_by_the_low_level_calls_is_h5py_s_own(tmp_path):
               "transposed": np.arange(12.0).reshape(3, 4).T}
     with h5py.File(tmp_path / "x.h5", "w") as f:
         for name, data in arrays.items():
-            _put(f.require_group("low"), name, data)
+            put(f.require_group("low"), name, data)
             filters = ({"chunks": f[f"low/{name}"].chunks, "shuffle": True, "compression": "gzip",
                         "compression_opts": DEFLATE_LEVEL, "fletcher32": True} if data.size
                        else {})
@@ -459,12 +459,12 @@ def test_some_points_profiles_read_without_the_others(tmp_path, monkeypatch):
     j = int(np.flatnonzero(stored_rows == stored_rows[i])[0])
     rows = [i, 3, j, 3, -1, 0]
     read = []
-    part_rows = store._part_rows
+    part_rows = store.part_rows
 
     def counted(g, name, wanted):
         read.append((name, list(wanted)))
         return part_rows(g, name, wanted)
-    monkeypatch.setattr(store, "_part_rows", counted)
+    monkeypatch.setattr(store, "part_rows", counted)
     (b,) = BranchFile(path).branches
     np.testing.assert_array_equal(b.profiles_at(rows), computed[rows])
     assert read == [("profiles", sorted({int(stored_rows[r]) for r in rows}))]
@@ -502,19 +502,19 @@ def test_a_mesh_index_out_of_range_is_damage(copy):
 
 @pytest.fixture
 def checks(monkeypatch, tmp_path):
-    """The files whose chunks an opening checks from now on (``_checksum_failure``'s calls,
+    """The files whose chunks an opening checks from now on (``checksum_failure``'s calls,
     by file name), with a cache folder of this test's own."""
     from elastica_auto.storage import store
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.delenv("ELASTICA_AUTO_CHECKSUMS", raising=False)
     names = []
-    check = store._checksum_failure
+    check = store.checksum_failure
 
     def counted(group, where):
         names.append(Path(group.file.filename).name)
         return check(group, where)
 
-    monkeypatch.setattr(store, "_checksum_failure", counted)
+    monkeypatch.setattr(store, "checksum_failure", counted)
     return names
 
 
@@ -595,10 +595,10 @@ def test_the_folder_of_checked_files_stays_small_at_a_small_cost(tmp_path, monke
     listed, scandir = [], os.scandir
     monkeypatch.setattr(os, "scandir", lambda path: listed.append(path) or scandir(path))
     st = os.stat(where / "00")
-    monkeypatch.setattr(verified, "_entry", lambda st: where / "feed")
+    monkeypatch.setattr(verified, "entry_path", lambda st: where / "feed")
     verified.remember(st)
     assert listed == [] and len(list(scandir(where))) == 46
-    monkeypatch.setattr(verified, "_entry", lambda st: where / "00ff")
+    monkeypatch.setattr(verified, "entry_path", lambda st: where / "00ff")
     verified.remember(st)          # a write in PRUNE_EVERY: the folder is pruned
     assert listed == [where]
     assert {p.name for p in where.iterdir()} == {"feed", "00ff"} | {f"{i:02d}"

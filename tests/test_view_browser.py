@@ -206,7 +206,7 @@ def test_the_line_style_changes_at_the_fold(page):
     for br, c in page.data.items():
         lines = page.traces(br, "line")
         for f in np.flatnonzero(c["type"] == b"LP"):
-            before, after = (viewer._style(int(c["index"][i])) for i in (f - 1, f + 1))
+            before, after = (viewer.trace_style(int(c["index"][i])) for i in (f - 1, f + 1))
             assert before != after
             assert any(t["rows"][-1] == f and t["line"]["color"] == before["color"]
                        and t["line"]["dash"] == before["dash"] for t in lines)

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core import labels
 from ..core.solution import State
 from ..numerics.ode import dop853
 from ..numerics.stability import index
@@ -71,7 +72,7 @@ class Equilibrium:
     ordinates: dict
 
 
-def _integrate(problem, params, y0, s_eval=None, tol: float = IVP_TOL):
+def integrate(problem, params, y0, s_eval=None, tol: float = IVP_TOL):
     """Integrate y' = rhs(s, y, p) from the columns of y0 (n, m) together (`dop853`, relative
     and absolute tolerance ``tol`` in every column); y at s = 1 (or at ``s_eval``), shape
     (n, m) (or (n, m, len(s_eval)))."""
@@ -113,7 +114,7 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     def r(k, tol=IVP_TOL):
         k = np.asarray(k, dtype=float)
         y0 = initial(k)
-        return residual(y0, _integrate(problem, params, y0, tol=tol))
+        return residual(y0, integrate(problem, params, y0, tol=tol))
 
     if np.ndim(lo) == 0:
         roots = _scan_line(r, lo, hi)
@@ -126,7 +127,7 @@ def enumerate_equilibria(problem, params) -> list[Equilibrium]:
     if len(keys) == 0:
         return []
     s = np.linspace(0.0, 1.0, PROFILE_NODES)
-    ys = _integrate(problem, params, initial(roots), s)
+    ys = integrate(problem, params, initial(roots), s)
     out = []
     for j, k in enumerate(keys):
         state = State.from_values(problem, s, ys[:, j, :], params)
@@ -209,7 +210,7 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
 
     ``r`` on a grid of about ``points`` points; a candidate at the centre of every block of
     3^d grid points that holds both signs of every component of r, or where max |r_j| is
-    smallest among the block's points; Newton from all candidates together (`_newton`); the
+    smallest among the block's points; Newton from all candidates together (`box_newton`); the
     converged ones (ROOT_SIZE, ROOT_STEP) within half a cell of the box are kept, and roots
     closer than 1e-6 of the box merged. ``coarse``, if given, is ``r`` computed more cheaply
     (a looser integration): the grid is computed with it, and Newton runs on it until
@@ -223,7 +224,7 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
     blocks), is computed and searched from, and each root found is given with its image."""
     d = len(lo)
     n = max(int(round(points ** (1.0 / d))), 3)
-    box = _Box(lo, hi, np.maximum(hi - lo, 1e-300), (hi - lo) / (n - 1))
+    box = Box(lo, hi, np.maximum(hi - lo, 1e-300), (hi - lo) / (n - 1))
     flip = np.zeros(d, bool) if reflection is None else np.asarray(reflection) < 0
     # each axis from its first grid point (index first[i]) on: one below the mirror plane
     first = np.where(flip, n // 2 - 1, 0)
@@ -250,21 +251,21 @@ def scan_box(r, lo, hi, points: int = BOX_POINTS, max_iter: int = 40,
     corners = np.array(np.nonzero(ok | least))                # the block's lowest corner
     k = lo[:, None] + (first[:, None] + corners + 1.0) * box.cell[:, None]     # its centre
     if coarse is not None:
-        k = _distinct(_newton(coarse, k, box, COARSE_ROOT * scale, np.inf, max_iter),
+        k = _distinct(box_newton(coarse, k, box, COARSE_ROOT * scale, np.inf, max_iter),
                       box.width)
-    k = _newton(r, k, box, ROOT_SIZE * scale, ROOT_STEP, max_iter)
+    k = box_newton(r, k, box, ROOT_SIZE * scale, ROOT_STEP, max_iter)
     final = np.max(np.abs(r(k)), axis=0) if k.shape[1] else np.zeros(0)
     if flip.any():     # the image of a root is one, as accurate
         k, final = np.hstack((k, np.where(flip[:, None], -k, k))), np.tile(final, 2)
     inside = np.all((k >= lo[:, None] - box.cell[:, None] / 2)
                     & (k <= hi[:, None] + box.cell[:, None] / 2), axis=0)
     kept = inside & (final < ROOT_SIZE * scale)
-    return _distinct(_merged(r, k[:, kept], final[kept], box.width, ROOT_SIZE * scale),
+    return _distinct(merged_roots(r, k[:, kept], final[kept], box.width, ROOT_SIZE * scale),
                      box.width)
 
 
 @dataclass
-class _Box:
+class Box:
     """The box scan's box [lo, hi], its widths and the grid's cell."""
 
     lo: np.ndarray
@@ -273,7 +274,7 @@ class _Box:
     cell: np.ndarray
 
 
-def _newton(r, k, box: _Box, size_tol: float, step_tol: float, max_iter: int) -> np.ndarray:
+def box_newton(r, k, box: Box, size_tol: float, step_tol: float, max_iter: int) -> np.ndarray:
     """Newton on ``r`` from every column of ``k`` (d, m) together: the Jacobian by forward
     differences (d + 1 columns of r a candidate), its pseudo-inverse (a singular Jacobian, a
     double root, takes the least step), each step cut to a grid cell. A candidate is done
@@ -320,7 +321,7 @@ def _newton(r, k, box: _Box, size_tol: float, step_tol: float, max_iter: int) ->
         settled = np.zeros(len(live), bool)
         if it >= SETTLE_STEPS - 1:
             settled = np.max(history[it - SETTLE_STEPS + 1: it + 1, live], axis=0) < size_tol
-        # a candidate still on its way after STRAGGLE_STEPS next to a root found (`_merged`
+        # a candidate still on its way after STRAGGLE_STEPS next to a root found (`merged_roots`
         # would make them one): the tail of a degenerate root's, whose steps circle it
         straggling = np.zeros(len(live), bool)
         found = k[:, done & ~lost] if it >= STRAGGLE_STEPS - 1 else k[:, :0]
@@ -351,7 +352,7 @@ def _aitken(step, previous):
 MERGE_SPAN, DISTINCT = 1e-3, 1e-6
 
 
-def _merged(r, k, size, width, size_tol) -> np.ndarray:
+def merged_roots(r, k, size, width, size_tol) -> np.ndarray:
     """The roots ``k`` (d, m), each set of them that are one degenerate root taken as its
     member of least max |r_j| (``size``). Where r grows like a cube across a root (a branch
     point's own equilibrium, r ~ c x^3 along its kernel), every point within about
@@ -399,7 +400,7 @@ def snap_lps(branch):
     """LPs of ``branch`` that bound an index-0 segment: (point, stable side 'before'/'after')."""
     out = []
     for k, p in enumerate(branch.points):
-        if p.type != "LP" or k == 0 or k + 1 >= len(branch.points):
+        if p.type not in labels.FOLDS or k == 0 or k + 1 >= len(branch.points):
             continue
         side = stable_side(p.index, branch.points[k + 1].index)
         if side is not None:

@@ -31,7 +31,7 @@ The damped model ``M u_tt + c M u_t = -grad E(u)`` (from rest at ``u_0``) shows 
 dissipation does: its total energy ``E + u_t' M u_t / 2`` decreases, at rate ``c u_t' M
 u_t``; with little damping the rod swings past the nearest well and can land elsewhere.
 The overdamped flow is its limit of large ``c`` (in the time ``t / c``). Its well is decided
-once the total energy is below every saddle's (`_lowest_saddle`); the overdamped flow then
+once the total energy is below every saddle's (`lowest_saddle`); the overdamped flow then
 finishes. `damping_sweep` runs it from folds of a run for a list of ``c``.
 """
 
@@ -152,9 +152,9 @@ def land(problem, state, null, equilibria, parameter: str, beyond: int,
     side = 1 if flow.energy(u_fold + push * phi) <= flow.energy(u_fold - push * phi) else -1
     u0 = u_fold + side * push * phi
     if damping is None:
-        times, energies, u_end = _overdamped(flow, u0)
+        times, energies, u_end = overdamped_path(flow, u0)
     else:
-        barrier = _lowest_saddle(flow, [flow.to_u(eq.state(s)) for eq in equilibria
+        barrier = lowest_saddle(flow, [flow.to_u(eq.state(s)) for eq in equilibria
                                         if eq.index > 0], u_fold)
         times, energies, u_end = _damped(flow, u0, damping, barrier)
     u_end = _newton(flow, u_end)
@@ -184,7 +184,7 @@ def _newton(flow, u, iterations: int = 30):
     return u if np.max(np.abs(flow.force(u))) < FORCE_TOL else None
 
 
-def _overdamped(flow, u0, t0: float = 0.0):
+def overdamped_path(flow, u0, t0: float = 0.0):
     """``u_t = force(u)`` from ``u0`` (BDF) until ``max |force| < FORCE_TOL``: the times,
     the energies ``E_h`` and the end."""
     from scipy.integrate import BDF
@@ -210,7 +210,7 @@ def _steps(solver, done, total):
     return np.array(times), np.array(energies), solver.y
 
 
-def _lowest_saddle(flow, unstable, u_fold) -> float:
+def lowest_saddle(flow, unstable, u_fold) -> float:
     """The lowest ``E_h`` of the discrete equilibria of index >= 1, each found by Newton
     from an enumerated unstable equilibrium ``unstable`` (their nodal values). Below it a
     component of the sublevel set ``{E_h < e}`` holds a single minimum (components join
@@ -266,7 +266,7 @@ def _damped(flow, u0, damping: float, barrier: float):
                    atol=DAMPED_ATOL, jac=jac)
     times, energies, z = _steps(solver, done, total)
     if energies[-1] < below:
-        t_more, e_more, u_end = _overdamped(flow, z[:m], times[-1])
+        t_more, e_more, u_end = overdamped_path(flow, z[:m], times[-1])
         return (np.concatenate((times, t_more[1:])), np.concatenate((energies, e_more[1:])),
                 u_end)
     return times, energies, z[:m]

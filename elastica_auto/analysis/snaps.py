@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from ..branches.branch import PROFILE_GRID, Branch
+from ..core import labels
 from ..core.options import ContinuationOptions
 from ..core.solution import State
 from ..core.values import same_value
@@ -74,7 +75,7 @@ def mark_subcritical(problem, branch) -> None:
     pts = branch.points
     decided = []    # (scan key, solution values, decision, note) of the BPs decided here
     for k, p in enumerate(pts):
-        if p.type != "BP" or k == 0 or k + 1 >= len(pts) or p.tangent is None \
+        if p.type not in labels.SWITCHES or k == 0 or k + 1 >= len(pts) or p.tangent is None \
                 or _stable_side(branch, k) is None:
             continue
         key = scan_key(problem, branch.parameter, p.params)
@@ -101,7 +102,7 @@ def snap_points(branch) -> list[tuple]:
     pts = branch.points
     out = list(snap_lps(branch)) + [
         (p, _stable_side(branch, k)) for k, p in enumerate(pts)
-        if p.type == "BP" and p.subcritical and 0 < k < len(pts) - 1]
+        if p.type in labels.SWITCHES and p.subcritical and 0 < k < len(pts) - 1]
     where = {id(p): k for k, p in enumerate(pts)}     # (not pts.index: it compares fields)
     return sorted(out, key=lambda pair: where[id(pair[0])])
 
@@ -284,7 +285,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
                     else mirror and mirrored_scan(problem, name, params, copies)
                     or enumerate_equilibria(problem, params))
             at = None
-            if landing and p.type == "BP":
+            if landing and p.type in labels.SWITCHES:
                 warnings.append(f"{p.name}: no landing from a branch point (the dynamics "
                                 "start from folds)")
             elif landing:
@@ -324,7 +325,7 @@ def snap_targets(problem, branches, warnings: list | None = None,
             return np.max(np.abs(eq.state.y[:, 0] - k_fold)) < 1e-3 * (1 + np.max(np.abs(k_fold)))
 
         there = cache[key]
-        if p.type == "BP" and not any(own(eq) for eq in there):
+        if p.type in labels.SWITCHES and not any(own(eq) for eq in there):
             # a branch point's solution is a root of the scan at its parameters; the cached
             # scan of a periodic copy may give it other states (a clamp turned by 2 pi has
             # the opposite quaternion), so that the states above do not find it: scan here

@@ -215,7 +215,7 @@ class Branch:
 
     @property
     def folds(self) -> list[Point]:
-        return [p for p in self.points if p.type == "LP"]
+        return [p for p in self.points if p.type in labels.FOLDS]
 
     @property
     def closed(self) -> bool:
@@ -249,7 +249,7 @@ class Branch:
             return np.arange(1, len(pts) + 1)
         if name in ("type", "label", "note", "transition"):
             values = ([p.name for p in pts] if name == "label" else
-                      [self._transition(k) if p.type in ("LP", "BP") else ""
+                      [self._transition(k) if p.type in labels.TURNS else ""
                        for k, p in enumerate(pts)]
                       if name == "transition" else [getattr(p, name) for p in pts])
             return np.array(values, dtype=object)

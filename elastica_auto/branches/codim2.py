@@ -42,6 +42,7 @@ import types
 
 import numpy as np
 
+from ..core import labels
 from ..core.errors import PlanError, ProblemError, StartError
 from ..model.augmented import Augmented
 from ..model.problem import Ordinate, Parameter, Problem
@@ -155,15 +156,16 @@ def fold_problem(base, lam: str) -> Problem:
                      lam, _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp),
                      [_on_y(o, base) for o in base.ordinates.values()], first=n)
     problem = Problem(module, base.source)
-    return _Extended(problem, (lam,), base) if isinstance(base, Augmented) \
-        else problem.with_free((lam,))
+    # a base that solves for parameters reads their values from its states: so must the
+    # extended system's points
+    return _Extended(problem, (lam,), base) if base.solved else problem.with_free((lam,))
 
 
 def branch_point_problem(base: Problem, lam: str) -> Problem:
     """The branch-point system of ``base``'s exact family in ``lam`` (module docstring):
     states v, the integral condition ``null_norm``, ``lam`` free; the ordinates are
     ``base``'s, of the exact solution."""
-    if isinstance(base, Augmented) or base.extra_conditions:
+    if base.solved or base.extra_conditions:
         raise PlanError("start", f"{base.source}: branch-point curves of a module with integral "
                         "conditions or free parameters are not built (fold curves are)")
     _check_base(base, lam, "a branch-point curve")
@@ -225,7 +227,7 @@ def _on_y(o: Ordinate, base) -> Ordinate:
     """The ordinate ``o`` of ``base``'s solution y, the first states of the extended system's Y:
     of the module's own states, at parameter values with ``base``'s free ones (if any) read
     from y."""
-    if not isinstance(base, Augmented):
+    if not base.solved:
         n = base.n
         return Ordinate(o.name, o.tex, lambda s, Y, p: o.fn(s, Y[:n], p), o.parameter, o.doc)
     n0, n = base.n0, base.n
@@ -365,11 +367,11 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
     The other folds stay LP: there the two folds that meet face opposite ways (the
     one-parameter branches reconnect, or an isola appears), and ``lam`` moves through."""
     row = problem.n - 1                          # the free parameter is the last state
-    own = base.base if isinstance(base, Augmented) else base    # the module's own problem
+    own = base.module_problem
     n, lam = own.n, problem.free[0]
     points = branch.points
     for i, p in enumerate(points):
-        if p.type != "LP" or p.tangent is None:
+        if p.type not in labels.FOLDS or p.tangent is None:
             continue
         t = p.tangent
         states = np.trapezoid(np.sum(t.y[:row] ** 2, axis=0), t.s)
@@ -377,8 +379,8 @@ def label_fold_curve(branch, problem, base: Problem) -> None:
         note = f"d{lam}/ds = {slope:.1e} of the tangent"
         near = _neighbours(points, i)
         if _is_cusp(p, near, lam, t.y[row, 0]):
-            p.type = "CP"
+            p.type = labels.CP
         if _on_family(p, near, own, n):
-            p.type = "BP"
+            p.type = labels.BP
             note += "; on the exact family: the fold curve meets its branch-point curve"
         p.note = "; ".join(filter(None, (p.note, note)))

@@ -165,12 +165,12 @@ def along(corr, step: Step, fn, lo: float = 0.0, hi: float | None = None, s=None
     f1 = f(hi) if f1 is None else f1
     if f0 * f1 > 0:
         raise CorrectorFailure("no sign change along the step")
-    sigma = _brent(f, lo, hi, f0, f1, xtol * step.dist)
+    sigma = brent(f, lo, hi, f0, f1, xtol * step.dist)
     value = f(sigma) if sigma not in found else fn(found[sigma])
     return Located(found[sigma], sigma, value)
 
 
-def _brent(f, x0, x1, f0, f1, xtol, maxiter=200):
+def brent(f, x0, x1, f0, f1, xtol, maxiter=200):
     """A root of f in [x0, x1] with f0 f1 < 0 by Brent's method (Brent, Algorithms for
     Minimization without Derivatives, 1973, ch. 4): inverse quadratic interpolation or
     secant steps on the latest iterates while they stay inside the bracket and each is
@@ -317,7 +317,7 @@ def locate_branch_point(corr, step: Step) -> Located:
             if xtol > BP_XTOL:
                 bp, solved_here = _branch_point_on(corr, step, s, brackets, BP_XTOL)
             if s is step.b.mesh or not solved_here:
-                _check_on_finer_mesh(corr, step, bp.solution.mesh)
+                check_on_finer_mesh(corr, step, bp.solution.mesh)
             return bp
         # the solution's own mesh: solve_bvp's corrector refines the one it is given
         s, xtol = corr.fold_mesh(sol.mesh, rms), BP_XTOL
@@ -348,7 +348,7 @@ def place_symmetric_branch_point(corr, problem, step: Step) -> Placed | None:
     return Placed(state, sigma, 0.0) if moves(problem, state) else None
 
 
-def _check_on_finer_mesh(corr, step: Step, s):
+def check_on_finer_mesh(corr, step: Step, s):
     """CorrectorFailure unless the determinant has opposite signs at a and b solved again on
     the mesh ``s`` with its intervals halved (with as many halved as ``max_nodes`` allows)."""
     room = max(corr.options.max_nodes - len(s), 0)

@@ -27,6 +27,7 @@ from .branch import Branch, StoredLabel
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..numerics.newton import NEWTON_TOL
+from ..core import labels
 from ..core.errors import PlanError, StartError
 from ..core.options import ContinuationOptions, OptionsError
 from ..core.solution import State, Tangent
@@ -353,7 +354,7 @@ def _ends_at(branch: Branch, q: str, value: float) -> bool:
     """The branch ends with its bound EP at exactly ``q = value`` (an EP where the bound was
     not located, at the step's end, has another value)."""
     last = branch.points[-1]
-    return branch.end == "EP" and last.type == "EP" and last.params[q] == value
+    return branch.end == labels.EP and last.type == labels.EP and last.params[q] == value
 
 
 def _stationary(branch: Branch) -> bool:
@@ -375,6 +376,6 @@ def _why(branches: list[Branch], q: str, value: float, current: float) -> str:
     p = branch.points[k]
     at = f"{q} = {p.params[q]:.12g}"
     if k < len(branch.points) - 1:
-        fold = p.type == "LP" or (k == 0 and _stationary(branch))
+        fold = p.type in labels.FOLDS or (k == 0 and _stationary(branch))
         return f"the branch turns back at {at}" + (" (a fold)" if fold else "")
     return f"the continuation stopped at {at}: {branch.message}"

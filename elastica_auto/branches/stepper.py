@@ -15,7 +15,7 @@ travel):
    the tangent turned by more than ``max_angle``, or the correction moved b farther than
    ``ds / 2`` from the predictor (it would have jumped to another branch), or, for a step
    more than LONG_STEP times the last one accepted, the branch does not reach b along an
-   arc (checked halfway: :meth:`_Walk._arc_checked`);
+   arc (checked halfway: :meth:`Walk._arc_checked`);
 3. **detect** on one mesh: a fold where the tangent's parameter component changes sign (by
    more than its accuracy: :func:`~elastica_auto.branches.events.parameter_turns`), a
    branch point where the bordered Jacobian's determinant does, a hidden fold pair where the
@@ -37,7 +37,7 @@ Every kind of special point is an event object (:mod:`elastica_auto.branches.kin
 shipped ones created in :mod:`elastica_auto.branches.registry`. The walk is one class made of
 named parts: the points and their room (``_Points``), detection (``_Detection``), the step's
 points in order (``_Placement``), the return to the start (``_Return``), fold translates
-(``_Translates``), and the loop (``_Walk``).
+(``_Translates``), and the loop (``Walk``).
 """
 
 from __future__ import annotations
@@ -82,7 +82,7 @@ STATIONARY = 1e-6
 #: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
 RISE_NOISE = 1e-10
 #: At most this many solves look for the minimum of the parameter's slope inside a step
-#: where the cubic model suspects a fold pair (`_Walk._probe`).
+#: where the cubic model suspects a fold pair (`Walk._probe`).
 PROBES = 4
 #: A branch is back at its start point (a closed loop) where the start lies within the next
 #: step along the tangent (within this fraction of its distance along the tangent from that
@@ -97,11 +97,11 @@ CLOSED_LOOP_COS = 0.5
 #: branch that lies near the tangent's line farther on (the rotating arm's translates by a
 #: period, the rod turned rigidly) can catch the corrector with every other check passed,
 #: the tangent turned by 12 degrees and b within a twentieth of ds of the predictor (hostile
-#: M9: ds grown by 100 from 0.16 to 7.8). Its arc is checked (`_Walk._arc_checked`). With
+#: M9: ds grown by 100 from 0.16 to 7.8). Its arc is checked (`Walk._arc_checked`). With
 #: growth <= 1.5 (the default 1.4) no step is: the check costs one solve where it is made.
 LONG_STEP = 1.5
 #: The kind of the event where a branch passes its start translated by whole periods of the
-#: parameter (`_Walk._period_event`), and the largest gap (in norm, relative) between the
+#: parameter (`Walk._period_event`), and the largest gap (in norm, relative) between the
 #: branch's solution there and the translate.
 PERIOD = "period"
 REPEAT_GAP = 1e-4
@@ -284,7 +284,7 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
                                     note="singular start"))
             branch.end, branch.message = labels.MX, f"no tangent at the start point ({exc})"
             return branch
-        walk = _Walk(branch, problem, corr, course, progress, origin.kind != "regular")
+        walk = Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         walk.run(a)
     except KeyboardInterrupt:
         branch.interrupted = True
@@ -1025,7 +1025,7 @@ class _Translates:
         opt = dataclasses.replace(self.opt, ds=dist / 64, ds_max=dist / 32,
                                   ds_min=min(self.opt.ds_min, dist / 1e4), max_points=10 ** 4)
         sub = Branch.of(self.problem, name, self.branch.direction, "refinement", {})
-        walk = _Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
+        walk = Walk(sub, self.problem, corr, Course(name, opt, Stops(), self.user_values,
                                                      watch=self.watch), None, False)
         walk.until = (p.state, sec, dist * (1 - 1e-7))
         walk.run(p)
@@ -1059,7 +1059,7 @@ class _Translates:
         return self.corr.point(state)
 
 
-class _Walk(_Points, _Detection, _Placement, _Return, _Translates):
+class Walk(_Points, _Detection, _Placement, _Return, _Translates):
     """The state of one continuation (the last accepted solution, ds, the arclength) and its
     loop: predict and correct a step, check it, detect and place its points (the parts it is
     made of, each a class above), accept it."""
@@ -1071,8 +1071,8 @@ class _Walk(_Points, _Detection, _Placement, _Return, _Translates):
         self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
         self.all_folds, self.events = course.all_folds, course.events
         # the kinds of special point looked for (the option ``detect``; none without events)
-        self.detect_lp = course.events and self.opt.detect["LP"]
-        self.detect_bp = course.events and self.opt.detect["BP"]
+        self.detect_lp = course.events and self.opt.detect[labels.LP]
+        self.detect_bp = course.events and self.opt.detect[labels.BP]
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None

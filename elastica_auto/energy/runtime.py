@@ -195,13 +195,16 @@ def part_count(second_variation, rhs, name, count_form):
     (snap-back targets, mirror images)."""
     def fn(s, y, p):
         s, y = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
-        return _part_counts(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())),
+        return part_counts(s.tobytes(), y.tobytes(), y.shape[0], tuple(sorted(p.items())),
                             second_variation, rhs, count_form)[name]
     return fn
 
 
 @functools.lru_cache(maxsize=4)
-def _part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
+def part_counts(s_bytes, y_bytes, n, items, second_variation, rhs, count_form):
+    """The index of each part of the second variation at the solution given by its mesh's
+    and states' bytes and its parameters' items (hashable, so that the ordinates of one
+    point count it once): `part_count`'s ordinates read it."""
     from ..core.solution import State
     s = np.frombuffer(s_bytes).copy()
     y = np.frombuffer(y_bytes).reshape(n, -1).copy()

@@ -50,7 +50,7 @@ WORKER_TIMEOUT = 60.0
 WORKER_POLL = 1.0
 #: Seconds to fetch a finished task's result before looking at the cluster again: the
 #: worker that holds it may have died since it finished, and then Dask computes the task
-#: again, which with no worker left would hold the fetch up for ever (`_fetched`). A
+#: again, which with no worker left would hold the fetch up for ever (`fetched`). A
 #: branch, a few megabytes at most, comes in well under a second.
 FETCH_TIMEOUT = 10.0
 
@@ -226,7 +226,7 @@ def _unanswered(client) -> ClusterLost:
                        "to it closed)")
 
 
-def _fetched(future) -> tuple[bool, object]:
+def fetched(future) -> tuple[bool, object]:
     """(True, the result) of the finished ``future``, or (False, None) if it did not come
     within `FETCH_TIMEOUT` or was cancelled meanwhile: its worker died with it (the task is
     computed again, and the future is no longer done) or the scheduler went away."""
@@ -317,7 +317,7 @@ def map_tasks(client, function, args_list, on_done, warnings: list[str],
         for future in ready:
             i = futures[future]
             if future.status == "finished":
-                got, out[i] = _fetched(future)
+                got, out[i] = fetched(future)
                 if got:
                     on_done(i, out[i])
                 else:     # looked at again, as it stands now
@@ -407,7 +407,7 @@ def run_on_cluster(client, plan, jobs_list, branches, save, on_branch=None,
         for f in ready:
             i = futures[f]
             if f.status == "finished":
-                got, value = _fetched(f)
+                got, value = fetched(f)
                 if not got:       # looked at again, as it stands now
                     pending.add(f)
                     continue

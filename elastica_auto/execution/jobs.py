@@ -19,6 +19,7 @@ from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
 from ..branches.stepper import Origin, continue_branch, start_point
+from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.interrupts import Interruptions
 from ..numerics.stability import label_stability
@@ -134,13 +135,13 @@ def _labelling_failed(br: Branch, problem, exc: BaseException):
     if record["kind"] == ENGINE and debugging():
         raise exc
     internal = "internal error: " if record["kind"] == ENGINE else ""
-    br.end = "MX"
+    br.end = labels.MX
     br.message = (f"{internal}labelling the branch failed: {record['exception']}: "
                   + " ".join(record["error"].split()) + f" ({record['where']})")
     br.diagnostics = {**record, "step": len(br.points)}
     last = br.points[-1] if br.points else None
-    if last is not None and last.type != "MX" and last.state is not None:
-        br.points.append(dataclasses.replace(last, type="MX", label=0, note=""))
+    if last is not None and last.type not in labels.FAILED and last.state is not None:
+        br.points.append(dataclasses.replace(last, type=labels.MX, label=0, note=""))
 
 
 def mirrored_branch(plan: Plan, k: int, job: Job, source: Branch,
@@ -194,7 +195,7 @@ def failed_branch(plan: Plan, job: Job, failure: TaskFailure) -> Branch:
     why in its message and diagnostics, as a branch whose module raised in this process
     has them (`elastica_auto.branches.stepper`)."""
     br = new_branch(plan, job)
-    br.end = "MX"
+    br.end = labels.MX
     br.message = (f"not computed: {failure}" if failure.lost
                   else f"raised on a worker: {failure}")
     br.diagnostics = {"exception": failure.exception, "error": failure.error,

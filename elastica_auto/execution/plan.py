@@ -20,6 +20,7 @@ from typing import Iterable, Mapping, Union
 import numpy as np
 
 from ..branches import restart
+from ..core import labels
 from ..core.errors import PlanError, ProblemError
 from ..branches.events import UserValues
 from ..branches.kinds import Event
@@ -303,10 +304,10 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
 
 def _detected(opts: ContinuationOptions, at_fold: int | None, switch: int):
     """A fold stop needs the folds looked for, and ``switch = N`` the branch points."""
-    if at_fold is not None and not opts.detect["LP"]:
+    if at_fold is not None and not opts.detect[labels.LP]:
         raise PlanError("stop", f"LP{at_fold} counts folds, which detect.LP = false does not "
                         "look for")
-    if switch and not opts.detect["BP"]:
+    if switch and not opts.detect[labels.BP]:
         raise PlanError("switch", f"switch = {switch} switches at the branch points found, "
                         "which detect.BP = false does not look for")
 
@@ -420,11 +421,11 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
     if not items or not all(isinstance(x, StoredLabel) for x in items):
         raise PlanError("start", "a two-parameter continuation starts from LP or BP labels "
                         "(BranchFile(path).label(\"LP1\"))")
-    kinds = {x.name[:2] for x in items}
-    if not kinds <= {"LP", "BP"} or len(kinds) != 1:
+    kinds = {labels.kind_of(x.name) for x in items}
+    if not kinds <= labels.FOLDS | labels.SWITCHES or len(kinds) != 1:
         raise PlanError("start", f"expected LP labels (fold curves) or BP labels (branch-point "
                         f"curves), not a mix; got {', '.join(x.name for x in items)}")
-    curve = "fold" if kinds == {"LP"} else "bp"
+    curve = "fold" if kinds <= labels.FOLDS else "bp"
     if curve == "fold":
         free = {_label_free(base, x) for x in items}
         if len(free) != 1:
@@ -440,7 +441,8 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
     for x in items:
         _start(base, x)
         if x.tangent_parameter != lam:
-            raise PlanError("start", f"{x.name} is a {'fold' if 'LP' in kinds else 'branch point'}"
+            what = "fold" if curve == "fold" else "branch point"
+            raise PlanError("start", f"{x.name} is a {what}"
                             f" in {x.tangent_parameter!r}, not in {lam!r}")
     try:
         problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
@@ -533,8 +535,8 @@ def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
                 raise PlanError("stop", f"{item!r}: VALUE {exc}") from None
             limits.append(Limit(name, 1 if op == ">" else -1, value))
         # isdigit() alone also accepts "²" and "٣"; only ASCII digits are a count
-        elif not ops and item.startswith("LP") and item[2:].isascii() and item[2:].isdigit() \
-                and int(item[2:]) > 0:
+        elif not ops and labels.kind_of(item) == labels.LP and item[2:].isascii() \
+                and item[2:].isdigit() and int(item[2:]) > 0:
             at = min(int(item[2:]), at or math.inf)
         else:
             raise PlanError("stop", f"expected {STOP_FORMS} (NAME an ordinate or free "
@@ -592,7 +594,7 @@ def _start(problem: Problem, item) -> tuple[Start, dict[str, float]]:
         raise PlanError("start", "expected parameter values (a dict), a label "
                         "(BranchFile(path).label(\"UZ1\")) or Switch(label), got "
                         f"{type(item).__name__}")
-    if kind == "switch" and not label.name.startswith("BP"):
+    if kind == "switch" and labels.kind_of(label.name) not in labels.SWITCHES:
         raise PlanError("start", f"{label.name}: switching branches needs a BP label")
     if label.equation and Path(label.equation).stem != problem.name:
         where = label.path.name if label.path is not None else label.name

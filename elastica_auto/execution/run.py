@@ -25,6 +25,7 @@ from ..branches import codim2, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin
 from ..branches.switching import kernel_plane, switch_direction
+from ..core import labels
 from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXIT_INTERNAL,
                            EXIT_INTERRUPTED, EXIT_OK, USER_ERRORS, ClusterLost, RunFileError,
                            StartError, WriteError, debugging, failure_record,
@@ -59,7 +60,7 @@ class RunResult:
 
     @property
     def failed(self) -> list[int]:
-        return [k for k, b in enumerate(self.branches, 1) if b.end == "MX"]
+        return [k for k, b in enumerate(self.branches, 1) if b.end in labels.FAILED]
 
     @property
     def internal(self) -> list[str]:
@@ -98,19 +99,19 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     if spec.start.kind in ("fold", "bp"):
         return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
     if spec.start.kind == "switch":
-        if not spec.start.label.startswith("BP"):
+        if labels.kind_of(spec.start.label) not in labels.SWITCHES:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent)
     # free parameters are solved for: a value given to one is no place to move to
     targets = {q: v for q, v in spec.params.items()
                if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
-        kind = "singular" if spec.start.label[:2] in ("LP", "BP", "CP") else "regular"
+        kind = "singular" if labels.kind_of(spec.start.label) in labels.SINGULAR else "regular"
         state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
                              tangent_parameter=stored.tangent_parameter, where=str(spec.start))
     if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
-    singular = spec.start.label[:2] in ("LP", "BP") and not targets
+    singular = labels.kind_of(spec.start.label) in labels.TURNS and not targets
     return _checked(plan, Job(spec, Origin(state, tangent,
                                            "singular" if singular else "regular")))
 
@@ -274,7 +275,7 @@ def _site(plan: Plan, pts, i: int) -> Site:
 
 def branch_points(plan: Plan, br: Branch) -> list[Site]:
     """The BPs of ``br`` in order, as `Site`s."""
-    return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type == "BP"]
+    return [_site(plan, br.points, i) for i, p in enumerate(br.points) if p.type in labels.SWITCHES]
 
 
 def _kernel(plan: Plan, site: Site) -> list | None:
@@ -650,7 +651,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     more than the branches without switching. With ``jobs = 1``
     (or one branch) they are computed in this process, with no cluster. ``jobs = 0`` (the
     command's default): in this process from the start, and also, once it is up, on a local
-    cluster of one worker per other core started meanwhile in the background (`_Alongside`);
+    cluster of one worker per other core started meanwhile in the background (`Alongside`);
     with one branch (and no switching), or one core, in this process only. A cluster with
     no worker for ``workers.worker_timeout`` seconds ends the computation of the branches
     with ClusterLost (`cluster.run_on_cluster`); after them, the tasks it has not done are
@@ -728,16 +729,16 @@ def _tasks_after(plan: Plan) -> bool:
     return bool(plan.landing or plan.damping or plan.maps)
 
 
-def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
+def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
              on_landing: Callable[[int, int, dict], None] | None, mapper=None):
     """The computed branches' snap-back targets, and as the plan asks, the damped model's
     landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
     branches). An analysis that fails (the module raising or exiting in it, a numerical
     failure, an internal error) leaves the branches standing: it is recorded in
     ``result.missing`` (and stored in the file), and the run's exit status says so.
-    ``pool``: a default run's (`_Alongside`): its workers' equilibrium scans
+    ``pool``: a default run's (`Alongside`): its workers' equilibrium scans
     (`snap_targets`'s ``cache``). ``mapper``: computes the landings (overdamped and
-    damped) and the maps' enumerations as tasks (the default run's `_Alongside.map`, a
+    damped) and the maps' enumerations as tasks (the default run's `Alongside.map`, a
     cluster's `cluster.map_tasks`; default here, one after the other)."""
     branches = result.branches
 
@@ -798,13 +799,13 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: _Alongside | None,
             failed("maps", "stability map", exc)
 
 
-def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alongside:
-    """The default run: `_Alongside` with a background cluster of ``workers``, for the
+def _alongside(plan, first, result, save, progress, on_branch, workers) -> Alongside:
+    """The default run: `Alongside` with a background cluster of ``workers``, for the
     branches from ``first``, then the switched ones; sets ``result.interrupted``. Returns
     the pool: its ``scans`` are those its workers computed (`snap_targets`'s ``cache``)."""
     from .cluster import Background
     with Interruptions() as signals:
-        pool = _Alongside(plan, workers, Background, pays=CLUSTER_PAYS,
+        pool = Alongside(plan, workers, Background, pays=CLUSTER_PAYS,
                           warnings=result.warnings)
         interrupted = True        # until the branches are in: whatever escapes closes the pool
         try:
@@ -828,14 +829,14 @@ def _alongside(plan, first, result, save, progress, on_branch, workers) -> _Alon
 
 # -- the default run: this process computes at once, a local cluster joins when it pays ------
 #
-# `_Alongside` is made of five parts, each a class with the state it reads and writes (which
-# `_Alongside.__init__` makes): when the cluster is started (`_Starting`), the messages to
+# `Alongside` is made of five parts, each a class with the state it reads and writes (which
+# `Alongside.__init__` makes): when the cluster is started (`_Starting`), the messages to
 # and from it (`_Messages`), the branches (`_Branches`, taken in the plan's order by the
 # `Schedule`), the snap-back scans (`_Scans`) and the analysis' other tasks (`_Tasks`). They
 # share the lock, the queue of results and the background cluster.
 
 #: The default run starts its local cluster only once the work left for it is estimated at
-#: more than this many seconds (`_Alongside`): its start-up takes about 1.6 s of wall time
+#: more than this many seconds (`Alongside`): its start-up takes about 1.6 s of wall time
 #: and as much CPU as three interpreters importing distributed, which on 2 cores is taken
 #: from the branches computed meanwhile. With the cluster started at once, rotating_arm (4
 #: branches computed of 8, about 0.5 s each) took 0.95-1.13x the time of --jobs 1 (medians
@@ -848,7 +849,7 @@ CLUSTER_PAYS = 2.0
 
 
 class _Idle:
-    """The background cluster of a default run before it is started (`_Alongside`): never
+    """The background cluster of a default run before it is started (`Alongside`): never
     up, no worker, takes nothing."""
 
     workers = 0
@@ -1188,7 +1189,7 @@ class _Scans:
         name = br.parameter
         for k in range(j, len(pts) - 1):
             p = pts[k]
-            if p.type not in ("LP", "BP") or stable_side(pts[k - 1].index_direct,
+            if p.type not in labels.TURNS or stable_side(pts[k - 1].index_direct,
                                                          pts[k + 1].index_direct) is None:
                 continue
             key = scan_key(problem, name, p.params)
@@ -1323,7 +1324,7 @@ class _Tasks:
         return [done[i] for i in range(n)]
 
 
-class _Alongside(_Starting, _Messages, _Branches, _Scans, _Tasks):
+class Alongside(_Starting, _Messages, _Branches, _Scans, _Tasks):
     """Branches computed in this process from the start, and by a local Dask cluster
     (`elastica_auto.execution.cluster.Background`) once it has started in the background,
     one task per worker at a time, each taking the next branch of the plan: nothing waits

@@ -47,6 +47,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Sequence
 
+from ..core import labels
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
 from ..core.options import DETECTABLE, ContinuationOptions
@@ -93,7 +94,7 @@ def load(path, out_dir: Path | None = None, overrides: Sequence[str] = (),
     branches.
     """
     path = Path(path)
-    doc = _Document(path, out_dir)
+    doc = Document(path, out_dir)
     apply_overrides(doc, overrides, restart)
     problem = doc.equation()
     parameter, cont = doc.continuation(problem)
@@ -121,7 +122,7 @@ def _toml_key(key: str) -> str:
     return "[options]" if key == "options" else key
 
 
-def apply_overrides(doc: _Document, overrides: Sequence[str], restart: str | None):
+def apply_overrides(doc: Document, overrides: Sequence[str], restart: str | None):
     """``NAME=VALUE`` into the table that has NAME: ``[options]`` for an option,
     ``[parameters]`` for a parameter of the module, ``[continuation]`` for one of its keys,
     or the one named (``options.ds_max=0.3``). VALUE is read as TOML (``0.3``,
@@ -184,7 +185,7 @@ def _comment(text: str) -> str:
                    for c in text)
 
 
-class _Document:
+class Document:
     """A run file's parsed TOML, with checks that name the file and the key."""
 
     def __init__(self, path: Path, out_dir: Path | None):
@@ -411,7 +412,7 @@ class _Document:
         elif isinstance(switch, list):
             for item in switch:
                 label = self.file_label("switch", problem, self.string("switch", item))
-                if not label.name.startswith("BP"):
+                if labels.kind_of(label.name) not in labels.SWITCHES:
                     self.fail("switch", f"{item!r}: branch switching needs a BP label")
                 parsed.append(Switch(label))
         else:
@@ -475,7 +476,7 @@ class _Document:
             self.fail(key, "a start selector needs file = \"FILE.h5\"")
         bf = self.branch_file(f"{key}.file", problem,
                               self.string(f"{key}.file", sel["file"]))
-        kind = self.string(f"{key}.type", sel.get("type", "UZ"))
+        kind = self.string(f"{key}.type", sel.get("type", labels.UZ))
         where = sel.get("where", {})
         if not isinstance(where, dict):
             self.fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")

@@ -2,7 +2,7 @@
 
 A plan's jobs may be computed in this process one after the other (`run.in_process`), as
 tasks of a Dask cluster (`cluster.run_on_cluster`), or both at once (the default run's
-`run._Alongside`):
+`run.Alongside`):
 their branches finish in any order. The file is the same whichever computed them because they
 are *taken* in the plan's order, here: job ``i``'s turn comes once every job before it is
 taken, and at its turn

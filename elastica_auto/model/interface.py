@@ -20,8 +20,9 @@ the starts (``exact_start``, ``guess``), and the optional hooks, each with its `
 flag: ``second_variation``, ``shooting``, ``gradient_flow``, ``symmetry``,
 ``symmetric_values``, ``draw`` and the ``mirror``. Code outside the model layer tells no
 kind from another (no ``isinstance`` on them, `tests/test_layers.py`): what differs is in
-the answers, ``solved`` (the parameters solved for along with the states) and
-``approximate_start`` (a completed start only approximately a solution) among them.
+the answers, ``solved`` (the parameters solved for along with the states),
+``approximate_start`` (a completed start only approximately a solution) and
+``module_problem`` (the module's own problem a wrapper is built on) among them.
 
 A problem built around another (`Wrapper`: `Augmented`, `Phased`) forwards every optional
 hook it does not change to its ``base``, or refuses it with a reason (`Wrapper.REFUSED`),
@@ -82,6 +83,15 @@ class ProblemInterface(abc.ABC):
     @abc.abstractmethod
     def with_free(self, free=None) -> ProblemInterface:
         """The problem the engine solves with the free parameters ``free``."""
+
+    @property
+    @abc.abstractmethod
+    def module_problem(self) -> ProblemInterface:
+        """The module's own problem this one is built on (itself for the module's), through
+        every wrapper: the one whose states are the first of this one's, of which the
+        module's ordinates and exact solution are functions at the parameters `point_params`
+        gives. The fold-curve and branch-point systems (`elastica_auto.branches.codim2`) read
+        it."""
 
     # -- the equations ------------------------------------------------------------------------
     @abc.abstractmethod
@@ -183,6 +193,10 @@ class Wrapper(ProblemInterface):
 
     def defaults(self):
         return self.base.defaults()
+
+    @property
+    def module_problem(self):
+        return self.base.module_problem
 
     # -- the optional hooks, forwarded where not refused ---------------------------------------
     @property

@@ -481,6 +481,11 @@ class Problem(ProblemInterface):
         `elastica_auto.model.augmented`; here there are none)."""
         return dict(params)
 
+    @property
+    def module_problem(self) -> "Problem":
+        """This problem: it is the module's own."""
+        return self
+
     # -- integral conditions and free parameters ---------------------------------------------
     @property
     def extra_conditions(self) -> int:

@@ -12,13 +12,16 @@ branch-point test function), its error estimate per interval ``rms`` and Newton'
 linearisation ``lin`` is the corrector's, read only by the corrector.
 
 Implemented by :class:`~elastica_auto.numerics.correctors.Collocation` (``corrector =
-"collocation"``: the cubic scheme with ``ncol = 0``, Gauss collocation with ``ncol = 2..7``,
-both by the collocation Newton iteration) and
-:class:`~elastica_auto.numerics.correctors.SolveBVP` (``corrector = "solve_bvp"``: every solve
-by scipy's solve_bvp). To add a discretisation or a solver: a class with these operations
+"collocation"``, ``ncol = 0``: the cubic scheme),
+:class:`~elastica_auto.numerics.correctors.Gauss` (``corrector = "collocation"`` with
+``ncol = 2..7``: Gauss collocation, its own discretisation under the collocation Newton
+iteration) and :class:`~elastica_auto.numerics.correctors.SolveBVP` (``corrector =
+"solve_bvp"``: every solve by scipy's solve_bvp). To add a discretisation: a subclass of
+``Collocation`` whose ``discretisation(problem, s)`` gives a class with ``evaluate``,
+``blocks``, ``stages``, ``weights`` and the error estimates (as ``Gauss``), chosen in
+``make_corrector``; a solver: a class with these operations
 (:class:`~elastica_auto.numerics.correctors.Linearizer` gives the linearisation ones for any
-discretisation with ``evaluate``, ``blocks``, ``stages``, ``weights`` and the error
-estimates), registered by name in ``CORRECTORS`` and ``core.options.CORRECTORS``.
+such discretisation), registered by name in ``CORRECTORS`` and ``core.options.CORRECTORS``.
 """
 
 from __future__ import annotations

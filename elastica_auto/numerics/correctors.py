@@ -1,4 +1,4 @@
-"""The two correctors behind the stepper, each implementing the corrector interface
+"""The correctors behind the stepper, each implementing the corrector interface
 (:class:`~elastica_auto.numerics.corrector.Corrector`): solves at fixed parameters,
 pseudo-arclength steps, solves on a hyperplane, fold location, each returning a
 :class:`Solution`, and the linearisations the test functions, the kernel at a branch point
@@ -12,7 +12,10 @@ estimate stays under ``tol`` and regridded by equidistribution when it does not
 minimally augmented system, on a mesh that resolves the solution and its null vector to
 ``fold_tol``.
 
-``corrector = "solve_bvp"`` (:class:`SolveBVP`): the same discretisation solved by
+With ``ncol = 2..7`` (:class:`Gauss`): the same Newton iteration, steps, meshes and folds on
+Gauss collocation's discretisation (:mod:`elastica_auto.numerics.gauss`).
+
+``corrector = "solve_bvp"`` (:class:`SolveBVP`): the cubic discretisation solved by
 `scipy.integrate.solve_bvp` (:mod:`elastica_auto.numerics.bvp`), starts, steps and folds (by its
 extended system) alike: an independent check of the first, sharing none of its solves.
 
@@ -116,17 +119,18 @@ def _boundary_pattern(problem):
 
 
 class Linearizer:
-    """The linearisations a corrector answers with, on the meshes of one discretisation:
-    Gauss collocation at ``ncol`` points per interval, or with ``ncol = 0`` the cubic
-    (Lobatto IIIA) scheme, which is solve_bvp's own. Every :class:`Solution` carries one: the
+    """The linearisations a corrector answers with, on the meshes of one discretisation,
+    ``discretisation(problem, s)`` (the cubic Lobatto IIIA scheme, which is solve_bvp's own,
+    or Gauss collocation). Every :class:`Solution` carries one: the
     bordered Jacobian ``[[F_y, F_lam], [c, d]]`` of the discrete equations at the point,
     factorised (:class:`~elastica_auto.numerics.newton.Linearization`), from which the tangent,
     the determinant's sign and log, the kernel at a branch point and the error estimates are
     read. Each corrector owns one (composition, not inheritance: the solve_bvp corrector
     shares none of the collocation corrector's Newton iteration, meshes or steps)."""
 
-    def __init__(self, problem, parameter: str, ncol: int):
-        self.problem, self.parameter, self.ncol = problem, parameter, ncol
+    def __init__(self, problem, parameter: str, discretisation):
+        self.problem, self.parameter = problem, parameter
+        self._discretisation = discretisation
         self._seen = _boundary_pattern(problem)
         #: the boundary rows by the end they involve (`bordered.split_rows`)
         self.split = bordered.split_rows(*self._seen)
@@ -139,8 +143,7 @@ class Linearizer:
         if d is None:
             if len(self._discs) > 8:
                 self._discs.clear()
-            d = self._discs[key] = (GaussDiscretisation(self.problem, s, self.ncol)
-                                    if self.ncol else Discretisation(self.problem, s))
+            d = self._discs[key] = self._discretisation(self.problem, s)
         return d
 
     def linearization(self, disc, params, Y, lam, row, interior=None) -> Linearization:
@@ -313,17 +316,20 @@ class _Linearized:
 
 
 class Collocation(_Linearized):
-    """The collocation corrector for continuing ``problem`` in ``parameter``: Gauss
-    collocation at ``options.ncol`` points per interval (:mod:`elastica_auto.numerics.gauss`), or
-    with ``ncol = 0`` solve_bvp's cubic scheme (:mod:`elastica_auto.numerics.collocation`); both
-    behind the discretisation interface (``evaluate``, ``blocks``, ``stages``, the error
-    estimates), solved by the same Newton iteration."""
+    """The collocation corrector for continuing ``problem`` in ``parameter``, on solve_bvp's
+    cubic scheme (:mod:`elastica_auto.numerics.collocation`, ``ncol = 0``): Newton's method
+    over the discretisation interface (``evaluate``, ``blocks``, ``stages``, the error
+    estimates), which :class:`Gauss` shares with its own discretisation."""
 
     name = "collocation"
 
     def __init__(self, problem, parameter: str, options: ContinuationOptions):
         self.problem, self.parameter, self.options = problem, parameter, options
-        self._linearizer = Linearizer(problem, parameter, options.ncol)
+        self._linearizer = Linearizer(problem, parameter, self.discretisation)
+
+    def discretisation(self, problem, s):
+        """The discrete equations on the mesh ``s``."""
+        return Discretisation(problem, s)
 
     def _solve(self, s, params, guess: State, lam: float, make_row, lin=None,
                tol=None, regrid=True, row_of=None) -> Solution:
@@ -506,7 +512,7 @@ class SolveBVP(_Linearized):
 
     def __init__(self, problem, parameter: str, options: ContinuationOptions):
         self.problem, self.parameter, self.options = problem, parameter, options
-        self._linearizer = Linearizer(problem, parameter, 0)
+        self._linearizer = Linearizer(problem, parameter, Discretisation)
 
     def _bvp_solution(self, res, row_of) -> Solution:
         if not res.success:
@@ -589,10 +595,28 @@ class SolveBVP(_Linearized):
                          res.residual)
 
 
+class Gauss(Collocation):
+    """The Gauss collocation corrector: ``corrector = "collocation"`` with ``ncol = 2..7``
+    points per interval (AUTO-07p's NCOL; :mod:`elastica_auto.numerics.gauss`, its stage
+    equations condensed per interval into the same blocks as the cubic scheme's). Its
+    discretisation is its own; the Newton iteration, the steps, the regridding and the folds
+    are the collocation corrector's, which reaches the discrete equations only through the
+    discretisation interface."""
+
+    name = "gauss"
+
+    def discretisation(self, problem, s):
+        return GaussDiscretisation(problem, s, self.options.ncol)
+
+
+#: The correctors a run file or the API names (``corrector = ...``, core.options.CORRECTORS).
 CORRECTORS = {c.name: c for c in (Collocation, SolveBVP)}
 
 
 def make_corrector(problem, parameter: str, options: ContinuationOptions):
     """The corrector ``options.corrector`` names, for continuing ``problem`` in ``parameter``
-    (:class:`~elastica_auto.numerics.corrector.Corrector`)."""
+    (:class:`~elastica_auto.numerics.corrector.Corrector`): the collocation corrector with
+    ``ncol`` Gauss points is :class:`Gauss`."""
+    if options.corrector == Collocation.name and options.ncol:
+        return Gauss(problem, parameter, options)
     return CORRECTORS[options.corrector](problem, parameter, options)

@@ -111,7 +111,7 @@ class Linearization:
         if row is self.row or (row.c is self.row.c and row.d == self.row.d):
             dY, dp = self.fact.solve(col, bc, [g])
         else:
-            dY, dp = _with_border(self.fact, self.blocks, self.name, self.split, row.c, row.d,
+            dY, dp = with_border(self.fact, self.blocks, self.name, self.split, row.c, row.d,
                                   col, bc, g)
         return dY, float(dp[0])
 
@@ -124,7 +124,7 @@ class Linearization:
         return dY, dlam, self.blocks.interior(ev, dY, dlam, self.name)
 
 
-def _with_border(fact, blocks, name, split, c, d: float, col, bc, g):
+def with_border(fact, blocks, name, split, c, d: float, col, bc, g):
     """The solution of ``fact``'s system with its border row exchanged for ``(c, d)``: by
     the Sherman-Morrison update, or where that would lose its digits
     (`bordered.IllConditionedUpdate`), by a factorisation of the system with that row."""
@@ -288,7 +288,7 @@ class FoldResult:
     message: str = ""
 
 
-def _null_vector(disc, blocks, name, c, split):
+def null_vector(disc, blocks, name, c, split):
     """(v, g, w_col, w_bc, fact) of the bordered system ``[[F_y, F_lam], [c, 0]]``: ``F_y v +
     F_lam g = 0``, ``<c, v> = 1``; w the multipliers of its transpose with the same
     right-hand side; ``fact`` its factorisation. ``g`` vanishes exactly where F_y is singular
@@ -299,8 +299,8 @@ def _null_vector(disc, blocks, name, c, split):
     return v, float(g[0]), w_col, w_bc, fact
 
 
-def _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc) -> tuple[np.ndarray, float]:
-    """The gradient ``(g_Y (n, m), g_lam)`` of the test function g of :func:`_null_vector`
+def fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc) -> tuple[np.ndarray, float]:
+    """The gradient ``(g_Y (n, m), g_lam)`` of the test function g of :func:`null_vector`
     (its border b and row c held fixed) at the point Y, ``p`` of ``blocks``, from its null
     vector v and multipliers w: differentiating ``[[F_y, b], [c, 0]] (v, g) = (0, 1)``,
     ``dg = -w^T (dF_y) v``, so ``g_Y = -(d/dY (F_y v))^T w`` and ``g_lam = -w^T (dF_y/dlam) v
@@ -321,12 +321,12 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
 
         F(Y, lam) = 0,    g(Y, lam) = 0,
 
-    with g from ``[[F_y, F_lam], [c, 0]] (v, g) = (0, 1)`` (:func:`_null_vector`): ``c`` = the
+    with g from ``[[F_y, F_lam], [c, 0]] (v, g) = (0, 1)`` (:func:`null_vector`): ``c`` = the
     weighted state part of ``t`` (an approximate null vector), fixed. The Newton matrix
     ``[[F_y, F_lam], [g_y, g_lam]]`` is that bordered matrix with the gradient of g as its
-    last row (:func:`_fold_gradient`), so it is solved with the same factorisation, its last
+    last row (:func:`fold_gradient`), so it is solved with the same factorisation, its last
     row exchanged (Sherman-Morrison, `Factorization.solve_with_border`, or a factorisation of
-    its own where that update would lose its digits: :func:`_with_border`). The gradient holds
+    its own where that update would lose its digits: :func:`with_border`). The gradient holds
     the border column F_lam fixed: its variation adds ``-w^T (dF_lam) g`` to dg, a term that
     vanishes with g at the fold, so that Newton's convergence stays quadratic (the
     iterations on the shipped runs are those of a border frozen at the start)."""
@@ -337,9 +337,9 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
     blocks = disc.blocks(ev, p, (name,))
     c = disc.weights * t.on(disc.s).y
     for it in range(1, max_iter + 1):
-        v, g, w_col, w_bc, fact = _null_vector(disc, blocks, name, c, split)
-        g_y, g_lam = _fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc)
-        dY, dlam = _with_border(fact, blocks, name, split, g_y, g_lam, ev.col, ev.bc, g)
+        v, g, w_col, w_bc, fact = null_vector(disc, blocks, name, c, split)
+        g_y, g_lam = fold_gradient(disc, name, p, Y, blocks, v, w_col, w_bc)
+        dY, dlam = with_border(fact, blocks, name, split, g_y, g_lam, ev.col, ev.bc, g)
         dlam = float(dlam[0])
         size = scaled_norm(dY, dlam, Y, lam)
         if not size < FOLD_MAX_CORRECTION:  # started near the fold: this diverges (or is NaN)

@@ -96,11 +96,11 @@ class IntegrationError(NumericalFailure):
 #: OpenBLAS runs a matrix-vector product of j x N on all cores once j N reaches 2304 times
 #: its GEMM_MULTITHREAD_THRESHOLD (4), and its threads then spin on the cores that a second
 #: process (a default run's worker) computes on: two box scans at once took 2.3x as long
-#: each as one alone. `_combine` keeps each product below it.
+#: each as one alone. `combine` keeps each product below it.
 SINGLE_THREAD_GEMV = 9216
 
 
-def _combine(w, flat):
+def combine(w, flat):
     """``w @ flat`` for weights w (j,) and stages flat (j, N), in blocks of columns that BLAS
     multiplies on this thread (SINGLE_THREAD_GEMV). (numpy's einsum, also on one thread,
     took 1.15x the CPU of a one-dimensional scan.)"""
@@ -120,9 +120,9 @@ def _stages(f, s, y, h, k):
     n, m = y.shape
     flat = k.reshape(12, n * m)
     for i in range(1, 12):
-        dy = _combine(A[i, :i], flat[:i]).reshape(n, m)
+        dy = combine(A[i, :i], flat[:i]).reshape(n, m)
         k[i] = f(s + C[i] * h, y + h * dy)
-    return y + h * _combine(B, flat).reshape(n, m)
+    return y + h * combine(B, flat).reshape(n, m)
 
 
 def _error(k, h, y0, y1, rtol, atol):
@@ -131,8 +131,8 @@ def _error(k, h, y0, y1, rtol, atol):
     n, m = y0.shape
     flat = k.reshape(12, n * m)
     scale = atol + rtol * np.maximum(np.abs(y0), np.abs(y1))
-    e5 = np.sum((_combine(E5, flat).reshape(n, m) / scale) ** 2, axis=0)
-    e3 = np.sum((_combine(E3, flat).reshape(n, m) / scale) ** 2, axis=0)
+    e5 = np.sum((combine(E5, flat).reshape(n, m) / scale) ** 2, axis=0)
+    e3 = np.sum((combine(E3, flat).reshape(n, m) / scale) ** 2, axis=0)
     denom = np.sqrt((e5 + 0.01 * e3) * n)
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.where(denom > 0, abs(h) * e5 / denom, 0.0)

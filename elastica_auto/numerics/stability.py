@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
@@ -80,7 +81,7 @@ def nodes_and_midpoints(mesh):
     return pts
 
 
-def _on_state(problem, state):
+def form_on_state(problem, state):
     """``evaluate(pts)`` for :func:`count_form`: the module's form at the state, from its
     interpolant (on the state's own mesh the midpoints come from the Hermite cubic of each
     interval, the nodes from the solution itself)."""
@@ -112,7 +113,7 @@ def count(problem, state) -> Count:
             and all(np.isfinite(v) for v in state.params.values())):
         return Count(-1, "the state is not finite")
     try:
-        return count_form(_on_state(problem, state), state.s, source=_source(problem))
+        return count_form(form_on_state(problem, state), state.s, source=_source(problem))
     except LegendreError as exc:   # at this state only: the branch goes on, the point says so
         return Count(-1, str(exc), refused=True)
 
@@ -123,7 +124,7 @@ def index(problem, state) -> int:
     return count(problem, state).index
 
 
-def _min_eig(a):
+def min_eig(a):
     """The smallest eigenvalue of each symmetric block (p, k, k). (A lower bound would do for
     the Legendre check, but the refinement's wavenumber divides by it: a bound a factor k - 1
     low refines meshes that need it not.)"""
@@ -138,7 +139,7 @@ def _min_eig(a):
 
 
 def _small_min_eig(a):
-    """:func:`_min_eig` of 2 x 2 and 3 x 3 blocks in closed form (numpy's batched eigensolver
+    """:func:`min_eig` of 2 x 2 and 3 x 3 blocks in closed form (numpy's batched eigensolver
     costs several times as much on them). 2 x 2: (a + b)/2 - |((a - b)/2, d)|. 3 x 3
     (trigonometric; Smith 1961): with q = tr A / 3, A = q I + p B, p^2 = |A - q I|_F^2 / 6,
     the eigenvalues are q + 2 p cos(phi + 2 pi j / 3), 3 phi = arccos(det B / 2), the smallest
@@ -302,7 +303,7 @@ def _evaluate(evaluate, pts, shift, source):
         return form, None
     if shift:
         b = b - shift * np.eye(form.k)
-    a_min = _min_eig(a)
+    a_min = min_eig(a)
     if not np.all(a_min > 0):
         j = int(np.argmin(a_min))
         # "module: second_variation: ...", or without a module's name (a module counting a
@@ -668,14 +669,14 @@ def kernel_dimension(problem, state, delta: float | None = None) -> int:
     examples (of order pi^2 A)."""
     if not problem.has_second_variation:
         return -1
-    on_state = _on_state(problem, state)
+    on_state = form_on_state(problem, state)
 
     def evaluate(pts):
         return on_state(pts).without_kernel_modes()
 
     if delta is None:
         a = evaluate(nodes_and_midpoints(state.s)).fields(2 * len(state.s) - 1)[0]
-        delta = 1e-3 * float(np.mean(_min_eig(a)))
+        delta = 1e-3 * float(np.mean(min_eig(a)))
     above = count_form(evaluate, state.s, shift=delta, source=_source(problem)).index
     below = count_form(evaluate, state.s, shift=-delta, source=_source(problem)).index
     return above - below if min(above, below) >= 0 else -1
@@ -727,7 +728,7 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             last = spans[k]
             after = _count_past(pts, last + 1, enters, lam, ords)
             for j in range(k, last + 1):
-                if pts[j].type == "BP":
+                if pts[j].type in labels.SWITCHES:
                     out.append(current)
                 elif current >= 0 and after >= 0:
                     out.append(min(current, after))
@@ -736,7 +737,7 @@ def fold_rule(branch, problem, start_index: int) -> list[int]:
             current, k = after, last + 1
             continue
         out.append(current)
-        if pts[k].type == "LP" and current >= 0:
+        if pts[k].type in labels.FOLDS and current >= 0:
             change = fold_sign(enters, lam, ords, k) if ords is not None else 0
             current = current + change if change else -1
         if current < 0 and k + 1 < len(pts):
@@ -753,7 +754,7 @@ def _count_past(pts, j, enters, lam, ords) -> int:
     is no such point or a change is not known (an LP at the branch's end, no distinguished
     ordinate)."""
     change = 0
-    while j < len(pts) and pts[j].type == "LP":
+    while j < len(pts) and pts[j].type in labels.FOLDS:
         sign = fold_sign(enters, lam, ords, j) if ords is not None else 0
         if not sign:
             return -1
@@ -769,7 +770,7 @@ def _on_branch_points(pts, lam) -> dict[int, int]:
     neighbours at the same parameter value (user points placed on it)."""
     spans = {}
     for k, p in enumerate(pts):
-        if p.type != "BP":
+        if p.type not in labels.SWITCHES:
             continue
         lo = hi = k
         while lo > 0 and abs(lam[lo - 1] - lam[k]) <= 1e-9 * (1.0 + abs(lam[k])):
@@ -807,7 +808,7 @@ def label_stability(branch, problem) -> None:
     rule = fold_rule(branch, problem, seed.index_direct)
     for k, (p, r) in enumerate(zip(pts, rule)):
         p.index_rule = r
-        if p.type in ("LP", "BP") or (k == 0 and branch.singular_start):
+        if p.type in labels.TURNS or (k == 0 and branch.singular_start):
             p.index = r
         elif r == p.index_direct:
             p.index = r

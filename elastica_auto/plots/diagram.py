@@ -17,32 +17,31 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.labels import BP, CP, FOLDS, LP, MX, TURNS
 from ..core.values import same_value
 from ..storage.outputs import check_output, write_output
 from ..storage.store import BranchFile
-from .style import RC, index_label, index_style, marker_style
+from .style import RC, UNLOCATED, index_label, index_style, marker_style
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 #: Labelled points that are marked, in the order their names get room.
-MARKED = ("MX", "CP", "BP", "LP")
-MARKER_TEXT = {"LP": "fold (LP)", "LP?": "fold not located", "BP": "branch point (BP)",
-               "MX": "failed end (MX)", "CP": "cusp (CP)"}
+MARKED = (MX, CP, BP, LP)
+MARKER_TEXT = {LP: "fold (LP)", UNLOCATED: "fold not located", BP: "branch point (BP)",
+               MX: "failed end (MX)", CP: "cusp (CP)"}
 FONTSIZE = 7.0
 
-
-#: Labelled points where the stability index changes: a line's style changes at the point.
-TURNS = ("LP", "BP")
 
 
 def line_index(index, types) -> np.ndarray:
     """The index that styles the line at each point: its own, but at a fold or branch point
-    (`TURNS`) the index of the point after it. The index stored at such a point is that of
-    one side (the count there has a zero eigenvalue); the line leaving it is on the side of
-    the next point, so the style changes at the point itself, not one segment later."""
+    (`core.labels.TURNS`) the index of the point after it. The index stored at such a point
+    is that of one side (the count there has a zero eigenvalue); the line leaving it is on the
+    side of the next point, so the style changes at the point itself, not one segment
+    later."""
     out = np.array(index, dtype=int)
-    turn = np.flatnonzero(np.isin(np.asarray(types)[:-1], TURNS))
+    turn = np.flatnonzero(np.isin(np.asarray(types)[:-1], list(TURNS)))
     out[turn] = out[turn + 1]
     return out
 
@@ -145,7 +144,8 @@ def _draw_panel(ax, branches, xname, yname, period, index_column="index"):
                 continue
             if not (np.isfinite(xm[i]) and np.isfinite(y[i])):
                 continue
-            kind = "LP?" if t == "LP" and not np.isfinite(b.columns["fold_residual"][i]) else t
+            kind = UNLOCATED if t in FOLDS and not np.isfinite(b.columns["fold_residual"][i]) \
+                else t
             ax.plot(xm[i], y[i], zorder=5, **marker_style(kind))
             kinds.add(kind)
             names.append((MARKED.index(t), xm[i], y[i], label[i], kind))
@@ -296,7 +296,7 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                    for k in sorted(indices, key=lambda k: (k < 0, k))
                    for c, d, w in [index_style(k)]]
         handles += [Line2D([], [], label=MARKER_TEXT[k], **marker_style(k))
-                    for k in ("LP", "LP?", "CP", "BP", "MX") if k in kinds]
+                    for k in (LP, UNLOCATED, CP, BP, MX) if k in kinds]
         fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6),
                    handlelength=2.6)
         fig.draw_without_rendering()

@@ -31,12 +31,14 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import ConnectionPatch, FancyArrowPatch
 from matplotlib.ticker import FuncFormatter, MultipleLocator
 
+from ..core.labels import BP, FOLDS, LP, SWITCHES, TURNS
 from ..core.errors import ProblemError
 from ..model.interface import ProblemInterface
 from ..model.problem import Problem, load_problem, shipped_equations
 from ..storage.store import BranchFile, StoredBranch
 from .diagram import line_index, same_value, save_figure
-from .style import LABEL_COLOR, SNAP_COLOR, index_label, index_style, marker_style
+from .style import (LABEL_COLOR, SNAP_COLOR, UNLOCATED, index_label, index_style,
+                    marker_style)
 
 TWO_PI = 2 * math.pi
 
@@ -530,7 +532,7 @@ def place_labels(ax, insets, step=13.0, min_gap=11.0, taken=()):
 
 
 def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fontsize=6.5,
-               types=("LP", "BP")):
+               types=tuple(TURNS)):
     """Mark folds (and branch points) with the index change, read in the direction of
     increasing ordinate (below -> above; at a branch point, along the branch)."""
     placed = []
@@ -545,12 +547,12 @@ def draw_folds(ax, items, xname, yname, period=None, xlim=None, text=True, fonts
             t = c["type"][i]
             tr = str(c["transition"][i]).replace(" ", "")
             a, _, b = tr.partition("->")
-            if t == "LP" and not np.isfinite(c["fold_residual"][i]):
+            if t in FOLDS and not np.isfinite(c["fold_residual"][i]):
                 # the engine saw the parameter turn but could not locate a fold here
-                ax.plot(xi, y[i], zorder=6, **marker_style("LP?"))
+                ax.plot(xi, y[i], zorder=6, **marker_style(UNLOCATED))
                 continue
             ax.plot(xi, y[i], zorder=6, **marker_style(t))
-            if t == "LP":
+            if t in FOLDS:
                 i0, i1 = max(i - 1, 0), min(i + 1, len(x) - 1)
                 if y[i1] < y[i0]:
                     a, b = b, a
@@ -602,12 +604,12 @@ def legend_handles(indices, folds=True, bps=False, snaps=False, labels=False,
         color, dash, lw = index_style(k)
         hs.append(Line2D([], [], color=color, ls=dash, lw=lw, label=index_label(k)))
     if folds:
-        hs.append(Line2D([], [], label="fold: index below\u2192above", **marker_style("LP")))
+        hs.append(Line2D([], [], label="fold: index below\u2192above", **marker_style(LP)))
     if unlocated:
         hs.append(Line2D([], [], label="turning point not located\n(at a branch point)",
-                         **marker_style("LP?")))
+                         **marker_style(UNLOCATED)))
     if bps:
-        hs.append(Line2D([], [], label="branch point", **marker_style("BP")))
+        hs.append(Line2D([], [], label="branch point", **marker_style(BP)))
     if snaps:
         hs.append(Line2D([], [], color=SNAP_COLOR, lw=1.3 * (1.3 if landing else 1),
                          marker=">", ms=4, label="snap-back: lands" if landing else "snap-back"))
@@ -741,8 +743,8 @@ def draw_panel(fig, panel: Panel, spec=None, inset_height=1.15, main_height=2.9,
         _pi_ticks(ax, "x", span=hi - lo)
     ax.set_xlabel(panel.xlabel, labelpad=1)
     ax.set_ylabel(panel.ylabel, labelpad=2)
-    has_bp = any(np.any(br.columns["type"] == "BP") for _, br in panel.items)
-    lps = [np.isfinite(br.columns["fold_residual"][br.columns["type"] == "LP"])
+    has_bp = any(np.any(np.isin(br.columns["type"], list(SWITCHES))) for _, br in panel.items)
+    lps = [np.isfinite(br.columns["fold_residual"][np.isin(br.columns["type"], list(FOLDS))])
            for _, br in panel.items]
     has_lp = any(np.any(f) for f in lps)
     has_unlocated = any(np.any(~f) for f in lps)

@@ -26,6 +26,7 @@ from matplotlib.patches import ConnectionPatch
 from matplotlib.ticker import MultipleLocator
 
 from ..equations.elastica_lever_arm import arm_end
+from ..core.labels import CP, SWITCHES, UZ, kind_of
 from ..core.errors import StoreError
 from ..storage.store import BranchFile, StoredBranch
 from .layout import (Inset, Panel, Pt, Snap, branches_where, distinct_starts,
@@ -325,7 +326,8 @@ def _pitchfork_panel(tb, eps, title):
     items = [(tb, b) for b in branches_where(tb, eps=eps)]
     insets = []
     trivial = [b for _, b in items if np.all(b.columns["m0"] == 0)]
-    bps = [Pt(tb, b, i) for b in trivial for i in np.flatnonzero(b.columns["type"] == "BP")]
+    bps = [Pt(tb, b, i) for b in trivial
+           for i in np.flatnonzero(np.isin(b.columns["type"], list(SWITCHES)))]
     k = 1
     for bp in sorted(bps, key=lambda p: p["P"]):
         others = [b for _, b in items if b.columns["m0"].any()
@@ -389,7 +391,7 @@ def fig_critical_loads(data_dir, out_dir):
         # the branch points the continuation found on the straight rod
         bp_eps, bp_P = [], []
         for b in tb.branches:
-            for i in np.flatnonzero(b.columns["type"] == "BP"):
+            for i in np.flatnonzero(np.isin(b.columns["type"], list(SWITCHES))):
                 bp_eps.append(float(b.columns["eps"][i]))
                 bp_P.append(float(b.columns["P"][i]))
         ax.plot(bp_eps, bp_P, "s", ms=5, mfc="white", mec=BP_COLOR, mew=1.3, zorder=5,
@@ -827,7 +829,7 @@ def fig_configurations_3d(data_dir, out_dir):
     for br in branches_where(bf, eps=0.5, P=P2):
         for i, name in enumerate(br.label_names()):
             p = Pt(bf, br, i)
-            if name.startswith("UZ") and same_value(p["psi"], PI / 2, TWO_PI):
+            if kind_of(name) == UZ and same_value(p["psi"], PI / 2, TWO_PI):
                 found.setdefault(round(p["m0"], 3), {})[p["b2"]] = p
     rows = sorted(found.items())
     with matplotlib.rc_context(RC):
@@ -889,7 +891,7 @@ def fig_concentric_tubes(data_dir, out_dir):
                    label=rf"$\lambda^*=\arctan(1/(\sqrt{{c}}\,L_t))={bound:.4f}$")
         for br in folds.branches:
             for i, name in enumerate(br.label_names()):
-                if name[:2] in ("BP", "CP"):
+                if kind_of(name) in SWITCHES | {CP}:
                     ax.plot(br.columns["beta"][i], br.columns["lam"][i], "o", ms=5,
                             mfc="white", mec=CP_COLOR, zorder=5)
         ax.set_xlim(0, TWO_PI)

@@ -13,6 +13,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 
 from ..analysis.maps import plane_groups
+from ..core.labels import CP
 from ..core.values import same_value
 from ..storage.store import BranchFile
 from .diagram import values_tex
@@ -45,10 +46,10 @@ def draw_map(ax, bf: BranchFile, m, cmap, norm):
         x, y = b.columns[m.x].astype(float), b.columns[m.y].astype(float)
         for xs, ys in _wrapped(x, y, x0, period):
             ax.plot(xs, ys, color="black", lw=0.8, zorder=3)
-        cp = b.columns["type"] == "CP"
+        cp = b.columns["type"] == CP
         if np.any(cp):
             xc = (x[cp] - x0) % period + x0 if period else x[cp]
-            ax.plot(xc, y[cp], zorder=5, **marker_style("CP"))
+            ax.plot(xc, y[cp], zorder=5, **marker_style(CP))
     sizes = np.bincount(m.cells[m.cells >= 0].ravel(), minlength=len(m.stable))
     for k, (px, py, n) in enumerate(zip(m.region_x, m.region_y, m.stable)):
         if sizes[k] >= LABEL_CELLS:
@@ -85,7 +86,7 @@ def map_figure(bf: BranchFile, title: str | None = None) -> Figure:
         fig.legend(handles=[matplotlib.lines.Line2D([], [], color="black", lw=0.8,
                                                     label="fold curve"),
                             matplotlib.lines.Line2D([], [], label="cusp (CP)",
-                                                    **marker_style("CP"))],
+                                                    **marker_style(CP))],
                    loc="outside lower center", ncols=2)
         if title:
             fig.suptitle(title, fontsize=10)

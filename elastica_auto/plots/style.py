@@ -6,6 +6,12 @@ index and the labelled points from these tables.
 
 from __future__ import annotations
 
+from ..core.labels import BP, CP, LP, MX
+
+#: The mark of a turning point of the parameter where no fold could be located (an LP row
+#: whose ``fold_residual`` is NaN): drawn apart from a located fold.
+UNLOCATED = LP + "?"
+
 #: Stability index -> (colour, dash pattern, line width). Index 0 (stable) solid black.
 INDEX_STYLE = {
     0: ("black", "-", 1.7),
@@ -29,13 +35,13 @@ MX_COLOR = "black"         # failed ends
 LABEL_COLOR = "#1f4e79"    # numbered configurations
 
 #: Labelled point type -> (marker, face colour, edge colour, size, edge width) in every
-#: diagram; "LP?" is a turning point of the parameter where no fold could be located.
+#: diagram, and ``UNLOCATED``'s.
 MARKERS = {
-    "LP": ("o", "white", FOLD_COLOR, 3.4, 0.9),
-    "LP?": ("x", "0.4", "0.4", 4.0, 1.0),
-    "BP": ("s", "white", BP_COLOR, 3.6, 1.0),
-    "CP": ("D", CP_COLOR, CP_COLOR, 4.2, 0.8),
-    "MX": ("X", MX_COLOR, MX_COLOR, 5.0, 0.5),
+    LP: ("o", "white", FOLD_COLOR, 3.4, 0.9),
+    UNLOCATED: ("x", "0.4", "0.4", 4.0, 1.0),
+    BP: ("s", "white", BP_COLOR, 3.6, 1.0),
+    CP: ("D", CP_COLOR, CP_COLOR, 4.2, 0.8),
+    MX: ("X", MX_COLOR, MX_COLOR, 5.0, 0.5),
 }
 
 RC = {

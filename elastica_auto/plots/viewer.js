@@ -29,9 +29,10 @@
 
   // The index that styles the line at each point of branch b, as diagram.line_index gives
   // it: its own, but at a fold or branch point the next point's (the style changes at the
-  // point itself, where its marker is, not one segment later).
+  // point itself, where its marker is, not one segment later). D.turns: the marks' kinds
+  // there (viewer.py: core.labels.TURNS and the unlocated fold's mark).
   function lineIndex(b) {
-    const turns = new Set(["LP", "LP?", "BP"].flatMap((kind) => b.marks[kind] || []));
+    const turns = new Set(D.turns.flatMap((kind) => b.marks[kind] || []));
     return b.index.map((k, i) => (turns.has(i) && i + 1 < b.index.length ? b.index[i + 1] : k));
   }
 

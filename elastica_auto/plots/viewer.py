@@ -33,13 +33,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.labels import FOLDS, TURNS
 from ..core.errors import USER_ERRORS
 from ..storage.outputs import check_output as _check_output
 from ..storage.outputs import write_output
 from ..storage.store import BranchFile
 from .diagram import (MARKED, MARKER_TEXT, default_columns, fixed_parameters, panel_groups,
                       period_of)
-from .style import MARKERS, SNAP_COLOR, index_label, index_style
+from .style import MARKERS, SNAP_COLOR, UNLOCATED, index_label, index_style
 
 #: Size of a configuration image: inches at dots per inch (the side panel shows it at 240 px).
 IMAGE_INCHES, IMAGE_DPI = 3.0, 80
@@ -296,7 +297,7 @@ def _numbers(a) -> list:
     return [float(v) if math.isfinite(v) else None for v in np.asarray(a, dtype=float)]
 
 
-def _style(k: int) -> dict:
+def trace_style(k: int) -> dict:
     """Plotly line keywords of stability index ``k``: `style.index_style`, its dashes (in
     line widths, as matplotlib scales them) in pixels."""
     from matplotlib.colors import to_hex
@@ -355,7 +356,7 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
         marks = {}
         for i, t in enumerate(types):
             if t in MARKED:
-                kind = "LP?" if t == "LP" and not np.isfinite(c["fold_residual"][i]) else t
+                kind = UNLOCATED if t in FOLDS and not np.isfinite(c["fold_residual"][i]) else t
                 marks.setdefault(kind, []).append(i)
         index = [int(k) if k >= 0 else -1 for k in c["index"]]
         indices |= set(index)
@@ -392,8 +393,9 @@ def page_data(bf: BranchFile, xname: str | None = None, yname: str | None = None
         "x": xname, "y": yname, "fold": fold, "periods": periods,
         "panels": panels, "branches": branches,
         "labels": {name: list(where) for name, where in bf.labels.items()},
-        "styles": {str(k): _style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
+        "styles": {str(k): trace_style(k) for k in sorted(indices, key=lambda k: (k < 0, k))},
         "markers": {kind: _marker(kind) for kind in MARKERS},
+        "turns": [*sorted(TURNS), UNLOCATED],
         "snaps": snaps, "snap_color": SNAP_COLOR,
         "images": images,
         "missing": {label: f"draw hook failed ({error})" for label, error in images.failed.items()},

@@ -32,7 +32,7 @@ Layout of ``out/<run>.h5``::
                             target_<ordinate>..., energy_released, transit_time
 
 Format 3: every dataset with data in chunks, shuffled, deflated and Fletcher32-checksummed
-(`_put`), its strings of fixed length; formats 1 and 2 read as they are (docs/hdf5.md).
+(`put`), its strings of fixed length; formats 1 and 2 read as they are (docs/hdf5.md).
 
 Files are built in memory and their bytes written to a temporary name in the same folder,
 synced, then renamed over the target (`write_h5`), so a reader never sees a half-written
@@ -219,7 +219,7 @@ def _cannot_write(path: Path, exc: OSError) -> WriteError | StoreError:
 
 #: The HDF5 object layouts the files are written with: HDF5 1.10's, whose metadata
 #: (superblock, object headers, chunk indexes) carries checksums, so that damaged metadata
-#: is reported by HDF5 as damaged data is by the datasets' Fletcher32 (`_put`). Files are
+#: is reported by HDF5 as damaged data is by the datasets' Fletcher32 (`put`). Files are
 #: read by HDF5 1.10 and later.
 LIBVER = ("v110", "v110")
 
@@ -508,7 +508,7 @@ class Writer:
                        periods=json.dumps({k: q.period for k, q in problem.parameters.items()
                                            if q.period is not None}),
                        **self.extra)
-        _put(f, "profile_grid", PROFILE_GRID)
+        put(f, "profile_grid", PROFILE_GRID)
 
 
 def _stage(name: str):
@@ -568,13 +568,13 @@ def _write_table(f, name: str, rows: list[dict]):
     keys = [k for k in rows[0] if k != "profile"] if rows else []
     g.attrs["columns"] = json.dumps(keys)
     if rows and "profile" in rows[0]:
-        _put(g, "profiles", np.array([row["profile"] for row in rows]))
+        put(g, "profiles", np.array([row["profile"] for row in rows]))
     for k in keys:
         values = [row[k] for row in rows]
         if isinstance(values[0], str):
             _put_strings(g, k, values)
         else:
-            _put(g, k, np.asarray(values, dtype=float))
+            put(g, k, np.asarray(values, dtype=float))
 
 
 def _read_table(f, name: str) -> list[dict]:
@@ -599,9 +599,9 @@ def _write_maps(f, maps):
     for k, m in enumerate(maps, 1):
         g = f.create_group(f"maps/{k:03d}")
         g.attrs.update(x=m.x, y=m.y, fixed=json.dumps(m.fixed), extent=np.asarray(m.extent))
-        _put(g, "cells", m.cells.astype(np.int32))
+        put(g, "cells", m.cells.astype(np.int32))
         for name in ("region_x", "region_y", "stable", "equilibria"):
-            _put(g, name, np.asarray(getattr(m, name)))
+            put(g, name, np.asarray(getattr(m, name)))
 
 
 def _read_maps(f) -> list:
@@ -626,7 +626,7 @@ _STR_COLUMNS = ("type", "note", "transition")
 #: shuffle (the bytes of the values grouped by significance: the sign, exponent and leading
 #: mantissa bytes of neighbouring values are alike, and compress), deflate (gzip) at level
 #: DEFLATE_LEVEL, and Fletcher32: a checksum of each chunk as stored, which HDF5 checks on
-#: every read and `BranchFile` checks for every chunk on opening (`_checksum_failure`).
+#: every read and `BranchFile` checks for every chunk on opening (`checksum_failure`).
 #: Measured (docs/hdf5.md#compression): level 4 makes rotating_arm_3d's file 1% smaller in
 #: 20% more time; lzf (faster to read, but h5py's own: other HDF5 readers lack it) makes
 #: rotating_arm's 22% larger.
@@ -647,7 +647,7 @@ SOLUTION_CHUNK_BYTES = 1 << 14
 PROFILE_CHUNK_BYTES = 1 << 14
 
 
-def _put(g, name: str, data: np.ndarray, axis: int = 0, chunk_bytes: int = CHUNK_BYTES):
+def put(g, name: str, data: np.ndarray, axis: int = 0, chunk_bytes: int = CHUNK_BYTES):
     """``g[name] = data`` for an array of numbers (or of fixed-length byte strings), compressed
     and checksummed (see DEFLATE_LEVEL), in chunks of at most ``chunk_bytes`` cut along
     ``axis``; an empty array as an empty contiguous dataset (a chunk cannot be empty).
@@ -673,13 +673,13 @@ def _put(g, name: str, data: np.ndarray, axis: int = 0, chunk_bytes: int = CHUNK
 
 
 def _put_strings(g, name: str, values):
-    """``g[name]``: the strings ``values`` as fixed-length UTF-8 (`_put`: compressed and
+    """``g[name]``: the strings ``values`` as fixed-length UTF-8 (`put`: compressed and
     checksummed; the padding compresses away). Not HDF5's variable-length strings: those live
     in a heap of the file that no checksum covers."""
     encoded = [v.encode("utf-8") for v in values]
     width = max(map(len, encoded), default=0) or 1
     array = np.array(encoded, dtype=h5py.string_dtype("utf-8", width))
-    _put(g, name, array)
+    put(g, name, array)
 
 
 def _write_branch(g, problem, br: Branch):
@@ -690,15 +690,15 @@ def _write_branch(g, problem, br: Branch):
                    cell=br.cell)
     cols = g.create_group("columns")
     for name in problem.parameter_names + problem.ordinate_names + list(_FLOAT_COLUMNS):
-        _put(cols, name, br.column(name).astype(float))
+        put(cols, name, br.column(name).astype(float))
     for name in _INT_COLUMNS:  # the label's number: its name is type and number
-        _put(cols, name, np.array([p.label for p in br.points] if name == "label"
+        put(cols, name, np.array([p.label for p in br.points] if name == "label"
                                   else br.column(name), dtype=np.int32))
     for name in _STR_COLUMNS:
         _put_strings(cols, name, list(br.column(name)))
     distinct, rows = _distinct([p.profile for p in br.points])
-    _put(g, "profiles", np.array(distinct), chunk_bytes=PROFILE_CHUNK_BYTES)
-    _put(g, "profile_rows", rows)
+    put(g, "profiles", np.array(distinct), chunk_bytes=PROFILE_CHUNK_BYTES)
+    put(g, "profile_rows", rows)
     _write_solutions(g.create_group("solutions"), br)
 
 
@@ -735,7 +735,7 @@ def _write_solutions(g, br: Branch):
     n = len(br.state_names)
     g.attrs["tangent_parameter"] = br.parameter
     _put_strings(g, "label", [p.name for _, p in labelled])
-    _put(g, "pt", np.array([pt for pt, _ in labelled], dtype=np.int64))
+    put(g, "pt", np.array([pt for pt, _ in labelled], dtype=np.int64))
     _put_strings(g, "params", [json.dumps(p.params) for _, p in labelled])
     tangents = [p.tangent for _, p in labelled]
     for prefix, parts in (("", [p.state for _, p in labelled]), ("tangent_", tangents)):
@@ -744,16 +744,16 @@ def _write_solutions(g, br: Branch):
                                     for x in given])
         mesh = np.full(len(parts), -1, dtype=np.int32)
         mesh[[k for k, x in enumerate(parts) if x is not None]] = rows
-        _put(g, f"{prefix}mesh", mesh)
+        put(g, f"{prefix}mesh", mesh)
         sizes = [a.shape[1] for a in distinct]
-        _put(g, f"{prefix}nodes", np.concatenate(([0], np.cumsum(sizes, dtype=np.int64))))
-        _put(g, f"{prefix}s", np.concatenate([a[0] for a in distinct]) if distinct
+        put(g, f"{prefix}nodes", np.concatenate(([0], np.cumsum(sizes, dtype=np.int64))))
+        put(g, f"{prefix}s", np.concatenate([a[0] for a in distinct]) if distinct
              else np.zeros(0), chunk_bytes=SOLUTION_CHUNK_BYTES)
         for q, part in (("y", slice(1, 1 + n)), ("yp", slice(1 + n, 1 + 2 * n))):
-            _put(g, f"{prefix}{q}", (np.concatenate([a[part] for a in distinct], axis=1)
+            put(g, f"{prefix}{q}", (np.concatenate([a[part] for a in distinct], axis=1)
                                      if distinct else np.zeros((n, 0))),
                  axis=1, chunk_bytes=SOLUTION_CHUNK_BYTES)
-    _put(g, "tangent_lam", np.array([x.lam if x is not None else np.nan for x in tangents],
+    put(g, "tangent_lam", np.array([x.lam if x is not None else np.nan for x in tangents],
                                     dtype=float))
 
 
@@ -770,15 +770,16 @@ def _read_solution(g, name: str, names: list[str]):
                                 float(h.attrs["tangent_lam"])), str(h.attrs["tangent_parameter"]))
     j = names.index(name)
     a, b = _mesh_range(g, "", j)
-    params = _part(g, "params", j, j + 1)[0]
+    params = part_columns(g, "params", j, j + 1)[0]
     state = (json.loads(params.decode() if isinstance(params, bytes) else params),
-             _part(g, "s", a, b), _part(g, "y", a, b), _part(g, "yp", a, b))
+             part_columns(g, "s", a, b), part_columns(g, "y", a, b), part_columns(g, "yp", a, b))
     ta, tb = _mesh_range(g, "tangent_", j)
     if ta == tb:
         return (*state, None, None)
-    return (*state, Tangent(_part(g, "tangent_s", ta, tb), _part(g, "tangent_y", ta, tb),
-                            _part(g, "tangent_yp", ta, tb),
-                            float(_part(g, "tangent_lam", j, j + 1)[0])),
+    return (*state, Tangent(part_columns(g, "tangent_s", ta, tb),
+                            part_columns(g, "tangent_y", ta, tb),
+                            part_columns(g, "tangent_yp", ta, tb),
+                            float(part_columns(g, "tangent_lam", j, j + 1)[0])),
             str(g.attrs["tangent_parameter"]))
 
 
@@ -786,9 +787,9 @@ def _mesh_range(g, prefix: str, j: int) -> tuple[int, int]:
     """The nodes (a, b) of label number ``j``'s solution (``prefix`` "") or tangent
     ("tangent_") in the packed group ``g``; (0, 0) for no tangent. Format 3 numbers the
     distinct solutions (``mesh``); format 2 stored one per label, in order."""
-    n = _part(g, f"{prefix}nodes", 0, 0).shape[0]
+    n = part_columns(g, f"{prefix}nodes", 0, 0).shape[0]
     if f"{prefix}mesh" in g:
-        m = int(_part(g, f"{prefix}mesh", j, j + 1)[0])
+        m = int(part_columns(g, f"{prefix}mesh", j, j + 1)[0])
         if m < 0:
             return 0, 0
         if m + 1 >= n:
@@ -797,17 +798,17 @@ def _mesh_range(g, prefix: str, j: int) -> tuple[int, int]:
         m = j
     if m + 2 > n:
         raise ValueError(f"{prefix}nodes has no solution {m}")
-    a, b = (int(x) for x in _part(g, f"{prefix}nodes", m, m + 2))
-    if not 0 <= a <= b <= _part(g, f"{prefix}s", 0, 0).shape[0]:
+    a, b = (int(x) for x in part_columns(g, f"{prefix}nodes", m, m + 2))
+    if not 0 <= a <= b <= part_columns(g, f"{prefix}s", 0, 0).shape[0]:
         raise ValueError(f"{prefix}nodes out of order at {m}")
     return a, b
 
 
-def _part(g, name: str, a: int, b: int) -> np.ndarray:
+def part_columns(g, name: str, a: int, b: int) -> np.ndarray:
     """``g[name][..., a:b]``: the columns a to b of a dataset's last axis, by h5py's
     low-level calls (its high-level slicing costs ten times as much, and a label's solution
     reads a dozen slices); ``a == b == 0`` reads nothing and gives the dataset's shape with
-    its last axis first: ``_part(g, name, 0, 0).shape[0]`` is that axis' length. KeyError
+    its last axis first: ``part_columns(g, name, 0, 0).shape[0]`` is that axis' length. KeyError
     for no such member, ValueError for one that is no dataset or a range outside it."""
     obj = h5py.h5o.open(g.id, name.encode())
     if not isinstance(obj, h5py.h5d.DatasetID) or not obj.shape:
@@ -826,7 +827,7 @@ def _part(g, name: str, a: int, b: int) -> np.ndarray:
     return out
 
 
-def _part_rows(g, name: str, rows: np.ndarray) -> np.ndarray:
+def part_rows(g, name: str, rows: np.ndarray) -> np.ndarray:
     """``g[name][rows]``: the rows ``rows`` (increasing, distinct, along the first axis) of a
     dataset, each by one low-level read of its hyperslab, so that HDF5 decompresses only the
     chunks holding them (each kept in its chunk cache for the next row). ValueError for a row
@@ -897,7 +898,7 @@ class _Source:
             raise self.damaged(f"{what} unreadable ({error_text(exc)})") from exc
 
 
-def _dataset(g, name: str, shape: tuple) -> np.ndarray:
+def checked_dataset(g, name: str, shape: tuple) -> np.ndarray:
     """The dataset ``g[name]`` as checked on opening (a dataset of ``shape``), read whole;
     strings decoded. KeyError if it is no longer there, ValueError if it changed."""
     obj = h5py.h5o.open(g.id, name.encode())
@@ -978,7 +979,7 @@ def _chunks(dsid) -> list[tuple[int, int, int]]:
     return out
 
 
-def _checksum_failure(group, where: str) -> str | None:
+def checksum_failure(group, where: str) -> str | None:
     """The name (``where`` the path of ``group``) of the first dataset under ``group``, in
     its own file (links to other files are not followed), a chunk of which does not match
     its Fletcher32 checksum; None if every chunk matches. Each chunk is read as stored, by
@@ -1129,11 +1130,11 @@ def _read_columns(f, key: str, names: list[str], n: int) -> dict[str, np.ndarray
         if name == "label":
             types = out.get("type")
             if types is None:
-                out["type"] = types = _dataset(g, "type", (n,))
+                out["type"] = types = checked_dataset(g, "type", (n,))
             out["label"] = np.array([f"{t}{k}" if t else "" for t, k in
-                                     zip(types, _dataset(g, "label", (n,)))], dtype=object)
+                                     zip(types, checked_dataset(g, "label", (n,)))], dtype=object)
         elif name not in out:
-            out[name] = _dataset(g, name, (n,))
+            out[name] = checked_dataset(g, name, (n,))
     return out
 
 
@@ -1162,7 +1163,7 @@ class StoredBranch:
             def read(f):
                 g = f[f"branches/{key}"]
                 if "profile_rows" not in g:    # before format 3: a profile per point
-                    return _dataset(g, "profiles", self._profiles_shape)
+                    return checked_dataset(g, "profiles", self._profiles_shape)
                 rows = g["profile_rows"][()]
                 distinct = g["profiles"][()]
                 if rows.shape != self._profiles_shape[:1] or len(rows) and not (
@@ -1191,10 +1192,10 @@ class StoredBranch:
             g = f[f"branches/{key}"]
             wanted = np.unique(rows)
             if "profile_rows" not in g:     # before format 3: a profile per point
-                return _part_rows(g, "profiles", wanted)[np.searchsorted(wanted, rows)]
-            stored = _dataset(g, "profile_rows", (n,))[wanted]
+                return part_rows(g, "profiles", wanted)[np.searchsorted(wanted, rows)]
+            stored = checked_dataset(g, "profile_rows", (n,))[wanted]
             distinct = np.unique(stored)
-            profiles = _part_rows(g, "profiles", distinct)
+            profiles = part_rows(g, "profiles", distinct)
             return profiles[np.searchsorted(distinct, stored)][np.searchsorted(wanted, rows)]
 
         return self._source.read(f"branch {key}: profiles", read)
@@ -1223,7 +1224,7 @@ class BranchFile:
     ``labels`` attribute maps each label to a point of that label whose solution is stored
     (for which the ``type`` and ``label`` columns of the branches holding labels are read).
     It checks every stored chunk of every dataset against its Fletcher32 checksum (format 3;
-    `_checksum_failure`), without decompressing them. A file that fails a check is
+    `checksum_failure`), without decompressing them. A file that fails a check is
     reported as damaged, naming what is wrong (``checksum mismatch in /branches/001/...``).
     The other columns and the profiles are read
     when first used (see `StoredBranch`), and a label's solution by `label`: each read opens
@@ -1296,7 +1297,7 @@ class BranchFile:
         return linked
 
     def _check_sums(self, f, linked: list[str]):
-        """Every chunk of every checksummed dataset matches its checksum (`_checksum_failure`),
+        """Every chunk of every checksummed dataset matches its checksum (`checksum_failure`),
         the linked branches' files' too; else the file is damaged, naming the dataset. A file
         that passed, or that this program wrote, is not checked again as long as it is
         unchanged (`verified`)."""
@@ -1305,7 +1306,7 @@ class BranchFile:
             st = os.fstat(group.file.id.get_vfd_handle())
             if verified.known(st):
                 continue
-            bad = _checksum_failure(group, where)
+            bad = checksum_failure(group, where)
             if bad is not None:
                 raise self._damaged(f"checksum mismatch in {bad}")
             verified.remember(st)

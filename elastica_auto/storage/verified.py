@@ -1,7 +1,7 @@
 """The branch files known to match their checksums, so that opening one need not check it again.
 
 Opening a branch file checks every chunk of every dataset against its Fletcher32 checksum
-(`store._checksum_failure`): a damaged byte anywhere is reported, whatever a command would
+(`store.checksum_failure`): a damaged byte anywhere is reported, whatever a command would
 have read. That pass reads the whole file (for `rotating_arm_3d`'s 24 MB, some 50 ms: twice
 the rest of the opening). It is needed once per file as it is on disk: this module remembers
 the files that passed it, and the files this program wrote (HDF5 made their checksums from
@@ -52,7 +52,7 @@ def folder() -> Path:
     return Path(base) / "elastica-auto" / "verified"
 
 
-def _entry(st: os.stat_result) -> Path:
+def entry_path(st: os.stat_result) -> Path:
     identity = f"{st.st_dev}:{st.st_ino}:{st.st_size}:{st.st_mtime_ns}:{st.st_ctime_ns}"
     return folder() / hashlib.sha256(identity.encode()).hexdigest()[:32]
 
@@ -62,7 +62,7 @@ def known(st: os.stat_result) -> bool:
     was written by this program, as it is now."""
     if always():
         return False
-    entry = _entry(st)
+    entry = entry_path(st)
     try:
         os.utime(entry)          # its use keeps it from pruning
     except FileNotFoundError:
@@ -76,7 +76,7 @@ def remember(st: os.stat_result):
     """The file of status ``st`` matches its checksums as it is now (best effort)."""
     if always():
         return
-    entry = _entry(st)
+    entry = entry_path(st)
     try:
         entry.parent.mkdir(parents=True, exist_ok=True)
         entry.touch()
