@@ -41,7 +41,6 @@ import shooting
 from elastica_auto.execution import runfile
 from elastica_auto.numerics import stability
 from elastica_auto.core.solution import State
-from elastica_auto.model.second_variation import SecondVariation
 from helpers import elastica_run_file, run_cli, run_plan
 
 TWO_PI = 2 * math.pi
@@ -770,63 +769,6 @@ def test_the_rates_by_the_adjugate_match_a_solve():
         ref = (np.sqrt(stability._norm(b - c.transpose(0, 2, 1) @ turn) / a_min)
                + stability._norm(turn))
         assert np.allclose(stability._rates(a, a_min, b, c), ref, rtol=1e-12, atol=0)
-
-
-def test_pivots_of_stacked_forms_are_each_forms_own():
-    """stability._pivots on the pivot blocks of two forms stacked (p, 2, k, k), k = 1 to 4
-    (the closed forms and the eigendecomposition): the inverses and each form's number of
-    negative eigenvalues are those of its blocks alone (counted against LAPACK's)."""
-    rng = np.random.default_rng(9)
-    for k in (1, 2, 3, 4):
-        x = rng.normal(size=(60, 2, k, k))
-        blocks = x + x.swapaxes(-1, -2)
-        blocks[:, 1] += 2.0 * np.eye(k)                  # the second form: fewer negatives
-        inv, negative = stability._pivots(blocks, np.array([1e-12, 1e-12]), "a block")
-        for j in range(2):
-            alone, count = stability._pivots(blocks[:, j].copy(), 1e-12, "a block")
-            assert np.array_equal(inv[:, j], alone), k
-            assert negative[j] == count == np.count_nonzero(
-                np.linalg.eigvalsh(blocks[:, j]) < 0), (k, j)
-        assert negative[0] != negative[1], k
-
-
-def test_parts_counted_together_match_parts_counted_one_by_one():
-    """Parts of a form on one mesh with the same k and essential ends and no constraints are
-    counted together (stability._count_parts: the fields stacked): each part's count, with
-    shifts that put it at 0 to 10 negative eigenvalues and at some hundred (where pivots of
-    the elimination are negative too), equals its count alone, and a part
-    with a zero eigenvalue sends both back to the one-by-one count, which says which part
-    failed."""
-    s = np.linspace(0.0, 1.0, 161)
-    first = stability.nodes_and_midpoints(s)
-
-    def part(seed):
-        r = np.random.default_rng(seed)
-        x, c, b = r.normal(size=(3, 3, 3))
-        a = x @ x.T + seed ** 2 * np.eye(3)
-        return lambda pts: SecondVariation(
-            np.einsum("ij,m->ijm", a, 1 + 0.3 * np.sin(3 * pts)), b + b.T,
-            np.einsum("ij,m->ijm", c, np.cos(pts)), E1=0.3 * np.eye(3), fixed0=[0, 1, 2])
-
-    def counts(forms, shift):
-        ready = {name: stability._prepare(f, s, shift, "", first) for name, f in forms.items()}
-        return stability._count_parts(ready), {name: stability._counted(r)
-                                               for name, r in ready.items()}
-
-    forms = {"one": part(1), "two": part(2)}
-    seen = set()
-    for shift in (-5.0, 0.0, 20.0, 60.0, 150.0, 400.0, 3e4, 1e5):
-        together, alone = counts(forms, shift)
-        assert together == alone, (shift, together, alone)
-        seen.add(tuple(c.index for c in alone.values()))
-    assert min(min(c) for c in seen) == 0 and max(max(c) for c in seen) >= 8, seen
-    assert any(one != two for one, two in seen), seen
-    # a zero eigenvalue in one part (B = 0 with natural ends: the constants), none in the other
-    forms = {"one": lambda pts: SecondVariation(np.eye(3), np.eye(3)),
-             "two": lambda pts: SecondVariation(np.eye(3), np.zeros((3, 3)))}
-    together, alone = counts(forms, 0.0)
-    assert together["one"].index == 0 and together["two"].index == -1
-    assert together == alone
 
 
 def test_the_rule_past_a_branch_point_followed_by_a_fold_reads_the_count_beyond_it():

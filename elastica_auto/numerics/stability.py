@@ -163,7 +163,7 @@ def _small_min_eig(a):
     near = half_det > _NEAR_DOUBLE
     if np.count_nonzero(near):     # the two smallest (nearly) coincide
         for diag, zero0, zero1, lo, hi, off in _DECOUPLED3:
-            # component j decoupled (both its off-diagonal entries zero): min(A_jj, 2 x 2)
+            # a component decoupled (both its off-diagonal entries zero): min(its A, 2 x 2)
             one = near & (rows[zero0] == 0) & (rows[zero1] == 0)
             if np.count_nonzero(one):
                 a_lo, a_hi = rows[lo, one], rows[hi, one]
@@ -258,9 +258,8 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "") -> Count
     if form.parts:
         split = form.split()
         if split is not None:
-            ready = {name: _prepare(_part_form(evaluate, first, name, part), s, shift, source,
-                                    first) for name, part in split.items()}
-            counts = _count_parts(ready)
+            counts = {name: _count(_part_form(evaluate, first, name, part), s, shift, source,
+                                   first) for name, part in split.items()}
             if not any(c is None for c in counts.values()):
                 parts = {name: c.index for name, c in counts.items()}
                 failed = [f"{name}: {c.reason}" for name, c in counts.items() if c.index < 0]
@@ -286,17 +285,6 @@ def _count(evaluate, s, shift, source, first) -> Count | None:
     """:func:`count_form` of one form, without its parts, ``first`` the nodes and midpoints
     of ``s``; None where ``evaluate`` gives None (a part that no longer decouples on the
     subdivided mesh)."""
-    ready = _prepare(evaluate, s, shift, source, first)
-    if ready is None or isinstance(ready, Count):
-        return ready
-    return _counted(ready)
-
-
-def _prepare(evaluate, s, shift, source, first):
-    """The form of :func:`_count` on the mesh it is counted on: (form, nodes, fields) for
-    :func:`_inertia`, each interval of ``s`` subdivided where the coefficients oscillate
-    faster than it resolves; or the Count where it is not counted (a value not finite), None
-    where ``evaluate`` gives None."""
     form, coeffs = _evaluate(evaluate, first, shift, source)
     if form is None:
         return None
@@ -317,48 +305,10 @@ def _prepare(evaluate, s, shift, source, first):
             return None
         if coeffs is None:
             return Count(-1, "the second variation is not finite")
-    return form, s, coeffs
-
-
-def _counted(ready) -> Count:
-    """The Count of a form :func:`_prepare` made ready."""
-    form, s, coeffs = ready
     try:
         return Count(_inertia(form, s, *coeffs))
     except _Singular as exc:
         return Count(-1, str(exc))
-
-
-def _count_parts(ready: dict) -> dict:
-    """The Count of each part made ready by :func:`_prepare` (a Count or None passed on).
-    Parts counted on the same mesh with the same number of components (k >= 2: k = 1 has
-    its own scalar elimination), the same essential ends and no constraints are counted
-    together (:func:`_inertia` on their fields stacked along a second axis): every
-    operation is the one-part operation on each part, done once for all (the spatial rod's
-    two parts of three components at a planar state, half the numpy calls). Where a pivot
-    of any part is singular, the parts are counted one by one, each with its own reason."""
-    prepared = [r for r in ready.values() if isinstance(r, tuple)]
-    if len(prepared) > 1:
-        form0, s0, _ = prepared[0]
-        if (form0.k > 1 and all(
-                not form.constraints and form.k == form0.k and np.array_equal(s, s0)
-                and all(np.array_equal(getattr(form, end), getattr(form0, end))
-                        for end in ("free0", "fixed0", "free1", "fixed1"))
-                for form, s, _ in prepared)):
-            # (C order: the hook's fields are often views in its layout, (k, k, points))
-            stacked = [np.ascontiguousarray(np.stack([coeffs[j] for _, _, coeffs in prepared],
-                                                     axis=1)) for j in range(4)]
-            ends = [np.stack([getattr(form, end) for form, _, _ in prepared])
-                    for end in ("E0", "E1")]
-            try:
-                negative = _inertia(form0, s0, *stacked, None, ends=ends)
-            except _Singular:
-                pass
-            else:
-                found = iter(negative)
-                return {name: Count(int(next(found))) if isinstance(r, tuple) else r
-                        for name, r in ready.items()}
-    return {name: _counted(r) if isinstance(r, tuple) else r for name, r in ready.items()}
 
 
 def _evaluate(evaluate, pts, shift, source):
@@ -390,9 +340,8 @@ def _evaluate(evaluate, pts, shift, source):
 
 def _element_blocks(s, a, b, c):
     """The P2 element matrices on the nodes ``s``, from the fields on the nodes and midpoints
-    (P, k, k) (or (P, n, k, k), n forms on the same nodes), as blocks (n_el, k, k) (or (n_el,
-    n, k, k)): (k00, k02, k22) between the element's two nodes and (k0m, k2m, kmm) with its
-    midpoint.
+    (P, k, k), as blocks (n_el, k, k): (k00, k02, k22) between the element's two nodes and
+    (k0m, k2m, kmm) with its midpoint.
 
     With x in [0, 1] on an element of length h and the Lagrange basis phi_0, phi_m, phi_2 at
     x = 0, 1/2, 1, Simpson's rule (weights 1/6, 4/6, 1/6 at those points, where phi_i =
@@ -416,7 +365,7 @@ def _element_blocks(s, a, b, c):
     kmm = (16 / 6) * (a0 + a2) / h + (4 / 6) * h * b[1::2]
     if np.count_nonzero(c):
         c0, cm, c2 = c[0:-1:2], c[1::2], c[2::2]
-        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.swapaxes(-1, -2), c2.swapaxes(-1, -2))
+        c0t, c2t = (c0, c2) if c.ndim == 1 else (c0.transpose(0, 2, 1), c2.transpose(0, 2, 1))
         k00 -= 0.5 * (c0 + c0t)
         k22 += 0.5 * (c2 + c2t)
         k02 += (c2 - c0t) / 6
@@ -429,49 +378,35 @@ def _element_blocks(s, a, b, c):
 _P2_A = np.array([[9, 1, 3, -12, -4], [4, 4, -4, 0, 0], [1, 9, 3, -4, -12]], dtype=float)
 
 
-def _inertia(form, s, a, b, c, a_min, g, ends=None):
+def _inertia(form, s, a, b, c, a_min, g) -> int:
     """The index of ``form`` by P2 elements on the nodes ``s`` (:func:`count_form`), its
     fields on the nodes and midpoints. Each midpoint belongs to one element and is eliminated
     there (Haynsworth: In(K) = In(K_mm) + In(K / K_mm)), leaving a block tridiagonal matrix on
     the nodes, whose inertia :func:`_reduce` (or, for k = 1 without constraints,
-    :func:`_sturm`) counts.
-
-    ``ends`` given, (E0, E1) of n forms stacked (n, k, k): the fields are theirs stacked
-    along the second axis (P, n, k, k), the forms share ``form``'s mesh, k (>= 2) and
-    essential ends and have no constraints (:func:`_count_parts`); the result is their
-    indices (n,), each counted by the same operations as alone."""
+    :func:`_sturm`) counts."""
     k, r = form.k, len(form.constraints)
     if k == 1 and not r:
         return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
     h = np.diff(s)
-    batch = a.shape[1:-2]                       # () for one form, (n,) for n stacked
-    big = np.abs(k00) + np.abs(k22)
-    if batch:
-        scale = SINGULAR_ULPS * np.finfo(float).eps * big.max(axis=(0, 2, 3))
-    else:
-        scale = SINGULAR_ULPS * np.finfo(float).eps * float(big.max())
+    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
     kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
     # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
     # products (as in _reduce)
-    x = np.empty((len(h), *batch, k, 2 * k))
-    x[..., :k] = k0m.swapaxes(-1, -2)
-    x[..., k:] = k2m.swapaxes(-1, -2)
+    x = np.empty((len(h), k, 2 * k))
+    x[:, :, :k] = k0m.transpose(0, 2, 1)
+    x[:, :, k:] = k2m.transpose(0, 2, 1)
     y = kmm_inv @ x
-    z = x.swapaxes(-1, -2) @ y
-    d = np.zeros((len(s), *batch, k, k))
-    d[:-1] += k00 - z[..., :k, :k]
-    d[1:] += k22 - z[..., k:2 * k, k:2 * k]
-    u = k02 - z[..., :k, k:2 * k]
-    e0, e1 = (form.E0, form.E1) if ends is None else ends
-    d[0] += e0
-    d[-1] += e1
-    if r:
-        gt = g.transpose(1, 2, 0)                                   # (points, k, r)
-        cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
-        f = _constraint_columns(form, h, gt, y[:, :, :k], y[:, :, k:], cm)
-    else:
-        f = np.zeros((len(s), *batch, k, 0))
+    z = x.transpose(0, 2, 1) @ y
+    d = np.zeros((len(s), k, k))
+    d[:-1] += k00 - z[:, :k, :k]
+    d[1:] += k22 - z[:, k:2 * k, k:2 * k]
+    u = k02 - z[:, :k, k:2 * k]
+    d[0] += form.E0
+    d[-1] += form.E1
+    gt = g.transpose(1, 2, 0)                                       # (points, k, r)
+    cm = ((4 / 6) * h)[:, None, None] * gt[1::2]
+    f = _constraint_columns(form, h, gt, y[:, :, :k], y[:, :, k:], cm)
     _restrict(d, u, f, 0, form.free0, form.fixed0)
     _restrict(d, u, f, -1, form.free1, form.fixed1)
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
@@ -486,35 +421,24 @@ def _inertia(form, s, a, b, c, a_min, g, ends=None):
     # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
     total, size = s_mat
     w = np.linalg.eigvalsh(_dense_tail(d, u, f, -total))
-    tiny = np.asarray(scale)[..., None] + SINGULAR_ULPS * np.finfo(float).eps * size.max(
-        initial=0)
-    if np.any(np.abs(w) <= tiny):
+    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * size.max(initial=0)):
         raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
                         "precision (a fold or a branch point)" if not r else
                         "zero eigenvalue: the constrained form is singular to working "
                         "precision (a fold or a branch point), or the constraints are "
                         "dependent")
-    if batch:
-        return negative + np.count_nonzero(w < 0, axis=-1)
     return negative + int(np.count_nonzero(w < 0)) - r
 
 
 def _dense_tail(d, u, f, corner):
     """The symmetric matrix [[D, F], [F^T, corner]] of the block tridiagonal D (diagonal
-    blocks ``d`` (N, k, k), upper ``u`` (N-1, k, k)) and the columns ``f`` (N, k, r); for n
-    stacked ones (``d`` (N, n, k, k), ...: no constraints), the n matrices D (n, Nk, Nk)."""
-    n, k, r = d.shape[0], d.shape[-1], f.shape[-1]
-    batch = d.shape[1:-2]
-    # (advanced indices split by a slice put the node axis first: the layout of d and u)
-    blocks = np.zeros((*batch, n, k, n, k))
+    blocks ``d`` (N, k, k), upper ``u`` (N-1, k, k)) and the columns ``f`` (N, k, r)."""
+    n, k, r = d.shape[0], d.shape[1], f.shape[2]
+    blocks = np.zeros((n, k, n, k))
     i = np.arange(n)
-    lead = (slice(None),) * len(batch)
-    blocks[(*lead, i, slice(None), i)] = d
-    blocks[(*lead, i[:-1], slice(None), i[1:])] = u
-    blocks[(*lead, i[1:], slice(None), i[:-1])] = u.swapaxes(-1, -2)
-    if batch:
-        out = blocks.reshape(*batch, n * k, n * k)
-        return 0.5 * (out + out.swapaxes(-1, -2))
+    blocks[i, :, i, :] = d
+    blocks[i[:-1], :, i[1:], :] = u
+    blocks[i[1:], :, i[:-1], :] = u.transpose(0, 2, 1)
     out = np.empty((n * k + r, n * k + r))
     out[:n * k, :n * k] = blocks.reshape(n * k, n * k)
     out[:n * k, n * k:] = f.reshape(n * k, r)
@@ -575,63 +499,52 @@ def _restrict(d, u, f, end, free, fixed):
     """Impose the essential conditions at node ``end`` (0 or -1): in the basis [free, fixed]
     of its directions, the fixed coordinates are decoupled (rows and columns of the block, the
     coupling and the constraints zeroed) and given a positive pivot, which adds a positive
-    eigenvalue per fixed direction and leaves the negative count that of the restriction.
-    (Blocks of n stacked forms, (N, n, k, k): each form's own pivot.)"""
+    eigenvalue per fixed direction and leaves the negative count that of the restriction."""
     if not fixed.shape[1]:
         return
     if not free.shape[1]:   # all fixed: the node's own block, decoupled
-        fill = np.maximum(np.abs(d[end]).max(axis=(-2, -1)), 1.0)
-        d[end] = fill[..., None, None] * np.eye(len(fixed))
+        fill = max(float(np.abs(d[end]).max()), 1.0)
+        d[end] = fill * np.eye(len(fixed))
         u[0 if end == 0 else -1] = 0.0
         f[end] = 0.0
         return
     q = np.hstack((free, fixed))
     nf = free.shape[1]
     block = q.T @ d[end] @ q
-    fill = np.maximum(np.abs(block).max(axis=(-2, -1)), 1.0)
-    block[..., nf:, :] = 0.0
-    block[..., :, nf:] = 0.0
-    block[..., nf:, nf:] = fill[..., None, None] * np.eye(fixed.shape[1])
+    fill = max(float(np.max(np.abs(block))), 1.0)
+    block[nf:, :] = 0.0
+    block[:, nf:] = 0.0
+    block[nf:, nf:] = fill * np.eye(fixed.shape[1])
     d[end] = block
     if end == 0:
         u[0] = q.T @ u[0]
-        u[0][..., nf:, :] = 0.0
+        u[0][nf:, :] = 0.0
     else:
         u[-1] = u[-1] @ q
-        u[-1][..., :, nf:] = 0.0
+        u[-1][:, nf:] = 0.0
     f[end] = q.T @ f[end]
-    f[end][..., nf:, :] = 0.0
+    f[end][nf:, :] = 0.0
 
 
 def _pivots(blocks, scale, what):
     """(inverses, number of negative eigenvalues) of the symmetric pivot blocks (p, k, k);
     _Singular if an eigenvalue is within ``scale`` of zero. Blocks of k = 2 and 3 by closed
-    forms (:func:`_small_pivots`), larger ones by their eigendecomposition. For the blocks
-    of n stacked forms, (p, n, k, k) with ``scale`` (n,), the numbers (n,) of each."""
+    forms (:func:`_small_pivots`), larger ones by their eigendecomposition."""
     k = blocks.shape[-1]
-    batch = blocks.shape[1:-2]
     if k == 1:
-        w = blocks[..., 0, 0]
+        w = blocks[:, 0, 0]
         if np.count_nonzero(np.abs(w) <= scale):
             raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
-        return 1.0 / blocks, _negatives(w < 0, batch)
+        return 1.0 / blocks, int(np.count_nonzero(w < 0))
     if k <= 3:
         inv, negative, singular = _small_pivots(blocks, scale)
         if singular:
             raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
         return inv, negative
     w, v = np.linalg.eigh(blocks)
-    if np.any(np.abs(w) <= np.asarray(scale)[..., None]):
+    if np.any(np.abs(w) <= scale):
         raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
-    return (v / w[..., None, :]) @ v.swapaxes(-1, -2), _negatives(w < 0, batch)
-
-
-def _negatives(negative, batch):
-    """The number of True in ``negative`` (p, *batch, ...): an int, or, where ``batch`` is
-    (n,) (n stacked forms), the number of each form (n,)."""
-    if not batch:
-        return int(np.count_nonzero(negative))
-    return np.count_nonzero(negative.reshape(len(negative), batch[0], -1), axis=(0, 2))
+    return (v / w[:, None, :]) @ v.transpose(0, 2, 1), int(np.count_nonzero(w < 0))
 
 
 def _small_pivots(m, scale):
@@ -648,11 +561,8 @@ def _small_pivots(m, scale):
     is within ``scale`` of zero (c_(k-1) is then about the product of the others). With
     n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
     (n_2 xor n_3); a zero coefficient counts as positive."""
-    k, batch = m.shape[-1], m.shape[1:-2]
-    p = m.size // (k * k)
+    p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
-    if batch:                           # the stacked forms' scales, on their blocks
-        scale = np.broadcast_to(scale, m.shape[:-2]).reshape(p)
     coefficients = np.empty((k, p))                # c_1, ..., c_k
     c_last, det = coefficients[-2], coefficients[-1]
     if k == 2:
@@ -676,14 +586,9 @@ def _small_pivots(m, scale):
         coefficients[0] += rows[8]
     # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
     negative = coefficients < 0
+    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
     singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
     adj /= det
-    if batch:
-        changes = (_negatives(negative[0].reshape(-1, *batch), batch)
-                   + _negatives((negative[1:] != negative[:-1]).T.reshape(-1, *batch, k - 1),
-                                batch))
-        return adj.T.reshape(m.shape), (0 if singular else changes), singular
-    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
     return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
 
 
@@ -742,8 +647,7 @@ def _reduce(d, u, f, scale, s_mat):
     accumulate C K^-1 C^T (and, for the scale of its rounding, |C| |K^-1| |C|^T).
     The first levels' pivots couple neighbours a few elements apart, where the stiffness
     dominates (MAX_PHASE): they are positive definite and well conditioned."""
-    negative, k, r = 0, d.shape[-1], f.shape[-1]
-    batch = d.shape[1:-2]               # (n,) for n stacked forms (no constraints)
+    negative, k, r = 0, d.shape[-1], f.shape[2]
     while len(d) > DENSE_TAIL:
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
@@ -752,17 +656,17 @@ def _reduce(d, u, f, scale, s_mat):
         # neighbour: zero), y = D_o^-1 x: x^T y holds the even nodes' new blocks, y^T K[o,
         # o+1] their coupling (each product associated as K D^-1 K' was before, to the last
         # bit: a count next to a zero eigenvalue turns on it)
-        x = np.empty((p, *batch, k, 2 * k))
-        x[..., :k] = u[0::2].swapaxes(-1, -2)
-        x[:n_right, ..., k:] = u[1::2]
+        x = np.empty((p, k, 2 * k))
+        x[:, :, :k] = u[0::2].transpose(0, 2, 1)
+        x[:n_right, :, k:] = u[1::2]
         if n_right < p:
-            x[n_right:, ..., k:] = 0.0
+            x[n_right:, :, k:] = 0.0
         y = inv @ x
-        z = x.swapaxes(-1, -2) @ y
+        z = x.transpose(0, 2, 1) @ y
         de = d[0::2].copy()
-        de[:p] -= z[..., :k, :k]
-        de[1:n_right + 1] -= z[:n_right, ..., k:, k:]
-        u = -(y[:n_right, ..., :k].swapaxes(-1, -2) @ x[:n_right, ..., k:])
+        de[:p] -= z[:, :k, :k]
+        de[1:n_right + 1] -= z[:n_right, k:, k:]
+        u = -(y[:n_right, :, :k].transpose(0, 2, 1) @ x[:n_right, :, k:])
         if r:
             fo = f[1::2]
             fe = f[0::2].copy()
