@@ -404,7 +404,8 @@ _HALF_LEFT = _half_left()
 def quaternion_rate(q, u1, u2, u3):
     """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
     (m,) or a number): one product for all points."""
-    u = np.array(np.broadcast_arrays(u1, u2, u3, q[0])[:3], dtype=float)
+    u = np.empty((3, q.shape[1]))
+    u[0], u[1], u[2] = u1, u2, u3
     return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
 
 
