@@ -731,6 +731,46 @@ def test_smallest_eigenvalue_of_small_blocks_matches_lapack():
             assert np.max(err) < 1e-14, (k, np.max(err))
 
 
+def test_smallest_eigenvalue_of_blocks_with_a_decoupled_stiff_component():
+    """A 3 x 3 block with one component decoupled (both its off-diagonal entries zero) and
+    stiff (S = 1e3 and 1e6, as a Cosserat rod's shear stiffness next to its bending
+    stiffnesses, in each of the three places): its two smallest eigenvalues are close
+    relative to S, where the trigonometric form loses digits. The eigenvalues of a block
+    diagonal matrix are its blocks' together: the result is the smaller of S and LAPACK's
+    smallest of the soft 2 x 2 block, to rounding relative to that block (not to S; LAPACK on
+    the whole block is accurate only to rounding relative to S). Also with the decoupled
+    component the softest (its diagonal the answer)."""
+    rng = np.random.default_rng(11)
+    for stiff in (1e3, 1e6, 0.01):
+        for j in range(3):
+            x = rng.normal(size=(200, 2, 2))
+            soft = x @ x.transpose(0, 2, 1) + 0.1 * np.eye(2)
+            rest = [i for i in range(3) if i != j]
+            a = np.zeros((200, 3, 3))
+            a[:, j, j] = stiff
+            a[np.ix_(range(200), rest, rest)] = soft
+            ref = np.minimum(stiff, np.linalg.eigvalsh(soft)[:, 0])
+            err = np.abs(stability._min_eig(a) - ref) / np.abs(np.linalg.eigvalsh(soft)).max(
+                axis=1)
+            assert np.max(err) < 1e-14, (stiff, j, np.max(err))
+
+
+def test_the_rates_by_the_adjugate_match_a_solve():
+    """The refinement's rates (stability._rates) with A^-1 C by the adjugate (k = 2, 3)
+    against numpy's solve, on random positive definite A and any C, to rounding."""
+    rng = np.random.default_rng(5)
+    for k in (2, 3):
+        x = rng.normal(size=(101, k, k))
+        a = x @ x.transpose(0, 2, 1) + 0.5 * np.eye(k)
+        b, c = rng.normal(size=(2, 101, k, k))
+        b = b + b.transpose(0, 2, 1)
+        a_min = np.linalg.eigvalsh(a)[:, 0]
+        turn = np.linalg.solve(a, c)
+        ref = (np.sqrt(stability._norm(b - c.transpose(0, 2, 1) @ turn) / a_min)
+               + stability._norm(turn))
+        assert np.allclose(stability._rates(a, a_min, b, c), ref, rtol=1e-12, atol=0)
+
+
 def test_the_rule_past_a_branch_point_followed_by_a_fold_reads_the_count_beyond_it():
     """A BP, then at once an LP (rotating_arm_3d has an out-of-plane BP at psi = -pi and an
     in-plane fold 0.02 beyond it, with no point between): the index between them is the

@@ -146,14 +146,17 @@ def acceleration(density, lvs, s, z, v, p):
 
 def field(rows, m):
     """A (k, k) matrix of entries that are numbers or arrays on m points: (k, k) where all
-    are numbers, else (k, k, m)."""
-    values = [[np.asarray(e, dtype=float) for e in row] for row in rows]
-    if all(v.ndim == 0 for row in values for v in row):
-        return np.array(values, dtype=float)
-    out = np.empty((len(values), len(values[0]), m))
-    for i, row in enumerate(values):
+    are numbers, else (k, k, m). The generated second variation writes every entry, most of
+    them often a literal 0 (the spatial Cosserat rod's A, B and C: 74 of 108): those are the
+    array's initial zeros, and only the others are written (a numpy call each, which on a few
+    hundred points costs more than the arithmetic)."""
+    if not any(isinstance(e, np.ndarray) and e.ndim for row in rows for e in row):
+        return np.array(rows, dtype=float)
+    out = np.zeros((len(rows), len(rows[0]), m))
+    for i, row in enumerate(rows):
         for j, v in enumerate(row):
-            out[i, j] = v
+            if type(v) is not int or v:
+                out[i, j] = v
     return out
 
 
@@ -404,7 +407,8 @@ _HALF_LEFT = _half_left()
 def quaternion_rate(q, u1, u2, u3):
     """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
     (m,) or a number): one product for all points."""
-    u = np.array(np.broadcast_arrays(u1, u2, u3, q[0])[:3], dtype=float)
+    u = np.empty((3, q.shape[1]))
+    u[0], u[1], u[2] = u1, u2, u3
     return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
 
 

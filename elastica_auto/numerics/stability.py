@@ -144,7 +144,12 @@ def _small_min_eig(a):
     (trigonometric; Smith 1961): with q = tr A / 3, A = q I + p B, p^2 = |A - q I|_F^2 / 6,
     the eigenvalues are q + 2 p cos(phi + 2 pi j / 3), 3 phi = arccos(det B / 2), the smallest
     at j = 1: accurate to rounding (relative to |A|) except where the two smallest nearly
-    coincide (det B / 2 near 1, where the arccos is steep), which go to the eigensolver."""
+    coincide (det B / 2 near 1, where the arccos is steep). Those that have a component
+    decoupled (its two off-diagonal entries exactly zero, as a stiffness of its own: the
+    shear stiffness S of a Cosserat rod next to the bending stiffnesses, whose two smallest
+    eigenvalues are close relative to S) are the smaller of that diagonal entry and the 2 x 2
+    formula on the rest, accurate to rounding relative to each; the others go to the
+    eigensolver."""
     rows = a.transpose(1, 2, 0).reshape(a.shape[-1] ** 2, -1)   # no copy for a hook's layout
     if a.shape[-1] == 2:
         return 0.5 * (rows[0] + rows[3]) - np.hypot(0.5 * (rows[0] - rows[3]), rows[1])
@@ -157,11 +162,24 @@ def _small_min_eig(a):
     half_det = np.clip(0.5 * det / np.maximum(p2 * np.sqrt(p2), _TINY), -1.0, 1.0)
     out = q + 2 * np.sqrt(p2) * np.cos(np.arccos(half_det) / 3 + 2 * np.pi / 3)
     near = half_det > _NEAR_DOUBLE
-    if np.count_nonzero(near):     # the two smallest (nearly) coincide: solve those blocks
-        out[near] = np.linalg.eigvalsh(a[near])[:, 0]
+    if np.count_nonzero(near):     # the two smallest (nearly) coincide
+        for diag, zero0, zero1, lo, hi, off in _DECOUPLED3:
+            # a component decoupled (both its off-diagonal entries zero): min(its A, 2 x 2)
+            one = near & (rows[zero0] == 0) & (rows[zero1] == 0)
+            if np.count_nonzero(one):
+                a_lo, a_hi = rows[lo, one], rows[hi, one]
+                two = 0.5 * (a_lo + a_hi) - np.hypot(0.5 * (a_lo - a_hi), rows[off, one])
+                out[one] = np.minimum(rows[diag, one], two)
+                near &= ~one
+        if np.count_nonzero(near):     # solve those blocks
+            out[near] = np.linalg.eigvalsh(a[near])[:, 0]
     return out
 
 
+#: For each component of a symmetric 3 x 3 block flattened: its diagonal entry, its two
+#: off-diagonal entries, and the other two components' 2 x 2 block (diagonal, diagonal,
+#: off-diagonal).
+_DECOUPLED3 = ((0, 1, 2, 4, 8, 5), (4, 1, 5, 0, 8, 2), (8, 2, 5, 0, 4, 1))
 _TINY = np.finfo(float).tiny
 #: det B / 2 above this: the two smallest eigenvalues are so close that the arccos, steep at
 #: 1, would lose up to half the digits of the smallest; below it at most a factor 1 /
@@ -194,8 +212,14 @@ def _rates(a, a_min, b, c):
     bending stiffness 1 and the shear stiffness GA, C and B entries of order GA): the bound
     is of order GA (1000 elements for GA = 1000), the rates of order 1 (the terms of order GA
     cancel in A^-1 C and the Schur complement). A batched solve costs 0.6 ms on 200 points,
-    70 times the bound: only where the bound asks for more elements."""
-    turn = np.linalg.solve(a, c)
+    70 times the bound: only where the bound asks for more elements. For k = 2 and 3, A^-1
+    is the adjugate over the determinant (:func:`_small_pivots`, a third of the solve's cost
+    on 3 x 3 blocks)."""
+    k = a.shape[-1]
+    if 2 <= k <= 3:
+        turn = _small_pivots(a, 0.0)[0] @ c
+    else:
+        turn = np.linalg.solve(a, c)
     return np.sqrt(_norm(b - np.swapaxes(c, -1, -2) @ turn) / a_min) + _norm(turn)
 
 
