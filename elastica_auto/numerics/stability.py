@@ -197,7 +197,7 @@ def _norm(a):
 def _wavenumber(a_min, b, c):
     """A bound on the wavenumber of the form's eigenfunctions near eigenvalue zero, at each
     point: with h' + A^-1 C h = v the form is v.A v + h.(B - C^T A^-1 C) h, so the solutions
-    turn at the rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A) (:func:`_rates`),
+    turn at the rate |A^-1 C| and oscillate with sqrt(|B - C^T A^-1 C| / A) (:func:`rates`),
     here bounded by norms (for k = 1 and C = 0, sqrt(|b| / a), exact)."""
     if not np.count_nonzero(c):
         return np.sqrt(_norm(b) / a_min)
@@ -205,7 +205,7 @@ def _wavenumber(a_min, b, c):
     return np.sqrt((_norm(b) + c_norm * c_norm / a_min) / a_min) + c_norm / a_min
 
 
-def _rates(a, a_min, b, c):
+def rates(a, a_min, b, c):
     """The wavenumber of :func:`_wavenumber` from the rates computed, sqrt(|B - C^T A^-1 C| /
     min eig A) + |A^-1 C| (Frobenius norms), never above the bound. The two differ where A
     is stiff in some directions and C couples them to soft ones (a shearable rod: A has the
@@ -296,7 +296,7 @@ def _count(evaluate, s, shift, source, first) -> Count | None:
     parts = _parts(h, _wavenumber(a_min, b, c))
     if np.count_nonzero(parts > 1) and np.count_nonzero(c):
         # the bounds ask for more elements: the rates themselves, never above the bounds
-        parts = _parts(h, _rates(a, a_min, b, c))
+        parts = _parts(h, rates(a, a_min, b, c))
     if np.count_nonzero(parts > 1):
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
