@@ -381,63 +381,6 @@ def test_the_kernel_at_eulers_load_is_the_buckling_mode(elastica, corrector, nco
         assert corr.kernel_error(sol).max() <= 1e-6
 
 
-def test_the_kernels_right_hand_side_is_splitmix64():
-    """The kernel's fixed right-hand side (`newton.pseudo_random`) is SplitMix64 of 1, 2, ...:
-    its first outputs are the generator's published ones for the seed 0 (0xe220a8397b1dcdaf,
-    0x6e789e6aa1b965f4, 0x06c45d188009454f), the rest those of the same finaliser in Python's
-    unbounded integers taken modulo 2^64, each output's top 53 bits the fraction in [-1, 1);
-    and the numbers look random: mean 0 and variance 1/3 to their sampling error, and their
-    projection on a smooth unit vector (what the kernel's solve amplifies) of the order of
-    their standard deviation sqrt(1/3), not below a tenth of it, as a random vector's is but
-    for a chance of 8% (the golden ratio's multiples, a low-discrepancy sequence, project to
-    0.011, 0.004 and 0.0008 of it at these lengths: their sums against a smooth vector
-    cancel)."""
-    from elastica_auto.numerics.newton import pseudo_random
-    mask = (1 << 64) - 1
-
-    def splitmix(k):
-        z = (k * 0x9E3779B97F4A7C15) & mask
-        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
-        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
-        return z ^ (z >> 31)
-
-    assert [splitmix(k) for k in (1, 2, 3)] == [0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4,
-                                                0x06C45D188009454F]
-    x = pseudo_random(200_000)
-    assert np.array_equal(x[:1000], [(splitmix(k) >> 11) * 2.0 ** -52 - 1.0
-                                     for k in range(1, 1001)])
-    assert x.min() >= -1.0 and x.max() < 1.0
-    error = 1 / math.sqrt(3 * len(x))      # the standard deviation of the mean
-    assert abs(x.mean()) < 5 * error and abs(x.var() - 1 / 3) < 5 * 0.3 / math.sqrt(len(x))
-    for n in (200, 2000, len(x)):
-        smooth = np.sin(np.linspace(0.0, math.pi, n))
-        projection = abs(x[:n] @ smooth) / np.linalg.norm(smooth)
-        assert 0.1 * math.sqrt(1 / 3) < projection < 5 * math.sqrt(1 / 3)
-
-
-def test_a_branch_point_does_not_import_numpy_random(tmp_path):
-    """A run that locates a branch point and switches there (AUTO's nep demo: the kernel
-    solved at its BP) leaves numpy.random unimported: the kernel's right-hand side is made
-    without it (8-15 ms of a short run's CPU)."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    import elastica_auto as ea
-    run = Path(__file__).resolve().parents[1] / "benchmarks" / "auto" / "nep.toml"
-    code = ("import sys; from elastica_auto.cli import main\n"
-            f"sys.argv = ['elastica-auto', 'run', {str(run)!r}, '--out', {str(tmp_path)!r}, "
-            "'-q', '-j', '1']\n"
-            "try:\n    main()\nexcept SystemExit as exc:\n    assert not exc.code, exc.code\n"
-            "print('numpy.random' in sys.modules)")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr[-800:]
-    assert done.stdout.split()[-1] == "False"
-    types = [str(t) for br in ea.BranchFile(tmp_path / "nep.h5").branches
-             for t in br.columns["type"]]
-    assert "BP" in types
-
-
 def test_the_solve_bvp_corrector_solves_nothing_by_the_collocation_newton(tmp_path,
                                                                            monkeypatch):
     """Under corrector = "solve_bvp" with the collocation corrector's Newton iterations

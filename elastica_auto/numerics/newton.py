@@ -356,30 +356,13 @@ def fold_newton(disc: Discretisation, name: str, params: dict, Y, lam: float, t:
                       f"no convergence in {max_iter} iterations")
 
 
-def pseudo_random(size: int) -> np.ndarray:
-    """``size`` fixed pseudo-random numbers, uniform in [-1, 1): SplitMix64 of 1, 2, ...,
-    size (Steele, Lea and Flood's finaliser of the golden-ratio sequence), the top 53 bits of
-    each output as the fraction. Integer arithmetic modulo 2^64 (numpy's unsigned arrays wrap
-    silently), so the same numbers on every machine and BLAS kernel, and numpy.random is not
-    imported for them (8-15 ms of a short run's CPU, paid at its first branch point). Unlike
-    a low-discrepancy sequence (the golden ratio's own multiples), whose sums against a
-    smooth vector nearly cancel, these are as uncorrelated with a smooth null vector as
-    random numbers: what :func:`kernel`'s right-hand side needs."""
-    z = (np.arange(1, size + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15))
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    z ^= z >> np.uint64(31)
-    return (z >> np.uint64(11)).astype(float) * 2.0 ** -52 - 1.0
-
-
 def kernel(lin: Linearization) -> tuple[np.ndarray, float]:
     """The kernel of a singular bordered matrix, by one solve with a fixed pseudo-random
-    right-hand side (:func:`pseudo_random`): its component along the kernel is amplified by
-    1 / sigma_min. At a branch point located to ~1e-12 this is the direction of the other
-    branch that is orthogonal to the border row (the first branch's tangent). Returns
-    (v (n, m), v_lam)."""
+    right-hand side: its component along the kernel is amplified by 1 / sigma_min. At a
+    branch point located to ~1e-12 this is the direction of the other branch that is
+    orthogonal to the border row (the first branch's tangent). Returns (v (n, m), v_lam)."""
     disc, fact = lin.disc, lin.fact
-    rhs = pseudo_random(disc.n * disc.m + 1)
+    rng = np.random.default_rng(20261201)
     diag = fact.lu[fact.st.kl + fact.st.ku]
     zero = diag == 0.0
     # a pivot exactly zero (a branch point met exactly, as on a trivial branch whose entries
@@ -387,8 +370,8 @@ def kernel(lin: Linearization) -> tuple[np.ndarray, float]:
     # the kernel component as intended
     diag[zero] = np.finfo(float).eps * np.max(np.abs(diag))
     try:
-        v, v_lam = fact.solve(rhs[:disc.n * (disc.m - 1)].reshape(disc.n, disc.m - 1),
-                              rhs[disc.n * (disc.m - 1):-1], [rhs[-1]])
+        v, v_lam = fact.solve(rng.standard_normal((disc.n, disc.m - 1)),
+                              rng.standard_normal(disc.n), [rng.standard_normal()])
     finally:
         diag[zero] = 0.0
     return v, float(v_lam[0])
