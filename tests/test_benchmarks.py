@@ -58,3 +58,33 @@ def test_the_benchmarks_import_no_private_name_of_the_package():
                 bad += [f"{path.name}:{node.lineno} {a.name}" for a in node.names
                         if a.name.startswith("_")]
     assert bad == []
+
+
+def test_the_run_profile_assigns_each_sample_to_its_innermost_part(monkeypatch):
+    """``benchmarks/profile_run.py``: a sample is the innermost part of the run it falls in
+    (the index counted inside the step's detection is the index, not the detection; a
+    stepper helper called in placing the labels is the labels; an import under ``execute``
+    is inside the run, before it at start-up); one sampled process
+    of Bratu's run file shares its CPU out over parts that include the corrector, and the
+    parts and the interpreter's start add up to the process's CPU."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    import profile_run
+    cli = ("/x/elastica_auto/cli.py", "run")
+    execute = ("/x/elastica_auto/execution/run.py", "execute")
+    step = [cli, execute, ("/x/elastica_auto/branches/stepper.py", "_walk"),
+            ("/x/elastica_auto/branches/stepper.py", "_step")]
+    detect = ("/x/elastica_auto/branches/stepper.py", "_detect")
+    count = ("/x/elastica_auto/numerics/stability.py", "count")
+    numpy = ("/x/numpy/linalg/_linalg.py", "solve")
+    load = ("<frozen importlib._bootstrap>", "_find_and_load")
+    assert profile_run.part(step + [detect, count, numpy]) == "index (direct count)"
+    assert profile_run.part(step + [detect, numpy]) == "test functions (fold and BP signs)"
+    assert profile_run.part(step + [detect, load]) == "imports inside the run"
+    assert profile_run.part([cli, load, numpy]) == "imports at start-up"
+    assert profile_run.part(step) == "the walk's own bookkeeping, progress"
+    placed = [("/x/elastica_auto/branches/stepper.py", "_add_events"),
+              ("/x/elastica_auto/branches/stepper.py", "_value_event"), numpy]
+    assert profile_run.part(step + placed) == "labels (UZ, EP) placed"
+    shares, cpu, bare, total = profile_run.profile(str(REPO / "examples" / "bratu.toml"), 1)
+    assert total > 0 and "corrector (predictor, Newton, mesh, tangent)" in shares
+    assert math.isclose(sum(shares.values()) + bare, cpu)
