@@ -91,6 +91,20 @@ def test_lin_branch_points_at_the_integers(tmp_path):
     assert second.file.branches[0].columns["pt"][-1] > 10
 
 
+def test_lin_branch_point_met_exactly_by_a_step_is_located(tmp_path):
+    """With Gauss collocation (ncol = 4) the trivial branch of `lin` is stepped in exact
+    fractions of its parameter and a step lands on the branch point p1 = 1 itself, where the
+    determinant is zero to rounding and its sign noise on either mesh: it is still located
+    (at the integer, to 1e-9), and the switched branch starts there (u1 = c sin(pi s): p1
+    stays 1 along it)."""
+    result = run("lin", tmp_path, "ncol=4")
+    bps = special(result, "BP", "p1")
+    assert len(bps) == 4
+    assert max(abs(b - k) for b, k in zip(bps, (1, 2, 3, 4))) < 1e-9
+    for br in result.file.branches[1:]:
+        assert np.max(np.abs(br.columns["p1"] - 1.0)) < 1e-9
+
+
 def non_fold_by_shooting(a0, p0):
     """p where u(1) = 0 and du(1)/da = 0 for u'' = -p exp(x^3 u), u(0) = 0, u'(0) = a:
     Newton's method (fsolve) from (a0, p0)."""
