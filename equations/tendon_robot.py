@@ -1,23 +1,22 @@
 """A tendon-driven continuum robot: the spatial Cosserat backbone of ``cosserat_rod`` with
-four tendons routed parallel to it or helically around it, written as its energy
-(docs/soft-robots.md, "Tendon-driven robots"; the energy front end: docs/energy.md, "A
-density not quadratic in the strains").
+four tendons routed parallel to it, written as its energy (docs/soft-robots.md,
+"Tendon-driven robots"; the energy front end: docs/energy.md, "A density not quadratic in the
+strains"; tendons routed helically: ``tendon_helical``, which shares this module's hooks).
 
 Nondimensional: length 1, bending stiffness about d1 equal to 1. The backbone is clamped at
 the origin with the identity frame (d3(0) = e_z, d1(0) = e_x, d2(0) = e_y), its tip free. The
 frame R = (d1, d2, d3) is a rotation coordinate, the centreline r = (x, y, z) a coordinate;
-the strains are u = (R^T R')^vee and v = R^T r'. Tendon i runs at the body offset
+the strains are u = (R^T R')^vee and v = R^T r'. Tendon i runs at the fixed body offset
 
-    d_i(s) = delta (cos w_i, sin w_i, 0),   w_i = a_i + 2 pi k s,   a_i = (i - 1) pi / 2,
+    d_i = delta (cos a_i, sin a_i, 0),   a_i = (i - 1) pi / 2,   i = 1..4,
 
-i = 1..4 (k turns about the backbone per unit length; k = 0: routed parallel to it), along
-the path r + R d_i, from the base to the tip where it is tied; its unit length in the body is
-t_i = v + u x d_i + d_i' (the derivative of R^T (r + R d_i); d_i' = 2 pi k e3 x d_i). Held at
-the fixed tension tau_i by an actuator at the base, tendon i stores the potential tau_i |t_i|
-per unit length (the work the actuator does when the tendon lengthens by dl is -tau_i dl), so
+along the path r + R d_i, from the base to the tip where it is tied; its unit length in the
+body is t_i = v + u x d_i (the derivative of R^T (r + R d_i)). Held at the fixed tension tau_i
+by an actuator at the base, tendon i stores the potential tau_i |t_i| per unit length (the
+work the actuator does when the tendon lengthens by dl is -tau_i dl), so
 
-    E = int_0^1 ( u.K u / 2 + (v - e3).Kse (v - e3) / 2 + sum_i tau_i |v + u x d_i + d_i'|
-                  + g y ) ds + P y(1),
+    E = int_0^1 ( u.K u / 2 + (v - e3).Kse (v - e3) / 2 + sum_i tau_i |v + u x d_i| + g y ) ds
+        + P y(1),
 
 K = diag(1, b2, c), Kse = S diag(1, 1, se) (shear stiffness S, extension stiffness S se), g
 the weight per unit length along -e_y and P a dead weight at the tip along -e_y. The density
@@ -31,13 +30,14 @@ and force n, the backbone's and the tendons' together,
     m = R ( K u + sum_i tau_i d_i x t_i / |t_i| ),
 
 balanced by n' = (0, g, 0) and m' = -r' x n (the energy is invariant under translations and
-rotations of the whole robot, helical or not); the clamp; the free tip's natural conditions
+rotations of the whole robot); the clamp; the free tip's natural conditions
 n(1) = (0, -P, 0), m(1) = 0. In the backbone's own force n - sum_i tau_i R t_i / |t_i| these
 say that each tendon's termination pulls the tip back along the tendon with the force tau_i
-and the moment (R d_i(1)) x (-tau_i R t_i / |t_i|) about the centreline (docs/soft-robots.md).
+and the moment (R d_i) x (-tau_i R t_i / |t_i|) about the centreline (docs/soft-robots.md).
 
 By hand: the straight start (balanced tensions, no weight), the ordinates x1, y1, z1 (the tip)
-and bend (the angle between d3(1) and e_z), the drawing.
+and bend (the angle between d3(1) and e_z), the drawing; ``tendon_helical`` uses them too,
+its turns k read as 0 where the parameters have none.
 """
 
 import math
@@ -59,16 +59,16 @@ def ENERGY():
     from elastica_auto.energy import Energy, Param, Rotation
     s = sp.Symbol("s", real=True)
     taus = sp.symbols("tau1:5", real=True)
-    delta, b2, c, S, se, k, g, P = sp.symbols("delta b2 c S se k g P", real=True)
+    delta, b2, c, S, se, g, P = sp.symbols("delta b2 c S se g P", real=True)
     R = Rotation("R", quaternion=QUATERNION)
     x, y, z = (sp.Function(name)(s) for name in ("x", "y", "z"))
     u = R.strain
     v = R.matrix.T * sp.Matrix([x.diff(s), y.diff(s), z.diff(s)])
     tendons = 0
     for i, tau in enumerate(taus):
-        angle = i * sp.pi / 2 + 2 * sp.pi * k * s          # ANGLES[i] turned k s times
+        angle = i * sp.pi / 2                     # ANGLES[i], exact: cos and sin are 0, +-1
         d = delta * sp.Matrix([sp.cos(angle), sp.sin(angle), 0])
-        t = v + u.cross(d) + d.diff(s)
+        t = v + u.cross(d)
         tendons += tau * sp.sqrt((t.T * t)[0])
     gap = v - sp.Matrix([0, 0, 1])
     elastic = (u.T * sp.diag(1, b2, c) * u)[0] + S * (gap.T * sp.diag(1, 1, se) * gap)[0]
@@ -90,7 +90,6 @@ def ENERGY():
             c: Param(1 / sp.Float(1.3), "c", doc="torsional stiffness / bending stiffness"),
             S: Param(1000.0, "S", doc="shear stiffness l^2 / K1"),
             se: Param(1.0, "s_e", doc="extension stiffness / shear stiffness"),
-            k: Param(0.0, "k", doc="tendons' turns about the backbone per length l (0: parallel)"),
             g: Param(0.0, "g", doc="weight per unit length l^3 / K1, along -e_y"),
             P: Param(0.0, "P", doc="dead weight at the tip l^2 / K1, along -e_y"),
         })
@@ -134,7 +133,7 @@ def exact_start(s, p):
     axial = p["S"] * p["se"]
     if (p["delta"] * np.linalg.norm(arm) > 1e-12 * max(1.0, total) or p["g"] != 0
             or p["P"] != 0 or axial == 0 or 1 - total / axial <= 0
-            or (p["k"] != 0 and total != 0)):
+            or (p.get("k", 0.0) != 0 and total != 0)):
         return None
     s = np.asarray(s, dtype=float)
     out = np.zeros((13, len(s)))
@@ -158,7 +157,7 @@ def draw(ax, profile, p):
     s = arc / arc[-1] if arc[-1] > 0 else arc
     for i, a in enumerate(ANGLES):
         tau = p[f"tau{i + 1}"]
-        w = a + 2 * math.pi * p["k"] * s
+        w = a + 2 * math.pi * p.get("k", 0.0) * s
         d = p["delta"] * np.vstack((np.cos(w), np.sin(w), np.zeros_like(w)))
         path = r + np.einsum("mij,jm->im", frames, d)
         ax.plot(path[0], path[1], path[2], lw=1.5 if tau > 0 else 0.5,

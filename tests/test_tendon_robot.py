@@ -27,11 +27,17 @@ import elastica_auto as ea
 from helpers import REPO
 
 ROBOT = REPO / "equations" / "tendon_robot.py"
+HELICAL = REPO / "equations" / "tendon_helical.py"
 
 
 @pytest.fixture(scope="module")
 def robot():
     return ea.load_problem(ROBOT)
+
+
+@pytest.fixture(scope="module")
+def helical():
+    return ea.load_problem(HELICAL)
 
 
 def _hat(a):
@@ -42,7 +48,7 @@ def _offsets(p, s=0.0):
     """Each tendon's body offset d_i(s) = delta (cos w, sin w, 0), w = a_i + 2 pi k s, with
     its derivatives d_i' = 2 pi k e3 x d_i and d_i'' = -(2 pi k)^2 d_i (parallel routing at
     k = 0)."""
-    turn = 2 * math.pi * p["k"]
+    turn = 2 * math.pi * p.get("k", 0.0)
     out = []
     for i in range(4):
         w = i * math.pi / 2 + turn * s
@@ -278,17 +284,17 @@ def _discrete_hessian(p, configuration, n, delta=1e-4):
     return chain_hessian(interval, np.vstack((r[:, :-1], zero, r[:, 1:], zero)), delta)[6:, 6:]
 
 
-def test_the_index_is_the_discretised_energy_s_inertia(robot):
+def test_the_index_is_the_discretised_energy_s_inertia(robot, helical):
     """At random frame and position fields (no equilibria, |q| != 1 in the states) and random
-    tensions, offsets, stiffnesses, every other state with helical tendons (random turns k
-    and extension stiffness se), the direct count of the derived second variation equals
-    the number of negative eigenvalues of the finite-difference Hessian of the robot
-    discretised above on 160 intervals, where its lowest eigenvalues are decided (each at
-    least 5 times its change from 80); at least four decided states, two of them helical,
-    with at least two different indices."""
+    tensions, offsets, stiffnesses, every other state with helical tendons (tendon_helical,
+    random turns k and extension stiffness se), the direct count of the derived second
+    variation equals the number of negative eigenvalues of the finite-difference Hessian of
+    the robot discretised above on 160 intervals, where its lowest eigenvalues are decided
+    (each at least 5 times its change from 80); at least four decided states, two of them
+    helical, with at least two different indices."""
     from elastica_auto.numerics.stability import count_form
     rng = np.random.default_rng(4950)
-    decided, seen, helical = 0, set(), 0
+    decided, seen, turned = 0, set(), 0
     for trial in range(6):
         p = {**robot.defaults(), "delta": rng.uniform(0.03, 0.3), "b2": rng.uniform(0.5, 2.5),
              "c": rng.uniform(0.4, 1.5), "S": rng.uniform(50, 200),
@@ -301,13 +307,14 @@ def test_the_index_is_the_discretised_energy_s_inertia(robot):
         low = eig[160][:8]
         if np.any(np.abs(low) < 5 * np.abs(low - eig[80][:8])):
             continue
-        direct = count_form(lambda pts: robot.second_variation(pts, state(pts), p),
+        model = helical if trial % 2 else robot
+        direct = count_form(lambda pts: model.second_variation(pts, state(pts), p),
                             np.linspace(0, 1, 101)).index
         assert direct == int(np.sum(eig[160] < 0))
         decided += 1
-        helical += p["k"] != 0
+        turned += p.get("k", 0.0) != 0
         seen.add(direct)
-    assert decided >= 4 and len(seen) >= 2 and helical >= 2
+    assert decided >= 4 and len(seen) >= 2 and turned >= 2
 
 
 def _published():
@@ -367,7 +374,7 @@ def _twisted(p, tau):
     S se (v3 - 1) + 4 tau v3 / l = 0 and c u3 + 4 tau delta^2 (u3 + 2 pi k) / l = 0 remain:
     (v3, u3) by scipy's fsolve from the untwisted (1, 0)."""
     from scipy.optimize import fsolve
-    turn = 2 * math.pi * p["k"]
+    turn = 2 * math.pi * p.get("k", 0.0)
 
     def balance(z):
         v3, u3 = z
@@ -377,15 +384,15 @@ def _twisted(p, tau):
     return fsolve(balance, (1.0, 0.0), xtol=1e-13)
 
 
-def test_equal_tensions_on_helical_tendons_twist_the_straight_robot(robot):
+def test_equal_tensions_on_helical_tendons_twist_the_straight_robot(helical):
     """Four equal tensions tau = 20, continued in the turns k from the parallel robot (k = 0,
     straight: exact): the robot stays straight and twists uniformly against the helix, the
     tip at (0, 0, v3) and its frame turned by u3 about e3, (v3, u3) the two scalar balances
     above, to 1e-8; index 0."""
     tau = 20.0
-    p = {**robot.defaults(), **{f"tau{i}": tau for i in range(1, 5)}, "delta": 0.1}
+    p = {**helical.defaults(), **{f"tau{i}": tau for i in range(1, 5)}, "delta": 0.1}
     ks = [0.25, 0.5, 1.0]
-    br = ea.continuation(robot, p, "k", bounds=(0, 1.2), uz=ks, ds_max=0.2)[0]
+    br = ea.continuation(helical, p, "k", bounds=(0, 1.2), uz=ks, ds_max=0.2)[0]
     hits = [pt for pt in br.points if pt.type == "UZ"]
     assert [pt.params["k"] for pt in hits] == pytest.approx(ks)
     for pt in hits:
@@ -398,14 +405,14 @@ def test_equal_tensions_on_helical_tendons_twist_the_straight_robot(robot):
     assert set(br.columns["index"]) == {0}
 
 
-def test_a_helical_tendon_s_tip_is_the_shooting_solution_s_out_of_the_plane(robot):
+def test_a_helical_tendon_s_tip_is_the_shooting_solution_s_out_of_the_plane(helical):
     """Tendon 1 alone on half a turn (k = 1/2: from +e_x at the base to -e_x at the tip),
     no weight: the tip is the shooting's (its right side has the helical path's terms d_i'
     and d_i'') from the naive guess to 1e-6 at a few tensions, and out of the plane the
     parallel tendon keeps it in (y(1) = 0 at k = 0)."""
-    p = {**robot.defaults(), "k": 0.5}
+    p = {**helical.defaults(), "k": 0.5}
     taus = [5.0, 10.0, 20.0]
-    br = ea.continuation(robot, p, "tau1", bounds=(0, 25), uz=taus, ds_max=5.0)[0]
+    br = ea.continuation(helical, p, "tau1", bounds=(0, 25), uz=taus, ds_max=5.0)[0]
     hits = [pt for pt in br.points if pt.type == "UZ"]
     assert [pt.params["tau1"] for pt in hits] == pytest.approx(taus)
     for pt in hits:
@@ -413,3 +420,29 @@ def test_a_helical_tendon_s_tip_is_the_shooting_solution_s_out_of_the_plane(robo
         got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
         np.testing.assert_allclose(got, tip, atol=1e-6)
         assert abs(got[1]) > 0.01
+
+
+def test_at_no_turn_the_helical_robot_is_the_parallel_one(robot, helical):
+    """tendon_helical at k = 0 against tendon_robot, two derivations of one energy (the
+    helical one through cos and sin of a_i + 2 pi k s and d_i' = 2 pi k e3 x d_i, the
+    parallel one with exact offsets): the right side, its Jacobian in the states and the
+    second variation's direct count agree at random states with tensions, to Newton's
+    tolerance."""
+    from elastica_auto.numerics.stability import count_form
+    rng = np.random.default_rng(4951)
+    s = np.linspace(0, 1, 41)
+    for _ in range(3):
+        p = {**robot.defaults(), "delta": rng.uniform(0.03, 0.3), "se": rng.uniform(1, 3),
+             **{f"tau{i}": rng.uniform(0, 20) for i in range(1, 5)}}
+        ph = {**p, "k": 0.0}
+        _, state = _random_state(rng, p)
+        y = state(s)
+        np.testing.assert_allclose(helical.rhs(s, y, ph), robot.rhs(s, y, p),
+                                   rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(helical.rhs_jac(s, y, ph), robot.rhs_jac(s, y, p),
+                                   rtol=1e-7, atol=1e-7)
+        mesh = np.linspace(0, 1, 101)
+        assert (count_form(lambda pts: helical.second_variation(pts, state(pts), ph),
+                           mesh).index
+                == count_form(lambda pts: robot.second_variation(pts, state(pts), p),
+                              mesh).index)
