@@ -27,6 +27,7 @@ import elastica_auto as ea
 from helpers import REPO
 
 ROBOT = REPO / "equations" / "tendon_robot.py"
+HELICAL = REPO / "equations" / "tendon_helical.py"
 
 
 @pytest.fixture(scope="module")
@@ -34,29 +35,46 @@ def robot():
     return ea.load_problem(ROBOT)
 
 
+@pytest.fixture(scope="module")
+def helical():
+    return ea.load_problem(HELICAL)
+
+
 def _hat(a):
     return np.array(((0, -a[2], a[1]), (a[2], 0, -a[0]), (-a[1], a[0], 0)))
 
 
-def _offsets(p):
-    return [p["delta"] * np.array((math.cos(i * math.pi / 2), math.sin(i * math.pi / 2), 0.0))
-            for i in range(4)]
+def _offsets(p, s=0.0):
+    """Each tendon's body offset d_i(s) = delta (cos w, sin w, 0), w = a_i + 2 pi k s, with
+    its derivatives d_i' = 2 pi k e3 x d_i and d_i'' = -(2 pi k)^2 d_i (parallel routing at
+    k = 0)."""
+    turn = 2 * math.pi * p.get("k", 0.0)
+    out = []
+    for i in range(4):
+        w = i * math.pi / 2 + turn * s
+        d = p["delta"] * np.array((math.cos(w), math.sin(w), 0.0))
+        out.append((d, turn * np.array((-d[1], d[0], 0.0)), -turn ** 2 * d))
+    return out
 
 
-def _body(v, u, p):
-    """n_b = S (v - e3) + sum tau_i t_i / |t_i|, m_b = K u + sum tau_i d_i x t_i / |t_i|
-    (written here from the energy) and their Jacobian in (v, u)."""
+def _body(v, u, p, s=0.0):
+    """n_b = S diag(1, 1, se) (v - e3) + sum tau_i t_i / |t_i|, m_b = K u + sum tau_i d_i x
+    t_i / |t_i|, t_i = v + u x d_i + d_i' (written here from the energy), their Jacobian in
+    (v, u) and their derivative in s at (v, u) held (through d_i(s): d/ds t_i = u x d_i' +
+    d_i'', the Rucker-Webster terms of a routing that is not parallel)."""
     K = np.diag((1.0, p["b2"], p["c"]))
-    nb = p["S"] * (v - np.array((0, 0, 1.0)))
+    Kse = p["S"] * np.diag((1.0, 1.0, p["se"]))
+    nb = Kse @ (v - np.array((0, 0, 1.0)))
     mb = K @ u
     J = np.zeros((6, 6))
-    J[:3, :3] = p["S"] * np.eye(3)
+    J[:3, :3] = Kse
     J[3:, 3:] = K
-    for i, d in enumerate(_offsets(p)):
+    ds = np.zeros(6)
+    for i, (d, d1, d2) in enumerate(_offsets(p, s)):
         tau = p[f"tau{i + 1}"]
         if tau == 0:
             continue
-        t = v + np.cross(u, d)
+        t = v + np.cross(u, d) + d1
         length = np.linalg.norm(t)
         unit = t / length
         proj = (np.eye(3) - np.outer(unit, unit)) / length      # d(unit)/dt
@@ -67,15 +85,18 @@ def _body(v, u, p):
         J[:3, 3:] -= tau * proj @ D
         J[3:, :3] += tau * D @ proj
         J[3:, 3:] -= tau * D @ proj @ D
-    return nb, mb, J
+        dunit = proj @ (np.cross(u, d1) + d2)
+        ds[:3] += tau * dunit
+        ds[3:] += tau * (np.cross(d1, unit) + np.cross(d, dunit))
+    return nb, mb, J, ds
 
 
 def _rhs(s, y, p):
     R, v, u = y[3:12].reshape(3, 3), y[12:15], y[15:18]
-    nb, mb, J = _body(v, u, p)
+    nb, mb, J, ds = _body(v, u, p, s)
     dnb = -np.cross(u, nb) + R.T @ np.array((0, p["g"], 0))
     dmb = -np.cross(u, mb) - np.cross(v, nb)
-    dvu = np.linalg.solve(J, np.concatenate((dnb, dmb)))
+    dvu = np.linalg.solve(J, np.concatenate((dnb, dmb)) - ds)
     return np.concatenate((R @ v, (R @ _hat(u)).ravel(), dvu))
 
 
@@ -90,7 +111,7 @@ def _residual(base, p):
         return np.full(6, 1e6)
     y = sol.y[:, -1]
     R = y[3:12].reshape(3, 3)
-    nb, mb, _ = _body(y[12:15], y[15:18], p)
+    nb, mb, _, _ = _body(y[12:15], y[15:18], p, 1.0)
     return np.concatenate((nb - R.T @ np.array((0, -p["P"], 0)), mb))
 
 
@@ -214,7 +235,8 @@ def _random_state(rng, p):
         u = 2 * frames.qmul(np.vstack((q[0], -q[1:])), dq)[1:]
         rot = frames.rotation(q)
         v = body(s)
-        nm = np.array([np.concatenate(_body(v[:, k], u[:, k], p)[:2]) for k in range(len(s))]).T
+        nm = np.array([np.concatenate(_body(v[:, k], u[:, k], p, sk)[:2])
+                       for k, sk in enumerate(s)]).T
         n = np.einsum("ijm,jm->im", rot, nm[:3])
         m = np.einsum("ijm,jm->im", rot, nm[3:])
         return np.vstack((position(s), q * (1 + 0.3 * np.sin(2 * s)), m, n))
@@ -227,16 +249,22 @@ def _discrete_hessian(p, configuration, n, delta=1e-4):
     u_j = log(R_j^T R_(j+1)) / h, the midpoint frame M_j = R_j exp(log(R_j^T R_(j+1)) / 2)
     and v_j = M_j^T (r_(j+1) - r_j) / h (the midpoint rule)::
 
-        E_h = sum_j h [ u_j.K u_j/2 + S |v_j - e3|^2/2 + sum_i tau_i |v_j + u_j x d_i| ]
+        E_h = sum_j h [ u_j.K u_j/2 + (v_j - e3).Kse (v_j - e3)/2
+                        + sum_i tau_i |v_j + u_j x d_i + d_i'| ]
 
-    (the weights g y and P y(1) are linear: no Hessian), each interval's 12 x 12 block by
-    central differences."""
+    (Kse = S diag(1, 1, se); d_i and d_i' at the interval's midpoint, exact; the weights g y
+    and P y(1) are linear: no Hessian), each interval's 12 x 12 block by central
+    differences."""
     from rod_hessian import chain_hessian, expm, logm
     s = np.linspace(0, 1, n + 1)
     frames, r = configuration(s)
     h = 1.0 / n
     kk = np.array((1.0, p["b2"], p["c"]))
     e3 = np.array((0, 0, 1.0))
+    se = np.array((1.0, 1.0, p["se"]))
+    mids = [_offsets(p, (j + 0.5) * h) for j in range(n)]
+    routes = [(np.array([m[i][0] for m in mids]), np.array([m[i][1] for m in mids]))
+              for i in range(4)]
 
     def interval(z):
         ra, wa, rb, wb = z[0:3].T, z[3:6].T, z[6:9].T, z[9:12].T
@@ -245,39 +273,176 @@ def _discrete_hessian(p, configuration, n, delta=1e-4):
         u = rel / h
         mid = fa @ expm(0.5 * rel)
         v = np.einsum("mji,mj->mi", mid, (rb - ra) / h)
-        density = 0.5 * np.einsum("mi,i,mi->m", u, kk, u) + 0.5 * p["S"] * np.sum(
-            (v - e3) ** 2, axis=1)
-        for i, d in enumerate(_offsets(p)):
-            density = density + p[f"tau{i + 1}"] * np.linalg.norm(v + np.cross(u, d), axis=1)
+        density = 0.5 * np.einsum("mi,i,mi->m", u, kk, u) + 0.5 * p["S"] * np.einsum(
+            "mi,i,mi->m", v - e3, se, v - e3)
+        for i, (d, d1) in enumerate(routes):
+            density = density + p[f"tau{i + 1}"] * np.linalg.norm(v + np.cross(u, d) + d1,
+                                                                    axis=1)
         return h * density
 
     zero = np.zeros((3, n))
     return chain_hessian(interval, np.vstack((r[:, :-1], zero, r[:, 1:], zero)), delta)[6:, 6:]
 
 
-def test_the_index_is_the_discretised_energy_s_inertia(robot):
+def test_the_index_is_the_discretised_energy_s_inertia(robot, helical):
     """At random frame and position fields (no equilibria, |q| != 1 in the states) and random
-    tensions, offsets, stiffnesses, the direct count of the derived second variation equals
-    the number of negative eigenvalues of the finite-difference Hessian of the robot
-    discretised above on 160 intervals, where its lowest eigenvalues are decided (each at
-    least 5 times its change from 80); at least four decided states, with at least two
-    different indices."""
+    tensions, offsets, stiffnesses, every other state with helical tendons (tendon_helical,
+    random turns k and extension stiffness se), the direct count of the derived second
+    variation equals the number of negative eigenvalues of the finite-difference Hessian of
+    the robot discretised above on 160 intervals, where its lowest eigenvalues are decided
+    (each at least 5 times its change from 80); at least four decided states, two of them
+    helical, with at least two different indices."""
     from elastica_auto.numerics.stability import count_form
     rng = np.random.default_rng(4950)
-    decided, seen = 0, set()
-    for _ in range(6):
+    decided, seen, turned = 0, set(), 0
+    for trial in range(6):
         p = {**robot.defaults(), "delta": rng.uniform(0.03, 0.3), "b2": rng.uniform(0.5, 2.5),
              "c": rng.uniform(0.4, 1.5), "S": rng.uniform(50, 200),
              **{f"tau{i}": rng.uniform(0, 20) for i in range(1, 5)}}
+        if trial % 2:
+            p.update(se=rng.uniform(1, 3), k=rng.uniform(-1.5, 1.5))
         configuration, state = _random_state(rng, p)
         eig = {nn: np.linalg.eigvalsh(_discrete_hessian(p, configuration, nn) * nn)
                for nn in (80, 160)}
         low = eig[160][:8]
         if np.any(np.abs(low) < 5 * np.abs(low - eig[80][:8])):
             continue
-        direct = count_form(lambda pts: robot.second_variation(pts, state(pts), p),
+        model = helical if trial % 2 else robot
+        direct = count_form(lambda pts: model.second_variation(pts, state(pts), p),
                             np.linspace(0, 1, 101)).index
         assert direct == int(np.sum(eig[160] < 0))
         decided += 1
+        turned += p.get("k", 0.0) != 0
         seen.add(direct)
-    assert decided >= 4 and len(seen) >= 2
+    assert decided >= 4 and len(seen) >= 2 and turned >= 2
+
+
+def _published():
+    """Till's tendon robot statics example (the Rucker-Webster model's demonstration) in SI
+    units, nondimensionalised here by the length L and the bending stiffness EI: lengths / L,
+    tensions L^2 / EI, weight per length L^3 / EI, GJ / EI, GA L^2 / EI, EA / GA."""
+    E, G, rad, rho, grav, L = 200e9, 80e9, 1e-3, 8000.0, 9.81, 0.5
+    area, inertia = math.pi * rad ** 2, math.pi * rad ** 4 / 4
+    EI = E * inertia
+    return {"delta": 0.01506 / L, "b2": 1.0, "c": G * 2 * inertia / EI,
+            "S": G * area * L ** 2 / EI, "se": E / G, "g": rho * area * grav * L ** 3 / EI,
+            "tension": 15.0 * L ** 2 / EI}
+
+
+def test_the_published_run_files_hold_the_published_robot():
+    """runs/tendon_published_weight.toml's parameters and the published tension 15 N (UZ in
+    runs/tendon_published.toml) are the SI values converted above, to the digits written."""
+    import tomllib
+    pub = _published()
+    weight = tomllib.loads((REPO / "runs" / "tendon_published_weight.toml").read_text())
+    pulled = tomllib.loads((REPO / "runs" / "tendon_published.toml").read_text())
+    params = weight["parameters"]
+    for name in ("delta", "c", "S", "se"):
+        assert params[name] == pytest.approx(pub[name], rel=1e-4), name
+    assert weight["continuation"]["uz"] == [pytest.approx(pub["g"], rel=1e-4)]
+    assert pulled["continuation"]["uz"] == [pytest.approx(pub["tension"], rel=1e-4)]
+
+
+def test_the_published_robot_s_tip_is_the_shooting_solution_s(robot):
+    """The published robot (its weight along -e_y, tendon 4 on the -e_y side: the example's
+    gravity and tendon 1 along +e_x turned by -90 degrees about e_z, the section being
+    round), its weight applied to the straight robot, then tendon 4 pulled: at the published
+    15 N and at tensions up to past a half turn the tip is the shooting's from the naive
+    guess to 1e-6, in the plane (x = 0), with index 0."""
+    pub = _published()
+    base = {**robot.defaults(), **{k: pub[k] for k in ("delta", "c", "S", "se")}}
+    weighed = ea.continuation(robot, {**base, "g": 0.0}, "g", bounds=(0, 0.25),
+                              uz=[pub["g"]], ds_max=0.1)[0]
+    taus = [pub["tension"], 60.0, 120.0]
+    br = ea.continuation(robot, weighed.label("UZ1"), "tau4", bounds=(0, 130), uz=taus,
+                         ds_max=10.0)[0]
+    hits = [pt for pt in br.points if pt.type == "UZ"]
+    assert [pt.params["tau4"] for pt in hits] == pytest.approx(taus)
+    for pt in hits:
+        tip = shooting_tip({**base, **pt.params})
+        got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
+        np.testing.assert_allclose(got, tip, atol=1e-6)
+        assert abs(got[0]) < 1e-9 and pt.index == 0
+    assert set(br.columns["index"]) == {0}
+
+
+def _twisted(p, tau):
+    """The straight, uniformly twisted robot under four equal tensions tau on helical
+    tendons (docs/soft-robots.md, "Helical routing"): u = u3 e3, v = v3 e3, each tendon's
+    t_i = v3 e3 + (u3 + 2 pi k) e3 x d_i of length l = (v3^2 + delta^2 (u3 + 2 pi k)^2)^(1/2);
+    the in-section parts of the four pulls cancel, and the axial force and torque
+    S se (v3 - 1) + 4 tau v3 / l = 0 and c u3 + 4 tau delta^2 (u3 + 2 pi k) / l = 0 remain:
+    (v3, u3) by scipy's fsolve from the untwisted (1, 0)."""
+    from scipy.optimize import fsolve
+    turn = 2 * math.pi * p.get("k", 0.0)
+
+    def balance(z):
+        v3, u3 = z
+        length = math.hypot(v3, p["delta"] * (u3 + turn))
+        return (p["S"] * p["se"] * (v3 - 1) + 4 * tau * v3 / length,
+                p["c"] * u3 + 4 * tau * p["delta"] ** 2 * (u3 + turn) / length)
+    return fsolve(balance, (1.0, 0.0), xtol=1e-13)
+
+
+def test_equal_tensions_on_helical_tendons_twist_the_straight_robot(helical):
+    """Four equal tensions tau = 20, continued in the turns k from the parallel robot (k = 0,
+    straight: exact): the robot stays straight and twists uniformly against the helix, the
+    tip at (0, 0, v3) and its frame turned by u3 about e3, (v3, u3) the two scalar balances
+    above, to 1e-8; index 0."""
+    tau = 20.0
+    p = {**helical.defaults(), **{f"tau{i}": tau for i in range(1, 5)}, "delta": 0.1}
+    ks = [0.25, 0.5, 1.0]
+    br = ea.continuation(helical, p, "k", bounds=(0, 1.2), uz=ks, ds_max=0.2)[0]
+    hits = [pt for pt in br.points if pt.type == "UZ"]
+    assert [pt.params["k"] for pt in hits] == pytest.approx(ks)
+    for pt in hits:
+        v3, u3 = _twisted({**p, **pt.params}, tau)
+        got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
+        np.testing.assert_allclose(got, (0, 0, v3), atol=1e-8)
+        q = pt.profile[3:7, -1] / np.linalg.norm(pt.profile[3:7, -1])
+        np.testing.assert_allclose(q, (math.cos(u3 / 2), 0, 0, math.sin(u3 / 2)), atol=1e-8)
+        assert u3 < -0.01 * pt.params["k"] and pt.index == 0
+    assert set(br.columns["index"]) == {0}
+
+
+def test_a_helical_tendon_s_tip_is_the_shooting_solution_s_out_of_the_plane(helical):
+    """Tendon 1 alone on half a turn (k = 1/2: from +e_x at the base to -e_x at the tip),
+    no weight: the tip is the shooting's (its right side has the helical path's terms d_i'
+    and d_i'') from the naive guess to 1e-6 at a few tensions, and out of the plane the
+    parallel tendon keeps it in (y(1) = 0 at k = 0)."""
+    p = {**helical.defaults(), "k": 0.5}
+    taus = [5.0, 10.0, 20.0]
+    br = ea.continuation(helical, p, "tau1", bounds=(0, 25), uz=taus, ds_max=5.0)[0]
+    hits = [pt for pt in br.points if pt.type == "UZ"]
+    assert [pt.params["tau1"] for pt in hits] == pytest.approx(taus)
+    for pt in hits:
+        tip = shooting_tip({**p, **pt.params})
+        got = (pt.ordinates["x1"], pt.ordinates["y1"], pt.ordinates["z1"])
+        np.testing.assert_allclose(got, tip, atol=1e-6)
+        assert abs(got[1]) > 0.01
+
+
+def test_at_no_turn_the_helical_robot_is_the_parallel_one(robot, helical):
+    """tendon_helical at k = 0 against tendon_robot, two derivations of one energy (the
+    helical one through cos and sin of a_i + 2 pi k s and d_i' = 2 pi k e3 x d_i, the
+    parallel one with exact offsets): the right side, its Jacobian in the states and the
+    second variation's direct count agree at random states with tensions, to Newton's
+    tolerance."""
+    from elastica_auto.numerics.stability import count_form
+    rng = np.random.default_rng(4951)
+    s = np.linspace(0, 1, 41)
+    for _ in range(3):
+        p = {**robot.defaults(), "delta": rng.uniform(0.03, 0.3), "se": rng.uniform(1, 3),
+             **{f"tau{i}": rng.uniform(0, 20) for i in range(1, 5)}}
+        ph = {**p, "k": 0.0}
+        _, state = _random_state(rng, p)
+        y = state(s)
+        np.testing.assert_allclose(helical.rhs(s, y, ph), robot.rhs(s, y, p),
+                                   rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(helical.rhs_jac(s, y, ph), robot.rhs_jac(s, y, p),
+                                   rtol=1e-7, atol=1e-7)
+        mesh = np.linspace(0, 1, 101)
+        assert (count_form(lambda pts: helical.second_variation(pts, state(pts), ph),
+                           mesh).index
+                == count_form(lambda pts: robot.second_variation(pts, state(pts), p),
+                              mesh).index)
