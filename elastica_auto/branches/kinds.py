@@ -24,6 +24,13 @@ own locating method, as the shipped ones do:
   of the step, solved at the value;
 * :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``.
 
+The turn kinds (folds and branch points, where the stability index may change) are driven
+on every step as one set, the registry's ``DETECTION``, through :meth:`Event.crosses` and
+:meth:`Event.detect` on the step's :class:`Scan`, in the order of the tuple, which is the
+order of their reconciliation (a fold and a branch point together are one BP, or both where
+they lie apart; the fold rule's check of the index comes last): the fold-pair probe, the
+retries (:class:`Retry`), the symmetric-value and the even branch point are theirs.
+
 The kinds a run file or the API asks for by name (``events = [...]``) are each a module of
 their own, registered in :mod:`elastica_auto.branches.registry`, as the shipped kinds' objects are:
 ``user_events`` (UZ where an ordinate or free parameter takes a value) and ``extrema`` (XT).
