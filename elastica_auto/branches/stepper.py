@@ -38,10 +38,10 @@ shipped ones created in :mod:`elastica_auto.branches.registry`: steps 3 and 4 ar
 kinds of ``registry.DETECTION`` (folds, branch points), each on the step's
 :class:`~elastica_auto.branches.kinds.Scan` in that order, which is the order of their
 reconciliation; the fold-pair probe, the retries they ask for and the fold rule's check are
-theirs. The walk is one class made of
-named parts: the points and their room (``_Points``), detection (``_Detection``), the step's
-points in order (``_Placement``), the return to the start (``_Return``), fold translates
-(``_Translates``), and the loop (``Walk``).
+theirs. The walk is one class made of named parts: the points and their room
+(``_Points``), detection (``_Detection``), the step's points in order (``_Placement``), the
+return to the start (``_Return``), fold translates (``_Translates``), and the loop
+(``Walk``).
 """
 
 from __future__ import annotations
