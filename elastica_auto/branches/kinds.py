@@ -292,9 +292,10 @@ class Fold(Event):
 
     def points(self, walk, scan: Scan) -> list[Hit]:
         """The fold in the step, located: an LP, or where the determinant changed sign too, a
-        BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
-        branch), unless the branch point located (``scan.located``) lies apart from the
-        fold (more than SAME_EVENT of the step): then both, the fold and a branch point of
+        BP at the fold (the parameter turns at a branch point: a pitchfork met along its
+        bifurcating branch; also where that branch point was not located), unless the
+        branch point located (``scan.located``) lies apart from the fold (more than
+        SAME_EVENT of the step): then both, the fold and a branch point of
         its own (the isotropic rod's symmetric points lie 0.02 in psi from folds, and a step
         can pass both; as one BP the fold was missing, and the walk for its translates went
         on for thousands of points). CorrectorFailure where the fold is not located."""
