@@ -73,16 +73,15 @@ def _reconciled(monkeypatch, fold_sigma, bp_sigma, can_retry=True):
     from elastica_auto.numerics.correctors import CorrectorFailure
     step, walk, fold = _turn_step(fold_sigma)
 
-    def located(walk, step):
+    def located(self, walk, step):
         if bp_sigma is None:
             raise CorrectorFailure("no root")
         return SimpleNamespace(sigma=bp_sigma, state="bp", value=1e-13)
 
-    monkeypatch.setattr(registry.SYMMETRIC_BRANCH_POINT, "locate", lambda walk, step: None,
-                        raising=False)
-    monkeypatch.setattr(registry.BRANCH_POINT, "locate", located, raising=False)
-    monkeypatch.setattr(registry.FOLD, "locate", lambda walk, step, before: fold,
-                        raising=False)
+    # the locators stood in for on the classes (restored after the test)
+    monkeypatch.setattr(kinds.SymmetricBranchPoint, "locate", lambda self, walk, step: None)
+    monkeypatch.setattr(kinds.BranchPoint, "locate", located)
+    monkeypatch.setattr(kinds.Fold, "locate", lambda self, walk, step, before: fold)
     scan = kinds.Scan(step, None, 0, 1, False, {labels.LP: True, labels.BP: True}, can_retry,
                       None, "ode", crossed={labels.LP: True, labels.BP: True})
     for event in registry.DETECTION:
