@@ -418,10 +418,11 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     repeats is otherwise its first period copied (`Walk._repeat`), and a pair its steps
     pass over is then missing from every copy, the probe being what finds it. In this
     process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
-    from elastica_auto.branches import stepper
+    from elastica_auto.branches import kinds, stepper
 
     def patch(translates: bool):
-        monkeypatch.setattr(stepper, "pair_suspected", lambda step, dip=0.5: None)
+        # the fold kind's probe of a dipping slope (`Fold.detect`) never starts
+        monkeypatch.setattr(kinds, "pair_suspected", lambda step, dip=0.5: None)
         monkeypatch.setattr(stepper.Walk, "_repeat_period",
                             lambda self, course, singular: None)
         if not translates:

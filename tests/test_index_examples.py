@@ -267,11 +267,11 @@ def test_fold_rule_for_the_clamp_rotation(module, P):
 
 
 def test_a_branch_point_whose_index_change_is_not_its_kernel_is_flagged(monkeypatch):
-    """The stepper compares the index change across a branch point with the dimension of the
-    kernel there; made to disagree (a kernel of dimension 2 reported), the BP says so in its
-    note and the branch keeps a warning."""
-    from elastica_auto.branches import stepper
-    monkeypatch.setattr(stepper, "kernel_dimension", lambda problem, state: 2)
+    """The branch point kind compares the index change across it with the dimension of the
+    kernel there (`kinds.kernel_check`); made to disagree (a kernel of dimension 2
+    reported), the BP says so in its note and the branch keeps a warning."""
+    from elastica_auto.branches import kinds
+    monkeypatch.setattr(kinds, "kernel_dimension", lambda problem, state: 2)
     problem = ea.load_problem(EXAMPLES / "nonlinear_eigenvalue.py")
     (br,) = ea.continuation(problem, {"p": 0.0}, "p", bounds=(-1, 12), ds=0.5, ds_max=2.0)
     (bp,) = [p for p in br.points if p.type == "BP"]

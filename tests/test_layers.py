@@ -211,8 +211,38 @@ def test_a_requested_event_kind_imports_only_the_event_type_and_core():
     assert kind_imports(graph()) == []
 
 
+#: What locating, reconciling and checking the turns (folds, branch points) is made of: the
+#: turn kinds' classes, their locators and probe, the fold rule's index change and the
+#: kernel's dimension. The turn kinds (`branches.kinds`, driven through
+#: `registry.DETECTION`) use them; the stepper, which drives the kinds, does not.
+TURN_LOGIC = {
+    "elastica_auto.branches.kinds": {"Fold", "BranchPoint", "SymmetricBranchPoint",
+                                     "EvenBranchPoint", "kernel_check", "rule_index"},
+    "elastica_auto.branches.registry": {"FOLD", "BRANCH_POINT", "SYMMETRIC_BRANCH_POINT",
+                                        "EVEN_BRANCH_POINT"},
+    "elastica_auto.branches.events": {"locate_fold", "locate_branch_point",
+                                      "place_symmetric_branch_point", "locate_index_change",
+                                      "pair_suspected", "parameter_turns"},
+    "elastica_auto.numerics.stability": {"index_change", "kernel_dimension"},
+}
+
+
+def stepper_turn_logic(edges) -> list[str]:
+    """The stepper's imports of what the turn kinds are made of (`TURN_LOGIC`)."""
+    return [f"elastica_auto.branches.stepper:{line} imports {target}.{name}"
+            for target, name, line in edges["elastica_auto.branches.stepper"]
+            if name in TURN_LOGIC.get(target, ())]
+
+
+def test_the_stepper_drives_the_turn_kinds_without_their_logic():
+    assert stepper_turn_logic(graph()) == []
+
+
 @pytest.mark.parametrize("where, line, check", [
     ("branches/extrema.py", "from .stepper import Course", lambda r: kind_imports(graph(r))),
+    ("branches/stepper.py", "from .events import locate_fold",
+     lambda r: stepper_turn_logic(graph(r))),
+    ("branches/stepper.py", "from .registry import FOLD", lambda r: stepper_turn_logic(graph(r))),
     ("numerics/newton.py", "from ..execution.run import execute", lambda r: upward(graph(r))),
     ("numerics/newton.py", "from .stability import _kernel", lambda r: private(graph(r))),
     ("numerics/collocation.py", "from .newton import newton", lambda r: cycles(graph(r))),

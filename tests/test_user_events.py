@@ -22,6 +22,8 @@ import numpy as np
 import pytest
 
 import elastica_auto as ea
+from elastica_auto.branches import kinds, registry
+from elastica_auto.core import labels
 from helpers import run_cli
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
@@ -184,3 +186,50 @@ def test_events_on_a_free_parameter_against_the_closed_form():
         z = brentq(lambda z: 2 * z * z / math.cosh(z / 2) ** 2 - 2, lo, hi, xtol=1e-15)
         assert p.params["lam"] == pytest.approx(2.0, abs=1e-9)
         assert p.params["M"] == pytest.approx(mean(z), abs=1e-7)
+
+
+class ToyFold(kinds.Event):
+    """A turn kind written in a test module: LP where the tangent's parameter component
+    changes sign, located by the events' generic locator (`Event.find`: Brent's method along
+    the secant on that component) instead of the fold system."""
+
+    label = labels.LP
+
+    def test(self, walk, sol):
+        return sol.tangent.lam
+
+    def note(self, walk, sol, rising):
+        return "toy fold"
+
+    def crosses(self, walk, scan):
+        step = scan.step
+        return (not scan.skip and scan.on[labels.LP]
+                and step.a.tangent.lam * step.b.tangent.lam < 0)
+
+    def detect(self, walk, scan):
+        if scan.crossed[labels.LP]:
+            scan.found.extend(self.find(walk, scan.step))
+
+
+def test_a_turn_kind_registered_from_a_test_module_is_driven_by_the_stepper(monkeypatch):
+    """A kind of turn is its class and its place in `registry.DETECTION`, nothing in the
+    stepper: the shipped fold replaced there by `ToyFold` (above), the Bratu branch's one
+    fold is the toy's LP, at the closed form's fold: lam = theta^2 / (2 cosh^2(theta/4)) is
+    stationary where ``theta tanh(theta/4) = 4``, and u(1/2) = 2 ln cosh(theta/4) there.
+    Tolerances: the points' accuracy (tol = 1e-5: about 1e-7 relative), in lam and in
+    u(1/2) alike: the locator places the point where the tangent's component vanishes, so
+    that u(1/2) is not read off a stationary lam."""
+    from scipy.optimize import brentq
+    turns = tuple(ToyFold() if e is registry.FOLD else e for e in registry.DETECTION)
+    assert turns != registry.DETECTION
+    monkeypatch.setattr(registry, "DETECTION", turns)
+    problem = ea.load_problem(str(EXAMPLES / "bratu.py"))
+    (br,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), directions="+",
+                            max_points=60)
+    (lp,) = [p for p in br.points if p.type == labels.LP]
+    assert lp.note == "toy fold"
+    theta = brentq(lambda t: t * math.tanh(t / 4) - 4, 3.0, 6.0, xtol=1e-15)
+    assert lp.params["lam"] == pytest.approx(theta ** 2 / (2 * math.cosh(theta / 4) ** 2),
+                                             rel=1e-7)
+    assert lp.ordinates["u_half"] == pytest.approx(2 * math.log(math.cosh(theta / 4)),
+                                                   abs=1e-6)

@@ -24,6 +24,13 @@ own locating method, as the shipped ones do:
   of the step, solved at the value;
 * :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``.
 
+The turn kinds (folds and branch points, where the stability index may change) are driven
+on every step as one set, the registry's ``DETECTION``, through :meth:`Event.crosses` and
+:meth:`Event.detect` on the step's :class:`Scan`, in the order of the tuple, which is the
+order of their reconciliation (a fold and a branch point together are one BP, or both where
+they lie apart; the fold rule's check of the index comes last): the fold-pair probe, the
+retries (:class:`Retry`), the symmetric-value and the even branch point are theirs.
+
 The kinds a run file or the API asks for by name (``events = [...]``) are each a module of
 their own, registered in :mod:`elastica_auto.branches.registry`, as the shipped kinds' objects are:
 ``user_events`` (UZ where an ordinate or free parameter takes a value) and ``extrema`` (XT).
@@ -33,19 +40,40 @@ registry's objects and every requested one through :meth:`Event.find` alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 from ..core import labels
-from ..core.solution import State, Tangent
+from ..core.solution import State, Tangent, inner
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
 from .events import (Located, Placed, Step, along, locate_branch_point, locate_fold,
-                     locate_index_change, locate_value, parameter_turns,
+                     locate_index_change, locate_value, pair_suspected, parameter_turns,
                      place_symmetric_branch_point, tangent_between)
-from ..numerics.stability import count
+from ..numerics.stability import count, index_change, kernel_dimension
 
 #: What a point does to its branch: the walk goes on past it; the branch ends there; the
 #: walk goes on, and other branches may start there (``switch``).
 CONTINUE, END, SWITCH = "continue", "end", "switch"
+#: A fold and a branch point located in one step are one point (a pitchfork met along its
+#: bifurcating branch) where their secant coordinates differ by at most this fraction of
+#: the step: both are located to rounding there.
+SAME_EVENT = 1e-3
+#: At most this many solves look for the minimum of the parameter's slope inside a step
+#: where the cubic model suspects a fold pair (:meth:`Fold.probe`).
+PROBES = 4
+
+
+class Retry(Exception):
+    """The step is rejected: the walk retries it with ``ds``, for the reason in the message
+    (``residual``: the corrector's last Newton correction, if it failed). ``spends``: one of
+    the retries an event that cannot be located, or an index the fold rule does not give,
+    may take (the stepper's RETRY_HALVINGS; they count until a step with an event is
+    accepted), rather than a check of the step itself."""
+
+    def __init__(self, message: str, ds: float, residual: float = float("nan"),
+                 spends: bool = False):
+        super().__init__(message)
+        self.ds, self.residual, self.spends = ds, residual, spends
 
 
 @dataclass
@@ -63,6 +91,38 @@ class Hit:
     message: str = ""
 
 
+@dataclass
+class Scan:
+    """One step's detection of its turns (folds and branch points) in progress: what the
+    stepper knows of the step, and what the turn kinds have found so far, read and written
+    by each of them in the registry's order (`elastica_auto.branches.registry.DETECTION`).
+
+    ``a_here``: the step's start on b's mesh; ``index_a``, ``index_b``: the direct counts at
+    a and b (-1 where refused); ``skip``: no turn is looked for (the first step from a
+    singular start, whose own would be found, or a walk without events); ``on``: label ->
+    whether that kind is detected (the option ``detect``); ``can_retry``: whether the step
+    may still be rejected for an event (the stepper's RETRY_HALVINGS); ``ordinate`` and
+    ``enters``: the continued parameter's distinguished ordinate (or None) and how it enters
+    the equations, which the fold rule reads. Filled in: ``crossed`` (label -> whether the
+    kind's test function changed sign in the step, :meth:`Event.crosses`), the branch point
+    ``located`` (or the warning ``unlocated`` where it could not be), and the points
+    ``found``."""
+
+    step: Step
+    a_here: Solution
+    index_a: int
+    index_b: int
+    skip: bool
+    on: dict[str, bool]
+    can_retry: bool
+    ordinate: object | None
+    enters: str
+    crossed: dict[str, bool] = field(default_factory=dict)
+    located: Located | Placed | None = None
+    unlocated: str = ""
+    found: list[Hit] = field(default_factory=list)
+
+
 class Event:
     """One kind of special point: ``label`` (`elastica_auto.core.labels`), ``action``
     (CONTINUE, END or SWITCH), the test function :meth:`test`, and :meth:`find`, which
@@ -70,7 +130,12 @@ class Event:
 
     The ``walk`` the methods are given is the stepper's continuation in progress; an event
     reads ``walk.problem``, ``walk.corr`` (the corrector), ``walk.name`` (the continued
-    parameter) and ``walk.branch`` (for warnings), nothing else."""
+    parameter) and ``walk.branch`` (for warnings and its folds), nothing else.
+
+    A **turn kind** (a fold, a branch point: where the stability index may change) is driven
+    on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in
+    the order of the registry's ``DETECTION``, which is also the order in which they are
+    reconciled; the other kinds through :meth:`find`."""
 
     label: str = ""
     action: str = CONTINUE
@@ -88,6 +153,18 @@ class Event:
     def describe(self) -> str:
         """The event as the warnings name it."""
         return self.label
+
+    def crosses(self, walk, scan: Scan) -> bool | None:
+        """For a turn kind with a test function of its own: whether it changed sign in the
+        step (and the kind is looked for); the stepper keeps it as ``scan.crossed[label]``
+        before any turn kind is located. None (the default): the kind has none of its own."""
+        return None
+
+    def detect(self, walk, scan: Scan) -> None:
+        """For a turn kind: locate its points in the step, reconciled with those of the kinds
+        before it in ``DETECTION``, into ``scan.found`` (or ``scan.located``); raise
+        :class:`Retry` to retry the step shorter. The default: nothing (a kind driven
+        through :meth:`find`)."""
 
     def find(self, walk, step: Step) -> list[Hit]:
         """The points of this kind in the step: where the test function changes sign
@@ -118,12 +195,44 @@ def quantity(problem, name: str, state: State) -> float:
         problem.ordinate_values(state.s, state.y, state.params)[name]
 
 
+def _vertex(points) -> float | None:
+    """The abscissa of the vertex of the parabola through three (u, f) points, if it is a
+    minimum inside (0, 1); else None."""
+    (u0, f0), (u1, f1), (u2, f2) = points
+    if not u0 < u1 < u2:
+        return None
+    d01, d12 = (f1 - f0) / (u1 - u0), (f2 - f1) / (u2 - u1)
+    curvature = (d12 - d01) / (u2 - u0)
+    if not curvature > 0:
+        return None
+    u = (u0 + u1) / 2 - d01 / (2 * curvature)
+    return u if 0.0 < u < 1.0 else None
+
+
+def kernel_check(walk, state: State, index_a: int, index_b: int) -> str:
+    """At a branch point crossed by the branch, the index changes by the dimension of the
+    second variation's kernel there (an eigenvalue crosses zero for each kernel direction):
+    '' where it does, else a note, also kept as a warning."""
+    if index_a < 0 or index_b < 0 or not walk.problem.has_second_variation:
+        return ""
+    kernel = kernel_dimension(walk.problem, state)
+    if kernel == abs(index_b - index_a):
+        return ""
+    note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
+            f"dimension {kernel if kernel >= 0 else 'unknown'}")
+    walk.branch.warnings.append(f"{note} (near {walk.name} = "
+                                f"{state.params[walk.name]:.6g})")
+    return note
+
+
 class Fold(Event):
     """LP: the continued parameter turns back. Test function: the unit tangent's parameter
     component, whose sign change counts only beyond its accuracy
     (:func:`~elastica_auto.branches.events.parameter_turns`); located by bordered Newton on
-    the fold system (:func:`~elastica_auto.branches.events.locate_fold`), which
-    :meth:`locate` returns whole for the stepper to reconcile with a branch point there."""
+    the fold system (:func:`~elastica_auto.branches.events.locate_fold`) and reconciled with
+    a branch point located in the same step (:meth:`detect`). A step whose end tangents
+    agree in sign but whose parameter's slope dips inside it is probed for a fold pair
+    (:meth:`probe`)."""
 
     label = labels.LP
 
@@ -134,9 +243,131 @@ class Fold(Event):
         """Whether the parameter turns between a and b."""
         return parameter_turns(step.a.tangent.lam, step.b.tangent.lam)
 
+    def crosses(self, walk, scan: Scan) -> bool:
+        return self.crossed(scan.step) and not scan.skip and scan.on[labels.LP]
+
     def locate(self, walk, step: Step, before: State | None) -> FoldPoint:
         """The fold in the step (not the branch's previous one, ``before``)."""
         return locate_fold(walk.corr, step, before)
+
+    def detect(self, walk, scan: Scan) -> None:
+        """Where the parameter turns in the step: the fold located (:meth:`points`, an LP, or
+        a BP where the determinant changed sign too). A fold that cannot be located retries
+        the step (spending a retry); once retries are spent, a turn without an index change
+        is a branch point (a pitchfork passed along its other branch, where the fold system
+        is singular: labelled BP, its note says why, and the unlocated branch point's
+        warning is dropped for it), any other an LP noted and warned as not located. A
+        branch point that could not be located (``scan.unlocated``) is warned of here, after
+        the fold's warnings. Where neither kind crossed, a fold pair suspected inside the
+        step is probed (:meth:`probe`)."""
+        step = scan.step
+        if not scan.crossed[labels.LP]:
+            if (not scan.crossed[labels.BP] and scan.can_retry and not scan.skip
+                    and scan.on[labels.LP]):
+                u = pair_suspected(step)
+                if u is not None:
+                    self.probe(walk, scan, u)
+            return
+        try:
+            scan.found.extend(self.points(walk, scan))
+        except CorrectorFailure as exc:
+            if scan.can_retry:
+                raise Retry(f"fold not located ({exc})", step.ds / 2, spends=True) from None
+            b = step.b
+            if 0 <= scan.index_a == scan.index_b and scan.on[labels.BP]:
+                # the parameter turns, the fold system is singular and no eigenvalue
+                # crossed zero: not a simple fold (where the index changes by one) but a
+                # pitchfork passed along its other branch
+                scan.found.append(Hit(step.dist / 2, labels.BP, b.state, b.tangent,
+                                      note="turning point without index change (the fold "
+                                           f"system fails: {exc})"))
+                scan.unlocated = ""   # that is the branch point, labelled, its note says why
+            else:
+                walk.branch.warnings.append(f"fold near {walk.name} = {step.a.lam:.6g} not "
+                                            f"located: {exc}")
+                scan.found.append(Hit(step.dist / 2, labels.LP, b.state, b.tangent,
+                                      note=f"fold not located: {exc}"))
+        if scan.unlocated:
+            walk.branch.warnings.append(scan.unlocated)
+
+    def points(self, walk, scan: Scan) -> list[Hit]:
+        """The fold in the step, located: an LP, or where the determinant changed sign too, a
+        BP at the fold (the parameter turns at a branch point: a pitchfork met along its
+        bifurcating branch; also where that branch point was not located), unless the
+        branch point located (``scan.located``) lies apart from the fold (more than
+        SAME_EVENT of the step): then both, the fold and a branch point of
+        its own (the isotropic rod's symmetric points lie 0.02 in psi from folds, and a step
+        can pass both; as one BP the fold was missing, and the walk for its translates went
+        on for thousands of points). CorrectorFailure where the fold is not located."""
+        step, located = scan.step, scan.located
+        before = [p.state for p in walk.branch.folds[-1:] if p.state is not None]
+        fp = self.locate(walk, step, before[0] if before else None)
+        phi = fp.phi
+        if inner(phi, step.secant, phi.s) < 0:
+            phi = phi.scaled(-1.0)
+        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
+        fold = Hit(sigma, labels.LP, fp.state, phi, fp.residual)
+        if not scan.crossed[labels.BP]:
+            return [fold]
+        if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
+            return [fold, Hit(located.sigma, labels.BP, located.state, step.secant,
+                              abs(located.value))]
+        return [Hit(sigma, labels.BP, fp.state, step.secant, fp.residual,
+                    note="turning point without index change")]
+
+    def probe(self, walk, scan: Scan, u: float):
+        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
+        look for the slope's minimum along the step. Each probe solves on the hyperplane at
+        u and reads the tangent and index there; a tangent turned over (or an index that
+        differs from a's) means a fold pair: retry with a step that ends before it (not
+        spending a retry). Else the next u is the vertex of the parabola through the three
+        lowest slopes known (the ends' and the probes'), up to PROBES probes or until u
+        moves by less than 1e-3: a pair narrower than the model's error (near a cusp) is
+        found all the same."""
+        step, index_a, ds = scan.step, scan.index_a, scan.step.ds
+        sign = math.copysign(1.0, step.a.tangent.lam)
+        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
+        for _ in range(PROBES):
+            try:
+                mid = walk.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
+            except CorrectorFailure:
+                raise Retry("could not probe a dip of the parameter's slope", ds / 2) from None
+            t = mid.tangent
+            if inner(t, step.secant, mid.mesh) < 0:
+                t = t.scaled(-1.0)
+            if sign * t.lam <= 0 or (
+                    index_a >= 0 and count(walk.problem, mid.state).index != index_a):
+                raise Retry(f"a fold pair inside the step (at {u:.2f} of it)",
+                            max(u * ds / 2, ds / 8))
+            known.append((u, sign * t.lam))
+            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
+            if nxt is None or abs(nxt - u) < 1e-3:
+                return
+            u = nxt
+
+
+def rule_index(scan: Scan) -> int | None:
+    """The index at b by the fold rule from a's and the folds found in the step (None where
+    the rule does not apply: no distinguished ordinate, a point found that is not a located
+    fold, or a fold whose direction of index change the rule cannot tell)."""
+    if scan.ordinate is None:
+        return None
+    step, fn = scan.step, scan.ordinate.fn
+
+    def ordinate(state: State) -> float:
+        return float(fn(state.s, state.y, state.params))
+
+    out = scan.index_a
+    for e in sorted(scan.found, key=lambda e: e.sigma):
+        if e.kind != labels.LP or e.note:
+            return None
+        # xi'' from the tangents (robust at any step length), dB/dtau across the step
+        change = index_change(scan.enters, step.b.tangent.lam - step.a.tangent.lam,
+                              ordinate(step.b.state) - ordinate(step.a.state))
+        if change == 0:
+            return None
+        out += change
+    return out
 
 
 class BranchPoint(Event):
@@ -155,9 +386,47 @@ class BranchPoint(Event):
         """Whether the determinant changes sign between a (on b's mesh) and b."""
         return a_here.sign * b.sign < 0
 
+    def crosses(self, walk, scan: Scan) -> bool:
+        # none from a start at a branch point (the other branch's direction, ``singular``)
+        return (self.crossed(scan.a_here, scan.step.b) and not scan.skip
+                and not scan.step.a.extra.get("singular") and scan.on[labels.BP])
+
     def locate(self, walk, step: Step) -> Located:
         """The branch point in the step; CorrectorFailure where it is not located."""
         return locate_branch_point(walk.corr, step)
+
+    def detect(self, walk, scan: Scan) -> None:
+        """Where the determinant changed sign: the branch point located, unless
+        :class:`SymmetricBranchPoint` placed it. One that cannot be located retries the step
+        (spending a retry): where the step jumped to a nearby branch (an imperfect
+        bifurcation's other half, whose determinant has the other sign), the solutions on
+        the hyperplanes between the two branches fail or the sign change does not survive a
+        finer mesh, and a shorter step follows the branch round its corner; once retries
+        are spent, ``scan.unlocated`` says so. Where the parameter does not turn in the
+        step, the point is the step's BP (its note: the kernel's check against the index
+        change, :func:`kernel_check`), or the warning; where it turns, :class:`Fold`
+        reconciles the two."""
+        step = scan.step
+        if not scan.crossed[labels.BP]:
+            return
+        if scan.located is None:
+            try:
+                scan.located = self.locate(walk, step)
+            except CorrectorFailure as exc:
+                if scan.can_retry:
+                    raise Retry(f"branch point not located ({exc})", step.ds / 2,
+                                spends=True) from None
+                scan.unlocated = (f"branch point between {walk.name} = {step.a.lam:.6g} and "
+                                  f"{step.b.lam:.6g} not located: {exc}")
+        if scan.crossed[labels.LP]:
+            return
+        located = scan.located
+        if located is not None:
+            note = kernel_check(walk, located.state, scan.index_a, scan.index_b)
+            scan.found.append(Hit(located.sigma, labels.BP, located.state, step.secant,
+                                  abs(located.value), note=note))
+        elif scan.unlocated:
+            walk.branch.warnings.append(scan.unlocated)
 
 
 class SymmetricBranchPoint(Event):
@@ -178,12 +447,19 @@ class SymmetricBranchPoint(Event):
         there (then :class:`BranchPoint` locates it)."""
         return place_symmetric_branch_point(walk.corr, walk.problem, step)
 
+    def detect(self, walk, scan: Scan) -> None:
+        """Where :class:`BranchPoint`'s determinant changed sign: the point placed at the
+        symmetric value, as ``scan.located``, for it to label."""
+        if scan.crossed[labels.BP]:
+            scan.located = self.locate(walk, scan.step)
+
 
 class EvenBranchPoint(Event):
     """BP of even multiplicity: the index changes by an even number with neither a fold nor
     a sign change of the determinant (a double zero eigenvalue, as a symmetry makes). Test
     function: the stability index (a step function); located by bisection
-    (:func:`~elastica_auto.branches.events.locate_index_change`)."""
+    (:func:`~elastica_auto.branches.events.locate_index_change`). Its :meth:`detect` is the
+    fold rule's check of the index at the step's end."""
 
     label, action = labels.BP, SWITCH
 
@@ -198,6 +474,44 @@ class EvenBranchPoint(Event):
         """Where the index leaves ``index_a`` along the step (``value``: the index past it)."""
         return locate_index_change(walk.corr, step, lambda state: self.index(walk, state),
                                    index_a)
+
+    def detect(self, walk, scan: Scan) -> None:
+        """The index at b against the fold rule's (:func:`rule_index`, from the points found
+        before), where both counts are known and both folds and branch points are looked
+        for. A mismatch retries the step (spending a retry); once retries are spent, an
+        even change with nothing found is this kind's point (:meth:`point`), any other
+        mismatch a warning."""
+        index_a, index_b, step = scan.index_a, scan.index_b, scan.step
+        if not (index_a >= 0 and index_b >= 0 and not scan.skip and scan.on[labels.LP]
+                and scan.on[labels.BP]):
+            return
+        expected = rule_index(scan)
+        if (expected is not None and expected != index_b and not scan.found
+                and not scan.can_retry and (index_b - index_a) % 2 == 0):
+            scan.found.append(self.point(walk, scan))
+            expected = None
+        if expected is not None and expected != index_b:
+            if scan.can_retry:
+                raise Retry(f"index {index_b} at the new point, the fold rule gives "
+                            f"{expected}", step.ds / 2, spends=True)
+            walk.branch.warnings.append(
+                f"index {index_a} -> {index_b} between {walk.name} = {step.a.lam:.6g} and "
+                f"{step.b.lam:.6g}, the fold rule gives {expected}, also at ds = "
+                f"{step.ds:.3g}")
+
+    def point(self, walk, scan: Scan) -> Hit:
+        """A branch point where the index changed by an even number with neither a fold nor
+        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
+        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
+        does not see. Located where the index changes (bisection)."""
+        index_a, index_b, step = scan.index_a, scan.index_b, scan.step
+        at = self.locate(walk, step, index_a)
+        state = at.solution.state
+        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
+                "(a branch point of even multiplicity)")
+        kernel = kernel_check(walk, state, index_a, index_b)
+        return Hit(at.sigma, labels.BP, state, step.secant,
+                   note="; ".join(filter(None, (note, kernel))))
 
 
 class ParameterValue(Event):

@@ -19,17 +19,26 @@ from ..core import labels
 from .kinds import (BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue,
                     SymmetricBranchPoint)
 
-#: The shipped kinds, one object each, which the stepper drives in their roles: folds and
-#: branch points located and reconciled (a turn at a branch point is one BP) and the index
-#: checked against the fold rule; user values (``uz``) and bounds solved on the monotone
-#: pieces between folds. (A ``stop`` entry on an ordinate is a
-#: :class:`~elastica_auto.branches.kinds.Limit` the plan makes.)
+#: The shipped kinds, one object each, which the stepper drives in their roles: the turn
+#: kinds (folds and branch points) through :data:`DETECTION`; user values (``uz``) and
+#: bounds solved on the monotone pieces between folds. (A ``stop`` entry on an ordinate is
+#: a :class:`~elastica_auto.branches.kinds.Limit` the plan makes.)
 FOLD = Fold()
 BRANCH_POINT = BranchPoint()
 SYMMETRIC_BRANCH_POINT = SymmetricBranchPoint()
 EVEN_BRANCH_POINT = EvenBranchPoint()
 USER_VALUE = ParameterValue(labels.UZ)
 BOUND = ParameterValue(labels.EP)
+
+#: The turn kinds the stepper drives on every step, in the order in which they are located
+#: and reconciled (each reads what those before it left in the step's
+#: :class:`~elastica_auto.branches.kinds.Scan`): a branch point placed at a symmetric value;
+#: else located where the determinant changed sign; the fold where the parameter turns, which
+#: makes one BP of a fold and a branch point within SAME_EVENT of each other (or a turn
+#: without an index change once the fold system fails), and else probes a fold pair; last,
+#: the fold rule's check of the index at the step's end, with the branch point of even
+#: multiplicity where the index changed by an even number and nothing was found.
+DETECTION = (SYMMETRIC_BRANCH_POINT, BRANCH_POINT, FOLD, EVEN_BRANCH_POINT)
 
 #: The modules of the kinds an ``events`` entry asks for, tried in this order.
 REQUESTED = (

@@ -34,10 +34,14 @@ travel):
    after an easy step.
 
 Every kind of special point is an event object (:mod:`elastica_auto.branches.kinds`), the
-shipped ones created in :mod:`elastica_auto.branches.registry`. The walk is one class made of
-named parts: the points and their room (``_Points``), detection (``_Detection``), the step's
-points in order (``_Placement``), the return to the start (``_Return``), fold translates
-(``_Translates``), and the loop (``Walk``).
+shipped ones created in :mod:`elastica_auto.branches.registry`: steps 3 and 4 are the turn
+kinds of ``registry.DETECTION`` (folds, branch points), each on the step's
+:class:`~elastica_auto.branches.kinds.Scan` in that order, which is the order of their
+reconciliation; the fold-pair probe, the retries they ask for and the fold rule's check are
+theirs. The walk is one class made of named parts: the points and their room
+(``_Points``), detection (``_Detection``), the step's points in order (``_Placement``), the
+return to the start (``_Return``), fold translates (``_Translates``), and the loop
+(``Walk``).
 """
 
 from __future__ import annotations
@@ -51,25 +55,20 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
-from .events import (Located, Placed, Step, UserValues, crossings, is_user_value,
-                     locate_limit, pair_suspected, tangent_between)
-from .kinds import Event, Hit, Limit
-from .registry import (BOUND, BRANCH_POINT, EVEN_BRANCH_POINT, FOLD, SYMMETRIC_BRANCH_POINT,
-                       USER_VALUE)
+from .events import Step, UserValues, crossings, is_user_value, locate_limit, tangent_between
+from .kinds import Event, Hit, Limit, Retry, Scan
+from . import registry
+from .registry import BOUND, USER_VALUE
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.options import ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
-from ..numerics.stability import Count, count, index_change, kernel_dimension
+from ..numerics.stability import Count, count
 
 #: A step whose fold rule, fold or branch point or UZ value location fails is retried down to
 #: 1 / 2**RETRY_HALVINGS of the last step accepted (or of its own first length, if shorter).
 RETRY_HALVINGS = 6
-#: A fold and a branch point located in one step are one point (a pitchfork met along its
-#: bifurcating branch) where their secant coordinates differ by at most this fraction of
-#: the step: both are located to rounding there.
-SAME_EVENT = 1e-3
 #: A fold's translate is looked for where the branch passes it with ordinates within
 #: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
 TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
@@ -81,9 +80,6 @@ EASY_CONTRACTION = 0.3
 STATIONARY = 1e-6
 #: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
 RISE_NOISE = 1e-10
-#: At most this many solves look for the minimum of the parameter's slope inside a step
-#: where the cubic model suspects a fold pair (`Walk._probe`).
-PROBES = 4
 #: A branch is back at its start point (a closed loop) where the start lies within the next
 #: step along the tangent (within this fraction of its distance along the tangent from that
 #: line), or inside the step just taken along its secant (within this fraction of the step's
@@ -118,13 +114,9 @@ class Stops:
     limits: tuple[Limit, ...] = ()
 
 
-class _Reject(Exception):
-    """The step is rejected: retry with ``ds``, for the reason in the message (``residual``:
-    the corrector's last Newton correction, if it failed)."""
-
-    def __init__(self, message: str, ds: float, residual: float = float("nan")):
-        super().__init__(message)
-        self.ds, self.residual = ds, residual
+class _Reject(Retry):
+    """The step is rejected by the walk's own checks: retry with ``ds``, for the reason in
+    the message (``residual``: the corrector's last Newton correction, if it failed)."""
 
 
 def start_solution(corr, start: State, direction: int, guess: Tangent | None,
@@ -176,20 +168,6 @@ def _orientation(corr, start: State, t: Tangent) -> float:
     size = np.abs(t.y.ravel())
     first = int(np.argmax(size >= (1.0 - 1e-8) * size.max()))
     return 1.0 if t.y.ravel()[first] > 0 else -1.0
-
-
-def _vertex(points) -> float | None:
-    """The abscissa of the vertex of the parabola through three (u, f) points, if it is a
-    minimum inside (0, 1); else None."""
-    (u0, f0), (u1, f1), (u2, f2) = points
-    if not u0 < u1 < u2:
-        return None
-    d01, d12 = (f1 - f0) / (u1 - u0), (f2 - f1) / (u2 - u1)
-    curvature = (d12 - d01) / (u2 - u0)
-    if not curvature > 0:
-        return None
-    u = (u0 + u1) / 2 - d01 / (2 * curvature)
-    return u if 0.0 < u < 1.0 else None
 
 
 #: The message of a branch ended by Ctrl-C or SIGTERM (a ``--resume`` computes it again).
@@ -422,201 +400,47 @@ class _Points:
 
 
 class _Detection:
-    """The folds and branch points of a step, detected and located through the registry's event
-    objects (`elastica_auto.branches.registry`), reconciled (a turn at a branch point is one
-    BP), and the stability index at the step's end checked against the fold rule; a fold pair
-    suspected inside the step is probed. Raises ``_Reject`` to retry the step shorter."""
+    """The step's turns (folds and branch points), detected and located by the turn kinds of
+    the registry (`elastica_auto.branches.registry.DETECTION`), each on the step's
+    :class:`~elastica_auto.branches.kinds.Scan`, in that order; a kind's ``Retry``
+    rejects the step (``_walk`` retries it shorter)."""
 
-    def _detect(self, step: Step, retries: int) -> tuple[list[Hit], int]:
+    def _detect(self, step: Step, retries: int) -> tuple[list[Hit], Count]:
         """The folds and branch points in the step, located, and the index at b, checked
         against the fold rule; a fold pair suspected inside the step, a fold that cannot be
         located or an index the rule does not give rejects it (up to RETRY_HALVINGS times,
-        then with a warning). Returns the events and b's index."""
-        corr, a, b, name, ds = self.corr, step.a, step.b, self.name, step.ds
+        then with a warning). Returns the events and b's count.
+
+        Every turn kind first says whether its test function changed sign in the step
+        (``crosses``), then each locates its points (``detect``) in the order of
+        ``DETECTION``, which is the order of their reconciliation (docs/design.md, "Special
+        points as events")."""
+        corr, a, b = self.corr, step.a, step.b
         s = b.mesh
         skip = (self.first and self.singular_start) or not self.events
         a_here = a if len(a.mesh) == len(s) and (a.mesh == s).all() else corr.relinearize(a, s)
-        fold = FOLD.crossed(step) and not skip and self.detect_lp
-        bp = (BRANCH_POINT.crossed(a_here, b) and not skip and not a.extra.get("singular")
-              and self.detect_bp)
         counted = count(self.problem, b.state)
-        index_a, index_b = self.base_point.index_direct, counted.index
         # retries for a fold that cannot be located or a fold rule that fails count until a
         # step with a fold is accepted: shorter steps that stop before the fold do not reset
         # them (they would approach the fold for ever)
-        can_retry = self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
-        if not (fold or bp) and can_retry and not skip and self.detect_lp:
-            u = pair_suspected(step)
-            if u is not None:
-                self._probe(step, u, ds, index_a)
-        found = []
-        located, unlocated = self._branch_point(step, can_retry) if bp else (None, "")
-        if fold:
-            try:
-                found.extend(self._fold_events(step, bp, located))
-            except CorrectorFailure as exc:
-                if can_retry:
-                    self.event_retries += 1
-                    raise _Reject(f"fold not located ({exc})", ds / 2) from None
-                if 0 <= index_a == index_b and self.detect_bp:
-                    # the parameter turns, the fold system is singular and no eigenvalue
-                    # crossed zero: not a simple fold (where the index changes by one) but a
-                    # pitchfork passed along its other branch
-                    found.append(Hit(step.dist / 2, labels.BP, b.state, b.tangent,
-                                        note="turning point without index change (the fold "
-                                             f"system fails: {exc})"))
-                    unlocated = ""   # that is the branch point, labelled, its note says why
-                else:
-                    self.branch.warnings.append(f"fold near {name} = {a.lam:.6g} not "
-                                                f"located: {exc}")
-                    found.append(Hit(step.dist / 2, labels.LP, b.state, b.tangent,
-                                        note=f"fold not located: {exc}"))
-        elif located is not None:
-            note = self._kernel_check(located.state, index_a, index_b)
-            found.append(Hit(located.sigma, labels.BP, located.state, step.secant,
-                                abs(located.value), note=note))
-        if unlocated:
-            self.branch.warnings.append(unlocated)
-        # the fold rule predicts b's index from the folds and branch points found: not where
-        # either kind is not looked for
-        if index_a >= 0 and index_b >= 0 and not skip and self.detect_lp and self.detect_bp:
-            expected = self._rule(step, found, index_a)
-            if (expected is not None and expected != index_b and not found and not can_retry
-                    and (index_b - index_a) % 2 == 0):
-                found.append(self._even_branch_point(step, index_a, index_b))
-                expected = None
-            if expected is not None and expected != index_b:
-                if can_retry:
-                    self.event_retries += 1
-                    raise _Reject(f"index {index_b} at the new point, the fold rule gives "
-                                  f"{expected}", ds / 2)
-                self.branch.warnings.append(
-                    f"index {index_a} -> {index_b} between {name} = {a.lam:.6g} and "
-                    f"{b.lam:.6g}, the fold rule gives {expected}, also at ds = {ds:.3g}")
-        if found:
-            self.event_retries = 0
-        return found, counted
-
-    def _even_branch_point(self, step: Step, index_a: int, index_b: int) -> Hit:
-        """A branch point where the index changed by an even number with neither a fold nor
-        a change of sign of the determinant, down to the shortest step: eigenvalues crossed
-        zero in pairs (a double zero eigenvalue, as a symmetry makes), which the determinant
-        does not see. Located where the index changes (bisection)."""
-        at = EVEN_BRANCH_POINT.locate(self, step, index_a)
-        state = at.solution.state
-        note = (f"index {index_a} -> {index_b} without a change of sign of the determinant "
-                "(a branch point of even multiplicity)")
-        kernel = self._kernel_check(state, index_a, index_b)
-        return Hit(at.sigma, labels.BP, state, step.secant, note="; ".join(filter(None, (note,
-                                                                                    kernel))))
-
-    def _kernel_check(self, state, index_a: int, index_b: int) -> str:
-        """At a branch point crossed by the branch, the index changes by the dimension of the
-        second variation's kernel there (an eigenvalue crosses zero for each kernel
-        direction): '' where it does, else a note, also kept as a warning."""
-        if index_a < 0 or index_b < 0 or not self.problem.has_second_variation:
-            return ""
-        kernel = kernel_dimension(self.problem, state)
-        if kernel == abs(index_b - index_a):
-            return ""
-        note = (f"index {index_a} -> {index_b} across the branch point, whose kernel has "
-                f"dimension {kernel if kernel >= 0 else 'unknown'}")
-        self.branch.warnings.append(f"{note} (near {self.name} = {state.params[self.name]:.6g})")
-        return note
-
-    def _probe(self, step: Step, u: float, ds: float, index_a: int):
-        """The slope of the parameter dips inside the step, at ``u`` of it by the cubic model:
-        look for the slope's minimum along the step. Each probe solves on the hyperplane at
-        u and reads the tangent and index there; a tangent turned over (or an index that
-        differs from a's) means a fold pair: retry with a step that ends before it. Else the
-        next u is the vertex of the parabola through the three lowest slopes known (the
-        ends' and the probes'), up to PROBES probes or until u moves by less than 1e-3: a
-        pair narrower than the model's error (near a cusp) is found all the same."""
-        sign = math.copysign(1.0, step.a.tangent.lam)
-        known = [(0.0, abs(step.a.tangent.lam)), (1.0, abs(step.b.tangent.lam))]
-        for _ in range(PROBES):
-            try:
-                mid = self.corr.on_plane(step.a, step.secant, u * step.dist, step.b.mesh)
-            except CorrectorFailure:
-                raise _Reject("could not probe a dip of the parameter's slope", ds / 2) from None
-            t = mid.tangent
-            if inner(t, step.secant, mid.mesh) < 0:
-                t = t.scaled(-1.0)
-            if sign * t.lam <= 0 or (
-                    index_a >= 0 and count(self.problem, mid.state).index != index_a):
-                raise _Reject(f"a fold pair inside the step (at {u:.2f} of it)",
-                              max(u * ds / 2, ds / 8))
-            known.append((u, sign * t.lam))
-            nxt = _vertex(sorted(sorted(known, key=lambda k: k[1])[:3]))
-            if nxt is None or abs(nxt - u) < 1e-3:
-                return
-            u = nxt
-
-    def _fold_events(self, step: Step, bp: bool, located: Located | None) -> list[Hit]:
-        """The fold in the step, located: an LP, or where the determinant changed sign too, a
-        BP (the parameter turns at a branch point: a pitchfork met along its bifurcating
-        branch), unless the branch point ``located`` lies apart from the fold (more than
-        SAME_EVENT of the step): then both, the fold and a branch point of its own (the
-        isotropic rod's symmetric points lie 0.02 in psi from folds, and a step can pass
-        both; as one BP the fold was missing, and the walk for its translates went on for
-        thousands of points)."""
-        before = [p.state for p in self.branch.folds[-1:] if p.state is not None]
-        fp = FOLD.locate(self, step, before[0] if before else None)
-        phi = fp.phi
-        if inner(phi, step.secant, phi.s) < 0:
-            phi = phi.scaled(-1.0)
-        sigma = min(max(step.sigma(fp.state), 0.0), step.dist)
-        fold = Hit(sigma, labels.LP, fp.state, phi, fp.residual)
-        if not bp:
-            return [fold]
-        if located is not None and abs(located.sigma - sigma) > SAME_EVENT * step.dist:
-            return [fold, Hit(located.sigma, labels.BP, located.state, step.secant,
-                                 abs(located.value))]
-        return [Hit(sigma, labels.BP, fp.state, step.secant, fp.residual,
-                       note="turning point without index change")]
-
-    def _branch_point(self, step: Step, can_retry: bool
-                      ) -> tuple[Located | Placed | None, str]:
-        """The branch point where the determinant changed sign in the step, located (or
-        placed at a value of the parameter where the module's symmetry holds), and ""; or,
-        once retries are spent, None and the warning that says so (which the caller drops
-        where the step's turning point is labelled BP instead).
-
-        A step whose branch point cannot be located is retried shorter: where the step
-        jumped to a nearby branch (an imperfect bifurcation's other half, whose determinant
-        has the other sign), the solutions on the hyperplanes between the two branches fail
-        or the sign change does not survive a finer mesh, and a shorter step follows the
-        branch round its corner."""
-        placed = SYMMETRIC_BRANCH_POINT.locate(self, step)
-        if placed is not None:
-            return placed, ""
+        self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
+        scan = Scan(step, a_here, self.base_point.index_direct, counted.index, skip,
+                    {labels.LP: self.detect_lp, labels.BP: self.detect_bp}, self.can_retry,
+                    self.ordinate, self.enters)
+        turns = registry.DETECTION     # read here: a kind registered there is driven too
+        for event in turns:
+            crossed = event.crosses(self, scan)
+            if crossed is not None:
+                scan.crossed[event.label] = crossed
         try:
-            return BRANCH_POINT.locate(self, step), ""
-        except CorrectorFailure as exc:
-            if can_retry:
-                self.event_retries += 1
-                raise _Reject(f"branch point not located ({exc})", step.ds / 2) from None
-            return None, (f"branch point between {self.name} = {step.a.lam:.6g} and "
-                          f"{step.b.lam:.6g} not located: {exc}")
-
-    def _rule(self, step: Step, found: list[Hit], index_a: int) -> int | None:
-        """The index at b by the fold rule from a's (None where the rule does not apply)."""
-        if self.ordinate is None:
-            return None
-        out = index_a
-        for e in sorted(found, key=lambda e: e.sigma):
-            if e.kind != labels.LP or e.note:
-                return None
-            # xi'' from the tangents (robust at any step length), dB/dtau across the step
-            change = index_change(self.enters, step.b.tangent.lam - step.a.tangent.lam,
-                                  self._ordinate(step.b.state) - self._ordinate(step.a.state))
-            if change == 0:
-                return None
-            out += change
-        return out
-
-    def _ordinate(self, state: State) -> float:
-        return float(self.ordinate.fn(state.s, state.y, state.params))
+            for event in turns:
+                event.detect(self, scan)
+        except Retry as rej:
+            self.event_retries += rej.spends
+            raise
+        if scan.found:
+            self.event_retries = 0
+        return scan.found, counted
 
 
 class _Placement:
@@ -1120,7 +944,7 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
                 return
             try:
                 ds_next, ended = self._step(ds, retries, below)
-            except _Reject as rej:
+            except Retry as rej:
                 history.append({"ds": ds, "residual": rej.residual,
                                 "nodes": len(self.a.mesh), "message": str(rej)})
                 retries += 1

@@ -215,10 +215,10 @@ MOVED = {
         "core.options": "ContinuationOptions",
         "core.solution": "State Tangent difference inner norm secant",
         "numerics.stability": "Count count index_change kernel_dimension",
-        "branches.stepper": ("RETRY_HALVINGS EASY_CONTRACTION STATIONARY RISE_NOISE PROBES "
+        "branches.stepper": ("RETRY_HALVINGS EASY_CONTRACTION STATIONARY RISE_NOISE "
                              "Stops start_solution INTERRUPTED Origin Course continue_branch "
                              "start_point"),
-        "branches.kinds": "Limit",
+        "branches.kinds": "Limit PROBES",
     },
     "store": {
         "": "FORMAT_VERSION",
