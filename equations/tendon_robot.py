@@ -54,21 +54,29 @@ ANGLES = tuple(i * math.pi / 2 for i in range(4))
 
 
 def ENERGY():
+    return energy()
+
+
+def energy(helical: bool = False):
+    """The robot's energy (the module docstring); ``helical``: with the turns ``k`` of the
+    tendons about the backbone (``tendon_helical``: offsets d_i(s) turning with angle
+    a_i + 2 pi k s, and t_i = v + u x d_i + d_i'). Without, the offsets' angles are exact
+    multiples of pi / 2 and the derived code keeps their exact zeros."""
     import sympy as sp
 
     from elastica_auto.energy import Energy, Param, Rotation
     s = sp.Symbol("s", real=True)
     taus = sp.symbols("tau1:5", real=True)
-    delta, b2, c, S, se, g, P = sp.symbols("delta b2 c S se g P", real=True)
+    delta, b2, c, S, se, k, g, P = sp.symbols("delta b2 c S se k g P", real=True)
     R = Rotation("R", quaternion=QUATERNION)
     x, y, z = (sp.Function(name)(s) for name in ("x", "y", "z"))
     u = R.strain
     v = R.matrix.T * sp.Matrix([x.diff(s), y.diff(s), z.diff(s)])
     tendons = 0
     for i, tau in enumerate(taus):
-        angle = i * sp.pi / 2                     # ANGLES[i], exact: cos and sin are 0, +-1
+        angle = i * sp.pi / 2 + (2 * sp.pi * k * s if helical else 0)   # ANGLES[i] (+ turns)
         d = delta * sp.Matrix([sp.cos(angle), sp.sin(angle), 0])
-        t = v + u.cross(d)
+        t = v + u.cross(d) + (d.diff(s) if helical else sp.zeros(3, 1))
         tendons += tau * sp.sqrt((t.T * t)[0])
     gap = v - sp.Matrix([0, 0, 1])
     elastic = (u.T * sp.diag(1, b2, c) * u)[0] + S * (gap.T * sp.diag(1, 1, se) * gap)[0]
@@ -76,6 +84,8 @@ def ENERGY():
     tension = {tau: Param(0.0, rf"\tau_{i + 1}",
                           doc=f"tension of tendon {i + 1} (at angle {i * 90} deg) l^2 / K1")
                for i, tau in enumerate(taus)}
+    turns = {k: Param(0.0, "k", doc="tendons' turns about the backbone per length l "
+                                    "(0: parallel)")} if helical else {}
     return Energy(
         density=density, end1=P * y,
         s=s, coordinates=[x, y, z, R],
@@ -90,6 +100,7 @@ def ENERGY():
             c: Param(1 / sp.Float(1.3), "c", doc="torsional stiffness / bending stiffness"),
             S: Param(1000.0, "S", doc="shear stiffness l^2 / K1"),
             se: Param(1.0, "s_e", doc="extension stiffness / shear stiffness"),
+            **turns,
             g: Param(0.0, "g", doc="weight per unit length l^3 / K1, along -e_y"),
             P: Param(0.0, "P", doc="dead weight at the tip l^2 / K1, along -e_y"),
         })
