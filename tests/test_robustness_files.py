@@ -378,7 +378,7 @@ def stop_here(name):
         threading.Event().wait()              # until the test kills this process
 
 
-store._stage = stop_here
+store.save_stage = stop_here
 execute(runfile.load(Path(sys.argv[1])), Path(sys.argv[2]), jobs=1)
 """
 

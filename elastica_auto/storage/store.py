@@ -260,7 +260,7 @@ def _replace(out: Path, write, stage: str = "") -> os.stat_result:
     """``write(tmp)`` on a new temporary file beside ``out``, the file synced to disk (a crash
     leaves the old file, never a half-written new one) and renamed over ``out``; on any
     failure the temporary is removed and the exception raised. ``stage`` names the write for
-    `_stage`. Returns the status of the file written, taken after the rename (which changes
+    `save_stage`. Returns the status of the file written, taken after the rename (which changes
     its ``st_ctime``) from the file itself, whatever has been renamed over ``out`` since."""
     tmp = _temporary(out)
     try:
@@ -268,9 +268,9 @@ def _replace(out: Path, write, stage: str = "") -> os.stat_result:
         fd = os.open(tmp, os.O_RDONLY)
         try:
             os.fsync(fd)
-            _stage(f"{stage} written")
+            save_stage(f"{stage} written")
             os.replace(tmp, out)
-            _stage(f"{stage} renamed")
+            save_stage(f"{stage} renamed")
             return os.fstat(fd)
         finally:
             os.close(fd)
@@ -511,7 +511,7 @@ class Writer:
         put(f, "profile_grid", PROFILE_GRID)
 
 
-def _stage(name: str):
+def save_stage(name: str):
     """Where a save is (``"branch written"``, ``"index renamed"``, ...): nothing; the tests
     replace it to stop a run there (tests/test_robustness_files.py)."""
 
@@ -1483,7 +1483,7 @@ def write_atomically(out: Path, write, stage: str = "") -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``out``, sync it to disk and rename it
     over ``out``, so that a failed write leaves ``out`` as it was and no temporary. A write
     that fails is one line: WriteError (disk full, read-only, too large: `WRITE_ERRNOS`) or
-    StoreError. ``stage`` names the write for `_stage`. (Branch files: `write_h5`.)"""
+    StoreError. ``stage`` names the write for `save_stage`. (Branch files: `write_h5`.)"""
     out = Path(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
