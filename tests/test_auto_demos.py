@@ -93,10 +93,11 @@ def test_lin_branch_points_at_the_integers(tmp_path):
 
 def test_lin_branch_point_met_exactly_by_a_step_is_located(tmp_path):
     """With Gauss collocation (ncol = 4) the trivial branch of `lin` is stepped in exact
-    fractions of its parameter and a step lands on the branch point p1 = 1 itself, where the
-    determinant is zero to rounding and its sign noise on either mesh: it is still located
-    (at the integer, to 1e-9), and the switched branch starts there (u1 = c sin(pi s): p1
-    stays 1 along it)."""
+    fractions of its parameter, and steps land on the branch points p1 = 1 and 4 themselves,
+    where the determinant is zero to rounding and its sign noise on either mesh (the step
+    that lands or the one that leaves sees the change, as the BLAS kernel rounds: run with
+    and without OPENBLAS_CORETYPE): each is still located (at the integer, to 1e-9), and the
+    switched branch starts at the first (u1 = c sin(pi s): p1 stays 1 along it)."""
     result = run("lin", tmp_path, "ncol=4")
     bps = special(result, "BP", "p1")
     assert len(bps) == 4

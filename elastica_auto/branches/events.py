@@ -351,21 +351,25 @@ def place_symmetric_branch_point(corr, problem, step: Step) -> Placed | None:
 def check_on_finer_mesh(corr, step: Step, s):
     """CorrectorFailure unless the determinant has opposite signs at a and b solved again on
     the mesh ``s`` with its intervals halved (with as many halved as ``max_nodes`` allows),
-    or vanishes at b: |det(b)| <= BP_XTOL |det(a)| there.
+    or vanishes at one end: |det| there at most BP_XTOL times |det| at the other.
 
     A step can land on the branch point itself (a branch whose arclength is its parameter's,
     stepped in exact fractions towards a branch point at a round value: AUTO-07p's `lin` at
-    p1 = 1 with Gauss collocation). The determinant at b is then zero to rounding and its sign
-    is the rounding's, on either mesh; near a simple root it is about linear along the step,
-    so |det(b)| / |det(a)| is b's distance from the root in units of the step: below the
-    location's own tolerance, b is the branch point on both meshes."""
+    p1 = 1 and 4 with Gauss collocation), and the next step starts there. The determinant at
+    that end is then zero to rounding and its sign is the rounding's, on either mesh (which
+    end, and whether the step that lands or the one that leaves sees the change, depends on
+    the BLAS kernel's rounding). Near a simple root the determinant is about linear along the
+    step, so the ratio of its sizes at the two ends is the root's distance from the smaller
+    end in units of the step: below the location's own tolerance, that end is the branch
+    point on both meshes."""
     room = max(corr.options.max_nodes - len(s), 0)
     widest = np.argsort(np.diff(s))[::-1][:room]
     fine = np.sort(np.concatenate([s, (s[widest] + s[widest + 1]) / 2]))
     (sign_a, log_a), (sign_b, log_b) = [
         _det_on(corr, corr.on_plane(step.a, step.secant, sigma, fine, regrid=False),
                 step.secant, fine) for sigma in (0.0, step.dist)]
-    if sign_a * sign_b >= 0 and not (sign_b == 0 or log_b - log_a <= math.log(BP_XTOL)):
+    vanishes = sign_a == 0 or sign_b == 0 or abs(log_b - log_a) >= -math.log(BP_XTOL)
+    if sign_a * sign_b >= 0 and not vanishes:
         raise CorrectorFailure("the determinant's change of sign does not survive a finer "
                                f"mesh ({len(fine)} nodes)")
 
