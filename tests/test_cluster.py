@@ -951,26 +951,33 @@ def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_
     assert saved[-len(missing):] == missing and 1 <= len(missing) < len(saved)
     assert all(b.attrs["end"] == "MX" for b in missing)
     for b in saved[:-len(missing)]:
-        a = one[b.attrs["cell"]]
-        for name, col in a.columns.items():
-            # `branch` is the branch's place in its file and `label` numbers labels through
-            # the file: a later cell that finished on the other worker before the loss is
-            # saved before the earlier ones not computed (nothing finished is lost), so its
-            # place, and its labels' numbers, can differ from one process's (their kinds,
-            # `type`, are compared)
-            if name not in ("branch", "label"):
-                np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
-        assert b.columns["branch"][0] == saved.index(b) + 1
+        _same_cell(one[b.attrs["cell"]], b, saved)
     resumed = run_cli(cli_exe, "run", run, "--out", out, "-j", "1", "--resume")
     assert resumed.returncode == 0, resumed.stderr
     again = _cells(out / "rotating_arm.h5")
     assert again.keys() == one.keys() and len(BranchFile(out / "rotating_arm.h5").branches) == 8
+    branches = BranchFile(out / "rotating_arm.h5").branches
     for cell, a in one.items():
         b = again[cell]
         assert b.attrs["end"] == a.attrs["end"] == "EP"
-        for name, col in a.columns.items():
-            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+        _same_cell(a, b, branches)
         np.testing.assert_array_equal(a.profiles, b.profiles)
+
+
+def _same_cell(a, b, file_branches):
+    """Branch ``b`` (of a file whose branches are ``file_branches``) is the one-process run's
+    ``a``, column for column, but for where it stands in its file: ``branch`` is its place
+    there, and ``label`` numbers the labels through the file. A later cell that finished on
+    the other worker before the cluster was lost is saved before the earlier ones not
+    computed (nothing finished is lost), and a resume keeps the branches saved and adds the
+    others after them, so the place and the labels' numbers can differ from one process's;
+    the labels' kinds (``type``) are compared, and the place is the file's own."""
+    for name, col in a.columns.items():
+        if name not in ("branch", "label"):
+            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+    place = next(k for k, x in enumerate(file_branches) if x.attrs["cell"] == b.attrs["cell"])
+    assert set(b.columns["branch"]) == {place + 1}
+    assert [bool(x) for x in b.columns["label"]] == [bool(x) for x in a.columns["label"]]
 
 
 def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypatch):
