@@ -55,11 +55,21 @@ def _start_cluster(root: Path) -> tuple[str, list]:
 
 
 def _stop_cluster(procs):
+    """End the scheduler and the workers: SIGTERM to each group, then, for a group still up
+    after 30 s (Dask's nannies close their workers gracefully, which on a loaded machine has
+    taken longer: CI once), SIGKILL. The processes are Dask's own, not the package's."""
     for p in reversed(procs):
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGTERM)
     for p in procs:
-        p.wait(timeout=30)
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")
