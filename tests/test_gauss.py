@@ -294,3 +294,16 @@ def test_the_corrector_ncol_makes_solves_on_its_own_discretisation(k, intervals,
         assert np.array_equal(got.s, s)
         err.append(np.max(np.abs(got.y - exact(s))))
     assert abs(math.log2(err[0] / err[1]) - order) < 0.3, err
+
+
+def test_the_cubic_corrector_refuses_gauss_points():
+    """`Collocation` is the cubic scheme only: made directly with ``ncol > 0`` it refuses
+    (one line naming `make_corrector`) instead of solving on the cubic scheme unasked (the
+    benchmark's Gauss rows measured the cubic scheme so, unnoticed)."""
+    from elastica_auto.numerics.correctors import Collocation, Gauss
+
+    bratu = load_problem(str(EXAMPLES / "bratu.py"))
+    with pytest.raises(ValueError, match="make_corrector"):
+        Collocation(bratu, "lam", ContinuationOptions(ncol=4))
+    assert Gauss(bratu, "lam", ContinuationOptions(ncol=4)).options.ncol == 4
+    Collocation(bratu, "lam", ContinuationOptions())

@@ -257,10 +257,12 @@ def size_cost(steps=30, schemes=(0, 4)):
 
     import numpy as np
 
-    from elastica_auto.numerics.correctors import Collocation
+    from elastica_auto.numerics import correctors
     from elastica_auto.core.options import ContinuationOptions
     from elastica_auto.numerics.stability import index
     from elastica_auto.branches.stepper import start_solution
+    # the corrector a run makes (Gauss for ncol > 0), on commits before make_corrector too
+    make = getattr(correctors, "make_corrector", None)
 
     has_ncol = "ncol" in {f.name for f in dataclasses.fields(ContinuationOptions)}
     if not has_ncol:
@@ -275,7 +277,8 @@ def size_cost(steps=30, schemes=(0, 4)):
             # tol just below 1: no regridding, the mesh stays as given
             opt = ContinuationOptions(tol=0.99, ds_max=1.0, **({"ncol": ncol} if has_ncol
                                                                else {}))
-            corr = Collocation(problem, name, opt)
+            corr = (make(problem, name, opt) if make is not None
+                    else correctors.Collocation(problem, name, opt))
             a = start_solution(corr, start, 1, None, False)
             for _ in range(3):                                  # warm-up
                 a = corr.step(a, ds)

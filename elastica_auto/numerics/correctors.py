@@ -324,6 +324,9 @@ class Collocation(_Linearized):
     name = "collocation"
 
     def __init__(self, problem, parameter: str, options: ContinuationOptions):
+        if options.ncol and type(self) is Collocation:   # never the cubic scheme unasked
+            raise ValueError(f"ncol = {options.ncol} is Gauss collocation: make it with "
+                             "make_corrector (or Gauss), not Collocation")
         self.problem, self.parameter, self.options = problem, parameter, options
         self._linearizer = Linearizer(problem, parameter, self.discretisation)
 
