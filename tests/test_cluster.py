@@ -971,7 +971,6 @@ def test_a_run_whose_workers_all_die_ends_and_resume_completes_it(tmp_path, cli_
         b = again[cell]
         assert b.attrs["end"] == a.attrs["end"] == "EP"
         _same_cell(a, b, branches)
-        np.testing.assert_array_equal(a.profiles, b.profiles)
 
 
 def _same_cell(a, b, file_branches):
@@ -981,10 +980,20 @@ def _same_cell(a, b, file_branches):
     the other worker before the cluster was lost is saved before the earlier ones not
     computed (nothing finished is lost), and a resume keeps the branches saved and adds the
     others after them, so the place and the labels' numbers can differ from one process's;
-    the labels' kinds (``type``) are compared, and the place is the file's own."""
-    for name, col in a.columns.items():
-        if name not in ("branch", "label"):
-            np.testing.assert_array_equal(col, b.columns[name], err_msg=name)
+    the labels' kinds (``type``) are compared, and the place is the file's own. A branch
+    that one run mirrored from its pair (``worker`` "mirror of ...") and the other computed
+    (its pair not computed in the same run: a resume after the loss) is the same to rounding
+    only (1e-15 seen): its numbers and profiles are compared to 1e-12 of each one's size
+    there, every other column exactly."""
+    rounding = len({x.attrs["worker"].startswith("mirror of") for x in (a, b)}) == 2
+    pairs = [(name, col, b.columns[name]) for name, col in a.columns.items()
+             if name not in ("branch", "label")]
+    for name, mine, theirs in pairs + [("profiles", a.profiles, b.profiles)]:
+        if rounding and np.asarray(mine).dtype.kind == "f":
+            scale = np.max(np.abs(mine), initial=1.0)
+            np.testing.assert_allclose(theirs, mine, rtol=0, atol=1e-12 * scale, err_msg=name)
+        else:
+            np.testing.assert_array_equal(mine, theirs, err_msg=name)
     place = next(k for k, x in enumerate(file_branches) if x.attrs["cell"] == b.attrs["cell"])
     assert set(b.columns["branch"]) == {place + 1}
     assert [bool(x) for x in b.columns["label"]] == [bool(x) for x in a.columns["label"]]
