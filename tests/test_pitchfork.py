@@ -141,3 +141,8 @@ def test_the_tendon_robots_out_of_plane_loss_followed_in_the_antagonist():
     assert abs(bp.params["tau2"] - col["tau2"][-1]) <= TAU_ATOL
     # the planar lift (x = 0) along the curve
     assert np.abs(col["x1"]).max() <= 1e-12
+
+
+def test_a_pitchfork_curve_starts_from_one_bp(bratu, bratu_bp):
+    with pytest.raises(ea.PlanError, match="starts from one BP label"):
+        ea.continuation(bratu, [bratu_bp, bratu_bp], ["lam", "mu"], bounds=(1, 9))
