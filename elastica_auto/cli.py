@@ -185,7 +185,8 @@ def run(name_or_path, out_dir, jobs, quiet, overrides, restart, scheduler, worke
                 if plan.switch_count else "")
 
     def header():  # once the starts and the output are checked: an error stays one line
-        what = {"fold": "fold curves", "bp": "branch-point curves"}.get(plan.curve, "branches")
+        what = {"fold": "fold curves", "bp": "branch-point curves",
+                "pitchfork": "pitchfork curves"}.get(plan.curve, "branches")
         solved = f"{plan.problem.free[0]}, " if plan.curve else ""
         click.echo(f"{plan.name}: {nbr} {what} of {plan.problem.source} in {solved}"
                    f"{plan.parameter}{switched} -> {out_dir / plan.output_name}", err=True)

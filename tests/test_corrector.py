@@ -341,7 +341,7 @@ def test_every_corrector_has_the_interfaces_operations(elastica, corrector, ncol
     from elastica_auto.numerics.correctors import Collocation, SolveBVP, make_corrector
     corr = make_corrector(elastica, "P", ContinuationOptions(corrector=corrector, ncol=ncol))
     operations = [n for n, v in vars(Corrector).items() if callable(v) and not n.startswith("_")]
-    assert len(operations) == 14
+    assert len(operations) == 15
     for name in operations + list(Corrector.__annotations__):
         assert hasattr(corr, name), name
     assert not issubclass(SolveBVP, Collocation)

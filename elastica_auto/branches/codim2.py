@@ -94,6 +94,19 @@ def fold_problem(base, lam: str) -> Problem:
     then include the running integrals and the free parameters."""
     _check_base(base, lam, "a fold curve")
     n = base.n
+    module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
+                     lam, _fold_hooks(base),
+                     [_on_y(o, base) for o in base.ordinates.values()], first=n)
+    problem = Problem(module, base.source)
+    # a base that solves for parameters reads their values from its states: so must the
+    # extended system's points
+    return _Extended(problem, (lam,), base) if base.solved else problem.with_free((lam,))
+
+
+def _fold_hooks(base) -> dict:
+    """The hooks of the system (F(y) = 0, F_y v = 0) on the states (y, v): the fold system's
+    without its normalisation, shared by fold curves and pitchfork curves."""
+    n = base.n
 
     # (written for few numpy calls: a fold-curve point calls these some 15 times)
     def rhs(s, Y, p):
@@ -152,13 +165,7 @@ def fold_problem(base, lam: str) -> Problem:
                                (base.bc_dp(ya + t * va, yb + t * vb, p, name)
                                 - base.bc_dp(ya - t * va, yb - t * vb, p, name)) / (2 * t)))
 
-    module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
-                     lam, _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp),
-                     [_on_y(o, base) for o in base.ordinates.values()], first=n)
-    problem = Problem(module, base.source)
-    # a base that solves for parameters reads their values from its states: so must the
-    # extended system's points
-    return _Extended(problem, (lam,), base) if base.solved else problem.with_free((lam,))
+    return _hooks(rhs, rhs_jac, rhs_dp, bc, bc_jac, bc_dp)
 
 
 def branch_point_problem(base: Problem, lam: str) -> Problem:

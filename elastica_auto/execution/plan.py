@@ -21,7 +21,7 @@ import numpy as np
 
 from ..branches import restart
 from ..core import labels
-from ..core.errors import PlanError, ProblemError
+from ..core.errors import PlanError, ProblemError, StartError
 from ..branches.events import UserValues
 from ..branches.kinds import Event
 from ..branches.registry import parse_events
@@ -72,7 +72,8 @@ StartLike = Union[Mapping[str, float], StoredLabel, Switch]
 class Start:
     """Where a branch starts: the module's exact solution (``trivial``), a labelled solution
     (``label``), the other branch at a branch point (``switch``), or the fold or branch-point
-    curve through a labelled LP or BP of the module's problem (``fold``, ``bp``)."""
+    curve through a labelled LP or BP of the module's problem (``fold``, ``bp``; ``pitchfork``
+    for a BP that is not on the module's exact family)."""
 
     kind: str
     file: Path | None = None
@@ -102,7 +103,9 @@ class Plan:
     ``name``, ``path`` and ``text`` describe the run file, if there is one (they are stored
     in the branch file); a plan made from Python has the name ``continuation``. ``curve`` is
     ``"fold"`` or ``"bp"`` for a two-parameter continuation (`elastica_auto.branches.codim2`): the
-    problem is then the fold or branch-point system, ``base`` the module's own problem."""
+    problem is then the fold or branch-point system, ``base`` the module's own problem;
+    ``"pitchfork"`` from a BP off the exact family (`elastica_auto.branches.pitchfork`), whose
+    :class:`~elastica_auto.branches.pitchfork.Reference` is ``reference``."""
 
     problem: Problem
     parameter: str
@@ -125,6 +128,7 @@ class Plan:
     path: Path | None = None
     text: str = ""
     base: Problem | None = None
+    reference: object = None
     scheduler: str | None = None
     #: seconds the cluster may have no worker before the run ends (None: the default,
     #: `elastica_auto.execution.cluster.WORKER_TIMEOUT`)
@@ -399,8 +403,9 @@ def _damping(damping, folds, landing: bool):
 def _two_parameter_plan(base: Problem, start, parameter, request: Request, options) -> Plan:
     """``parameter = (lam, mu)``: the fold curves (from LP labels) or the branch-point curves
     of the exact family (from BP labels) through the starts, in the (lam, mu) plane; ``lam``
-    is solved for, ``mu`` continued (`elastica_auto.branches.codim2`)."""
-    from ..branches import codim2
+    is solved for, ``mu`` continued (`elastica_auto.branches.codim2`). A BP label that is not
+    on the exact family starts a pitchfork curve (`elastica_auto.branches.pitchfork`)."""
+    from ..branches import codim2, pitchfork
     if len(parameter) != 2 or not all(isinstance(q, str) for q in parameter) \
             or parameter[0] == parameter[1]:
         raise PlanError("parameter", f"expected one name, or two different names (the fold's "
@@ -444,21 +449,47 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
             what = "fold" if curve == "fold" else "branch point"
             raise PlanError("start", f"{x.name} is a {what}"
                             f" in {x.tangent_parameter!r}, not in {lam!r}")
-    try:
-        problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
-            base, lam)
-    except ProblemError as exc:
-        raise PlanError("parameter", str(exc)) from None
-    if curve == "bp" and base.exact_start(np.linspace(0, 1, 3), items[0].state.params) is None:
-        raise PlanError("start", f"{base.source} has no exact family (exact_start) at "
-                        f"{items[0].name}: branch-point curves follow its branch points")
+    ref = None
+    if curve == "bp" and not all(_on_exact_family(base, x) for x in items):
+        if len(items) != 1:
+            raise PlanError("start", "a pitchfork curve (from a BP off the exact family) "
+                            "starts from one BP label; give one start per run")
+        curve, x = "pitchfork", items[0]
+        try:
+            ref = pitchfork.reference(base, x.state, x.tangent, lam, _options(options))
+            problem = pitchfork.pitchfork_problem(base, lam, ref)
+        except (StartError, ProblemError) as exc:
+            raise PlanError("start", f"{x.name}: {exc}") from None
+    else:
+        try:
+            problem = (codim2.fold_problem if curve == "fold" else codim2.branch_point_problem)(
+                base, lam)
+        except ProblemError as exc:
+            raise PlanError("parameter", str(exc)) from None
     plan = make_plan(problem, [], mu, dataclasses.replace(request, map=False), options,
                      _starts=[(Start(curve, x.path, x.name, x), {}) for x in items])
     if request.map and (curve != "fold" or not (base.has_shooting and base.has_second_variation)):
         raise PlanError("map", "stability maps need fold curves (LP starts) of a module with "
                         "the shooting and second_variation hooks")
-    plan.curve, plan.base, plan.maps = curve, base, request.map
+    plan.curve, plan.base, plan.maps, plan.reference = curve, base, request.map, ref
     return plan
+
+
+#: A BP label is on the module's exact family where its solution is the family's at its
+#: parameters to this, relative to the solution's size: the exact family's branch points are
+#: located with the family's own solution (the straight rod to rounding), and a branch point of
+#: another branch is a finite distance from it.
+FAMILY_RTOL = 1e-6
+
+
+def _on_exact_family(base: Problem, label) -> bool:
+    """Whether the BP ``label``'s solution is ``base``'s exact solution at its parameters."""
+    s, y = label.state.s, label.state.y
+    y0 = base.exact_start(s, label.state.params)
+    if y0 is None:
+        return False
+    scale = 1.0 + float(np.max(np.abs(y)))
+    return float(np.max(np.abs(y[: len(y0)] - y0))) <= FAMILY_RTOL * scale
 
 
 def _label_free(base: Problem, label) -> tuple[str, ...]:

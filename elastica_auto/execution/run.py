@@ -21,7 +21,7 @@ import numpy as np
 from ..analysis.equilibria import enumerate_equilibria, stable_side
 from ..analysis.maps import stability_maps
 from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
-from ..branches import codim2, restart
+from ..branches import codim2, pitchfork, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin
 from ..branches.switching import kernel_plane, switch_direction
@@ -91,12 +91,12 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
                                                                    **spec.params}))))
     stored = spec.start.stored or store.BranchFile(spec.start.file).label(spec.start.label)
     # a damaged or edited stored solution would start a branch that is not one (hostile M5)
-    curve = spec.start.kind in ("fold", "bp")
+    curve = spec.start.kind in CURVES
     restart.check_stored(plan.base if curve else problem, stored,
                          (stored.tangent_parameter or plan.parameter) if curve else plan.parameter,
                          opt, str(spec.start))
     state, tangent = stored.state, stored.tangent
-    if spec.start.kind in ("fold", "bp"):
+    if curve:
         return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
     if spec.start.kind == "switch":
         if labels.kind_of(spec.start.label) not in labels.SWITCHES:
@@ -114,6 +114,10 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
     singular = labels.kind_of(spec.start.label) in labels.TURNS and not targets
     return _checked(plan, Job(spec, Origin(state, tangent,
                                            "singular" if singular else "regular")))
+
+
+#: The start kinds of two-parameter curves (`elastica_auto.execution.plan.Start`).
+CURVES = ("fold", "bp", "pitchfork")
 
 
 def _from_values(plan: Plan, params: dict) -> State:
@@ -148,12 +152,16 @@ def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
     LP or BP ``stored`` of the module's problem: its solution with the null vector there,
     solved at the spec's parameters. At an LP the null vector is the stored tangent (its
     parameter component is zero at a fold); at a BP of the exact family it is the second
-    direction through the branch point less its component along the family."""
+    direction through the branch point less its component along the family. At a BP off the
+    exact family, the pitchfork system's start from the plan's reference (its solution, the
+    null vector of F_y alone, unfolding 0)."""
     base, problem, opt = plan.base, plan.problem, plan.options
     state, tangent = stored.state, stored.tangent
     if tangent is None:
         raise StartError(f"{spec.start}: no tangent stored with the label")
-    if spec.start.kind == "fold":
+    if spec.start.kind == "pitchfork":
+        start = pitchfork.pitchfork_start(problem, plan.reference, state.params)
+    elif spec.start.kind == "fold":
         null = tangent.on(state.s).y
         start = codim2.fold_start(problem, state, null)
     else:
@@ -167,9 +175,8 @@ def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:
     try:
         start = make_corrector(problem, plan.parameter, opt).point(start).state
     except CorrectorFailure as exc:
-        raise StartError(f"{spec.start}: the {'fold' if spec.start.kind == 'fold' else 'branch'}"
-                         f"{'' if spec.start.kind == 'fold' else '-point'} system has no solution "
-                         f"there ({exc})") from None
+        what = {"fold": "fold", "bp": "branch-point"}.get(spec.start.kind, spec.start.kind)
+        raise StartError(f"{spec.start}: the {what} system has no solution there ({exc})") from None
     start.params = problem.point_params(start.params, start.y)
     return start
 

@@ -98,6 +98,12 @@ class Corrector(Protocol):
     def kernel_error(self, sol: Solution) -> np.ndarray:
         """The error estimate per interval of that kernel direction on ``sol``'s mesh."""
 
+    def left_kernel(self, sol: Solution) -> np.ndarray:
+        """The left kernel of the singular bordered Jacobian at the branch point ``sol``: the
+        multipliers (n, m - 1) of its collocation rows, one column per interval of ``sol``'s
+        mesh, which are the adjoint solution psi at the intervals' middles up to one factor
+        (the row of an interval is the integral of y' - f over it)."""
+
     def error_estimate(self, state: State) -> np.ndarray:
         """The error estimate per interval of the solution ``state`` on its own mesh."""
 

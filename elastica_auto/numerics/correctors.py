@@ -224,6 +224,19 @@ class Linearizer:
         return direction, kernel_residual(lin.blocks, direction.y, direction.lam,
                                           self.parameter)
 
+    def left_kernel(self, sol: Solution) -> np.ndarray:
+        """The left kernel's collocation multipliers at the branch point ``sol``
+        (:meth:`Corrector.left_kernel`): one solve with the transposed factorisation and a
+        fixed pseudo-random right-hand side, whose component along the left kernel is
+        amplified by 1 / sigma_min (inverse iteration's first step, as :meth:`kernel` does
+        for the right one). At a pitchfork the left kernel of the bordered matrix is
+        (psi, 0): psi^T [F_y, F_lam] = 0, psi^T F_lam vanishing by the symmetry."""
+        lin = sol.lin
+        rng = np.random.default_rng(20261206)
+        w_col, _, _ = lin.fact.solve_transpose(rng.standard_normal((lin.disc.n, lin.disc.m)),
+                                               rng.standard_normal(lin.fact.st.k))
+        return w_col
+
     def kernel_error(self, sol: Solution) -> np.ndarray:
         """The error estimate per interval of the kernel direction at the branch point
         ``sol`` (the solution of the linearised equations the other branch leaves along):
@@ -310,6 +323,9 @@ class _Linearized:
 
     def kernel_error(self, sol: Solution) -> np.ndarray:
         return self._linearizer.kernel_error(sol)
+
+    def left_kernel(self, sol: Solution) -> np.ndarray:
+        return self._linearizer.left_kernel(sol)
 
     def solve_again(self, state: State, normal: Tangent | None, tol: float) -> Resolved:
         return self._linearizer.solve_again(state, normal, tol)
