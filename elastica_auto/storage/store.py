@@ -581,12 +581,13 @@ def _read_table(f, name: str) -> list[dict]:
     """The rows of the table /``name`` (`_write_table`), [] if there is none."""
     if name not in f:
         return []
-    keys = json.loads(f[name].attrs["columns"])
-    cols = {k: [x.decode() if isinstance(x, bytes) else x for x in f[name][k][()]]
-            for k in keys}
+    g = f[name]
+    keys = json.loads(g.attrs["columns"])
+    # by the low-level reads of `checked_dataset`: opening reads the table
+    cols = {k: list(checked_dataset(g, k, None)) for k in keys}
     rows = [dict(zip(keys, vals)) for vals in zip(*cols.values())]
-    if "profiles" in f[name]:
-        for row, prof in zip(rows, f[f"{name}/profiles"][()]):
+    if g.id.links.exists(b"profiles"):
+        for row, prof in zip(rows, checked_dataset(g, "profiles", None)):
             row["profile"] = prof
     return rows
 
@@ -896,11 +897,18 @@ class _Source:
             raise self.damaged(f"{what} unreadable ({error_text(exc)})") from exc
 
 
-def checked_dataset(g, name: str, shape: tuple) -> np.ndarray:
-    """The dataset ``g[name]`` as checked on opening (a dataset of ``shape``), read whole;
-    strings decoded. KeyError if it is no longer there, ValueError if it changed."""
-    obj = h5py.h5o.open(g.id, name.encode())
-    if not isinstance(obj, h5py.h5d.DatasetID) or obj.shape != shape:
+def checked_dataset(g, name: str, shape: tuple | None) -> np.ndarray:
+    """The dataset ``g[name]`` as checked on opening (a dataset of ``shape``; None: of any
+    shape), read whole; strings decoded. KeyError if it is no longer there, ValueError if it
+    changed."""
+    try:
+        obj = h5py.h5d.open(g.id, name.encode())   # H5Dopen: 8% less than H5Oopen
+    except KeyError:
+        if g.id.links.exists(name.encode()):
+            raise ValueError("no longer the dataset checked on opening") from None
+        raise
+    shape = obj.shape if shape is None else shape
+    if obj.shape != shape:
         raise ValueError("no longer the dataset checked on opening")
     if obj.dtype.kind == "O":   # variable-length strings (formats 1, 2): h5py converts them
         data = g[name][()]
@@ -1024,13 +1032,14 @@ def _filter_index(dcpl, code: int) -> int:
     return next(i for i in range(dcpl.get_nfilters()) if dcpl.get_filter(i)[0] == code)
 
 
-def _shapes(g) -> dict[str, tuple | None]:
-    """The shape of each member of the group ``g`` (None: not a dataset, or a link to
-    nothing), read without reading any data. h5py's low-level objects: its high-level ones
-    cost tens of microseconds each, and opening a file looks at every column of every branch;
-    H5Dopen, which refuses anything but a dataset, costs 8% less than H5Oopen."""
+def _shapes(g, names=None) -> dict[str, tuple | None]:
+    """The shape of each member of the group ``g``, or of those of ``names`` it has (None:
+    not a dataset, or a link to nothing), read without reading any data. h5py's low-level
+    objects: its high-level ones cost tens of microseconds each, and opening a file looks at
+    every column of every branch; H5Dopen, which refuses anything but a dataset, costs 8%
+    less than H5Oopen."""
     out = {}
-    for name in g:
+    for name in (g if names is None else [k for k in names if g.id.links.exists(k.encode())]):
         try:
             out[name] = h5py.h5d.open(g.id, name.encode()).shape
         except KeyError:        # "not a dataset"
@@ -1345,22 +1354,23 @@ class BranchFile:
         if odd is not None:
             raise self._damaged(f"branch {key}: column {odd!r} has {lengths[odd]} rows, "
                                 f"the others {n}")
-        profiles = g["profiles"]
-        if not isinstance(profiles, h5py.Dataset) or profiles.ndim < 1:
+        profiles = _shapes(g, ("profiles", "profile_rows"))
+        shape = profiles.get("profiles")
+        if not shape:
             raise self._damaged(f"branch {key}: 'profiles' is not a dataset of one profile "
                                 "per point")
         if n == 0:   # every branch has its start at least (an MX one, if all else failed)
             raise self._damaged(f"branch {key} has no points")
-        rows = g.get("profile_rows")     # format 3: the distinct profiles, and each point's
-        if rows is not None and not (isinstance(rows, h5py.Dataset) and rows.shape == (n,)):
+        rows = "profile_rows" in profiles  # format 3: the distinct profiles, and each point's
+        if rows and profiles["profile_rows"] != (n,):
             raise self._damaged(f"branch {key}: 'profile_rows' is not a dataset of one row "
                                 f"per point ({n})")
-        if rows is None and profiles.shape[0] != n:
-            raise self._damaged(f"branch {key}: {profiles.shape[0]} profiles for {n} points")
+        if not rows and shape[0] != n:
+            raise self._damaged(f"branch {key}: {shape[0]} profiles for {n} points")
         names = column_names(self.parameters, self.ordinates)
         names += [name for name in lengths if name not in names]
         return StoredBranch(self._source, int(key), dict(g.attrs),
-                            _Columns(self._source, key, names, n), (n, *profiles.shape[1:]))
+                            _Columns(self._source, key, names, n), (n, *shape[1:]))
 
     def _check_labels(self, f):
         """Each label names a point with that label, and its solution is stored: reads the
