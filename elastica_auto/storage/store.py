@@ -913,11 +913,9 @@ def checked_dataset(g, name: str, shape: tuple | None) -> np.ndarray:
     shape), read whole; strings decoded. KeyError if it is no longer there, ValueError if it
     changed."""
     try:
-        obj = h5py.h5d.open(g.id, name.encode())   # H5Dopen: 8% less than H5Oopen
-    except KeyError:
-        if g.id.links.exists(name.encode()):
-            raise ValueError("no longer the dataset checked on opening") from None
-        raise
+        obj = _dataset(g, name)
+    except ValueError:
+        raise ValueError("no longer the dataset checked on opening") from None
     shape = obj.shape if shape is None else shape
     if obj.shape != shape:
         raise ValueError("no longer the dataset checked on opening")
