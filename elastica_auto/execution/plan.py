@@ -565,8 +565,13 @@ def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
                 raise PlanError("stop", f"{item!r}: one comparison only; expected {STOP_FORMS}")
             name, op, text = (x.strip() for x in re.split(r"([<>])", item))
             if name not in names:
+                # a parameter held fixed does not move, and the continued one ends where
+                # `bounds` says (an EP solved exactly there): a stop is not the way to it
+                hint = (f"; {name} is a parameter: a branch ends at a value of the continued "
+                        "parameter by bounds = [lower, upper]" if name in problem.parameters
+                        else "")
                 raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
-                                f"parameter ({', '.join(names) or 'none'})")
+                                f"parameter ({', '.join(names) or 'none'}){hint}")
             try:
                 value = evaluate(text)
             except ValueError as exc:
