@@ -245,7 +245,9 @@ BAD = {
                               "fixed1: u(s) is not a declared coordinate"),
     "quadrature in the density": (
         "density=t.diff(s)**2/2 + q*x*sp.cos(t), coordinates=[t], parameters={q: 1.0}, "
-        "quadratures={x: sp.sin(t)}, fixed0={x: 0}", "pointwise constraint x' = g"),
+        "quadratures={x: sp.sin(t)}, fixed0={x: 0}", "pointwise constraint x' = g, which the "
+        "engine's form cannot express: make it a coordinate, its rate x' = g then an energy "
+        "term (a shear stiffness G (x' - g)^2 / 2"),
     "quadrature nonlinear at the end": (
         "density=t.diff(s)**2/2, coordinates=[t], parameters={q: 1.0}, "
         "quadratures={x: sp.sin(t)}, fixed0={x: 0}, end1=q*x*t",

@@ -566,7 +566,9 @@ class _Names:
                       + (": a quadrature enters only the end terms (linearly); in the "
                          "density its second variation would need the perturbations to obey "
                          "the pointwise constraint x' = g, which the engine's form "
-                         "cannot express: make it a coordinate" if end is None else
+                         "cannot express: make it a coordinate, its rate x' = g then an "
+                         "energy term (a shear stiffness G (x' - g)^2 / 2, as the foundation "
+                         "column's), since a coordinate alone is free of g" if end is None else
                          ": at s = 0 a quadrature is its initial value; use the parameters"))
             subs[f] = (self.Z if kind == "coordinates" else self.X)[i]
         expr = expr.xreplace(subs)
