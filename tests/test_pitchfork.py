@@ -22,7 +22,7 @@ from elastica_auto.branches import pitchfork
 from elastica_auto.core.options import ContinuationOptions
 from elastica_auto.core.solution import State
 from elastica_auto.numerics.correctors import make_corrector
-from helpers import EXAMPLES, REPO
+from helpers import EXAMPLES, REPO, run_cli
 
 BRATU = EXAMPLES / "bratu_pitchfork.py"
 ROBOT = REPO / "equations" / "tendon_robot.py"
@@ -180,6 +180,23 @@ def test_a_curve_from_a_transcritical_bp_warns_where_its_points_are_not_branch_p
         assert "points are not branch points: the unfolding term" in warning
         assert "the start is not a symmetry-breaking branch point" in warning
         assert abs(curve.columns["unfolding"][-1]) > 0.01
+
+
+def test_show_prints_a_branchs_warnings(tmp_path, cli_exe):
+    """show listed a branch "that has warnings" by its end alone (`branch 1: EP: reached c =
+    0.5`), never saying what the warning was: now each follows it, as run prints it."""
+    path = tmp_path / "transcritical.py"
+    path.write_text(TRANSCRITICAL)
+    pb = ea.load_problem(str(path))
+    (trivial,) = ea.continuation(pb, {"lam": 5.0}, "lam", bounds=(0, 15))
+    curves = ea.continuation(pb, trivial.label("BP1"), ["lam", "c"], bounds=(0, 0.5))
+    ea.save(curves, tmp_path / "curve.h5")
+    result = run_cli(cli_exe, "show", tmp_path / "curve.h5")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    k = lines.index("branch 1: EP: reached c = 0.5")
+    (warning,) = curves[0].warnings
+    assert lines[k + 1] == f"  warning: {warning}"
 
 
 def test_a_pitchfork_curve_starts_from_one_bp(bratu, bratu_bp):
