@@ -356,8 +356,11 @@ def show(file, all_points, tracebacks):
                    + f" {r['index']:>5} {r['index_rule']:>4} {r['index_direct']:>6}")
     internal = []
     for b in bf.branches:
-        if b.attrs["end"] in labels.FAILED or b.attrs.get("warnings", "[]") != "[]":
+        warned = json.loads(b.attrs.get("warnings", "[]") or "[]")
+        if b.attrs["end"] in labels.FAILED or warned:
             click.echo(f"branch {b.number}: {b.attrs['end']}: {b.attrs['message']}")
+        for w in warned:   # as run printed them: the reason the branch is listed
+            click.echo(f"  warning: {w}")
         diagnostics = json.loads(b.attrs.get("diagnostics", "{}") or "{}")
         if diagnostics.get("kind") == "engine":
             internal.append((f"branch {b.number}", diagnostics.get("text", "")))

@@ -187,6 +187,14 @@ def test_from_restarts_at_a_label_with_its_parameters(small_cli_run, cli_exe, tm
 
 @pytest.mark.parametrize("args, words", [
     (["--set", "nonsense=1"], "--set nonsense=1: 'nonsense' is not an option"),
+    # a typo gets the name meant, a top-level key what to do instead (they are in no table:
+    # "write TABLE.switch" led to "[continuation] switch: unknown key")
+    (["--set", "ds_maxx=1"], "'ds_maxx' is not an option, parameter or [continuation] key; "
+     "did you mean ds_max?"),
+    (["--set", "Eps=0.3"], "did you mean eps?"),
+    (["--set", "switch=1"], "'switch' is a key at the top of the run file, which --set does "
+     "not change: edit the run file"),
+    (["--set", "start=trivial"], "edit the run file, or give --from FILE.h5:LABEL"),
     (["--set", "ds_max"], "expected NAME=VALUE"),
     (["--set", "ds_max=abc"], "[options] ds_max"),
     (["--set", "ds=5"], "[options]"),

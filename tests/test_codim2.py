@@ -248,13 +248,18 @@ bounds = [0.2, 0.3]
     ("LP", ["psi", "psi"], "parameter", "two different names"),
     ("LP", ["eps", "P"], "start", "is a fold in 'psi', not in 'eps'"),
     ("LP", ["psi", "nope"], "parameter", "unknown parameter 'nope'"),
-    ("mix", ["psi", "eps"], "start", "not a mix"),
+    ("mix", ["psi", "eps"], "start", "EP1: not an LP or BP label"),
+    # one label that is neither (a curve's own UZ or EP, say) said "not a mix"
+    ("EP", ["psi", "eps"], "start", r"EP2: not an LP or BP label; a two-parameter "
+     r"continuation starts from LP labels \(fold curves\) or BP labels \(branch-point or "
+     r"pitchfork curves\), and any label restarts a one-parameter run"),
     ("map", "psi", "map", "stability maps are drawn from fold curves"),
 ])
 def test_two_parameter_arguments_are_checked(elastica, arm_quarter, start, parameter, key,
                                              words):
     given = {"dict": {"P": 1.0}, "LP": arm_quarter.label("LP1"), "map": {"P": 1.0},
-             "mix": [arm_quarter.label("LP1"), arm_quarter.label("EP1")]}[start]
+             "mix": [arm_quarter.label("LP1"), arm_quarter.label("EP1")],
+             "EP": arm_quarter.label("EP2")}[start]
     with pytest.raises(ea.PlanError, match=words) as exc_info:
         ea.continuation(elastica, given, parameter, map=start == "map")
     assert exc_info.value.key == key

@@ -245,7 +245,9 @@ BAD = {
                               "fixed1: u(s) is not a declared coordinate"),
     "quadrature in the density": (
         "density=t.diff(s)**2/2 + q*x*sp.cos(t), coordinates=[t], parameters={q: 1.0}, "
-        "quadratures={x: sp.sin(t)}, fixed0={x: 0}", "pointwise constraint x' = g"),
+        "quadratures={x: sp.sin(t)}, fixed0={x: 0}", "pointwise constraint x' = g, which the "
+        "engine's form cannot express: make it a coordinate, its rate x' = g then an energy "
+        "term (a shear stiffness G (x' - g)^2 / 2"),
     "quadrature nonlinear at the end": (
         "density=t.diff(s)**2/2, coordinates=[t], parameters={q: 1.0}, "
         "quadratures={x: sp.sin(t)}, fixed0={x: 0}, end1=q*x*t",
@@ -257,6 +259,15 @@ BAD = {
                      "parameters={q: 1.0}", "numpy cannot evaluate the function besselj"),
     "undeclared symbol": ("density=t.diff(s)**2/2 + r*sp.cos(t), coordinates=[t], "
                           "parameters={q: 1.0}", "contains r, not a parameter"),
+    # a newcomer's matrix: the two terms as a column, and a quadratic form u.T K u without
+    # its [0] (a 1 x 1 matrix; sympy counts a Matrix as an expression, so it got through)
+    "a density that is a matrix": (
+        "density=sp.Matrix([t.diff(s)**2/2, q*sp.cos(t)]), coordinates=[t], "
+        "parameters={q: 1.0}", "the density is a 2 x 1 matrix, not a scalar expression"),
+    "an end term that is a 1 x 1 matrix": (
+        "density=t.diff(s)**2/2, end1=sp.Matrix([[q]]).T*sp.Matrix([[t]]), coordinates=[t], "
+        "parameters={q: 1.0}", "end1 is a 1 x 1 matrix, not a scalar expression: take its "
+        "entry, [0]"),
     "second order": ("density=t.diff(s, 2)**2/2 + q*sp.cos(t), coordinates=[t], "
                      "parameters={q: 1.0}", "first derivatives only"),
     # a rotation coordinate (R = Rotation("R"))

@@ -22,7 +22,7 @@ from elastica_auto.branches import pitchfork
 from elastica_auto.core.options import ContinuationOptions
 from elastica_auto.core.solution import State
 from elastica_auto.numerics.correctors import make_corrector
-from helpers import EXAMPLES, REPO
+from helpers import EXAMPLES, REPO, run_cli
 
 BRATU = EXAMPLES / "bratu_pitchfork.py"
 ROBOT = REPO / "equations" / "tendon_robot.py"
@@ -141,6 +141,62 @@ def test_the_tendon_robots_out_of_plane_loss_followed_in_the_antagonist():
     assert abs(bp.params["tau2"] - col["tau2"][-1]) <= TAU_ATOL
     # the planar lift (x = 0) along the curve
     assert np.abs(col["x1"]).max() <= 1e-12
+
+
+TRANSCRITICAL = '''
+import numpy as np
+from elastica_auto import Parameter
+STATES = ("u", "du")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode"), Parameter("mu", 1.0, "mu", "ode"),
+              Parameter("c", 0.0, "c", "ode")]
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * y[0] - p["mu"] * y[0] ** 2
+                      - p["c"] * np.sin(np.pi * s)))
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+def guess(s, p):
+    return np.zeros((2, len(s)))
+'''
+
+
+def test_a_curve_from_a_transcritical_bp_warns_where_its_points_are_not_branch_points(tmp_path):
+    """u'' + lam u + mu u^2 + c sin(pi s) = 0, u(0) = u(1) = 0: at c = 0 the branch u = 0
+    crosses another at lam = pi^2, a transcritical BP (no symmetry while mu != 0). In mu it
+    persists (the linearisation at u = 0 is u'' + lam u whatever mu): the curve is lam = pi^2,
+    the unfolding 0, no warning. The imperfection c destroys it (the two branches separate at
+    folds), so the system's points off c = 0 solve an unfolded problem, not the module's:
+    the curve used to end without a word, its lam(c) looking like branch points."""
+    path = tmp_path / "transcritical.py"
+    path.write_text(TRANSCRITICAL)
+    pb = ea.load_problem(str(path))
+    (trivial,) = ea.continuation(pb, {"lam": 5.0}, "lam", bounds=(0, 15))
+    bp = trivial.label("BP1")
+    assert bp.state.params["lam"] == pytest.approx(np.pi ** 2, rel=1e-8)
+    for curve in ea.continuation(pb, bp, ["lam", "mu"], bounds=(0.5, 2), directions="both"):
+        assert curve.end == "EP" and curve.warnings == []
+        assert np.abs(curve.columns["lam"] - np.pi ** 2).max() <= 1e-8 * np.pi ** 2
+    for curve in ea.continuation(pb, bp, ["lam", "c"], bounds=(-0.5, 0.5), directions="both"):
+        (warning,) = curve.warnings
+        assert "points are not branch points: the unfolding term" in warning
+        assert "the start is not a symmetry-breaking branch point" in warning
+        assert abs(curve.columns["unfolding"][-1]) > 0.01
+
+
+def test_show_prints_a_branchs_warnings(tmp_path, cli_exe):
+    """show listed a branch "that has warnings" by its end alone (`branch 1: EP: reached c =
+    0.5`), never saying what the warning was: now each follows it, as run prints it."""
+    path = tmp_path / "transcritical.py"
+    path.write_text(TRANSCRITICAL)
+    pb = ea.load_problem(str(path))
+    (trivial,) = ea.continuation(pb, {"lam": 5.0}, "lam", bounds=(0, 15))
+    curves = ea.continuation(pb, trivial.label("BP1"), ["lam", "c"], bounds=(0, 0.5))
+    ea.save(curves, tmp_path / "curve.h5")
+    result = run_cli(cli_exe, "show", tmp_path / "curve.h5")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    k = lines.index("branch 1: EP: reached c = 0.5")
+    (warning,) = curves[0].warnings
+    assert lines[k + 1] == f"  warning: {warning}"
 
 
 def test_a_pitchfork_curve_starts_from_one_bp(bratu, bratu_bp):

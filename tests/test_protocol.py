@@ -20,7 +20,8 @@ from scipy.optimize import brentq
 
 import elastica_auto as ea
 from elastica_auto.execution import runfile
-from helpers import EXAMPLES, run_plan
+from elastica_auto.core.errors import EXIT_USER
+from helpers import EXAMPLES, run_cli, run_plan
 
 
 def lam_of(z):
@@ -134,6 +135,48 @@ def test_a_start_from_a_guess_is_solved_from(tmp_path):
     assert z > 3 and abs(lam_of(z) - 2.0) <= 1e-6   # the upper of the two solutions at 2
     with pytest.raises(ea.StartError, match="no solution found from its guess at lam=4"):
         ea.continuation(problem, {"lam": 4.0}, "lam")  # above lam_c: there is none
+
+
+WRONG_EXACT = '''
+import numpy as np
+from elastica_auto.model.problem import Parameter
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode"), Parameter("b", 0.0, "b", "ode")]
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.exp(y[0])))
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0] - p["b"]))
+def exact_start(s, p):
+    """u = 0: Bratu's solution at lam = 0 and b = 0 only; the newcomer forgot both."""
+    return np.zeros((2, len(s)))
+'''
+
+
+def test_an_exact_start_that_does_not_solve_the_problem_is_a_user_error(tmp_path, cli_exe):
+    """An exact_start that is not a solution (the module's end condition or equation changed,
+    not its start) is refused before anything is computed, saying where it fails, instead of
+    a first step whose corrector fails (exit 1, "the corrector moved 1.15 from the
+    predictor"). u = 0 solves u'' = -lam e^u, u(0) = 0, u(1) = b at lam = b = 0 only: at
+    b = 1/2 its end condition u(1) = b is off by 1/2, at lam = 1 its equation by lam."""
+    path = tmp_path / "wrong_exact.py"
+    path.write_text(WRONG_EXACT)
+    problem = ea.load_problem(str(path))
+    (br,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(0, 1), max_points=5)
+    assert br.points[0].params["lam"] == 0.0       # the true solution starts as before
+    with pytest.raises(ea.StartError, match=r"its exact start at lam=0, b=0.5 does not solve "
+                       r"the problem: the residual is 0.5 in row 2 of the 2 end conditions"):
+        ea.continuation(problem, {"b": 0.5}, "lam")
+    with pytest.raises(ea.StartError, match=r"its exact start at lam=1, b=0 does not solve the "
+                       r"problem: the residual is 0.02 in the equation of v near s = "):
+        ea.continuation(problem, {"lam": 1.0}, "lam")   # 0.02 = lam h in every interval
+    toml = tmp_path / "wrong.toml"
+    toml.write_text('equation = "wrong_exact.py"\n[parameters]\nb = 0.5\n'
+                    '[continuation]\nparameter = "lam"\n')
+    result = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", "-q")
+    assert result.returncode == EXIT_USER and result.stdout == ""
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("elastica-auto: error: ") and "exact_start(s, p) must return" in line
+    assert not (tmp_path / "out" / "wrong.h5").exists()
 
 
 def test_run_file_free_and_stop_are_the_api_s(tmp_path, bratu_mean):

@@ -68,6 +68,10 @@ def test_a_stop_that_is_no_stop_names_what_is_accepted(tmp_path, entry, words):
     ("m1 > pi/2)", "VALUE cannot evaluate 'pi/2)': unmatched ')'"),
     ("m1 > foo", "VALUE cannot evaluate 'foo': unknown name 'foo' (the constants are pi, e)"),
     ("u > 1", "'u' is not an ordinate or a free parameter (gamma, beta, m1, mA, m0, E)"),
+    # the continued parameter's stop is its bound: say so, not only what it is not
+    ("psi > 1", "'psi' is not an ordinate or a free parameter (gamma, beta, m1, mA, m0, E); "
+     "psi is a parameter: a branch ends at a value of the continued parameter by bounds = "
+     "[lower, upper]"),
 ])
 def test_a_stop_with_a_bad_name_or_value_says_which(tmp_path, entry, words):
     message = _refused(tmp_path, SMALL + f'stop = ["{entry}"]\n')

@@ -147,6 +147,26 @@ def pitchfork_problem(base: Problem, lam: str, ref: Reference) -> Problem:
     return Problem(module, base.source).with_free((lam, UNFOLDING))
 
 
+def warn_unfolded(branch, ref: Reference, tol: float) -> None:
+    """Warn, on ``branch`` (a pitchfork curve computed on ``ref``), where its points are not
+    branch points of the problem: where the unfolding term ``beta phi`` added to ``y' = f``
+    exceeds the tolerance ``tol`` that bounds the equations' relative residual, the point
+    solves an unfolded problem, not the module's. Along a curve of symmetry-breaking branch
+    points beta is 0 to rounding (1e-16 on the tendon robot's); from a branch point that is
+    not a symmetry's (a transcritical one) it grows with the distance from the start, since
+    there is no curve of branch points there (docs/two-parameter.md, Limits)."""
+    size = float(np.max(np.abs(ref.phi))) if ref.phi.size else 0.0
+    away = [k for k, p in enumerate(branch.points)
+            if not abs(p.params[UNFOLDING]) * size <= tol]
+    if away:
+        worst = max(abs(branch.points[k].params[UNFOLDING]) for k in away)
+        branch.warnings.append(
+            f"{len(away)} of {len(branch.points)} points are not branch points: the unfolding "
+            f"term |unfolding| max|phi| exceeds tol = {tol:g} from point {away[0] + 1} on "
+            f"(|unfolding| up to {worst:.3g}); the start is not a symmetry-breaking branch "
+            "point (a transcritical one has no curve of branch points)")
+
+
 def pitchfork_start(problem, ref: Reference, params: dict) -> State:
     """The pitchfork system's state at the BP (approximate: solve from it): the BP's solution,
     its null vector, ``unfolding`` 0, at ``params``."""

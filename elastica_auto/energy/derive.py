@@ -514,6 +514,13 @@ class _Names:
             expr = sp.sympify(expr)
         except (sp.SympifyError, TypeError):
             _fail(f"{what} is not a sympy expression: {expr!r:.80}")
+        if isinstance(expr, (sp.MatrixBase, sp.MatrixExpr)):
+            # sympy's immutable matrices are Exprs too: without this a column of terms, or a
+            # quadratic form u.T K u (a 1 x 1 matrix), fails deep in the derivation
+            rows, cols = expr.shape
+            _fail(f"{what} is a {rows} x {cols} matrix, not a scalar expression"
+                  + (": take its entry, [0]" if (rows, cols) == (1, 1) else
+                     ": an energy is one number; add its terms"))
         if not isinstance(expr, sp.Expr):
             _fail(f"{what} is not a scalar expression: {expr!r:.80}")
         s = self.s
@@ -559,7 +566,9 @@ class _Names:
                       + (": a quadrature enters only the end terms (linearly); in the "
                          "density its second variation would need the perturbations to obey "
                          "the pointwise constraint x' = g, which the engine's form "
-                         "cannot express: make it a coordinate" if end is None else
+                         "cannot express: make it a coordinate, its rate x' = g then an "
+                         "energy term (a shear stiffness G (x' - g)^2 / 2, as the foundation "
+                         "column's), since a coordinate alone is free of g" if end is None else
                          ": at s = 0 a quadrature is its initial value; use the parameters"))
             subs[f] = (self.Z if kind == "coordinates" else self.X)[i]
         expr = expr.xreplace(subs)

@@ -427,7 +427,14 @@ def _two_parameter_plan(base: Problem, start, parameter, request: Request, optio
         raise PlanError("start", "a two-parameter continuation starts from LP or BP labels "
                         "(BranchFile(path).label(\"LP1\"))")
     kinds = {labels.kind_of(x.name) for x in items}
-    if not kinds <= labels.FOLDS | labels.SWITCHES or len(kinds) != 1:
+    other = [x.name for x in items if labels.kind_of(x.name) not in labels.FOLDS | labels.SWITCHES]
+    if other:
+        # a UZ or EP of a curve is a point of it, not a fold or branch point to follow
+        raise PlanError("start", f"{', '.join(other)}: not an LP or BP label; a two-parameter "
+                        "continuation starts from LP labels (fold curves) or BP labels "
+                        "(branch-point or pitchfork curves), and any label restarts a "
+                        "one-parameter run (give one parameter)")
+    if len(kinds) != 1:
         raise PlanError("start", f"expected LP labels (fold curves) or BP labels (branch-point "
                         f"curves), not a mix; got {', '.join(x.name for x in items)}")
     curve = "fold" if kinds <= labels.FOLDS else "bp"
@@ -558,8 +565,13 @@ def _stops(problem, stop) -> tuple[int | None, tuple[Limit, ...]]:
                 raise PlanError("stop", f"{item!r}: one comparison only; expected {STOP_FORMS}")
             name, op, text = (x.strip() for x in re.split(r"([<>])", item))
             if name not in names:
+                # a parameter held fixed does not move, and the continued one ends where
+                # `bounds` says (an EP solved exactly there): a stop is not the way to it
+                hint = (f"; {name} is a parameter: a branch ends at a value of the continued "
+                        "parameter by bounds = [lower, upper]" if name in problem.parameters
+                        else "")
                 raise PlanError("stop", f"{item!r}: {name!r} is not an ordinate or a free "
-                                f"parameter ({', '.join(names) or 'none'})")
+                                f"parameter ({', '.join(names) or 'none'}){hint}")
             try:
                 value = evaluate(text)
             except ValueError as exc:

@@ -33,6 +33,7 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
+from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
 from .jobs import (NOT_COMPUTED, Callbacks, Job, cell, compute_branch, failed_branch,
@@ -137,6 +138,7 @@ def _from_values(plan: Plan, params: dict) -> State:
                          "start from a label (start = \"FILE.h5:LABEL\")")
     state = State.from_values(problem, s, y, params)
     if not solve:
+        _check_exact(problem, state, opt.tol, fixed)
         return state
     try:
         state = make_corrector(problem, plan.parameter, opt).point(state).state
@@ -145,6 +147,40 @@ def _from_values(plan: Plan, params: dict) -> State:
                          f"({exc})") from None
     state.params = problem.point_params(state.params, state.y)
     return state
+
+
+def _check_exact(problem, state: State, tol: float, fixed: str) -> None:
+    """StartError unless the module's exact start ``state`` solves its equations: the
+    residuals of the collocation equations (``y_(i+1) - y_i`` less Simpson's integral of
+    ``f`` over the interval, relative to ``1 + |y_i|``) and of the boundary conditions
+    (relative to ``1 + max |y|``), the measure a restart's check reads, at most ``tol``. A
+    solution sampled on the mesh leaves only the scheme's truncation, ``O(h^5)`` per interval
+    (none for the straight rods' polynomials); an ``exact_start`` that does not solve the
+    problem (an end condition changed in the module and not in its start) left the corrector
+    to fail in the first step, with a message about the step, not the start. A module that
+    raises in ``rhs`` or ``bc``, or returns what is not finite, is left to the branch, which
+    records who failed and where (exit status 1), as without this check."""
+    try:
+        ev = Discretisation(problem, state.s).evaluate(state.y, state.params)
+        col = np.abs(ev.col) / (1.0 + np.abs(state.y[:, :-1]))
+        bc = np.abs(np.asarray(ev.bc, dtype=float)) / (1.0 + float(np.max(np.abs(state.y))))
+    except Exception:  # noqa: BLE001 - the branch's first step meets it and records it
+        return
+    if not (np.all(np.isfinite(col)) and np.all(np.isfinite(bc))):
+        return
+    worst_col = float(np.max(col)) if col.size else 0.0
+    worst_bc = float(np.max(bc)) if bc.size else 0.0
+    if worst_col <= tol and worst_bc <= tol:
+        return
+    if worst_bc >= worst_col:
+        where = f"row {int(np.argmax(bc)) + 1} of the {len(bc)} end conditions (bc)"
+    else:
+        k, i = np.unravel_index(int(np.argmax(col)), col.shape)
+        where = f"the equation of {problem.states[k]} near s = {state.s[i]:.3g}"
+    raise StartError(f"{problem.source}: its exact start at {fixed} does not solve the "
+                     f"problem: the residual is {max(worst_bc, worst_col):.3g} in {where} (the "
+                     f"tolerance: {tol:g}); exact_start(s, p) must return a solution of the "
+                     "module's equations and end conditions, or None where it has none")
 
 
 def _curve_start(plan: Plan, spec: BranchSpec, stored) -> State:

@@ -41,6 +41,7 @@ unbounded by omitting ``bounds``, never by writing ``inf``.
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from dataclasses import fields
@@ -162,11 +163,11 @@ def apply_overrides(doc: Document, overrides: Sequence[str], restart: str | None
             params = doc.parameter_names()
             owners = [t for t, keys in tables.items()
                       if key in (params if keys is None else keys)]
-            if len(owners) != 1:
-                why = "is ambiguous" if owners else "is not an option, parameter or " \
-                    "[continuation] key"
-                raise RunFileError(f"--set {item}: {key!r} {why}; write TABLE.{key} with "
-                                   f"TABLE one of {', '.join(tables)}")
+            if len(owners) > 1:
+                raise RunFileError(f"--set {item}: {key!r} is ambiguous; write TABLE.{key} "
+                                   f"with TABLE one of {', '.join(owners)}")
+            if not owners:
+                raise RunFileError(f"--set {item}: {_not_settable(key, tables, params)}")
             table = owners[0]
         section = doc.doc.setdefault(table, {})
         if not isinstance(section, dict):
@@ -175,6 +176,23 @@ def apply_overrides(doc: Document, overrides: Sequence[str], restart: str | None
         notes.append(f"--set {table}.{key}={text.strip()}")
     if notes:
         doc.text += "\n# command line:\n" + "".join(f"#   {_comment(n)}\n" for n in notes)
+
+
+def _not_settable(key: str, tables: dict, params) -> str:
+    """Why ``--set KEY=...`` names nothing it can set, and what to write instead: a key at
+    the top of the run file (``start``, ``switch``, ...) is in no table, and a typo gets the
+    names it is closest to (case aside: ``Eps`` is ``eps``)."""
+    if key in TOP_KEYS:
+        instead = ", or give --from FILE.h5:LABEL" if key == "start" else ""
+        return (f"{key!r} is a key at the top of the run file, which --set does not change: "
+                f"edit the run file{instead}; --set changes an option, a parameter or a "
+                "[continuation] key")
+    names = sorted({*params, *(k for keys in tables.values() if keys for k in keys)})
+    lower = {n.lower(): n for n in names}
+    close = ([lower[key.lower()]] if key.lower() in lower
+             else difflib.get_close_matches(key, names, n=3, cutoff=0.75))
+    meant = f"; did you mean {' or '.join(close)}?" if close else ""
+    return f"{key!r} is not an option, parameter or [continuation] key{meant}"
 
 
 def _comment(text: str) -> str:
