@@ -20,22 +20,30 @@ own locating method, as the shipped ones do:
 * :class:`SymmetricBranchPoint`, BP, switch: the same sign change, placed at the module's
   symmetric value of the parameter inside the step where it has one;
 * :class:`EvenBranchPoint`, BP, switch: the stability index; bisection;
-* :class:`ParameterValue`, UZ (continue) or EP (end): ``lam - value`` on each monotone piece
-  of the step, solved at the value;
-* :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``.
+* :class:`UserValue`, UZ, continue, and :class:`Bound`, EP, end (both
+  :class:`ParameterValue`): ``lam - value`` on each monotone piece of the step, solved at
+  the value;
+* :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``;
+* :class:`CourseEvents`: the walk's requested events and limits, placed in that order;
+* the closed loop and the repeat by a period, :mod:`elastica_auto.branches.loops`.
 
 The turn kinds (folds and branch points, where the stability index may change) are driven
 on every step as one set, the registry's ``DETECTION``, through :meth:`Event.crosses` and
 :meth:`Event.detect` on the step's :class:`Scan`, in the order of the tuple, which is the
 order of their reconciliation (a fold and a branch point together are one BP, or both where
 they lie apart; the fold rule's check of the index comes last): the fold-pair probe, the
-retries (:class:`Retry`), the symmetric-value and the even branch point are theirs.
+retries (:class:`Retry`), the symmetric-value and the even branch point are theirs. The
+placed kinds then, the registry's ``PLACEMENT``, through :meth:`Event.place` on the step's
+:class:`Placement`, in the order of that tuple: each puts its points in, or offers the point
+where the branch ends (the earliest offered wins; its kind's :meth:`Event.keeps` says which
+points before it stay); their solves, retries and warnings are theirs.
 
 The kinds a run file or the API asks for by name (``events = [...]``) are each a module of
 their own, registered in :mod:`elastica_auto.branches.registry`, as the shipped kinds' objects are:
 ``user_events`` (UZ where an ordinate or free parameter takes a value) and ``extrema`` (XT).
 The stepper (:mod:`elastica_auto.branches.stepper`) drives the shipped kinds through the
-registry's objects and every requested one through :meth:`Event.find` alone.
+registry's two sets and every requested one through :meth:`Event.place` (by default
+:meth:`Event.find`).
 """
 
 from __future__ import annotations
@@ -173,7 +181,11 @@ class Event:
 
     The ``walk`` the methods are given is the stepper's continuation in progress; an event
     reads ``walk.problem``, ``walk.corr`` (the corrector), ``walk.name`` (the continued
-    parameter) and ``walk.branch`` (for warnings and its folds), nothing else.
+    parameter) and ``walk.branch`` (for warnings and its folds); a shipped placed kind also
+    the walk's course and where it stands: ``user_values``, ``stops``, ``watch`` and
+    ``counts`` (whether a point counts toward ``max_points``); ``start``, ``a``,
+    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start). Nothing
+    else.
 
     A **turn kind** (a fold, a branch point: where the stability index may change) is driven
     on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in

@@ -27,21 +27,24 @@ travel):
    UZ value the ends bracket that no solution between them crosses, rejects the step (a
    fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
-5. **accept**: the folds and branch points split the step into monotone pieces, on which user
-   points (UZ) and bounds (EP) are solved; the events the run asks for (``events = [...]``:
-   user events, extrema) are found by their own test functions
-   (:meth:`~elastica_auto.branches.kinds.Event.find`); b is added, ds grows by ``growth``
+5. **accept**: the placed kinds put the step's other points in (user points, UZ, and bounds,
+   EP, solved on the monotone pieces between the folds; the events the run asks for,
+   ``events = [...]``; the limits of ``stop``; the start again, a closed loop; the start
+   translated by a period, where the branch repeats); b is added, ds grows by ``growth``
    after an easy step.
 
 Every kind of special point is an event object (:mod:`elastica_auto.branches.kinds`), the
-shipped ones created in :mod:`elastica_auto.branches.registry`: steps 3 and 4 are the turn
-kinds of ``registry.DETECTION`` (folds, branch points), each on the step's
-:class:`~elastica_auto.branches.kinds.Scan` in that order, which is the order of their
-reconciliation; the fold-pair probe, the retries they ask for and the fold rule's check are
-theirs. The walk is one class made of named parts: the points and their room
-(``_Points``), detection (``_Detection``), the step's points in order (``_Placement``), the
-return to the start (``_Return``), fold translates (``_Translates``), and the loop
-(``Walk``).
+shipped ones created in :mod:`elastica_auto.branches.registry`, which the walk drives in two
+ordered sets and imports none of: steps 3 and 4 are the turn kinds of ``registry.DETECTION``
+(folds, branch points), each on the step's :class:`~elastica_auto.branches.kinds.Scan` in
+that order, which is the order of their reconciliation (the fold-pair probe, the retries
+they ask for and the fold rule's check are theirs); step 5 is the placed kinds of
+``registry.PLACEMENT``, each on the step's :class:`~elastica_auto.branches.kinds.Placement`
+(their solves, retries, warnings and ends are theirs; the walk adds the points in order and
+carries out the end: ``end``, or ``repeat``). The walk is one class made of named parts: the
+points and their room (``_Points``), detection (``_Detection``), the step's points in order
+(``_Placement``), the repeat by a period (``_Return``), fold translates (``_Translates``),
+and the loop (``Walk``).
 """
 
 from __future__ import annotations
