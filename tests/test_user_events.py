@@ -255,6 +255,7 @@ class ToyOrdinateValue(kinds.Event):
         hits = self.find(walk, placement.step)
         if not self.ends:
             placement.points.extend(hits)
+            return
         for hit in hits:
             hit.message = f"toy stop at u_half = {self.value:g}"
             placement.end_at(self, hit)

@@ -25,6 +25,7 @@ own locating method, as the shipped ones do:
   the value;
 * :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``;
 * :class:`CourseEvents`: the walk's requested events and limits, placed in that order;
+* :class:`FoldStop`, LP, end: the branch's n-th fold (``stop = ["LPn"]``);
 * the closed loop and the repeat by a period, :mod:`elastica_auto.branches.loops`.
 
 The turn kinds (folds and branch points, where the stability index may change) are driven
@@ -226,8 +227,9 @@ class Event:
 
     def place(self, walk, placement: Placement) -> None:
         """For a placed kind: put its points in the step into ``placement.points``, or offer
-        the point where the branch ends (:meth:`Placement.end_at`); raise :class:`Retry` to
-        retry the step shorter. The default: the points :meth:`find` finds."""
+        the point where the branch ends (:meth:`Placement.end_at`, its ``message`` saying
+        why: the branch ends there with that point's label); raise :class:`Retry` to retry
+        the step shorter. The default: the points :meth:`find` finds, which go on."""
         placement.points.extend(self.find(walk, placement.step))
 
     def keeps(self, walk, placement: Placement, hit: Hit) -> bool:
@@ -682,7 +684,40 @@ class Bound(ParameterValue):
         hit = self.solve(walk, placement, x, y, s0, s1, value)
         if hit is None:
             hit = Hit(s1, labels.EP, y, placement.step.b.tangent, note="bound not located")
+        hit.message = f"reached {walk.name} = {hit.state.params[walk.name]:g}"
         placement.end_at(self, hit)
+
+
+class FoldStop(Event):
+    """``stop = ["LPn"]``: the branch ends at its n-th fold (``walk.stops.at_fold``), which
+    keeps its label, LP. Placed last, once the other ends are known: of the step's points
+    that stay before the end found so far (all, where there is none), in the order of
+    travel, the fold that makes n with the branch's folds before the step becomes the end
+    (it lies before the other), and the points after it go."""
+
+    label, action = labels.LP, END
+
+    def place(self, walk, placement: Placement) -> None:
+        n = walk.stops.at_fold
+        if n is None:
+            return
+        kept = [e for e in placement.points
+                if placement.end is None or placement.ender.keeps(walk, placement, e)]
+        order = sorted(kept, key=lambda e: e.sigma)
+        before = len(walk.branch.folds)
+        folds = [i for i, e in enumerate(order) if e.kind in labels.FOLDS]
+        k = max(n - before, 1)
+        if len(folds) < k:
+            return
+        i = folds[k - 1]
+        fold = order[i]
+        fold.message = f"stopped at fold {before + k} (stop = LP{before + k})"
+        placement.points = order[:i]
+        placement.end, placement.ender = fold, self
+
+    def keeps(self, walk, placement: Placement, hit: Hit) -> bool:
+        """Every point :meth:`place` left: those before the fold."""
+        return True
 
 
 class CourseEvents(Event):

@@ -156,7 +156,9 @@ class Period(Event):
     parameter as its equations are; a module whose ordinates are not gets a warning, and
     no branch of it repeats: ``walk.period`` becomes None)."""
 
-    label, action = "period", REPEAT
+    # no label of its own: the translate is labelled as the start's point was (UZ where it is
+    # a user value), by the walk's copy of the period
+    label, action = "", REPEAT
 
     def place(self, walk, placement: Placement) -> None:
         if walk.period is None or walk.until is not None or walk.first:

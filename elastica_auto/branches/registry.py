@@ -17,7 +17,7 @@ import importlib
 
 from ..core.errors import PlanError
 from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Fold,
-                    SymmetricBranchPoint, UserValue)
+                    FoldStop, SymmetricBranchPoint, UserValue)
 from .loops import Closure, Period
 
 #: The shipped kinds, one object each, which the stepper drives in two stages: the turn
@@ -34,6 +34,7 @@ BOUND = Bound()
 COURSE_EVENTS = CourseEvents()
 CLOSURE = Closure()
 PERIOD = Period()
+FOLD_STOP = FoldStop()
 
 #: The turn kinds the stepper drives on every step, in the order in which they are located
 #: and reconciled (each reads what those before it left in the step's
@@ -50,11 +51,12 @@ DETECTION = (SYMMETRIC_BRANCH_POINT, BRANCH_POINT, FOLD, EVEN_BRANCH_POINT)
 #: the user values (UZ) on the monotone pieces between the folds the turns found, the bound
 #: (EP) on the first piece that passes one; the course's own events (the kinds the run asks
 #: for, then its limits on ordinates); the start again (a closed loop); the start translated
-#: by whole periods (the branch repeats). The order is that of their solves and warnings;
-#: the earliest end offered wins (the first offered of equals), and the points are added in
-#: the order of travel. Before each step every kind's ``ahead`` may end the branch (the
-#: closure, where the start lies within the next step).
-PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD)
+#: by whole periods (the branch repeats); last, the n-th fold (``stop = ["LPn"]``), among the
+#: points the end found so far leaves. The order is that of their solves and warnings; the
+#: earliest end offered wins (the first offered of equals), and the points are added in the
+#: order of travel. Before each step every kind's ``ahead`` may end the branch (the closure,
+#: where the start lies within the next step).
+PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD, FOLD_STOP)
 
 #: The modules of the kinds an ``events`` entry asks for, tried in this order.
 REQUESTED = (

@@ -426,8 +426,8 @@ class _Placement:
     course's requested events and limits, the return to the start), each asked in that order
     to place its points on the step's :class:`~elastica_auto.branches.kinds.Placement`; a
     kind's ``Retry`` rejects the step. Then the points past the end dropped (as the kind that
-    ended the branch says), the rest added in order, the fold stop applied, and the end
-    carried out (``end``, or ``repeat``: :meth:`_repeat`)."""
+    ended the branch says), the rest added in order, and the end carried out (``end``: the
+    branch ends at it, with its label and message; ``repeat``: :meth:`_repeat`)."""
 
     def _add_events(self, step: Step, found: list[Hit]) -> str:
         """Add the turns' points ``found`` in the step and those the placed kinds put there,
@@ -438,9 +438,9 @@ class _Placement:
         The points never exceed ``max_points``: an event is added while the points that
         count (`counts`) leave room for one more, the EP that ends the branch after it (or
         while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
-        fold stop); where the step has more, the branch ends at the last one added (the
-        user values past those the room can take are not solved for)."""
-        branch, name, stops = self.branch, self.name, self.stops
+        limit, a fold stop); where the step has more, the branch ends at the last one added
+        (the user values past those the room can take are not solved for)."""
+        branch = self.branch
         placement = Placement(step, found, self._room(), self.can_retry)
         try:
             for event in registry.PLACEMENT:    # read here: a kind registered there is placed
@@ -452,32 +452,20 @@ class _Placement:
         if end is not None:
             events = [e for e in events if placement.ender.keeps(self, placement, e)] + [end]
         events.sort(key=lambda e: e.sigma)
-        nfolds = len(branch.folds)
         last = None
         for e in events:
             if e is end and placement.ender.action == REPEAT:
                 return self._repeat(step, e)
-            # room for the event, and for the EP after it unless it ends the branch (a point
+            # room for the point, and for the EP after it unless it ends the branch (a point
             # set aside for the mirror image takes none, but may be the last before that EP)
-            ends = e.kind == labels.EP or (e.kind == labels.LP and stops.at_fold is not None
-                                           and nfolds + 1 >= stops.at_fold)
-            need = (1 if ends else 2) if self.counts(e.kind, e.state.params) else 1
+            need = (1 if e is end else 2) if self.counts(e.kind, e.state.params) else 1
             if self._room() < need:
                 self._end_full(last, e.kind)
                 return "ended"
             last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
                              tangent=e.tangent, fold_residual=e.residual, note=e.note)
-            if e.kind == labels.LP:
-                nfolds += 1
-                if stops.at_fold is not None and nfolds >= stops.at_fold:
-                    cut = step.position(e.sigma)
-                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                    branch.end = labels.LP
-                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
-                    return "ended"
-            if e.kind == labels.EP:
-                branch.end = labels.EP
-                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
+            if e is end:    # the branch ends there, with the label and message of its point
+                branch.end, branch.message = e.kind, e.message
                 return "ended"
         return ""
 
