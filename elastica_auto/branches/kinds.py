@@ -194,7 +194,8 @@ class Event:
     reconciled; the **placed kinds** (the registry's ``PLACEMENT``: user values, bounds,
     the kinds a run asks for, limits, the return to the start) then, in their order, through
     :meth:`place` on the step's :class:`Placement`, by default the points :meth:`find`
-    finds; before a step, :meth:`ahead` may end the branch."""
+    finds; before a step, :meth:`ahead` may end the branch, and before the walk's first,
+    :meth:`begin` reads its course."""
 
     label: str = ""
     action: str = CONTINUE
@@ -224,6 +225,10 @@ class Event:
         before it in ``DETECTION``, into ``scan.found`` (or ``scan.located``); raise
         :class:`Retry` to retry the step shorter. The default: nothing (a kind driven
         through :meth:`find`)."""
+
+    def begin(self, walk, course) -> None:
+        """For a placed kind: read the walk's course before its first step (the default:
+        nothing)."""
 
     def place(self, walk, placement: Placement) -> None:
         """For a placed kind: put its points in the step into ``placement.points``, or offer

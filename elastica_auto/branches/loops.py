@@ -160,6 +160,26 @@ class Period(Event):
     # a user value), by the walk's copy of the period
     label, action = "", REPEAT
 
+    def begin(self, walk, course) -> None:
+        """``walk.period``: the period of the continued parameter if the branch may be
+        completed by translation once it passes its start one period on: a regular start,
+        and nothing that a translate would have to decide afresh. Each UZ value recurs with
+        a period that divides the parameter's (every translate of a user point is one, and
+        no other point becomes one); no fold stop, no limit, no event the run asks for
+        (``watch``: a module's ordinates need not be periodic), not a fold curve. (Nor the
+        refinement of a step: :meth:`place` skips a walk with ``until``.)"""
+        period = walk.problem.parameters[walk.name].period
+        if (period is None or walk.singular_start or course.all_folds or course.stops.limits
+                or course.stops.at_fold is not None or course.watch):
+            return
+        for spec in course.user_values:
+            if spec.period is None:
+                return
+            ratio = period / spec.period
+            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
+                return
+        walk.period = period
+
     def place(self, walk, placement: Placement) -> None:
         if walk.period is None or walk.until is not None or walk.first:
             return

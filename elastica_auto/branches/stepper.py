@@ -698,8 +698,11 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
         # the length of the last step accepted (inf before the first): the retries an event
         # may take are halvings below it (`_walk`)
         self.accepted_ds = math.inf
-        # the period a branch may repeat with (`loops.Period`), None where it may not
-        self.period = self._repeat_period(course, singular_start)
+        # the period a branch may repeat with, None where it may not: set by the kind that
+        # places the repeat (`loops.Period.begin`), as every placed kind reads the course
+        self.period = None
+        for event in registry.PLACEMENT:
+            event.begin(self, course)
 
     def run(self, a: Solution):
         """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
@@ -761,26 +764,6 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
             history.clear()
             retries = below = 0
             ds = ds_next
-
-    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
-        """The period of the continued parameter if the branch may be completed by
-        translation once it passes its start one period on (:meth:`_repeat`): a regular
-        start, and nothing that a translate would have to decide afresh. Each UZ value
-        recurs with a period that divides the parameter's (every translate of a user point
-        is one, and no other point becomes one); no fold stop, no limit, no event the run
-        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
-        nor the refinement of a step."""
-        period = self.problem.parameters[self.name].period
-        if (period is None or singular_start or course.all_folds or course.stops.limits
-                or course.stops.at_fold is not None or course.watch):
-            return None
-        for spec in course.user_values:
-            if spec.period is None:
-                return None
-            ratio = period / spec.period
-            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
-                return None
-        return period
 
     def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
