@@ -83,7 +83,7 @@ def test_the_run_profile_assigns_each_sample_to_its_innermost_part(monkeypatch):
     assert profile_run.part([cli, load, numpy]) == "imports at start-up"
     assert profile_run.part(step) == "the walk's own bookkeeping, progress"
     placed = [("/x/elastica_auto/branches/stepper.py", "_add_events"),
-              ("/x/elastica_auto/branches/stepper.py", "_value_event"), numpy]
+              ("/x/elastica_auto/branches/kinds.py", "place"), numpy]
     assert profile_run.part(step + placed) == "labels (UZ, EP) placed"
     shares, cpu, bare, total = profile_run.profile(str(REPO / "examples" / "bratu.toml"), 1)
     assert total > 0 and "corrector (predictor, Newton, mesh, tangent)" in shares

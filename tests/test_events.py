@@ -107,11 +107,11 @@ def test_a_closed_loop_ends_where_it_started(tmp_path, monkeypatch, direction, w
     goes round once, through its two folds at lam = +-1, and ends (EP) at its own start
     point: not round and round until max_points. Each of the two checks closes it alone:
     the start ahead of the last point within the next step, or passed inside a step."""
-    from elastica_auto.branches.stepper import Walk
+    from elastica_auto.branches.loops import Closure
     if way == "ahead":
-        monkeypatch.setattr(Walk, "_closure_event", lambda self, step: None)
+        monkeypatch.setattr(Closure, "place", lambda self, walk, placement: None)
     elif way == "in a step":
-        monkeypatch.setattr(Walk, "_close_ahead", lambda self, ds: False)
+        monkeypatch.setattr(Closure, "ahead", lambda self, walk, ds: None)
     path = tmp_path / "circle.py"
     path.write_text(CIRCLE)
     problem = ea.load_problem(str(path))

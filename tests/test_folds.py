@@ -128,12 +128,12 @@ def test_folds_repeat_with_period_two_pi(rotating_arm):
 
 def _fast_and_whole(make_plan, tmp_path, monkeypatch):
     """(branches as the engine makes them, the same with every period computed) of the plan
-    ``make_plan()``, in this process (jobs = 1: the patch of the stepper does not reach a
+    ``make_plan()``, in this process (jobs = 1: the patch of the period kind does not reach a
     cluster's workers)."""
-    from elastica_auto.branches import stepper
+    from elastica_auto.branches import loops
     fast = run_plan(make_plan(), tmp_path / "fast").result.branches
     with monkeypatch.context() as m:
-        m.setattr(stepper.Walk, "_repeat_period", lambda self, course, singular: None)
+        m.setattr(loops.Period, "begin", lambda self, walk, course: None)
         full = run_plan(make_plan(), tmp_path / "full").result.branches
     return fast, full
 
@@ -417,14 +417,14 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     compares periods computed apart, so the branches are computed whole here: a branch that
     repeats is otherwise its first period copied (`Walk._repeat`), and a pair its steps
     pass over is then missing from every copy, the probe being what finds it. In this
-    process (jobs = 1): the patches of the stepper do not reach a cluster's workers."""
-    from elastica_auto.branches import kinds, stepper
+    process (jobs = 1): the patches of the kinds and the stepper do not reach a cluster's
+    workers."""
+    from elastica_auto.branches import kinds, loops, stepper
 
     def patch(translates: bool):
         # the fold kind's probe of a dipping slope (`Fold.detect`) never starts
         monkeypatch.setattr(kinds, "pair_suspected", lambda step, dip=0.5: None)
-        monkeypatch.setattr(stepper.Walk, "_repeat_period",
-                            lambda self, course, singular: None)
+        monkeypatch.setattr(loops.Period, "begin", lambda self, walk, course: None)
         if not translates:
             monkeypatch.setattr(stepper.Walk, "_complete_translates", lambda self: None)
 

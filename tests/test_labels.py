@@ -12,21 +12,23 @@ from elastica_auto.core import labels
 
 
 def test_each_kind_is_what_the_event_making_it_does():
-    """A fold is a turn and a fold; every branch point (located, placed at a symmetric value,
-    of even multiplicity) a turn where other branches start; the kinds that neither change
-    the index nor start branches (user values, bounds, user events, extrema) none of these;
-    no event makes a failure (MX comes from the stepper's giving up)."""
+    """A fold (located, or the fold stop's) is a turn and a fold; every branch point
+    (located, placed at a symmetric value, of even multiplicity) a turn where other branches
+    start; the kinds that neither change the index nor start branches (user values, bounds,
+    the closed loop, user events, extrema) none of these; no event makes a failure (MX comes
+    from the stepper's giving up)."""
     assert registry.FOLD.label in labels.FOLDS & labels.TURNS
     assert registry.FOLD.label not in labels.SWITCHES
     shipped = [registry.FOLD, registry.BRANCH_POINT, registry.SYMMETRIC_BRANCH_POINT,
-               registry.EVEN_BRANCH_POINT, registry.USER_VALUE, registry.BOUND]
+               registry.EVEN_BRANCH_POINT, registry.USER_VALUE, registry.BOUND,
+               registry.CLOSURE, registry.FOLD_STOP]
     requested = [user_events.EVENT, extrema.EVENT]
     for event in shipped + requested:
         assert (event.action == kinds.SWITCH) == (event.label in labels.SWITCHES), event
         assert event.label not in labels.FAILED
         if event.action == kinds.SWITCH:
             assert event.label in labels.TURNS and event.label in labels.SINGULAR
-        elif event is not registry.FOLD:
+        elif event not in (registry.FOLD, registry.FOLD_STOP):
             assert event.label not in labels.TURNS | labels.SINGULAR | labels.FOLDS, event
     assert set(labels.MEANING) == set(labels.KINDS)
     assert labels.TURNS <= labels.SINGULAR

@@ -238,11 +238,61 @@ def test_the_stepper_drives_the_turn_kinds_without_their_logic():
     assert stepper_turn_logic(graph()) == []
 
 
+#: What placing the other shipped kinds is made of besides their classes and objects: the
+#: locators of values and limits, the user values' crossings, and the return to the start's
+#: tests (`branches.loops`). The placed kinds use them; the stepper does not.
+PLACED_LOGIC = {
+    "elastica_auto.branches.events": {"locate_value", "locate_limit", "crossings", "along",
+                                      "tangent_between"},
+    "elastica_auto.branches.loops": {"passes", "at_start", "far", "closed"},
+}
+
+
+def stepper_kinds(edges) -> list[str]:
+    """The rule "the stepper imports no concrete kind": its imports of an event class other
+    than the type itself (`branches.kinds.Event`: ``Fold``, ``Bound``, ``Closure``, a
+    requested kind's ``EVENT``), of an event object (the registry's ``FOLD``, ``BOUND``,
+    ``CLOSURE``, ...), of a whole module that defines a kind (``kinds``, ``loops``,
+    ``user_events``), or of what a placed kind is made of (`PLACED_LOGIC`). It drives the
+    kinds through the registry's two sets, ``DETECTION`` and ``PLACEMENT``, and the event
+    interface (``crosses``, ``detect``, ``place``, ``keeps``, ``ahead``, ``action``), so that
+    a new kind, turn or placed, is its class and its place in a set."""
+    import importlib
+
+    from elastica_auto.branches.kinds import Event
+
+    def kind_class(v) -> bool:
+        return isinstance(v, type) and issubclass(v, Event) and v is not Event
+
+    out = []
+    for target, name, line in edges["elastica_auto.branches.stepper"]:
+        module = importlib.import_module(target)
+        if name is None:
+            bad = any(kind_class(v) and v.__module__ == target for v in vars(module).values())
+        else:
+            obj = getattr(module, name, None)
+            bad = (kind_class(obj) or isinstance(obj, Event)
+                   or name in PLACED_LOGIC.get(target, ()))
+        if bad:
+            out.append(f"elastica_auto.branches.stepper:{line} imports {target}"
+                       + (f".{name}" if name else ""))
+    return out
+
+
+def test_the_stepper_imports_no_concrete_kind():
+    assert stepper_kinds(graph()) == []
+
+
 @pytest.mark.parametrize("where, line, check", [
     ("branches/extrema.py", "from .stepper import Course", lambda r: kind_imports(graph(r))),
     ("branches/stepper.py", "from .events import locate_fold",
      lambda r: stepper_turn_logic(graph(r))),
     ("branches/stepper.py", "from .registry import FOLD", lambda r: stepper_turn_logic(graph(r))),
+    ("branches/stepper.py", "from .registry import BOUND", lambda r: stepper_kinds(graph(r))),
+    ("branches/stepper.py", "from .loops import Closure", lambda r: stepper_kinds(graph(r))),
+    ("branches/stepper.py", "from . import user_events", lambda r: stepper_kinds(graph(r))),
+    ("branches/stepper.py", "from .events import locate_value",
+     lambda r: stepper_kinds(graph(r))),
     ("numerics/newton.py", "from ..execution.run import execute", lambda r: upward(graph(r))),
     ("numerics/newton.py", "from .stability import _kernel", lambda r: private(graph(r))),
     ("numerics/collocation.py", "from .newton import newton", lambda r: cycles(graph(r))),

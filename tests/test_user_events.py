@@ -233,3 +233,52 @@ def test_a_turn_kind_registered_from_a_test_module_is_driven_by_the_stepper(monk
                                              rel=1e-7)
     assert lp.ordinates["u_half"] == pytest.approx(2 * math.log(math.cosh(theta / 4)),
                                                    abs=1e-6)
+
+
+class ToyOrdinateValue(kinds.Event):
+    """A placed kind written in a test module: UZ where the ordinate u_half takes ``value``,
+    placed by the default `Event.place` (its `Event.find`: Brent's method along the secant on
+    the test function ``u_half - value``); with ``ends``, EP there instead, the branch ending
+    (`Placement.end_at`: the points past it dropped)."""
+
+    def __init__(self, value, ends=False):
+        self.value, self.ends = value, ends
+        self.label, self.action = (labels.EP, kinds.END) if ends else (labels.UZ, kinds.CONTINUE)
+
+    def test(self, walk, sol):
+        return kinds.quantity(walk.problem, "u_half", sol.state) - self.value
+
+    def note(self, walk, sol, rising):
+        return f"toy u_half = {self.value:g}"
+
+    def place(self, walk, placement):
+        hits = self.find(walk, placement.step)
+        if not self.ends:
+            placement.points.extend(hits)
+            return
+        for hit in hits:
+            hit.message = f"toy stop at u_half = {self.value:g}"
+            placement.end_at(self, hit)
+
+
+def test_a_placed_kind_registered_from_a_test_module_is_driven_by_the_stepper(monkeypatch):
+    """A placed kind is its class and its place in `registry.PLACEMENT`, nothing in the
+    stepper: two toy kinds (above) appended there, a UZ where u(1/2) = 2 (past the fold) and
+    an EP where u(1/2) = 3, on the Bratu branch: each where the closed form puts it (u(1/2)
+    = c at lam = theta^2 / (2 cosh^2(theta/4)), theta = 4 acosh(exp(c/2))), to the points'
+    accuracy (tol = 1e-5: about 1e-7 relative) in lam and the corrector's in u(1/2); the
+    branch ends at the EP, whose message is the toy's."""
+    toys = (ToyOrdinateValue(2.0), ToyOrdinateValue(3.0, ends=True))
+    monkeypatch.setattr(registry, "PLACEMENT", registry.PLACEMENT + toys)
+    problem = ea.load_problem(str(EXAMPLES / "bratu.py"))
+    (br,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), directions="+",
+                            max_points=200)
+    (uz,) = [p for p in br.points if p.type == labels.UZ]
+    end = br.points[-1]
+    assert uz.note == "toy u_half = 2" and end.type == labels.EP
+    assert br.end == labels.EP and br.message == "toy stop at u_half = 3"
+    for p, c in ((uz, 2.0), (end, 3.0)):
+        assert p.ordinates["u_half"] == pytest.approx(c, abs=1e-9)
+        assert p.params["lam"] == pytest.approx(bratu_lam(c), rel=1e-6)
+    (lp,) = [p for p in br.points if p.type == labels.LP]
+    assert lp.arclength < uz.arclength < end.arclength

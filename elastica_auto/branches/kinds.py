@@ -20,22 +20,31 @@ own locating method, as the shipped ones do:
 * :class:`SymmetricBranchPoint`, BP, switch: the same sign change, placed at the module's
   symmetric value of the parameter inside the step where it has one;
 * :class:`EvenBranchPoint`, BP, switch: the stability index; bisection;
-* :class:`ParameterValue`, UZ (continue) or EP (end): ``lam - value`` on each monotone piece
-  of the step, solved at the value;
-* :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``.
+* :class:`UserValue`, UZ, continue, and :class:`Bound`, EP, end (both
+  :class:`ParameterValue`): ``lam - value`` on each monotone piece of the step, solved at
+  the value;
+* :class:`Limit`, EP, end: ``sign (quantity - value)``, upward crossings only; ``along``;
+* :class:`CourseEvents`: the walk's requested events and limits, placed in that order;
+* :class:`FoldStop`, LP, end: the branch's n-th fold (``stop = ["LPn"]``);
+* the closed loop and the repeat by a period, :mod:`elastica_auto.branches.loops`.
 
 The turn kinds (folds and branch points, where the stability index may change) are driven
 on every step as one set, the registry's ``DETECTION``, through :meth:`Event.crosses` and
 :meth:`Event.detect` on the step's :class:`Scan`, in the order of the tuple, which is the
 order of their reconciliation (a fold and a branch point together are one BP, or both where
 they lie apart; the fold rule's check of the index comes last): the fold-pair probe, the
-retries (:class:`Retry`), the symmetric-value and the even branch point are theirs.
+retries (:class:`Retry`), the symmetric-value and the even branch point are theirs. The
+placed kinds then, the registry's ``PLACEMENT``, through :meth:`Event.place` on the step's
+:class:`Placement`, in the order of that tuple: each puts its points in, or offers the point
+where the branch ends (the earliest offered wins; its kind's :meth:`Event.keeps` says which
+points before it stay); their solves, retries and warnings are theirs.
 
 The kinds a run file or the API asks for by name (``events = [...]``) are each a module of
 their own, registered in :mod:`elastica_auto.branches.registry`, as the shipped kinds' objects are:
 ``user_events`` (UZ where an ordinate or free parameter takes a value) and ``extrema`` (XT).
 The stepper (:mod:`elastica_auto.branches.stepper`) drives the shipped kinds through the
-registry's objects and every requested one through :meth:`Event.find` alone.
+registry's two sets and every requested one through :meth:`Event.place` (by default
+:meth:`Event.find`).
 """
 
 from __future__ import annotations
@@ -46,14 +55,16 @@ from dataclasses import dataclass, field
 from ..core import labels
 from ..core.solution import State, Tangent, inner
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
-from .events import (Located, Placed, Step, along, locate_branch_point, locate_fold,
-                     locate_index_change, locate_value, pair_suspected, parameter_turns,
-                     place_symmetric_branch_point, tangent_between)
+from .events import (Located, Placed, Step, along, crossings, locate_branch_point,
+                     locate_fold, locate_index_change, locate_limit, locate_value,
+                     pair_suspected, parameter_turns, place_symmetric_branch_point,
+                     tangent_between)
 from ..numerics.stability import count, index_change, kernel_dimension
 
 #: What a point does to its branch: the walk goes on past it; the branch ends there; the
-#: walk goes on, and other branches may start there (``switch``).
-CONTINUE, END, SWITCH = "continue", "end", "switch"
+#: walk goes on, and other branches may start there (``switch``); the branch is its first
+#: period translated from there on (``repeat``: the walk copies that period and resumes).
+CONTINUE, END, SWITCH, REPEAT = "continue", "end", "switch", "repeat"
 #: A fold and a branch point located in one step are one point (a pitchfork met along its
 #: bifurcating branch) where their secant coordinates differ by at most this fraction of
 #: the step: both are located to rounding there.
@@ -89,6 +100,7 @@ class Hit:
     residual: float = float("nan")
     note: str = ""
     message: str = ""
+    direct: int | None = None
 
 
 @dataclass
@@ -123,6 +135,46 @@ class Scan:
     found: list[Hit] = field(default_factory=list)
 
 
+@dataclass
+class Placement:
+    """One step's points in the order of travel, in progress, after its turns: what the
+    placed kinds (the registry's ``PLACEMENT``) read and write, each in turn.
+
+    ``step``; ``turns``: the turn kinds' points (:attr:`Scan.found`); ``room``: the points
+    the walk may still add (``max_points`` less those that count); ``can_retry``: whether the
+    step may still be rejected for an event. Filled in: ``points`` (the points found, the
+    turns' first) and ``end``, the point where the branch ends in the step (or repeats),
+    the earliest any kind offered (:meth:`end_at`), with ``ender``, the kind that offered
+    it, which decides which points found before it stay (:meth:`Event.keeps`)."""
+
+    step: Step
+    turns: list[Hit]
+    room: int
+    can_retry: bool
+    points: list[Hit] = field(default_factory=list)
+    end: Hit | None = None
+    ender: Event | None = None
+
+    def __post_init__(self):
+        self.points = list(self.turns)
+
+    def pieces(self) -> list[tuple[float, State, float, State]]:
+        """The step split at its located folds into pieces (s0, x, s1, y) along which the
+        continued parameter is monotone (secant coordinates s0 < s1 of the knots x, y)."""
+        step = self.step
+        inside = sorted((e for e in self.turns if e.kind == labels.LP and not e.note
+                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
+        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
+                 + [(step.dist, step.b.state)])
+        return [(s0, x, s1, y) for (s0, x), (s1, y) in zip(knots, knots[1:])]
+
+    def end_at(self, event: Event, hit: Hit | None):
+        """``hit`` ends the branch where it comes before the end found so far (the first
+        offered of equals)."""
+        if hit is not None and (self.end is None or hit.sigma < self.end.sigma):
+            self.end, self.ender = hit, event
+
+
 class Event:
     """One kind of special point: ``label`` (`elastica_auto.core.labels`), ``action``
     (CONTINUE, END or SWITCH), the test function :meth:`test`, and :meth:`find`, which
@@ -130,12 +182,20 @@ class Event:
 
     The ``walk`` the methods are given is the stepper's continuation in progress; an event
     reads ``walk.problem``, ``walk.corr`` (the corrector), ``walk.name`` (the continued
-    parameter) and ``walk.branch`` (for warnings and its folds), nothing else.
+    parameter) and ``walk.branch`` (for warnings and its folds); a shipped placed kind also
+    the walk's course and where it stands: ``user_values``, ``stops``, ``watch`` and
+    ``counts`` (whether a point counts toward ``max_points``); ``start``, ``a``,
+    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start). Nothing
+    else.
 
     A **turn kind** (a fold, a branch point: where the stability index may change) is driven
     on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in
     the order of the registry's ``DETECTION``, which is also the order in which they are
-    reconciled; the other kinds through :meth:`find`."""
+    reconciled; the **placed kinds** (the registry's ``PLACEMENT``: user values, bounds,
+    the kinds a run asks for, limits, the return to the start) then, in their order, through
+    :meth:`place` on the step's :class:`Placement`, by default the points :meth:`find`
+    finds; before a step, :meth:`ahead` may end the branch, and before the walk's first,
+    :meth:`begin` reads its course."""
 
     label: str = ""
     action: str = CONTINUE
@@ -165,6 +225,27 @@ class Event:
         before it in ``DETECTION``, into ``scan.found`` (or ``scan.located``); raise
         :class:`Retry` to retry the step shorter. The default: nothing (a kind driven
         through :meth:`find`)."""
+
+    def begin(self, walk, course) -> None:
+        """For a placed kind: read the walk's course before its first step (the default:
+        nothing)."""
+
+    def place(self, walk, placement: Placement) -> None:
+        """For a placed kind: put its points in the step into ``placement.points``, or offer
+        the point where the branch ends (:meth:`Placement.end_at`, its ``message`` saying
+        why: the branch ends there with that point's label); raise :class:`Retry` to retry
+        the step shorter. The default: the points :meth:`find` finds, which go on."""
+        placement.points.extend(self.find(walk, placement.step))
+
+    def keeps(self, walk, placement: Placement, hit: Hit) -> bool:
+        """For the kind whose point ends the branch in the step (``placement.ender``):
+        whether a point found in the step stays, the default: those before the end."""
+        return hit.sigma < placement.end.sigma
+
+    def ahead(self, walk, ds: float) -> Hit | None:
+        """Before a step of length ``ds``: the point at which the branch ends without taking
+        it (``sigma``: its distance from the last point accepted), or None (the default)."""
+        return None
 
     def find(self, walk, step: Step) -> list[Hit]:
         """The points of this kind in the step: where the test function changes sign
@@ -515,15 +596,14 @@ class EvenBranchPoint(Event):
 
 
 class ParameterValue(Event):
-    """UZ at a value of the continued parameter (``uz``), or EP at a bound (``bounds``).
-    Test function ``lam - value``; the step is split at its folds into monotone pieces and
-    each value is solved exactly on the piece whose ends bracket it
+    """A value of the continued parameter: test function ``lam - value``; the step is split
+    at its folds into monotone pieces (:meth:`Placement.pieces`) and each value is solved
+    exactly on the piece whose ends bracket it
     (:func:`~elastica_auto.branches.events.locate_value`), so that a value crossed on both
-    sides of a fold within one step is labelled on both."""
+    sides of a fold within one step is labelled on both. The pieces looked at are those the
+    branch travels: up to the first that passes a bound (:meth:`travelled`)."""
 
-    def __init__(self, label: str):
-        self.label = label
-        self.action = END if label == labels.EP else CONTINUE
+    what = ""
 
     def test(self, walk, sol: Solution) -> float:
         return sol.lam
@@ -534,6 +614,125 @@ class ParameterValue(Event):
         CorrectorFailure where it is not found there."""
         state, sigma = locate_value(walk.corr, step, x, y, s0, s1, value)
         return Hit(sigma, self.label, state, tangent_between(step, sigma))
+
+    def solve(self, walk, placement: Placement, x: State, y: State, s0: float, s1: float,
+              value: float) -> Hit | None:
+        """The point at ``value`` between the knots x and y. Where it is not found there
+        although the knots' values bracket it, the branch does not pass from x to y through
+        the solutions between them (a step that jumped to another branch, hostile M9): the
+        step is retried (spending a retry, as for an event that cannot be located), then
+        accepted with a warning and no point."""
+        step = placement.step
+        try:
+            return self.locate(walk, step, x, y, s0, s1, value)
+        except CorrectorFailure as exc:
+            what = f"{self.what} {walk.name} = {value:.6g} not located"
+            if placement.can_retry:
+                raise Retry(f"{what} ({exc})", step.ds / 2, spends=True) from None
+            walk.branch.warnings.append(f"{what}: {exc}")
+            return None
+
+    @staticmethod
+    def bound(walk, lx: float, ly: float) -> float | None:
+        """The bound (``stops.lower``, ``upper``) passed from ``lx`` to ``ly``, or None."""
+        stops = walk.stops
+        return stops.upper if lx <= stops.upper < ly else \
+            stops.lower if ly < stops.lower <= lx else None
+
+    def travelled(self, walk, placement: Placement) -> list[tuple[float, State, float, State]]:
+        """The step's monotone pieces the branch travels: up to the first that passes a
+        bound, where it ends."""
+        pieces = placement.pieces()
+        for i, (_, x, _, y) in enumerate(pieces):
+            if self.bound(walk, x.params[walk.name], y.params[walk.name]) is not None:
+                return pieces[:i + 1]
+        return pieces
+
+
+class UserValue(ParameterValue):
+    """UZ at the values of the continued parameter the run asks for (``uz``: the walk's
+    ``user_values``, each with its period), in the order of travel; past the first ``room``
+    points that count (`Walk.counts`) of a spec's values, none could be added, and none is
+    solved for."""
+
+    label, action, what = labels.UZ, CONTINUE, "user point"
+
+    def place(self, walk, placement: Placement) -> None:
+        specs = walk.user_values
+        if not specs:
+            return
+        solved = [0] * len(specs)
+        for s0, x, s1, y in self.travelled(walk, placement):
+            lx, ly = x.params[walk.name], y.params[walk.name]
+            for k, spec in enumerate(specs):
+                for c in crossings(lx, ly, spec):
+                    if solved[k] >= placement.room:
+                        break
+                    hit = self.solve(walk, placement, x, y, s0, s1, c)
+                    if hit is not None:
+                        placement.points.append(hit)
+                        solved[k] += walk.counts(labels.UZ, hit.state.params)
+
+
+class Bound(ParameterValue):
+    """EP where the continued parameter reaches a bound (``bounds``: the walk's ``stops``),
+    on the first monotone piece of the step that passes one: the branch ends there (a bound
+    that cannot be located, at the piece's end, noted so)."""
+
+    label, action, what = labels.EP, END, "bound"
+
+    def place(self, walk, placement: Placement) -> None:
+        s0, x, s1, y = self.travelled(walk, placement)[-1]
+        value = self.bound(walk, x.params[walk.name], y.params[walk.name])
+        if value is None:
+            return
+        hit = self.solve(walk, placement, x, y, s0, s1, value)
+        if hit is None:
+            hit = Hit(s1, labels.EP, y, placement.step.b.tangent, note="bound not located")
+        hit.message = f"reached {walk.name} = {hit.state.params[walk.name]:g}"
+        placement.end_at(self, hit)
+
+
+class FoldStop(Event):
+    """``stop = ["LPn"]``: the branch ends at its n-th fold (``walk.stops.at_fold``), which
+    keeps its label, LP. Placed last, once the other ends are known: of the step's points
+    that stay before the end found so far (all, where there is none), in the order of
+    travel, the fold that makes n with the branch's folds before the step becomes the end
+    (it lies before the other), and the points after it go."""
+
+    label, action = labels.LP, END
+
+    def place(self, walk, placement: Placement) -> None:
+        n = walk.stops.at_fold
+        if n is None:
+            return
+        kept = [e for e in placement.points
+                if placement.end is None or placement.ender.keeps(walk, placement, e)]
+        order = sorted(kept, key=lambda e: e.sigma)
+        before = len(walk.branch.folds)
+        folds = [i for i, e in enumerate(order) if e.kind in labels.FOLDS]
+        k = max(n - before, 1)
+        if len(folds) < k:
+            return
+        i = folds[k - 1]
+        fold = order[i]
+        fold.message = f"stopped at fold {before + k} (stop = LP{before + k})"
+        placement.points = order[:i]
+        placement.end, placement.ender = fold, self
+
+    def keeps(self, walk, placement: Placement, hit: Hit) -> bool:
+        """Every point :meth:`place` left: those before the fold."""
+        return True
+
+
+class CourseEvents(Event):
+    """The events of the walk's own course, in this order: the kinds the run asks for
+    (``events = [...]``, the walk's ``watch``: each places its points, by default
+    :meth:`Event.find`) and its limits on ordinates (``stop``, :class:`Limit`)."""
+
+    def place(self, walk, placement: Placement) -> None:
+        for event in (*walk.watch, *walk.stops.limits):
+            event.place(walk, placement)
 
 
 @dataclass(frozen=True)
@@ -562,4 +761,21 @@ class Limit(Event):
     def passed(self, problem, step: Step) -> bool:
         """Whether the step passes the limit (excess < 0 at a, >= 0 at b)."""
         return self.excess(problem, step.a.state) < 0 <= self.excess(problem, step.b.state)
+
+    def place(self, walk, placement: Placement) -> None:
+        """Where the step passes the limit: the branch ends there, located by ``along``
+        (not located: at the step's end, with a warning)."""
+        step = placement.step
+        if not self.passed(walk.problem, step):
+            return
+        try:
+            at = locate_limit(walk.corr, walk.problem, step, self)
+        except CorrectorFailure as exc:
+            walk.branch.warnings.append(f"stop {self} not located: {exc}")
+            at = None
+        sigma = step.dist if at is None else at.sigma
+        state = step.b.state if at is None else at.solution.state
+        value = self.value + self.sign * (0.0 if at is None else at.value)
+        placement.end_at(self, Hit(sigma, self.label, state, tangent_between(step, sigma),
+                                   message=f"reached {self.name} = {value:.6g} (stop {self})"))
 

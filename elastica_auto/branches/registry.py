@@ -6,8 +6,9 @@ A new kind is one module of this package defining an
 with a ``parse(problem, parameter, text)`` class method that returns its event for an entry
 it reads (else None), the class as ``EVENT`` and the entry's form as ``FORM``; and one line
 in :data:`REQUESTED` naming the module. The stepper drives every requested event through
-its ``find`` (`elastica_auto.branches.stepper`); docs/design.md ("Events") shows the two
-requested kinds as the example.
+its ``place`` (by default its ``find``: `elastica_auto.branches.stepper`); docs/design.md
+("Events") shows the two requested kinds as the example. A shipped kind placed on every
+step is an object here and its place in :data:`PLACEMENT`.
 """
 
 from __future__ import annotations
@@ -15,20 +16,25 @@ from __future__ import annotations
 import importlib
 
 from ..core.errors import PlanError
-from ..core import labels
-from .kinds import (BranchPoint, EvenBranchPoint, Event, Fold, ParameterValue,
-                    SymmetricBranchPoint)
+from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Fold,
+                    FoldStop, SymmetricBranchPoint, UserValue)
+from .loops import Closure, Period
 
-#: The shipped kinds, one object each, which the stepper drives in their roles: the turn
-#: kinds (folds and branch points) through :data:`DETECTION`; user values (``uz``) and
-#: bounds solved on the monotone pieces between folds. (A ``stop`` entry on an ordinate is
-#: a :class:`~elastica_auto.branches.kinds.Limit` the plan makes.)
+#: The shipped kinds, one object each, which the stepper drives in two stages: the turn
+#: kinds (folds and branch points) through :data:`DETECTION`, then the placed kinds through
+#: :data:`PLACEMENT`. (A ``stop`` entry on an ordinate is a
+#: :class:`~elastica_auto.branches.kinds.Limit` the plan makes, and an ``events`` entry a
+#: requested kind's event: the walk's course holds them, :data:`COURSE_EVENTS` places them.)
 FOLD = Fold()
 BRANCH_POINT = BranchPoint()
 SYMMETRIC_BRANCH_POINT = SymmetricBranchPoint()
 EVEN_BRANCH_POINT = EvenBranchPoint()
-USER_VALUE = ParameterValue(labels.UZ)
-BOUND = ParameterValue(labels.EP)
+USER_VALUE = UserValue()
+BOUND = Bound()
+COURSE_EVENTS = CourseEvents()
+CLOSURE = Closure()
+PERIOD = Period()
+FOLD_STOP = FoldStop()
 
 #: The turn kinds the stepper drives on every step, in the order in which they are located
 #: and reconciled (each reads what those before it left in the step's
@@ -39,6 +45,19 @@ BOUND = ParameterValue(labels.EP)
 #: the fold rule's check of the index at the step's end, with the branch point of even
 #: multiplicity where the index changed by an even number and nothing was found.
 DETECTION = (SYMMETRIC_BRANCH_POINT, BRANCH_POINT, FOLD, EVEN_BRANCH_POINT)
+
+#: The placed kinds the stepper drives on every step after the turns, each through its
+#: ``place`` on the step's :class:`~elastica_auto.branches.kinds.Placement`, in this order:
+#: the user values (UZ) on the monotone pieces between the folds the turns found, the bound
+#: (EP) on the first piece that passes one; the course's own events (the kinds the run asks
+#: for, then its limits on ordinates); the start again (a closed loop); the start translated
+#: by whole periods (the branch repeats); last, the n-th fold (``stop = ["LPn"]``), among the
+#: points the end found so far leaves. The order is that of their solves and warnings; the
+#: earliest end offered wins (the first offered of equals), and the points are added in the
+#: order of travel. Before each step every kind's ``ahead`` may end the branch (the closure,
+#: where the start lies within the next step); before the walk's first, every kind's
+#: ``begin`` reads its course (the period: whether the branch may repeat).
+PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD, FOLD_STOP)
 
 #: The modules of the kinds an ``events`` entry asks for, tried in this order.
 REQUESTED = (

@@ -27,21 +27,24 @@ travel):
    UZ value the ends bracket that no solution between them crosses, rejects the step (a
    fold pair or a jump to another branch), down to 1/64 of the last step accepted and then
    with a warning;
-5. **accept**: the folds and branch points split the step into monotone pieces, on which user
-   points (UZ) and bounds (EP) are solved; the events the run asks for (``events = [...]``:
-   user events, extrema) are found by their own test functions
-   (:meth:`~elastica_auto.branches.kinds.Event.find`); b is added, ds grows by ``growth``
+5. **accept**: the placed kinds put the step's other points in (user points, UZ, and bounds,
+   EP, solved on the monotone pieces between the folds; the events the run asks for,
+   ``events = [...]``; the limits of ``stop``; the start again, a closed loop; the start
+   translated by a period, where the branch repeats); b is added, ds grows by ``growth``
    after an easy step.
 
 Every kind of special point is an event object (:mod:`elastica_auto.branches.kinds`), the
-shipped ones created in :mod:`elastica_auto.branches.registry`: steps 3 and 4 are the turn
-kinds of ``registry.DETECTION`` (folds, branch points), each on the step's
-:class:`~elastica_auto.branches.kinds.Scan` in that order, which is the order of their
-reconciliation; the fold-pair probe, the retries they ask for and the fold rule's check are
-theirs. The walk is one class made of named parts: the points and their room
-(``_Points``), detection (``_Detection``), the step's points in order (``_Placement``), the
-return to the start (``_Return``), fold translates (``_Translates``), and the loop
-(``Walk``).
+shipped ones created in :mod:`elastica_auto.branches.registry`, which the walk drives in two
+ordered sets and imports none of: steps 3 and 4 are the turn kinds of ``registry.DETECTION``
+(folds, branch points), each on the step's :class:`~elastica_auto.branches.kinds.Scan` in
+that order, which is the order of their reconciliation (the fold-pair probe, the retries
+they ask for and the fold rule's check are theirs); step 5 is the placed kinds of
+``registry.PLACEMENT``, each on the step's :class:`~elastica_auto.branches.kinds.Placement`
+(their solves, retries, warnings and ends are theirs; the walk adds the points in order and
+carries out the end: ``end``, or ``repeat``). The walk is one class made of named parts: the
+points and their room (``_Points``), detection (``_Detection``), the step's points in order
+(``_Placement``), the repeat by a period (``_Return``), fold translates (``_Translates``),
+and the loop (``Walk``).
 """
 
 from __future__ import annotations
@@ -55,10 +58,10 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
-from .events import Step, UserValues, crossings, is_user_value, locate_limit, tangent_between
-from .kinds import Event, Hit, Limit, Retry, Scan
+from .events import Step, UserValues, is_user_value
+from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
+from .loops import turned, turned_tangent
 from . import registry
-from .registry import BOUND, USER_VALUE
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.options import ContinuationOptions
@@ -66,8 +69,9 @@ from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
 from ..numerics.stability import Count, count
 
-#: A step whose fold rule, fold or branch point or UZ value location fails is retried down to
-#: 1 / 2**RETRY_HALVINGS of the last step accepted (or of its own first length, if shorter).
+#: A step whose fold rule, fold or branch point or UZ value location (an event that cannot be
+#: located) fails is retried down to 1 / 2**RETRY_HALVINGS of the last step accepted (or of
+#: its own first length, if shorter).
 RETRY_HALVINGS = 6
 #: A fold's translate is looked for where the branch passes it with ordinates within
 #: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
@@ -80,14 +84,6 @@ EASY_CONTRACTION = 0.3
 STATIONARY = 1e-6
 #: A probe's rise of the parameter below this (relative) is the corrector's noise, not a side.
 RISE_NOISE = 1e-10
-#: A branch is back at its start point (a closed loop) where the start lies within the next
-#: step along the tangent (within this fraction of its distance along the tangent from that
-#: line), or inside the step just taken along its secant (within this fraction of the step's
-#: length of the chord): the chord of an arc that turns by at most ``max_angle`` (0.35 rad by
-#: default) stays within about ``max_angle / 8`` of its length of the arc.
-CLOSED_LOOP = 0.2
-#: ... and the secant points the way the branch left its start: their cosine is at least this.
-CLOSED_LOOP_COS = 0.5
 #: A step longer than LONG_STEP times the last one accepted (one grown by ``growth`` > 1.5)
 #: has not been shown to stay on the branch at that length: a
 #: branch that lies near the tangent's line farther on (the rotating arm's translates by a
@@ -96,22 +92,17 @@ CLOSED_LOOP_COS = 0.5
 #: M9: ds grown by 100 from 0.16 to 7.8). Its arc is checked (`Walk._arc_checked`). With
 #: growth <= 1.5 (the default 1.4) no step is: the check costs one solve where it is made.
 LONG_STEP = 1.5
-#: The kind of the event where a branch passes its start translated by whole periods of the
-#: parameter (`Walk._period_event`), and the largest gap (in norm, relative) between the
-#: branch's solution there and the translate.
-PERIOD = "period"
-REPEAT_GAP = 1e-4
 
 
 @dataclass(frozen=True)
 class Stops:
     """Where a branch ends: bounds on the continued parameter, the n-th fold (or None), and
-    limits on ordinates or free parameters."""
+    limits on ordinates or free parameters (`elastica_auto.branches.kinds.Limit`)."""
 
     lower: float = -math.inf
     upper: float = math.inf
     at_fold: int | None = None
-    limits: tuple[Limit, ...] = ()
+    limits: tuple[Event, ...] = ()
 
 
 class _Reject(Retry):
@@ -321,26 +312,12 @@ def start_point(branch: Branch, origin: Origin) -> Point:
                  state=state, tangent=origin.tangent)
 
 
-def _turned(problem, name: str, state: State, k: int, value: float) -> State:
-    """``state`` moved by ``k`` periods of parameter ``name`` to its ``value``."""
-    return State(state.s, periods_applied(problem, name, state.y, k),
-                 periods_applied(problem, name, state.yp, k, True), {**state.params,
-                                                                     name: value})
-
-
-def _turned_tangent(problem, name: str, t: Tangent | None, k: int) -> Tangent | None:
-    """The tangent ``t`` at a solution, at that solution moved by ``k`` periods."""
-    if t is None:
-        return None
-    return Tangent(t.s, periods_applied(problem, name, t.y, k, True),
-                   periods_applied(problem, name, t.yp, k, True), t.lam)
-
-
 class _Points:
     """The branch's points and the room for them: adding a point, ending the branch at the last
     one accepted, and ``max_points`` (the points that count toward it, a UZ point set aside for
-    a mirror image does not). Reads ``branch``, ``problem``, ``corr``, ``opt``, ``a``,
-    ``base_point``, ``arclength``, ``all_folds``, ``counted_values``."""
+    a mirror image does not: :meth:`counts`, which the placed kinds ask too). Reads ``branch``,
+    ``problem``, ``corr``, ``opt``, ``a``, ``base_point``, ``arclength``, ``all_folds``,
+    ``counted_values``."""
 
     def _add(self, state: State, **fields) -> Point:
         if self.all_folds and not math.isfinite(fields.get("fold_residual", math.nan)):
@@ -359,7 +336,7 @@ class _Points:
             branch.relabel(self.base_point, kind, a.state, a.tangent)
         branch.end, branch.message = kind, message
 
-    def _counts(self, kind: str, params: dict) -> bool:
+    def counts(self, kind: str, params: dict) -> bool:
         """Whether a point of this ``kind`` at parameters ``params`` counts toward
         ``max_points``: all but UZ points at values set aside for the branch's mirror image
         (not among ``counted_values``)."""
@@ -376,7 +353,7 @@ class _Points:
         n, aside, last = self._aside
         if n > len(pts) or (n and pts[n - 1] is not last):
             n, aside = 0, 0
-        aside += sum(1 for p in pts[n:] if not self._counts(p.type, p.params))
+        aside += sum(1 for p in pts[n:] if not self.counts(p.type, p.params))
         self._aside = (len(pts), aside, pts[-1] if pts else None)
         return self.opt.max_points - len(pts) + aside
 
@@ -444,248 +421,72 @@ class _Detection:
 
 
 class _Placement:
-    """The step's points in the order of travel: its folds and branch points, its user points
-    (UZ) and the bound (EP) solved on the monotone pieces between folds, the limits of
-    ``stop``, and the events the run asks for (``Course.watch``, each by its own ``find``);
-    the points past an end dropped, the fold stop applied."""
+    """The step's points in the order of travel, after its turns: the placed kinds of the
+    registry (`elastica_auto.branches.registry.PLACEMENT`: user values, the bound, the
+    course's requested events and limits, the return to the start), each asked in that order
+    to place its points on the step's :class:`~elastica_auto.branches.kinds.Placement`; a
+    kind's ``Retry`` rejects the step. Then the points past the end dropped (as the kind that
+    ended the branch says), the rest added in order, and the end carried out (``end``: the
+    branch ends at it, with its label and message; ``repeat``: :meth:`_repeat`)."""
 
     def _add_events(self, step: Step, found: list[Hit]) -> str:
-        """Add the LP/BP events ``found`` in the step, its UZ and bound EP points, and the
-        points of the events the run asks for (``Course.watch``), in order;
-        return "ended" if the branch ends in this step, "moved" if it came back to its start
-        one period on and the walk moved past the translates of that period (:meth:`_repeat`),
-        else "". Folds split the step: a value is solved between the two knots that bracket
-        it, so it cannot converge to the other side.
+        """Add the turns' points ``found`` in the step and those the placed kinds put there,
+        in order; return "ended" if the branch ends in this step, "moved" if it came back to
+        its start one period on and the walk moved past the translates of that period
+        (:meth:`_repeat`), else "".
 
         The points never exceed ``max_points``: an event is added while the points that
-        count (`_counts`) leave room for one more, the EP that ends the branch after it (or
+        count (`counts`) leave room for one more, the EP that ends the branch after it (or
         while they reach ``max_points`` with it, where it ends the branch itself: a bound, a
-        fold stop); where the step has more, the branch ends at the last one added, and the
-        UZ values past those the room can take are not solved for."""
-        branch, name, stops = self.branch, self.name, self.stops
-        inside = sorted((e for e in found if e.kind == labels.LP and not e.note
-                         and 0.0 < e.sigma < step.dist), key=lambda e: e.sigma)
-        knots = ([(0.0, step.a.state)] + [(e.sigma, e.state) for e in inside]
-                 + [(step.dist, step.b.state)])
-        events = list(found)
-        bound_hit = None
-        room = self._room()
-        # each spec's values come in the order of travel: past the first ``room`` that count,
-        # none could be added
-        solved = [0] * len(self.user_values)
-        for (s0, x), (s1, y) in zip(knots, knots[1:]):
-            lx, ly = x.params[name], y.params[name]
-            for k, spec in enumerate(self.user_values):
-                for c in crossings(lx, ly, spec):
-                    if solved[k] >= room:
-                        break
-                    ev = self._value_event(step, x, y, s0, s1, c, USER_VALUE)
-                    if ev is not None:
-                        events.append(ev)
-                        solved[k] += self._counts(labels.UZ, ev.state.params)
-            bound = stops.upper if lx <= stops.upper < ly else \
-                stops.lower if ly < stops.lower <= lx else None
-            if bound is not None:
-                bound_hit = self._value_event(step, x, y, s0, s1, bound, BOUND)
-                if bound_hit is None:
-                    bound_hit = Hit(s1, labels.EP, y, step.b.tangent, note="bound not located")
-                break
-        for event in self.watch:
-            events.extend(event.find(self, step))
-        for hit in (self._limit_event(step), self._closure_event(step),
-                    self._period_event(step)):
-            if hit is not None and (bound_hit is None or hit.sigma < bound_hit.sigma):
-                bound_hit = hit
-        if bound_hit is not None:
-            events = [e for e in events if e.sigma < bound_hit.sigma
-                      and not self._at_start(step, e, bound_hit)] + [bound_hit]
+        limit, a fold stop); where the step has more, the branch ends at the last one added
+        (the user values past those the room can take are not solved for)."""
+        branch = self.branch
+        placement = Placement(step, found, self._room(), self.can_retry)
+        try:
+            for event in registry.PLACEMENT:    # read here: a kind registered there is placed
+                event.place(self, placement)
+        except Retry as rej:
+            self.event_retries += rej.spends
+            raise
+        events, end = placement.points, placement.end
+        if end is not None:
+            events = [e for e in events if placement.ender.keeps(self, placement, e)] + [end]
         events.sort(key=lambda e: e.sigma)
-        nfolds = len(branch.folds)
         last = None
         for e in events:
-            if e.kind == PERIOD:
+            if e is end and placement.ender.action == REPEAT:
                 return self._repeat(step, e)
-            # room for the event, and for the EP after it unless it ends the branch (a point
+            # room for the point, and for the EP after it unless it ends the branch (a point
             # set aside for the mirror image takes none, but may be the last before that EP)
-            ends = e.kind == labels.EP or (e.kind == labels.LP and stops.at_fold is not None
-                                           and nfolds + 1 >= stops.at_fold)
-            need = (1 if ends else 2) if self._counts(e.kind, e.state.params) else 1
+            need = (1 if e is end else 2) if self.counts(e.kind, e.state.params) else 1
             if self._room() < need:
                 self._end_full(last, e.kind)
                 return "ended"
             last = self._add(e.state, type=e.kind, arclength=step.position(e.sigma),
                              tangent=e.tangent, fold_residual=e.residual, note=e.note)
-            if e.kind == labels.LP:
-                nfolds += 1
-                if stops.at_fold is not None and nfolds >= stops.at_fold:
-                    cut = step.position(e.sigma)
-                    branch.points[:] = [p for p in branch.points if p.arclength <= cut]
-                    branch.end = labels.LP
-                    branch.message = f"stopped at fold {nfolds} (stop = LP{nfolds})"
-                    return "ended"
-            if e.kind == labels.EP:
-                branch.end = labels.EP
-                branch.message = e.message or f"reached {name} = {e.state.params[name]:g}"
+            if e is end:    # the branch ends there, with the label and message of its point
+                branch.end, branch.message = e.kind, e.message
                 return "ended"
         return ""
 
-    def _limit_event(self, step: Step) -> Hit | None:
-        """The first limit (``stop = ["u_max > 5"]``) passed in the step, located, as an EP
-        event (None if none is passed)."""
-        first = None
-        for limit in self.stops.limits:
-            if not limit.passed(self.problem, step):
-                continue
-            try:
-                at = locate_limit(self.corr, self.problem, step, limit)
-            except CorrectorFailure as exc:
-                self.branch.warnings.append(f"stop {limit} not located: {exc}")
-                at = None
-            sigma = step.dist if at is None else at.sigma
-            if first is None or sigma < first.sigma:
-                state = step.b.state if at is None else at.solution.state
-                value = limit.value + limit.sign * (0.0 if at is None else at.value)
-                first = Hit(sigma, limit.label, state, tangent_between(step, sigma),
-                               message=f"reached {limit.name} = {value:.6g} (stop {limit})")
-        return first
-
-    def _value_event(self, step, x, y, s0, s1, value, kind) -> Hit | None:
-        """The UZ or bound EP point (``kind``: USER_VALUE or BOUND) where the parameter is
-        ``value`` between the knots x and y of the step. Where it is not found there although
-        the knots' values bracket it, the branch does not pass from x to y through the
-        solutions between them (a step that jumped to another branch, hostile M9): the step
-        is rejected, as for an event that cannot be located (RETRY_HALVINGS), then accepted
-        with a warning and no point."""
-        try:
-            return kind.locate(self, step, x, y, s0, s1, value)
-        except CorrectorFailure as exc:
-            what = "user point" if kind is USER_VALUE else "bound"
-            if self.can_retry:
-                self.event_retries += 1
-                raise _Reject(f"{what} {self.name} = {value:.6g} not located ({exc})",
-                              step.ds / 2) from None
-            self.branch.warnings.append(f"{what} {self.name} = {value:.6g} not located: {exc}")
-            return None
+    def _ended_ahead(self, ds: float) -> bool:
+        """End the branch without a step where a placed kind says so before it (``ahead``:
+        the start within the next step, a closed loop): its point added, labelled as the
+        kind says, and the branch ended with its message."""
+        for event in registry.PLACEMENT:
+            hit = event.ahead(self, ds)
+            if hit is not None:
+                self._add(hit.state, type=hit.kind, arclength=self.arclength + hit.sigma,
+                          tangent=hit.tangent, direct=hit.direct)
+                self.branch.end, self.branch.message = hit.kind, hit.message
+                return True
+        return False
 
 
 class _Return:
-    """Where the branch comes back: to its start (a closed loop ends there, EP), or to its start
-    translated by whole periods of the parameter (the rest is the first period translated:
-    copied, then the walk resumes)."""
-
-    def _close_ahead(self, ds: float) -> bool:
-        """End the branch at its start point, without a step, where the start lies within
-        the next step (ahead of a along its tangent by sigma <= ds, within ``CLOSED_LOOP``
-        sigma of the tangent's line, the tangent pointing the way the branch left it): a step
-        that ends next to a singular start (a branch point it was switched from) would see
-        the start's own fold or branch point there, and fail to locate it. (Measured against
-        ds, which ``growth`` makes far longer than any step the branch has taken, the start
-        of the rotating arm was "ahead" of points a period away: hostile M9.)"""
-        start, a = self.start, self.a
-        if start is None or self.until is not None or self.first or self._far(a, ds):
-            return False
-        s = a.mesh
-        t = a.tangent.on(s)
-        off = difference(start.state, a.state, self.name, s)
-        sigma = inner(off, t, s)
-        if not 0.0 < sigma <= ds:
-            return False
-        off = Tangent(s, off.y - sigma * t.y, off.yp - sigma * t.yp, off.lam - sigma * t.lam)
-        if norm(off) > CLOSED_LOOP * sigma or inner(start.tangent.on(s), t, s) < CLOSED_LOOP_COS:
-            return False
-        self._add(start.state, type=labels.EP, arclength=self.arclength + sigma,
-                  tangent=start.tangent, direct=self.branch.points[0].index_direct)
-        self.branch.end = labels.EP
-        self.branch.message = self._closed(self.arclength + sigma)
-        return True
-
-    def _far(self, a, length: float) -> bool:
-        """Whether the start is farther from ``a`` in the parameter alone than either check
-        allows: both need |x0 - a| <= hypot(1, CLOSED_LOOP) ``length`` (the start within
-        ``length`` along a line from a, within CLOSED_LOOP ``length`` of it), and the norm
-        bounds the parameter's difference. (The checks interpolate the start onto a's mesh;
-        this one costs nothing, and rules out nearly every step.)"""
-        gap = abs(self.start.state.params[self.name] - a.state.params[self.name])
-        return gap > math.hypot(1.0, CLOSED_LOOP) * length
-
-    def _closed(self, arclength: float) -> str:
-        return (f"closed loop: back at its start point ({self.name} = {self.start.lam:g}) "
-                f"after arclength {arclength:.6g}")
-
-    def _closure_event(self, step: Step) -> Hit | None:
-        """An EP at the branch's start point if the step passes it the way the branch left
-        it (the branch is a closed loop, an isola or the two halves of a pitchfork's other
-        branch, say), else None. The start projects onto the step's secant at
-        ``0 < sigma <= dist`` within ``CLOSED_LOOP`` of the step's length of it; the end point
-        is the start's own solution, so the loop closes exactly. Not in a walk that ends at
-        a hyperplane (``until``: the refinement of one step)."""
-        start = self.start
-        if (start is None or self.until is not None or self.first
-                or self._far(step.a, step.dist)):
-            return None
-        s = step.b.mesh
-        sigma = step.sigma(start.state)
-        if not 0.0 < sigma <= step.dist:
-            return None
-        off = difference(start.state, step.a.state, self.name, s)
-        off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
-                      off.lam - sigma * step.secant.lam)
-        if (norm(off) > CLOSED_LOOP * step.dist
-                or inner(start.tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
-            return None
-        return Hit(sigma, labels.EP, start.state, start.tangent,
-                      message=self._closed(step.position(sigma)))
-
-    def _period_event(self, step: Step) -> Hit | None:
-        """The start translated by whole periods of the parameter, if the step passes it the
-        way the branch left it (as :meth:`_closure_event` tests for the start itself) and
-        the branch's own solution on that hyperplane is the translate: then the branch is
-        periodic, and :meth:`_repeat` completes it. None where the walk may not repeat
-        (``self.period`` None, the first step) or the step passes no translate.
-
-        The translate is checked twice, since what follows copies it: the solution on the
-        hyperplane through it differs from it by at most REPEAT_GAP (relative, in norm; the
-        corrector's tolerance makes the two discrete solutions differ by about 1e-6), and
-        its ordinates equal the start's to rounding (the module's ordinates are periodic in
-        the parameter as its equations are; a module whose ordinates are not gets a
-        warning, and no branch of it repeats)."""
-        if self.period is None or self.until is not None or self.first:
-            return None
-        start, name, period = self.start, self.name, self.period
-        lo, hi = sorted((step.a.lam, step.b.lam))
-        reach = math.hypot(1.0, CLOSED_LOOP) * step.dist
-        s = step.b.mesh
-        for k in range(math.ceil((lo - reach - start.lam) / period),
-                       math.floor((hi + reach - start.lam) / period) + 1):
-            if k == 0:
-                continue
-            there = _turned(self.problem, name, start.state, k, start.lam + k * period)
-            tangent = _turned_tangent(self.problem, name, start.tangent, k)
-            sigma = step.sigma(there)
-            if not 0.0 < sigma <= step.dist:
-                continue
-            off = difference(there, step.a.state, name, s)
-            off = Tangent(s, off.y - sigma * step.secant.y, off.yp - sigma * step.secant.yp,
-                          off.lam - sigma * step.secant.lam)
-            if (norm(off) > CLOSED_LOOP * step.dist
-                    or inner(tangent.on(s), step.secant, s) < CLOSED_LOOP_COS):
-                continue
-            try:
-                sol = self.corr.on_plane(step.a, step.secant, sigma, s, regrid=False)
-            except CorrectorFailure:
-                continue
-            if norm(difference(sol.state, there, name, s), s) > REPEAT_GAP * (1.0 + norm(there, s)):
-                continue
-            ours = self.problem.ordinate_values(there.s, there.y, there.params)
-            first = self.branch.points[0].ordinates
-            if any(abs(v - first[q]) > 1e-9 * (1.0 + abs(first[q])) for q, v in ours.items()):
-                self.branch.warnings.append(
-                    f"the branch passes its start translated by {k} periods of {name}, but "
-                    "the ordinates there differ from the start's: not completed by translation")
-                self.period = None
-                return None
-            return Hit(sigma, PERIOD, there, tangent)
-        return None
+    """Where the branch comes back to its start translated by whole periods of the parameter
+    (a ``repeat`` end, `elastica_auto.branches.loops.Period`): the rest is the first period
+    translated, copied, then the walk resumes."""
 
     def _repeat(self, step: Step, hit: Hit) -> str:
         """The branch passes ``hit``, its start translated by whole periods of the parameter,
@@ -717,7 +518,7 @@ class _Return:
         while True:
             for p in period:
                 lam = p.params[name] + j * shift
-                counts = self._counts(p.type, {**p.params, name: lam})
+                counts = self.counts(p.type, {**p.params, name: lam})
                 if not stops.lower < lam < stops.upper or self._room() < (
                         (2 if p.type else 1) if counts else 1):
                     return self._resume(exact)
@@ -726,10 +527,10 @@ class _Return:
                     p, params={**p.params, name: lam}, arclength=p.arclength + j * length,
                     profile=np.array(periods_applied(problem, name, p.profile, k)))
                 if p.state is not None:
-                    copy.state = _turned(problem, name, p.state, k, lam)
-                    copy.tangent = _turned_tangent(problem, name, p.tangent, k)
+                    copy.state = turned(problem, name, p.state, k, lam)
+                    copy.tangent = turned_tangent(problem, name, p.tangent, k)
                 if p is translate:
-                    exact[id(copy)] = _turned(problem, name, hit.state, k, lam)
+                    exact[id(copy)] = turned(problem, name, hit.state, k, lam)
                 branch.points.append(copy)
             j += 1
 
@@ -770,19 +571,6 @@ class _Return:
         if self.progress is not None:
             self.progress(branch, sol.lam)
         return "moved"
-
-    def _at_start(self, step: Step, event: Hit, end: Hit) -> bool:
-        """Whether ``event``, found in the step that closes the loop at ``end`` (or that
-        passes the start's translate by a period), is the start itself found again (the fold
-        or branch point the branch was started from, the UZ point at its translate, to 1e-6)
-        or lies past it (an event that could not be located, placed at the step's end)."""
-        if end.state is not self.start.state and end.kind != PERIOD:
-            return False
-        if step.sigma(event.state) >= end.sigma:
-            return True
-        s = end.state.s
-        gap = norm(difference(event.state, end.state, self.name, s), s)
-        return gap <= 1e-6 * (1.0 + norm(end.state, s) + abs(self.start.lam))
 
 
 class _Translates:
@@ -910,8 +698,11 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
         # the length of the last step accepted (inf before the first): the retries an event
         # may take are halvings below it (`_walk`)
         self.accepted_ds = math.inf
-        # the period a branch may repeat with (:meth:`_period_event`), None where it may not
-        self.period = self._repeat_period(course, singular_start)
+        # the period a branch may repeat with, None where it may not: set by the kind that
+        # places the repeat (`loops.Period.begin`), as every placed kind reads the course
+        self.period = None
+        for event in registry.PLACEMENT:
+            event.begin(self, course)
 
     def run(self, a: Solution):
         """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
@@ -974,31 +765,11 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
             retries = below = 0
             ds = ds_next
 
-    def _repeat_period(self, course: Course, singular_start: bool) -> float | None:
-        """The period of the continued parameter if the branch may be completed by
-        translation once it passes its start one period on (:meth:`_repeat`): a regular
-        start, and nothing that a translate would have to decide afresh. Each UZ value
-        recurs with a period that divides the parameter's (every translate of a user point
-        is one, and no other point becomes one); no fold stop, no limit, no event the run
-        asks for (``watch``: a module's ordinates need not be periodic), not a fold curve
-        nor the refinement of a step."""
-        period = self.problem.parameters[self.name].period
-        if (period is None or singular_start or course.all_folds or course.stops.limits
-                or course.stops.at_fold is not None or course.watch):
-            return None
-        for spec in course.user_values:
-            if spec.period is None:
-                return None
-            ratio = period / spec.period
-            if not abs(ratio - round(ratio)) <= 1e-12 * ratio:
-                return None
-        return period
-
     def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);
         raises _Reject to retry with a smaller ds. ``retries``: the step's rejections so far,
         ``below``: those that left it shorter than the last step accepted (`_walk`)."""
-        if self._close_ahead(ds):
+        if self._ended_ahead(ds):
             return ds, True
         step, cos_turn = self._correct(ds)
         found, counted = self._detect(step, below)

@@ -23,13 +23,13 @@ from ..branches import restart
 from ..core import labels
 from ..core.errors import PlanError, ProblemError, StartError
 from ..branches.events import UserValues
-from ..branches.kinds import Event
+from ..branches.kinds import Event, Limit
 from ..branches.registry import parse_events
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions, OptionsError
 from ..model.interface import ProblemInterface
 from ..model.problem import Problem
-from ..branches.stepper import Course, Limit, Stops
+from ..branches.stepper import Course, Stops
 from ..core.solution import State
 from ..storage.store import StoredLabel
 
