@@ -282,3 +282,32 @@ def test_a_placed_kind_registered_from_a_test_module_is_driven_by_the_stepper(mo
         assert p.params["lam"] == pytest.approx(bratu_lam(c), rel=1e-6)
     (lp,) = [p for p in br.points if p.type == labels.LP]
     assert lp.arclength < uz.arclength < end.arclength
+
+
+def test_an_extremum_at_a_fold_is_the_fold():
+    """Along equilibria dE/dpsi = m1 (the energy's derivative in the load's angle is its
+    conjugate moment), so dE/ds = m1 dpsi/ds vanishes at every fold: "extremum E" on the
+    lever arm's psi-branch (eps = 0.25, P = pi^2/4) is the fold itself. It adds no point: the
+    branch's labels, folds and indices are those of the run without events (a second,
+    independent run), the fold's note says it is also E's maximum, and no point disagrees
+    with the fold rule; the extremum of m1 (at psi = 0.166, not at a fold) is still its own
+    XT, where the run asking for it alone puts it."""
+    problem = ea.load_problem("elastica_lever_arm")
+    params = {"eps": 0.25, "P": math.pi ** 2 / 4}
+
+    def run(events):
+        return ea.continuation(problem, params, "psi", bounds=(-math.pi, math.pi),
+                               events=events)
+
+    plain, alone = run([]), run(["extremum m1"])
+    both = run(["extremum E", "extremum m1"])
+    for p0, p1, p2 in zip(plain, alone, both):
+        labelled = [(p.type, p.index) for p in p1.points if p.type != "XT"]
+        assert labelled == [(p.type, p.index) for p in p0.points]
+        assert [(p.type, p.index) for p in p2.points] == [(p.type, p.index) for p in p1.points]
+        assert not p2.disagreements
+        (lp,) = p2.folds
+        assert lp.note == "also the maximum of E"
+        xt1 = [(p.note, p.ordinates["m1"]) for p in p1.points if p.type == "XT"]
+        assert len(xt1) == 1 and "of m1" in xt1[0][0]
+        assert [(p.note, p.ordinates["m1"]) for p in p2.points if p.type == "XT"] == xt1
