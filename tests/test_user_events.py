@@ -311,3 +311,27 @@ def test_an_extremum_at_a_fold_is_the_fold():
         xt1 = [(p.note, p.ordinates["m1"]) for p in p1.points if p.type == "XT"]
         assert len(xt1) == 1 and "of m1" in xt1[0][0]
         assert [(p.note, p.ordinates["m1"]) for p in p2.points if p.type == "XT"] == xt1
+
+
+@pytest.mark.parametrize("uz", [{"uz": [0.5]},
+                                {"uz": [0.5 - 2 * math.pi], "uz_period": 2 * math.pi}])
+def test_an_event_on_the_continued_parameter_at_a_uz_value_is_one_point(uz):
+    """events = ["psi = 0.5"] with uz = [0.5] (or a translate of 0.5 by uz_period) ask for
+    the same points: each crossing of psi = 0.5 is labelled once, UZ at 0.5, as uz alone
+    labels it. The crossings are counted independently, as the sign changes of psi - 0.5
+    between the consecutive points of the run without labels."""
+    problem = ea.load_problem("elastica_lever_arm")
+    params = {"eps": 0.25, "P": math.pi ** 2 / 4}
+
+    def run(**kw):
+        return ea.continuation(problem, params, "psi", bounds=(-math.pi, math.pi), **kw)
+
+    plain, alone, both = run(), run(**uz), run(events=["psi = 0.5"], **uz)
+    for p0, p1, p2 in zip(plain, alone, both):
+        psi = np.array([p.params["psi"] for p in p0.points]) - 0.5
+        crossings = int(np.sum(psi[:-1] * psi[1:] < 0))
+        uz2 = [p for p in p2.points if p.type == "UZ"]
+        assert crossings >= 1 and len(uz2) == crossings
+        assert all(p.params["psi"] == pytest.approx(0.5, abs=1e-9) for p in uz2)
+        assert [(p.type, p.params["psi"]) for p in p2.points] == \
+            [(p.type, p.params["psi"]) for p in p1.points]
