@@ -489,12 +489,14 @@ class _Placement:
     def _ended_ahead(self, ds: float) -> bool:
         """End the branch without a step where a placed kind says so before it (``ahead``:
         the start within the next step, a closed loop): its point added, labelled as the
-        kind says, and the branch ended with its message."""
+        kind says, and the branch ended with its message (at the last point itself, sigma 0,
+        labelled so already: no point of its own, a start that leaves the bounds)."""
         for event in registry.PLACEMENT:
             hit = event.ahead(self, ds)
             if hit is not None:
-                self._add(hit.state, type=hit.kind, arclength=self.arclength + hit.sigma,
-                          tangent=hit.tangent, direct=hit.direct)
+                if hit.sigma > 0.0 or hit.kind != self.base_point.type:
+                    self._add(hit.state, type=hit.kind, arclength=self.arclength + hit.sigma,
+                              tangent=hit.tangent, direct=hit.direct)
                 self.branch.end, self.branch.message = hit.kind, hit.message
                 return True
         return False
