@@ -157,3 +157,30 @@ def test_the_root_finder_of_the_events_brackets_each_root_to_its_tolerance(f, lo
     x = brent(counted, lo, hi, f(lo), f(hi), xtol)
     assert abs(x - root) <= xtol and x in [*seen, lo, hi]
     assert len(seen) <= (10 if simple else 4 * math.ceil(math.log2((hi - lo) / xtol)))
+
+
+@pytest.mark.parametrize("q0, out", [(0.0, "-"), (12.0, "+")])
+def test_a_start_on_a_bound_ends_the_direction_that_leaves_it_at_its_start(q0, out):
+    """The straight heavy column (k0 = 0) is a solution at every load q, its branch the
+    line along q (t_q = +-1): started on a bound of [0, 12] in both directions, the one that
+    leaves the bounds is its start alone, one EP at q0, its message saying it left them; the
+    other is the branch computed in that direction alone. No branch has two points at the
+    same place (it had: the bound located at the start again, EP3 and EP4 at q = 0)."""
+    problem = ea.load_problem("curved_heavy_column")
+    params = {"q": q0, "k0": 0.0}
+    inward = "+" if out == "-" else "-"
+    both = ea.continuation(problem, params, "q", bounds=(0, 12), directions="both")
+    (alone,) = ea.continuation(problem, params, "q", bounds=(0, 12), directions=inward)
+    (left,) = [b for b in both if b.direction == (1 if out == "+" else -1)]
+    (went,) = [b for b in both if b is not left]
+    assert [p.type for p in left.points] == ["EP"] and left.end == "EP"
+    assert left.points[0].params["q"] == q0
+    assert left.message == (f"left the bounds at its start (q = {q0:g} is the "
+                            f"{'lower' if q0 == 0 else 'upper'} bound, and this direction "
+                            f"{'decreases' if out == '-' else 'increases'} q)")
+    assert [(p.type, p.params["q"]) for p in went.points] == \
+        [(p.type, p.params["q"]) for p in alone.points]
+    assert went.points[-1].params["q"] == 12.0 - q0
+    for b in both:
+        q = [p.params["q"] for p in b.points]
+        assert all(x != y for x, y in zip(q, q[1:]))

@@ -22,7 +22,7 @@ import pytest
 
 from elastica_auto.storage.store import BranchFile
 from helpers import ELASTICA as _ELASTICA
-from helpers import REFERENCE, run_cli, wait_for
+from helpers import EXAMPLES, REFERENCE, run_cli, wait_for
 
 BRATU = (REFERENCE / "bratu.py").read_text()        # written by hand: its functions
 
@@ -431,3 +431,50 @@ def test_a_second_ctrl_c_does_not_wait_for_a_slow_step(tmp_path, cli_exe):
     assert f"interrupted: {len(saved.branches)} branches saved to" in err
     # the branch saved before the signal; the one in its slow step is cancelled
     assert [b.attrs["end"] for b in saved.branches] == ["EP"]
+
+
+def test_a_singular_start_says_so_and_not_that_the_module_returned_nan(tmp_path, cli_exe):
+    """The foundation column without its end conditions w(0) = w(1) = 0, at k = 0: nothing
+    holds w, and w = const, phi = 0 solves the linearised equations (checked here on the
+    module's own rhs and bc: both vanish there), a null direction at the straight start that
+    the load P does not fix (the equations are linear in P w'). The branch ends MX at its
+    start, exit status 1, its message saying the linearised problem is singular and to check
+    the end conditions, not that the module returned NaN (its rhs and bc are finite). With
+    k = 400 the foundation holds w and the same module starts: its branch has steps."""
+    from elastica_auto.model.problem import load_problem
+    source = (EXAMPLES / "foundation_column.py").read_text()
+    held = "                  fixed0={w: 0}, fixed1={w: 0},\n"
+    assert held in source
+    (tmp_path / "free_ends.py").write_text(source.replace(held, ""))
+    problem = load_problem(str(tmp_path / "free_ends.py"))
+    s = np.linspace(0.0, 1.0, 11)
+    params = {"P": 0.0, "k": 0.0, "G": 100.0}
+    const = np.zeros((problem.n, len(s)))
+    const[0] = 1.0       # w = 1 (its momenta Q, M and phi zero): a solution beside w = 0
+    assert np.all(np.asarray(problem.rhs(s, const, params)) == 0.0)
+    assert np.all(np.asarray(problem.bc(const[:, 0], const[:, -1], params)) == 0.0)
+    (tmp_path / "run.toml").write_text(
+        'equation = "free_ends.py"\nstart = "trivial"\n[parameters]\nk = 0\n'
+        '[continuation]\nparameter = "P"\ndirections = "+"\nbounds = [-1, 60]\n')
+    proc = run_cli(cli_exe, "run", tmp_path / "run.toml", "--out", tmp_path / "o")
+    assert proc.returncode == 1, proc.stderr
+    assert "failed branches (MX): 1" in proc.stderr
+    (br,) = BranchFile(tmp_path / "o" / "run.h5").branches
+    msg = br.attrs["message"]
+    assert br.attrs["end"] == "MX" and len(br.columns["type"]) == 1
+    assert "linearised problem is singular" in msg and "end conditions" in msg
+    assert "NaN" not in msg and "non-finite" not in msg
+    proc = run_cli(cli_exe, "run", tmp_path / "run.toml", "--out", tmp_path / "o400",
+                   "--set", "k=400")
+    (br,) = BranchFile(tmp_path / "o400" / "run.h5").branches
+    assert "singular" not in br.attrs["message"] and len(br.columns["type"]) > 3
+    # Newton at w = 1 itself (finite residuals, zero even) on the same singular Jacobian:
+    # the correction is what is not finite, and the message says so
+    from elastica_auto.core.options import ContinuationOptions
+    from elastica_auto.core.solution import State
+    from elastica_auto.numerics.correctors import make_corrector
+    corr = make_corrector(problem, "P", ContinuationOptions())
+    again = corr.solve_again(State.from_values(problem, s, const, params), None, 1e-10)
+    assert not again.converged
+    assert again.message == ("non-finite Newton correction at the initial guess (a singular "
+                             "Jacobian)")

@@ -282,3 +282,56 @@ def test_a_placed_kind_registered_from_a_test_module_is_driven_by_the_stepper(mo
         assert p.params["lam"] == pytest.approx(bratu_lam(c), rel=1e-6)
     (lp,) = [p for p in br.points if p.type == labels.LP]
     assert lp.arclength < uz.arclength < end.arclength
+
+
+def test_an_extremum_at_a_fold_is_the_fold():
+    """Along equilibria dE/dpsi = m1 (the energy's derivative in the load's angle is its
+    conjugate moment), so dE/ds = m1 dpsi/ds vanishes at every fold: "extremum E" on the
+    lever arm's psi-branch (eps = 0.25, P = pi^2/4) is the fold itself. It adds no point: the
+    branch's labels, folds and indices are those of the run without events (a second,
+    independent run), the fold's note says it is also E's maximum, and no point disagrees
+    with the fold rule; the extremum of m1 (at psi = 0.166, not at a fold) is still its own
+    XT, where the run asking for it alone puts it."""
+    problem = ea.load_problem("elastica_lever_arm")
+    params = {"eps": 0.25, "P": math.pi ** 2 / 4}
+
+    def run(events):
+        return ea.continuation(problem, params, "psi", bounds=(-math.pi, math.pi),
+                               events=events)
+
+    plain, alone = run([]), run(["extremum m1"])
+    both = run(["extremum E", "extremum m1"])
+    for p0, p1, p2 in zip(plain, alone, both):
+        labelled = [(p.type, p.index) for p in p1.points if p.type != "XT"]
+        assert labelled == [(p.type, p.index) for p in p0.points]
+        assert [(p.type, p.index) for p in p2.points] == [(p.type, p.index) for p in p1.points]
+        assert not p2.disagreements
+        (lp,) = p2.folds
+        assert lp.note == "also the maximum of E"
+        xt1 = [(p.note, p.ordinates["m1"]) for p in p1.points if p.type == "XT"]
+        assert len(xt1) == 1 and "of m1" in xt1[0][0]
+        assert [(p.note, p.ordinates["m1"]) for p in p2.points if p.type == "XT"] == xt1
+
+
+@pytest.mark.parametrize("uz", [{"uz": [0.5]},
+                                {"uz": [0.5 - 2 * math.pi], "uz_period": 2 * math.pi}])
+def test_an_event_on_the_continued_parameter_at_a_uz_value_is_one_point(uz):
+    """events = ["psi = 0.5"] with uz = [0.5] (or a translate of 0.5 by uz_period) ask for
+    the same points: each crossing of psi = 0.5 is labelled once, UZ at 0.5, as uz alone
+    labels it. The crossings are counted independently, as the sign changes of psi - 0.5
+    between the consecutive points of the run without labels."""
+    problem = ea.load_problem("elastica_lever_arm")
+    params = {"eps": 0.25, "P": math.pi ** 2 / 4}
+
+    def run(**kw):
+        return ea.continuation(problem, params, "psi", bounds=(-math.pi, math.pi), **kw)
+
+    plain, alone, both = run(), run(**uz), run(events=["psi = 0.5"], **uz)
+    for p0, p1, p2 in zip(plain, alone, both):
+        psi = np.array([p.params["psi"] for p in p0.points]) - 0.5
+        crossings = int(np.sum(psi[:-1] * psi[1:] < 0))
+        uz2 = [p for p in p2.points if p.type == "UZ"]
+        assert crossings >= 1 and len(uz2) == crossings
+        assert all(p.params["psi"] == pytest.approx(0.5, abs=1e-9) for p in uz2)
+        assert [(p.type, p.params["psi"]) for p in p2.points] == \
+            [(p.type, p.params["psi"]) for p in p1.points]

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 from ..core import labels
 from ..core.errors import PlanError
-from ..core.solution import State
-from .kinds import CONTINUE, Event, quantity
+from ..core.solution import State, difference, norm
+from .kinds import CONTINUE, Event, Placement, quantity
 
 #: The form of an entry, for the messages that refuse one.
 FORM = '"extremum NAME" (NAME an ordinate or a free parameter)'
@@ -57,6 +57,19 @@ class Extremum(Event):
 
     def describe(self) -> str:
         return f"event {self.text!r}"
+
+    def place(self, walk, placement: Placement) -> None:
+        """The extrema :meth:`find` finds in the step, each a point of its own except where
+        it is the same solution as one of the step's turns (a fold, a branch point): that
+        turn's note says so instead (the module's docstring)."""
+        for hit in self.find(walk, placement.step):
+            turn = next((e for e in placement.turns if e.kind in labels.TURNS
+                         and norm(difference(hit.state, e.state, walk.name, e.state.s))
+                         <= walk.corr.options.fold_tol), None)
+            if turn is None:
+                placement.points.append(hit)
+            else:
+                turn.note = "; ".join(filter(None, (turn.note, f"also the {hit.note}")))
 
     @classmethod
     def parse(cls, problem, parameter: str, text: str) -> Extremum | None:

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 from ..core import labels
 from ..core.solution import State, Tangent, inner
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
-from .events import (Located, Placed, Step, along, crossings, locate_branch_point,
+from .events import (TURN_NOISE, Located, Placed, Step, along, crossings, locate_branch_point,
                      locate_fold, locate_index_change, locate_limit, locate_value,
                      pair_suspected, parameter_turns, place_symmetric_branch_point,
                      tangent_between)
@@ -691,6 +691,26 @@ class Bound(ParameterValue):
             hit = Hit(s1, labels.EP, y, placement.step.b.tangent, note="bound not located")
         hit.message = f"reached {walk.name} = {hit.state.params[walk.name]:g}"
         placement.end_at(self, hit)
+
+    def ahead(self, walk, ds: float) -> Hit | None:
+        """Before the first step, a start on a bound (to 1e-9 (1 + |bound|)) whose tangent
+        leaves the bounds (its parameter component beyond its accuracy, TURN_NOISE, out of
+        them): the branch ends at its start, the start's own point (sigma 0), with no step.
+        Stepped, it would end there anyway, the bound located at the start again, a second
+        EP at the same place."""
+        if not walk.first or walk.until is not None:
+            return None
+        a, stops = walk.a, walk.stops
+        lam, out = a.lam, a.tangent.lam
+        for value, side, sign in ((stops.lower, "lower", -1.0), (stops.upper, "upper", 1.0)):
+            if (math.isfinite(value) and abs(lam - value) <= 1e-9 * (1.0 + abs(value))
+                    and sign * out > TURN_NOISE):
+                return Hit(0.0, labels.EP, a.state, a.tangent,
+                           message=f"left the bounds at its start ({walk.name} = {lam:g} is "
+                                   f"the {side} bound, and this direction "
+                                   f"{'decreases' if sign < 0 else 'increases'} {walk.name})",
+                           direct=walk.branch.points[0].index_direct)
+        return None
 
 
 class FoldStop(Event):

@@ -55,7 +55,8 @@ DETECTION = (SYMMETRIC_BRANCH_POINT, BRANCH_POINT, FOLD, EVEN_BRANCH_POINT)
 #: points the end found so far leaves. The order is that of their solves and warnings; the
 #: earliest end offered wins (the first offered of equals), and the points are added in the
 #: order of travel. Before each step every kind's ``ahead`` may end the branch (the closure,
-#: where the start lies within the next step); before the walk's first, every kind's
+#: where the start lies within the next step; the bound, where the start lies on one and
+#: leaves it); before the walk's first, every kind's
 #: ``begin`` reads its course (the period: whether the branch may repeat).
 PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD, FOLD_STOP)
 

@@ -126,14 +126,31 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
         sol.tangent = guess.on(sol.mesh)
         sol.extra["singular"] = True
         return sol
-    t = corr.linearize(start, guess).tangent
+    t = _tangent_of(corr.linearize(start, guess)).tangent
     if abs(t.lam) > STATIONARY:
         sign = 1.0 if t.lam * direction > 0 else -1.0
     elif guess is not None:  # t is oriented along the stored tangent: <guess, t> > 0
         sign = float(direction)
     else:
         sign = direction * _orientation(corr, start, t)
-    return corr.linearize(start, t.scaled(sign))
+    return _tangent_of(corr.linearize(start, t.scaled(sign)))
+
+
+#: Why a start has no tangent where its linearisation gives none that is finite.
+SINGULAR_START = ("the linearised problem is singular there: its Jacobian has a null "
+                  "direction that the parameter does not fix, as a missing or dependent end "
+                  "condition leaves; check the module's end conditions")
+
+
+def _tangent_of(sol: Solution) -> Solution:
+    """``sol``, whose tangent (the solve of the bordered Jacobian) is finite; CorrectorFailure
+    (SINGULAR_START) where it is not. A singular bordered matrix gives a tangent of NaN or inf
+    from the elimination, not an error; stepped along, the predictor would be non-finite and
+    every corrector fail as if the module had returned NaN."""
+    t = sol.tangent
+    if not (math.isfinite(t.lam) and np.isfinite(t.y).all()):
+        raise CorrectorFailure(SINGULAR_START)
+    return sol
 
 
 def _orientation(corr, start: State, t: Tangent) -> float:
@@ -472,12 +489,14 @@ class _Placement:
     def _ended_ahead(self, ds: float) -> bool:
         """End the branch without a step where a placed kind says so before it (``ahead``:
         the start within the next step, a closed loop): its point added, labelled as the
-        kind says, and the branch ended with its message."""
+        kind says, and the branch ended with its message (at the last point itself, sigma 0,
+        labelled so already: no point of its own, a start that leaves the bounds)."""
         for event in registry.PLACEMENT:
             hit = event.ahead(self, ds)
             if hit is not None:
-                self._add(hit.state, type=hit.kind, arclength=self.arclength + hit.sigma,
-                          tangent=hit.tangent, direct=hit.direct)
+                if hit.sigma > 0.0 or hit.kind != self.base_point.type:
+                    self._add(hit.state, type=hit.kind, arclength=self.arclength + hit.sigma,
+                              tangent=hit.tangent, direct=hit.direct)
                 self.branch.end, self.branch.message = hit.kind, hit.message
                 return True
         return False

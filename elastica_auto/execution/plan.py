@@ -22,7 +22,7 @@ import numpy as np
 from ..branches import restart
 from ..core import labels
 from ..core.errors import PlanError, ProblemError, StartError
-from ..branches.events import UserValues
+from ..branches.events import UserValues, is_user_value
 from ..branches.kinds import Event, Limit
 from ..branches.registry import parse_events
 from ..core.expressions import evaluate
@@ -297,13 +297,29 @@ def make_plan(problem: Problem, start: StartLike | Iterable[StartLike], paramete
     specs = _specs(starts, grid, request.directions)
     at_fold, limits = _stops(problem, request.stop)
     _detected(opts, at_fold, request.switch)
-    watch = parse_events(problem, parameter, request.events)
+    watch = _without_user_values(parse_events(problem, parameter, request.events), parameter,
+                                 request.user_values)
     return Plan(problem, parameter, opts, Stops(*request.limits, at_fold, limits),
                 request.user_values, specs, watch, request.events,
                 varying=[k for k, v in grid.items() if len(v) > 1],
                 switch_count=request.switch, switch_depth=request.switch_depth,
                 landing=request.landing, damping=request.damping,
                 damping_folds=request.damping_folds)
+
+
+def _without_user_values(watch: tuple[Event, ...], parameter: str,
+                         user_values: list[UserValues]) -> tuple[Event, ...]:
+    """The requested events less those ``uz`` labels already: an event on the continued
+    parameter (``events = ["psi = 0.5"]``) at a ``uz`` value, or at one of its translates
+    by ``uz_period`` (to 1e-9 (1 + |v|), `is_user_value`), asks for uz's own point. Kept, it
+    would label each crossing twice, a rounding apart (uz solves at the value, the event
+    locates its test function's root): dropped, the crossing is one UZ, uz's, as if asked
+    for once."""
+    if not (watch and user_values):
+        return watch
+    from ..branches.user_events import UserEvent    # loaded already: an entry asked for it
+    return tuple(e for e in watch if not (isinstance(e, UserEvent) and e.name == parameter
+                                          and is_user_value(e.value, user_values)))
 
 
 def _detected(opts: ContinuationOptions, at_fold: int | None, switch: int):

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from . import bordered
@@ -236,8 +238,14 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
         lin = Linearization(disc, name, params, Y, lam, row, split, K)
     dY, dlam, dK, size = correction(lin, Y, K, lam)
     if not np.isfinite(size):
-        return NewtonResult(False, Y, lam, 0, "non-finite residual at the initial guess",
-                            correction=size)
+        # the residuals not finite (``last`` unset: the module's values, marked by an
+        # infinite correction, which the stepper reports so), or finite with a correction that
+        # is not (NaN): the Jacobian there is singular, and the module not to blame
+        if correction.last is None:
+            return NewtonResult(False, Y, lam, 0, "non-finite residual at the initial guess",
+                                correction=math.inf)
+        return NewtonResult(False, Y, lam, 0, "non-finite Newton correction at the initial "
+                            "guess (a singular Jacobian)", correction=math.nan)
     first = None
     for it in range(1, MAX_ITER + 1):
         if size <= tol:
