@@ -269,6 +269,25 @@ class Event:
                     note=self.note(walk, sol, fb > fa))]
 
 
+def branch_folds(walk, located: bool = False) -> list[int]:
+    """The indices of the branch's folds so far, where the continued parameter turned back:
+    its LP points, and the folds a placed kind gave another label in the walk
+    (``walk.refolded``: id of the fold's solution -> (that solution, whether the fold was
+    located); a fold curve's cusps and branch points,
+    `elastica_auto.branches.codim2.FoldCurvePoint`), which stay folds for the walk: the
+    fold before the next one (:meth:`Fold.points`), the count of the fold stop, a fold's
+    translates by a period. ``located``: only those located (an LP without a note)."""
+    out = []
+    for k, p in enumerate(walk.branch.points):
+        mark = walk.refolded.get(id(p.state)) if p.state is not None else None
+        if mark is not None and mark[0] is p.state:
+            if mark[1] or not located:
+                out.append(k)
+        elif p.type in labels.FOLDS and not (located and p.note):
+            out.append(k)
+    return out
+
+
 def quantity(problem, name: str, state: State) -> float:
     """The ordinate or parameter (free, continued or fixed) ``name`` at ``state``."""
     p = problem.point_params(state.params, state.y)
@@ -381,7 +400,8 @@ class Fold(Event):
         can pass both; as one BP the fold was missing, and the walk for its translates went
         on for thousands of points). CorrectorFailure where the fold is not located."""
         step, located = scan.step, scan.located
-        before = [p.state for p in walk.branch.folds[-1:] if p.state is not None]
+        pts = walk.branch.points
+        before = [pts[k].state for k in branch_folds(walk)[-1:] if pts[k].state is not None]
         fp = self.locate(walk, step, before[0] if before else None)
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
@@ -709,7 +729,7 @@ class FoldStop(Event):
         kept = [e for e in placement.points
                 if placement.end is None or placement.ender.keeps(walk, placement, e)]
         order = sorted(kept, key=lambda e: e.sigma)
-        before = len(walk.branch.folds)
+        before = len(branch_folds(walk))
         folds = [i for i, e in enumerate(order) if e.kind in labels.FOLDS]
         k = max(n - before, 1)
         if len(folds) < k:

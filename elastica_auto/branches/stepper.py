@@ -59,7 +59,7 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import Step, UserValues, is_user_value
-from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
+from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan, branch_folds
 from .loops import turned, turned_tangent
 from . import registry
 from ..core import labels
@@ -600,7 +600,7 @@ class _Translates:
         pts = self.branch.points
         lam = np.array([p.params[self.name] for p in pts])
         ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
+        folds = branch_folds(self, located=True)
         out = {}
         for k in folds:
             scale = 1.0 + np.abs(ords[k])
@@ -660,6 +660,7 @@ class _Translates:
             pt.arclength = a0 + (a1 - a0) * pt.arclength / total
         pts[i + 1:i + 1] = new
         self.branch.warnings.extend(sub.warnings)
+        self.refolded.update(walk.refolded)
         return True
 
     def _resolve(self, point) -> Solution:
@@ -701,6 +702,9 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
         # the period a branch may repeat with, None where it may not: set by the kind that
         # places the repeat (`loops.Period.begin`), as every placed kind reads the course
         self.period = None
+        # the folds a placed kind labelled otherwise, which stay folds for the walk
+        # (`kinds.branch_folds`): id of the solution -> (the solution, whether located)
+        self.refolded = {}
         for event in registry.PLACEMENT:
             event.begin(self, course)
 

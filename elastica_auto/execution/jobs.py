@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from ..branches import codim2, pitchfork
+from ..branches import pitchfork
 from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
@@ -111,9 +111,7 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
             pass
         late.raising = False
         try:
-            if plan.curve == "fold":
-                codim2.label_fold_curve(br, plan.problem, plan.base)
-            elif plan.curve == "pitchfork":
+            if plan.curve == "pitchfork":
                 pitchfork.warn_unfolded(br, plan.reference, plan.options.tol)
             label_stability(br, plan.problem)
             if job.mirrored:
