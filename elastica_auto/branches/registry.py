@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib
 
 from ..core.errors import PlanError
-from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Fold,
+from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Failure, Fold,
                     FoldStop, SymmetricBranchPoint, UserValue)
 from .codim2 import FoldCurvePoint
 from .loops import Closure, Period
@@ -37,6 +37,9 @@ CLOSURE = Closure()
 PERIOD = Period()
 FOLD_STOP = FoldStop()
 FOLD_CURVE_POINT = FoldCurvePoint()
+#: The failure of the walk (MX), which the stepper hands every failure to: no tangent at the
+#: start, a step rejected down to ``ds_min``, an exception or an interruption.
+FAILURE = Failure()
 
 #: The turn kinds the stepper drives on every step, in the order in which they are located
 #: and reconciled (each reads what those before it left in the step's

@@ -18,7 +18,8 @@ from ..branches import pitchfork
 from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
-from ..branches.stepper import Origin, continue_branch, start_point
+from ..branches.kinds import start_point
+from ..branches.stepper import Origin, continue_branch
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.interrupts import Interruptions
