@@ -188,8 +188,10 @@ class Event:
     parameter) and ``walk.branch`` (for warnings and its folds); a shipped placed kind also
     the walk's course and where it stands: ``user_values``, ``stops``, ``watch`` and
     ``counts`` (whether a point counts toward ``max_points``); ``start``, ``a``,
-    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start). Nothing
-    else.
+    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start), and
+    ``refolded`` (the folds a kind labelled otherwise: :func:`branch_folds`); the failure
+    (:class:`Failure`) also ``opt``, ``base_point`` and ``end_at_base``, the walk's way of
+    ending the branch at its last accepted point. Nothing else.
 
     A **turn kind** (a fold, a branch point: where the stability index may change) is driven
     on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in

@@ -3,7 +3,9 @@
 One call of :func:`continue_branch` fills one :class:`~elastica_auto.branches.branch.Branch`: from a
 start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
 n-th fold (``stop = ["LP4"]``), its own start point again (EP: a closed loop), or a
-corrector failure at ``ds_min`` (MX).
+failure (MX: a corrector failure at ``ds_min``, an exception, an interruption), which the
+walk hands to the failure kind (``registry.FAILURE``,
+:class:`~elastica_auto.branches.kinds.Failure`): that kind ends the branch and says why.
 
 Each step from a solution a (with its unit tangent t_a, oriented along the direction of
 travel):
