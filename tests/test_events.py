@@ -184,3 +184,81 @@ def test_a_start_on_a_bound_ends_the_direction_that_leaves_it_at_its_start(q0, o
     for b in both:
         q = [p.params["q"] for p in b.points]
         assert all(x != y for x, y in zip(q, q[1:]))
+
+
+LINEAR = '''\
+"""u'' + lam = 0, u(0) = u(1) = 0: u = lam s (1 - s) / 2; the module fails past lam = 0.5
+(FAIL: "nan", its functions return NaN; "raise", they raise)."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "du")
+PARAMETERS = [Parameter("lam", 0.0, r"\\\\lambda", "ode")]
+FAIL = "{fail}"
+
+
+def _check(p):
+    if p["lam"] > 0.5:
+        if FAIL == "raise":
+            raise ValueError("no solution past lam = 0.5")
+        return np.nan
+    return 1.0
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.ones_like(y[0]) * _check(p)))
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def guess(s, p):
+    return np.vstack((p["lam"] * s * (1 - s) / 2, p["lam"] * (1 - 2 * s) / 2))
+
+
+ORDINATES = [Ordinate("umid", "$u(1/2)$", lambda s, y, p: y[0, len(s) // 2], None)]
+'''
+
+
+@pytest.mark.parametrize("fail, method", [("nan", "step_failed"), ("raise", "ended_early")])
+def test_the_stepper_hands_its_failures_to_the_failure_kind(tmp_path, monkeypatch, fail,
+                                                           method):
+    """Issue 48: MX is an event (``kinds.Failure``, ``registry.FAILURE``): the stepper hands
+    a step rejected down to ``ds_min`` (NaN from the module) and an exception (the module
+    raising) to it, and the branch ends as the kind says: at its last accepted point, before
+    lam = 0.5 where the module fails, labelled MX, with the kind's message and the failure's
+    record as its diagnostics."""
+    from elastica_auto.branches import kinds, registry
+
+    calls = []
+
+    class Recording(kinds.Failure):
+        def step_failed(self, walk, retry, history):
+            calls.append("step_failed")
+            super().step_failed(walk, retry, history)
+
+        def ended_early(self, *args, **kwargs):
+            calls.append("ended_early")
+            super().ended_early(*args, **kwargs)
+
+    monkeypatch.setattr(registry, "FAILURE", Recording())
+    path = tmp_path / "linear.py"
+    path.write_text(LINEAR.replace("{fail}", fail))
+    problem = ea.load_problem(str(path))
+    result = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(0, 2), directions="+",
+                             ds=0.1, ds_max=0.1, ds_min=1e-4)
+    br = result[0]
+    assert calls == [method]
+    last = br.points[-1]
+    assert (br.end, last.type) == ("MX", "MX")
+    assert last.params["lam"] <= 0.5 and last.ordinates["umid"] == pytest.approx(
+        last.params["lam"] / 8, rel=1e-6)
+    if fail == "nan":
+        assert br.message.startswith("corrector failed at ds < ds_min = 0.0001")
+        assert "(the equation module returned NaN or inf there)" in br.message
+        assert br.diagnostics["step"] == len(br.points) and br.diagnostics["history"]
+    else:
+        assert br.message.startswith("ValueError: no solution past lam = 0.5")
+        assert br.diagnostics["exception"] == "ValueError"
+        assert br.diagnostics["step"] == len(br.points)

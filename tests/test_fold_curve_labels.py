@@ -164,3 +164,29 @@ def test_the_diagram_and_the_map_group_a_file_s_branches_alike(tmp_path):
 def test_one_rule_for_the_same_value(a, b, period, same):
     from elastica_auto.core.values import same_value
     assert same_value(a, b, period) is same
+
+
+def test_a_fold_stop_on_a_fold_curve_ends_at_its_cusp_as_the_walk_passes_it(tmp_path):
+    """Issue 48: a fold curve's cusp is an event of the walk (``codim2.FoldCurvePoint``, the
+    last placed kind of each step), not a relabelling of the finished branch. The CUSP curve
+    from the fold at u < 0 has one fold in mu, the cusp at the closed form's (lam, mu) =
+    (0, 0); ``stop = ["LP1"]`` ends the branch there: the fold stop counts the fold, the
+    placed kind after it labels it CP, and the branch ends with the label of its last point
+    (before, a relabelling after the walk left ``end`` LP on a branch ending in a CP). The
+    other direction meets no fold and reaches the bound."""
+    path = tmp_path / "module.py"
+    path.write_text(CUSP)
+    problem = ea.load_problem(str(path))
+    options = dict(ds=0.05, ds_max=0.2, ds_min=1e-6)
+    one = ea.continuation(problem, {"lam": -2.0, "mu": 1.0}, "lam", bounds=(-2, 2),
+                          directions="+", **options)
+    curves = ea.continuation(problem, one.label("LP1"), ["lam", "mu"], bounds=(-0.5, 2),
+                             directions="both", stop=["LP1"], **options)
+    stopped = [br for br in curves if br.message.startswith("stopped at fold")]
+    assert len(stopped) == 1 and len(curves) == 2
+    last = stopped[0].points[-1]
+    assert (stopped[0].end, last.type) == ("CP", "CP")
+    assert (last.params["lam"], last.params["mu"]) == pytest.approx((0.0, 0.0), abs=1e-9)
+    assert stopped[0].message == "stopped at fold 1 (stop = LP1)"
+    other = next(br for br in curves if br is not stopped[0])
+    assert other.end == "EP" and not [p for p in other.points if p.type in ("LP", "CP")]

@@ -61,8 +61,8 @@ def _turn_step(fold_sigma: float):
     end = SimpleNamespace(lam=1.0, state="b", tangent=unit, extra={})
     step = SimpleNamespace(a=SimpleNamespace(lam=0.0, extra={}), b=end, secant=unit, dist=1.0,
                            ds=1.0, sigma=lambda state: fold_sigma)
-    walk = SimpleNamespace(branch=SimpleNamespace(folds=[], warnings=[]), name="lam",
-                           problem=None, corr=None)
+    walk = SimpleNamespace(branch=SimpleNamespace(points=[], warnings=[]), name="lam",
+                           problem=None, corr=None, refolded={})
     fold = SimpleNamespace(phi=unit, state="fold", residual=1e-12)
     return step, walk, fold
 

@@ -283,6 +283,31 @@ def test_the_stepper_imports_no_concrete_kind():
     assert stepper_kinds(graph()) == []
 
 
+#: The labels only their kinds write in a walk: a failure's MX (`kinds.Failure`, which the
+#: stepper hands every failure to) and a fold curve's CP (`codim2.FoldCurvePoint`, a placed
+#: kind of `registry.PLACEMENT`).
+KIND_LABELS = {"MX", "CP"}
+
+
+def stepper_labels(root: Path = PACKAGE) -> list[str]:
+    """The labels of `KIND_LABELS` the stepper names (``labels.MX``, or ``MX`` imported from
+    `core.labels`), as "line name": it hands a failure to its kind, and a fold curve's folds
+    are their kind's to label, so that neither is written by the loop itself."""
+    path = root / "branches" / "stepper.py"
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if (isinstance(node, ast.Attribute) and node.attr in KIND_LABELS
+                and getattr(node.value, "id", "") == "labels"):
+            out.append(f"{node.lineno} labels.{node.attr}")
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").endswith("labels"):
+            out += [f"{node.lineno} {a.name}" for a in node.names if a.name in KIND_LABELS]
+    return out
+
+
+def test_the_stepper_writes_no_failure_or_cusp_label():
+    assert stepper_labels() == []
+
+
 @pytest.mark.parametrize("where, line, check", [
     ("branches/extrema.py", "from .stepper import Course", lambda r: kind_imports(graph(r))),
     ("branches/stepper.py", "from .events import locate_fold",
@@ -298,11 +323,14 @@ def test_the_stepper_imports_no_concrete_kind():
     ("numerics/collocation.py", "from .newton import newton", lambda r: cycles(graph(r))),
     ("execution/run.py", "return isinstance(problem, Augmented)", lambda r: kind_checks(r)),
     ("branches/codim2.py", "return isinstance(base, Augmented)", lambda r: kind_checks(r)),
+    ("branches/stepper.py", "return labels.MX", lambda r: stepper_labels(r)),
+    ("branches/stepper.py", "from ..core.labels import CP", lambda r: stepper_labels(r)),
 ])
 def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     """A copy of the package with one bad line, inside a function as the lazy imports are:
     an import from a higher layer, of a private name, and a circle (`newton` imports
-    `collocation`); an isinstance on a kind of problem outside the model layer."""
+    `collocation`); an isinstance on a kind of problem outside the model layer; the stepper
+    writing a failure's or a cusp's label."""
     copy = tmp_path / "elastica_auto"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
     assert not check(copy)

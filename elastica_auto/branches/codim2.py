@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import types
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,6 +48,8 @@ from ..core.errors import PlanError, ProblemError, StartError
 from ..model.augmented import Augmented
 from ..model.problem import Ordinate, Parameter, Problem
 from ..core.solution import State
+from .branch import PROFILE_GRID
+from .kinds import CONTINUE, Event, Placement
 
 #: The name of the normalisation integral of the null vector (a state ``int:null_norm``).
 NORM = "null_norm"
@@ -73,17 +76,24 @@ def _check_base(base, lam: str, what: str):
                         f"for); {what} needs a parameter the module holds fixed")
 
 
-class _Extended(Augmented):
-    """The square problem of an extended system whose first states are those of ``inner``, a
-    module's square problem with free parameters of its own: a solution's parameter values
-    carry the extended system's solved-for parameter and ``inner``'s."""
+class FoldSystem(Augmented):
+    """The square problem of a fold system (`fold_problem`): ``system``, the extended
+    module's problem, with ``lam`` solved for; ``folds_of`` is ``base``, the problem whose
+    folds its solutions are. Where ``base`` solves for parameters of its own (a module with
+    free parameters), a solution's parameter values carry ``lam`` and ``base``'s."""
 
-    def __init__(self, base, free, inner):
-        super().__init__(base, free)
-        self.inner = inner
+    def __init__(self, system, lam: str, base):
+        super().__init__(system, (lam,))
+        self._folds_of = base
+
+    @property
+    def folds_of(self):
+        return self._folds_of
 
     def point_params(self, params, y):
-        return self.inner.point_params(super().point_params(params, y), y[: self.inner.n])
+        out = super().point_params(params, y)
+        base = self._folds_of
+        return base.point_params(out, y[: base.n]) if base.solved else out
 
 
 def fold_problem(base, lam: str) -> Problem:
@@ -97,10 +107,9 @@ def fold_problem(base, lam: str) -> Problem:
     module = _module(base, f"Folds of {base.source} in {lam}.", (*base.states, *_null_states(base)),
                      lam, _fold_hooks(base),
                      [_on_y(o, base) for o in base.ordinates.values()], first=n)
-    problem = Problem(module, base.source)
-    # a base that solves for parameters reads their values from its states: so must the
-    # extended system's points
-    return _Extended(problem, (lam,), base) if base.solved else problem.with_free((lam,))
+    # a base that solves for parameters reads their values from its states: so do the
+    # extended system's points (`FoldSystem.point_params`)
+    return FoldSystem(Problem(module, base.source), lam, base)
 
 
 def _fold_hooks(base) -> dict:
@@ -330,16 +339,23 @@ CUSP_RATIO = 0.5
 FAMILY_RATIO = 1e-6
 
 
-def _neighbours(points, i: int):
-    """The nearest point on each side of ``points[i]`` at another arclength (a labelled point
-    next to it may lie at its arclength)."""
-    here = points[i].arclength
-    before = next((q for q in points[i - 1::-1] if q.arclength != here), None) if i else None
-    after = next((q for q in points[i + 1:] if q.arclength != here), None)
-    return [q for q in (before, after) if q is not None]
+@dataclass(frozen=True)
+class _Near:
+    """What the tests read of a point of the fold curve: its parameter values (the solved-for
+    ones included), its arclength and its profile on PROFILE_GRID, as its branch stores
+    them (`elastica_auto.branches.branch.new_point`)."""
+
+    params: dict
+    arclength: float
+    profile: np.ndarray
+
+    @classmethod
+    def of(cls, problem, state: State, arclength: float) -> _Near:
+        return cls(problem.point_params(state.params, state.y), float(arclength),
+                   state(PROFILE_GRID))
 
 
-def _is_cusp(p, near, lam: str, t_lam: float) -> bool:
+def _is_cusp(p: _Near, near, lam: str, t_lam: float) -> bool:
     """CUSP_RATIO's test at the fold ``p`` of a fold curve, on each neighbouring point."""
     rho = []
     for q in near:
@@ -349,45 +365,102 @@ def _is_cusp(p, near, lam: str, t_lam: float) -> bool:
     return bool(rho) and max(rho) < CUSP_RATIO
 
 
-def _on_family(p, near, own, n: int) -> bool:
+def _on_family(p: _Near, near, own, n: int) -> bool:
     """FAMILY_RATIO's test at the fold ``p`` of a fold curve: its solution's distance from
     the exact family (max norm, on the stored profile grid) against the distance to its
     nearer neighbouring point."""
-    from .branch import PROFILE_GRID
     y0 = own.exact_start(PROFILE_GRID, p.params)
     if y0 is None or not near:
         return False
-    y = p.state(PROFILE_GRID)[:n]
+    y = p.profile[:n]
     step = min(float(np.max(np.abs(q.profile[:n] - y))) for q in near)
     return float(np.max(np.abs(y - y0))) <= FAMILY_RATIO * step
 
 
-def label_fold_curve(branch, problem, base: Problem) -> None:
-    """Label the codimension-two points of a fold curve among its folds (LP, where the
-    continued parameter turns and two folds of the one-parameter family meet):
+class FoldCurvePoint(Event):
+    """The codimension-two points of a fold curve (a walk whose problem is a fold system:
+    its ``folds_of`` is set), among its folds (LP, where the continued parameter turns and
+    two folds of the one-parameter family meet):
 
-    - CP, a cusp, where the solved-for parameter is stationary as well (CUSP_RATIO);
+    - CP, a cusp, where the solved-for parameter ``lam`` is stationary as well: over the
+      step to each neighbouring point, ``lam``'s slope at the fold accounts for less than
+      CUSP_RATIO of its change;
     - BP, where the fold's solution is the module's exact solution (its ``exact_start``,
-      the straight rod) at those parameters (FAMILY_RATIO): the fold curve meets the exact
-      family's branch-point curve (a critical load).
+      the straight rod) at those parameters, to FAMILY_RATIO of the distance to the nearer
+      neighbouring point: the fold curve meets the exact family's branch-point curve (a
+      critical load).
 
     The other folds stay LP: there the two folds that meet face opposite ways (the
-    one-parameter branches reconnect, or an isola appears), and ``lam`` moves through."""
-    row = problem.n - 1                          # the free parameter is the last state
-    own = base.module_problem
-    n, lam = own.n, problem.free[0]
-    points = branch.points
-    for i, p in enumerate(points):
-        if p.type not in labels.FOLDS or p.tangent is None:
-            continue
-        t = p.tangent
-        states = np.trapezoid(np.sum(t.y[:row] ** 2, axis=0), t.s)
-        slope = abs(t.y[row, 0]) / np.sqrt(states + t.y[row, 0] ** 2 + t.lam ** 2)
-        note = f"d{lam}/ds = {slope:.1e} of the tangent"
-        near = _neighbours(points, i)
-        if _is_cusp(p, near, lam, t.y[row, 0]):
-            p.type = labels.CP
-        if _on_family(p, near, own, n):
-            p.type = labels.BP
-            note += "; on the exact family: the fold curve meets its branch-point curve"
-        p.note = "; ".join(filter(None, (p.note, note)))
+    one-parameter branches reconnect, or an isola appears), and ``lam`` moves through. Every
+    fold of the curve is noted with ``lam``'s slope in its unit tangent.
+
+    A placed kind, the last of ``PLACEMENT``: its test reads the fold's neighbouring points
+    on the branch (the points the step places on each side of it, a user point or a bound
+    between it and the step's end among them), which are known once every other placed kind
+    has placed its points and the end; and the turn's label LP is what the placed kinds
+    before it read (the monotone pieces between the step's folds, the fold stop's count).
+    A fold it labels otherwise stays a fold of the branch for the walk
+    (`elastica_auto.branches.kinds.branch_folds`: the next fold's locator, the fold stop,
+    a period's translates)."""
+
+    label, action = labels.CP, CONTINUE
+
+    def place(self, walk, placement: Placement) -> None:
+        """Label the folds among the step's points that stay (before the end found, and the
+        end itself), each against its neighbours there: the nearest point on each side at
+        another arclength among the step's, else the branch's last point before the step,
+        or b, the step's end, where the branch goes on past the step."""
+        base = walk.problem.folds_of
+        if base is None:
+            return
+        step, end = placement.step, placement.end
+        kept = [e for e in placement.points
+                if end is None or placement.ender.keeps(walk, placement, e)]
+        order = sorted(kept + ([end] if end is not None else []), key=lambda e: e.sigma)
+        if not any(e.kind in labels.FOLDS for e in order):
+            return
+        problem = walk.problem
+        row = problem.n - 1                      # the solved-for parameter is the last state
+        own, lam = base.module_problem, problem.solved[0]
+        here = [step.position(e.sigma) for e in order]
+        for i, e in enumerate(order):
+            if e.kind not in labels.FOLDS or e.tangent is None:
+                continue
+            p = _Near.of(problem, e.state, here[i])
+            near = [self._before(walk, order, here, i),
+                    self._after(walk, placement, order, here, i)]
+            near = [q for q in near if q is not None]
+            t = e.tangent
+            states = np.trapezoid(np.sum(t.y[:row] ** 2, axis=0), t.s)
+            slope = abs(t.y[row, 0]) / np.sqrt(states + t.y[row, 0] ** 2 + t.lam ** 2)
+            note = f"d{lam}/ds = {slope:.1e} of the tangent"
+            walk.refolded[id(e.state)] = (e.state, not e.note)
+            if _is_cusp(p, near, lam, t.y[row, 0]):
+                e.kind = labels.CP
+            if _on_family(p, near, own, own.n):
+                e.kind = labels.BP
+                note += "; on the exact family: the fold curve meets its branch-point curve"
+            e.note = "; ".join(filter(None, (e.note, note)))
+
+    @staticmethod
+    def _before(walk, order, here, i) -> _Near | None:
+        """The nearest point before ``order[i]`` at another arclength: one of the step's,
+        else the branch's (its last point, a's, or one before it)."""
+        for j in range(i - 1, -1, -1):
+            if here[j] != here[i]:
+                return _Near.of(walk.problem, order[j].state, here[j])
+        q = next((q for q in reversed(walk.branch.points) if q.arclength != here[i]), None)
+        return None if q is None else _Near(q.params, q.arclength, q.profile)
+
+    @staticmethod
+    def _after(walk, placement: Placement, order, here, i) -> _Near | None:
+        """The nearest point after ``order[i]`` at another arclength: one of the step's, else
+        b, the step's end, where the branch does not end in the step (the walk adds b after
+        the step's points, at its arclength plus ds)."""
+        for j in range(i + 1, len(order)):
+            if here[j] != here[i]:
+                return _Near.of(walk.problem, order[j].state, here[j])
+        if placement.end is not None:
+            return None
+        step = placement.step
+        return _Near.of(walk.problem, step.b.state, step.arclength + step.ds)

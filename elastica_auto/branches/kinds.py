@@ -52,8 +52,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..core import labels
 from ..core.solution import State, Tangent, inner
+from .branch import PROFILE_GRID, Point, new_point
 from ..numerics.correctors import CorrectorFailure, FoldPoint, Solution
 from .events import (TURN_NOISE, Located, Placed, Step, along, crossings, locate_branch_point,
                      locate_fold, locate_index_change, locate_limit, locate_value,
@@ -185,8 +188,10 @@ class Event:
     parameter) and ``walk.branch`` (for warnings and its folds); a shipped placed kind also
     the walk's course and where it stands: ``user_values``, ``stops``, ``watch`` and
     ``counts`` (whether a point counts toward ``max_points``); ``start``, ``a``,
-    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start). Nothing
-    else.
+    ``arclength``, ``first``, ``until`` and ``period`` (the return to the start), and
+    ``refolded`` (the folds a kind labelled otherwise: :func:`branch_folds`); the failure
+    (:class:`Failure`) also ``opt``, ``base_point`` and ``end_at_base``, the walk's way of
+    ending the branch at its last accepted point. Nothing else.
 
     A **turn kind** (a fold, a branch point: where the stability index may change) is driven
     on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in
@@ -267,6 +272,114 @@ class Event:
         sol = at.solution
         return [Hit(at.sigma, self.label, sol.state, sol.tangent,
                     note=self.note(walk, sol, fb > fa))]
+
+
+def branch_folds(walk, located: bool = False) -> list[int]:
+    """The indices of the branch's folds so far, where the continued parameter turned back:
+    its LP points, and the folds a placed kind gave another label in the walk
+    (``walk.refolded``: id of the fold's solution -> (that solution, whether the fold was
+    located); a fold curve's cusps and branch points,
+    `elastica_auto.branches.codim2.FoldCurvePoint`), which stay folds for the walk: the
+    fold before the next one (:meth:`Fold.points`), the count of the fold stop, a fold's
+    translates by a period. ``located``: only those located (an LP without a note)."""
+    out = []
+    for k, p in enumerate(walk.branch.points):
+        mark = walk.refolded.get(id(p.state)) if p.state is not None else None
+        if mark is not None and mark[0] is p.state:
+            if mark[1] or not located:
+                out.append(k)
+        elif p.type in labels.FOLDS and not (located and p.note):
+            out.append(k)
+    return out
+
+
+class Failure(Event):
+    """MX: the branch could not go on, and ends at its last accepted point (a point already
+    labelled keeps its label and is followed by an MX of its own). No test function and no
+    locator: the failure is the event, and the stepper hands it to this kind where it
+    happens; the kind ends the branch with its label, its message (what failed, where:
+    ``branch.message``) and the failure's record (``branch.diagnostics``):
+
+    - :meth:`at_start`: the start has no tangent (the bordered system is singular there);
+    - :meth:`step_failed`: the step was rejected down to ``ds_min``;
+    - :meth:`ended_early`: the equation module or the engine raised, or the user
+      interrupted (the stepper writes the message from the exception)."""
+
+    label, action = labels.MX, END
+
+    def at_start(self, branch, problem, state: State, exc: Exception) -> None:
+        """No tangent at the start ``state`` (``exc``, the corrector's failure): the branch
+        is its start alone, noted singular."""
+        branch.insert(new_point(problem, state, type=self.label, arclength=0.0,
+                                note="singular start"))
+        branch.end, branch.message = self.label, f"no tangent at the start point ({exc})"
+
+    def step_failed(self, walk, retry: Retry, history: list[dict]) -> None:
+        """The step from ``walk.a`` was rejected down to ``ds_min`` (``retry``: the last
+        rejection; ``history``: each attempt's ds, residual, nodes and message): the branch
+        ends at the last accepted point (``walk.end_at_base``), the message saying why, the
+        diagnostics holding the last 12 attempts."""
+        opt, branch = walk.opt, walk.branch
+        # an infinite residual is Newton's mark for residuals that are not finite, which only
+        # the module's functions can make from a finite guess
+        why = (" (the equation module returned NaN or inf there)"
+               if math.isinf(retry.residual) else "")
+        if any(h["nodes"] >= opt.max_nodes for h in history):
+            # no mesh met tol: what is left of the residual is not the mesh's (the tail of the
+            # Bratu branch, where lam ~ 1e-20 is known only to the corrector's absolute
+            # accuracy and lam exp(u) is not small)
+            why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
+                    "without meeting tol)")
+        walk.end_at_base(self.label, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
+                                     f"after point {len(branch.points)} "
+                                     f"({walk.name} = {walk.a.lam:.6g}): {retry}{why}")
+        branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
+                              "nodes": len(walk.a.mesh), "history": history[-12:]}
+
+    def ended_early(self, branch, problem, walk, origin, message: str,
+                    record: dict | None = None) -> None:
+        """End ``branch`` early with ``message`` (``record``: the exception's failure record,
+        `elastica_auto.core.errors.failure_record`, kept as the diagnostics with the points'
+        count): its last point becomes MX (a labelled one keeps its label and is followed by
+        an MX of its own). A branch without points gets its start ``origin`` (a solution and
+        a tangent), labelled MX, so that every branch has a point to show and restart from
+        (without calling the module, which may be what failed, if it fails there:
+        :func:`start_point`). ``walk``: the walk in progress, or None before it began."""
+        branch.end, branch.message = self.label, message
+        if not branch.points:
+            try:
+                branch.insert(new_point(problem, origin.state, type=self.label,
+                                        arclength=0.0, tangent=origin.tangent))
+            except Exception:  # the module fails at the start itself
+                branch.insert(start_point(branch, origin))
+        else:
+            base = walk.base_point if walk is not None else None
+            # a step interrupted while it was being accepted may have put in its end point
+            # before the walk moved on to it: the branch ends at the last point accepted whole
+            while (base is not None and branch.points[-1] is not base
+                   and not branch.points[-1].type):
+                branch.points.pop()
+            last = branch.points[-1]
+            if last.type:  # keep its label (the start's EP, say); end with an MX of its own
+                branch.insert(new_point(problem, last.state, type=self.label,
+                                        arclength=last.arclength, tangent=last.tangent,
+                                        direct=last.index_direct))
+            else:  # the last accepted point, whose solution the walk still has
+                walk.end_at_base(self.label, message)
+        if record is not None:
+            branch.diagnostics = {**record, "step": len(branch.points)}
+
+
+def start_point(branch, origin) -> Point:
+    """The start ``origin`` (its ``state`` and ``tangent``) as an MX point of ``branch``,
+    without calling the equation module: NaN ordinates, an unknown index, and the profile
+    interpolated linearly from the values alone (the derivatives may be what is broken)."""
+    state = origin.state
+    return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
+                                                                    float("nan")),
+                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type=labels.MX,
+                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
+                 state=state, tangent=origin.tangent)
 
 
 def quantity(problem, name: str, state: State) -> float:
@@ -381,7 +494,8 @@ class Fold(Event):
         can pass both; as one BP the fold was missing, and the walk for its translates went
         on for thousands of points). CorrectorFailure where the fold is not located."""
         step, located = scan.step, scan.located
-        before = [p.state for p in walk.branch.folds[-1:] if p.state is not None]
+        pts = walk.branch.points
+        before = [pts[k].state for k in branch_folds(walk)[-1:] if pts[k].state is not None]
         fp = self.locate(walk, step, before[0] if before else None)
         phi = fp.phi
         if inner(phi, step.secant, phi.s) < 0:
@@ -729,7 +843,7 @@ class FoldStop(Event):
         kept = [e for e in placement.points
                 if placement.end is None or placement.ender.keeps(walk, placement, e)]
         order = sorted(kept, key=lambda e: e.sigma)
-        before = len(walk.branch.folds)
+        before = len(branch_folds(walk))
         folds = [i for i, e in enumerate(order) if e.kind in labels.FOLDS]
         k = max(n - before, 1)
         if len(folds) < k:

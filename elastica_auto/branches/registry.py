@@ -16,8 +16,9 @@ from __future__ import annotations
 import importlib
 
 from ..core.errors import PlanError
-from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Fold,
+from .kinds import (Bound, BranchPoint, CourseEvents, EvenBranchPoint, Event, Failure, Fold,
                     FoldStop, SymmetricBranchPoint, UserValue)
+from .codim2 import FoldCurvePoint
 from .loops import Closure, Period
 
 #: The shipped kinds, one object each, which the stepper drives in two stages: the turn
@@ -35,6 +36,10 @@ COURSE_EVENTS = CourseEvents()
 CLOSURE = Closure()
 PERIOD = Period()
 FOLD_STOP = FoldStop()
+FOLD_CURVE_POINT = FoldCurvePoint()
+#: The failure of the walk (MX), which the stepper hands every failure to: no tangent at the
+#: start, a step rejected down to ``ds_min``, an exception or an interruption.
+FAILURE = Failure()
 
 #: The turn kinds the stepper drives on every step, in the order in which they are located
 #: and reconciled (each reads what those before it left in the step's
@@ -51,14 +56,16 @@ DETECTION = (SYMMETRIC_BRANCH_POINT, BRANCH_POINT, FOLD, EVEN_BRANCH_POINT)
 #: the user values (UZ) on the monotone pieces between the folds the turns found, the bound
 #: (EP) on the first piece that passes one; the course's own events (the kinds the run asks
 #: for, then its limits on ordinates); the start again (a closed loop); the start translated
-#: by whole periods (the branch repeats); last, the n-th fold (``stop = ["LPn"]``), among the
-#: points the end found so far leaves. The order is that of their solves and warnings; the
+#: by whole periods (the branch repeats); the n-th fold (``stop = ["LPn"]``), among the
+#: points the end found so far leaves; last, on a fold curve, its folds' cusps (CP) and
+#: meetings with the exact family (BP), tested against the fold's neighbouring points once
+#: the step's points and end are known. The order is that of their solves and warnings; the
 #: earliest end offered wins (the first offered of equals), and the points are added in the
 #: order of travel. Before each step every kind's ``ahead`` may end the branch (the closure,
 #: where the start lies within the next step; the bound, where the start lies on one and
 #: leaves it); before the walk's first, every kind's
 #: ``begin`` reads its course (the period: whether the branch may repeat).
-PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD, FOLD_STOP)
+PLACEMENT = (USER_VALUE, BOUND, COURSE_EVENTS, CLOSURE, PERIOD, FOLD_STOP, FOLD_CURVE_POINT)
 
 #: The modules of the kinds an ``events`` entry asks for, tried in this order.
 REQUESTED = (

@@ -3,7 +3,9 @@
 One call of :func:`continue_branch` fills one :class:`~elastica_auto.branches.branch.Branch`: from a
 start solution, in one direction, until a parameter bound (EP), the point limit (EP), the
 n-th fold (``stop = ["LP4"]``), its own start point again (EP: a closed loop), or a
-corrector failure at ``ds_min`` (MX).
+failure (MX: a corrector failure at ``ds_min``, an exception, an interruption), which the
+walk hands to the failure kind (``registry.FAILURE``,
+:class:`~elastica_auto.branches.kinds.Failure`): that kind ends the branch and says why.
 
 Each step from a solution a (with its unit tangent t_a, oriented along the direction of
 travel):
@@ -59,7 +61,7 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import Step, UserValues, is_user_value
-from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
+from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan, branch_folds
 from .loops import turned, turned_tangent
 from . import registry
 from ..core import labels
@@ -266,15 +268,13 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             a = start_solution(corr, origin.state, branch.direction, origin.tangent,
                                origin.kind == "switch")
         except CorrectorFailure as exc:
-            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
-                                    note="singular start"))
-            branch.end, branch.message = labels.MX, f"no tangent at the start point ({exc})"
+            registry.FAILURE.at_start(branch, problem, origin.state, exc)
             return branch
         walk = Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         walk.run(a)
     except KeyboardInterrupt:
         branch.interrupted = True
-        _end_early(branch, problem, walk, origin, INTERRUPTED)
+        registry.FAILURE.ended_early(branch, problem, walk, origin, INTERRUPTED)
     except (Exception, SystemExit) as exc:   # whatever fails fails this branch only
         # (SystemExit: the module calling sys.exit, which would end the command with status 0)
         record = failure_record(exc, module_files(problem.module))
@@ -284,49 +284,11 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
         last = walk.a.state if walk is not None and walk.a is not None else origin.state
         when = f"after point {len(branch.points)}" if branch.points else "at the start"
         internal = "internal error: " if record["kind"] == ENGINE else ""
-        _end_early(branch, problem, walk, origin,
-                   f"{internal}{record['exception']}: {error} ({record['where']}) {when} "
-                   f"({course.parameter} = {last.params[course.parameter]:g})")
-        branch.diagnostics = {**record, "step": len(branch.points)}
+        registry.FAILURE.ended_early(
+            branch, problem, walk, origin,
+            f"{internal}{record['exception']}: {error} ({record['where']}) {when} "
+            f"({course.parameter} = {last.params[course.parameter]:g})", record)
     return branch
-
-
-def _end_early(branch: Branch, problem, walk, origin: Origin, message: str):
-    """End ``branch`` early with ``message``: its last point becomes MX (a labelled one keeps
-    its label and is followed by an MX of its own). A branch without points gets its start,
-    labelled MX, so that every branch has a point to show and restart from (without calling
-    the module, which may be what failed, if it fails there: :func:`start_point`)."""
-    branch.end, branch.message = labels.MX, message
-    if not branch.points:
-        try:
-            branch.insert(new_point(problem, origin.state, type=labels.MX, arclength=0.0,
-                                    tangent=origin.tangent))
-        except Exception:  # the module fails at the start itself
-            branch.insert(start_point(branch, origin))
-        return
-    base = walk.base_point if walk is not None else None
-    # a step interrupted while it was being accepted may have put in its end point before the
-    # walk moved on to it: the branch ends at the last point accepted whole
-    while base is not None and branch.points[-1] is not base and not branch.points[-1].type:
-        branch.points.pop()
-    last = branch.points[-1]
-    if last.type:  # keep its label (the start's EP, say); end with an MX of its own
-        branch.insert(new_point(problem, last.state, type=labels.MX, arclength=last.arclength,
-                                tangent=last.tangent, direct=last.index_direct))
-    else:  # the last accepted point, whose solution the walk still has
-        walk.end_at_base(labels.MX, message)
-
-
-def start_point(branch: Branch, origin: Origin) -> Point:
-    """The start as an MX point, without calling the equation module: NaN ordinates, an
-    unknown index, and the profile interpolated linearly from the values alone (the
-    derivatives may be what is broken)."""
-    state = origin.state
-    return Point(params=dict(state.params), ordinates=dict.fromkeys(branch.ordinate_names,
-                                                                    float("nan")),
-                 arclength=0.0, ds=0.0, niter=0, nodes=len(state.s), type=labels.MX,
-                 profile=np.array([np.interp(PROFILE_GRID, state.s, v) for v in state.y]),
-                 state=state, tangent=origin.tangent)
 
 
 class _Points:
@@ -619,7 +581,7 @@ class _Translates:
         pts = self.branch.points
         lam = np.array([p.params[self.name] for p in pts])
         ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = [k for k, p in enumerate(pts) if p.type == labels.LP and not p.note]
+        folds = branch_folds(self, located=True)
         out = {}
         for k in folds:
             scale = 1.0 + np.abs(ords[k])
@@ -679,6 +641,7 @@ class _Translates:
             pt.arclength = a0 + (a1 - a0) * pt.arclength / total
         pts[i + 1:i + 1] = new
         self.branch.warnings.extend(sub.warnings)
+        self.refolded.update(walk.refolded)
         return True
 
     def _resolve(self, point) -> Solution:
@@ -720,6 +683,9 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
         # the period a branch may repeat with, None where it may not: set by the kind that
         # places the repeat (`loops.Period.begin`), as every placed kind reads the course
         self.period = None
+        # the folds a placed kind labelled otherwise, which stay folds for the walk
+        # (`kinds.branch_folds`): id of the solution -> (the solution, whether located)
+        self.refolded = {}
         for event in registry.PLACEMENT:
             event.begin(self, course)
 
@@ -731,7 +697,7 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
             self._complete_translates()
 
     def _walk(self, a: Solution):
-        opt, branch = self.opt, self.branch
+        opt = self.opt
         self.base_point = self._add(a.state, type=labels.EP, arclength=0.0, tangent=a.tangent)
         if self.singular_start:
             self.base_point.note = ""
@@ -760,22 +726,8 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
                 retries += 1
                 below += rej.ds < self.accepted_ds
                 ds = rej.ds
-                if ds < opt.ds_min:
-                    # an infinite residual is Newton's mark for residuals that are not finite,
-                    # which only the module's functions can make from a finite guess
-                    why = (" (the equation module returned NaN or inf there)"
-                           if math.isinf(rej.residual) else "")
-                    if any(h["nodes"] >= opt.max_nodes for h in history):
-                        # no mesh met tol: what is left of the residual is not the mesh's
-                        # (the tail of the Bratu branch, where lam ~ 1e-20 is known only to
-                        # the corrector's absolute accuracy and lam exp(u) is not small)
-                        why += (f" (the step's mesh reached max_nodes = {opt.max_nodes} "
-                                "without meeting tol)")
-                    self.end_at_base(labels.MX, f"corrector failed at ds < ds_min = {opt.ds_min:g} "
-                                            f"after point {len(branch.points)} "
-                                            f"({self.name} = {self.a.lam:.6g}): {rej}{why}")
-                    branch.diagnostics = {"step": len(branch.points), "ds": history[-1]["ds"],
-                                          "nodes": len(self.a.mesh), "history": history[-12:]}
+                if ds < opt.ds_min:     # the failure ends the branch: its kind says how
+                    registry.FAILURE.step_failed(self, rej, history)
                     return
                 continue
             if ended:

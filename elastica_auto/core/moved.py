@@ -57,7 +57,7 @@ MOVED = {
         "model.problem": "Ordinate Problem",
         "core.solution": "State",
         "branches.codim2": ("NORM fold_problem branch_point_problem fold_start branch_point_start "
-                            "family_slope label_fold_curve"),
+                            "family_slope"),
     },
     "collocation": {
         "core.solution": "at_fractions trapezoid_weights",
@@ -165,7 +165,8 @@ MOVED = {
         "analysis.equilibria": "enumerate_equilibria",
         "analysis.snaps": "scans snap_targets",
         "numerics.stability": "label_stability",
-        "branches.stepper": "INTERRUPTED Origin continue_branch start_point",
+        "branches.stepper": "INTERRUPTED Origin continue_branch",
+        "branches.kinds": "start_point",
         "branches.switching": "switch_direction",
         "execution.run": "RunResult build_start number_labels switch_jobs execute compute",
         "execution.jobs": "Job Progress compute_branch cell",
@@ -216,9 +217,8 @@ MOVED = {
         "core.solution": "State Tangent difference inner norm secant",
         "numerics.stability": "Count count index_change kernel_dimension",
         "branches.stepper": ("RETRY_HALVINGS EASY_CONTRACTION STATIONARY RISE_NOISE "
-                             "Stops start_solution INTERRUPTED Origin Course continue_branch "
-                             "start_point"),
-        "branches.kinds": "Limit PROBES",
+                             "Stops start_solution INTERRUPTED Origin Course continue_branch"),
+        "branches.kinds": "Limit PROBES start_point",
     },
     "store": {
         "": "FORMAT_VERSION",
@@ -252,6 +252,9 @@ REMOVED = {
                       "along the fold curve, which has no units (0.2.0, issue 45)",
         "ON_FAMILY": "a fold curve's branch point on the exact family is decided by the ratio "
                      "elastica_auto.branches.codim2.FAMILY_RATIO, which has no units (0.2.0)",
+        "label_fold_curve": "a fold curve's cusps and branch points are labelled as the curve "
+                            "is continued, by the placed kind "
+                            "elastica_auto.branches.codim2.FoldCurvePoint (0.2.0, issue 48)",
     },
     "corrector": {
         "solve_tangent": "a step's tangent is the corrector's own (the tangent of "

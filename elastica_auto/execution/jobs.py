@@ -14,11 +14,12 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from ..branches import codim2, pitchfork
+from ..branches import pitchfork
 from ..branches.branch import Branch
 from ..branches.mirror import (image_of, mirror_course, set_aside, symmetric_course,
                                symmetric_start)
-from ..branches.stepper import Origin, continue_branch, start_point
+from ..branches.kinds import start_point
+from ..branches.stepper import Origin, continue_branch
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
 from ..core.interrupts import Interruptions
@@ -111,9 +112,7 @@ def compute_branch(plan: Plan, k: int, job: Job, progress: Progress | None = Non
             pass
         late.raising = False
         try:
-            if plan.curve == "fold":
-                codim2.label_fold_curve(br, plan.problem, plan.base)
-            elif plan.curve == "pitchfork":
+            if plan.curve == "pitchfork":
                 pitchfork.warn_unfolded(br, plan.reference, plan.options.tol)
             label_stability(br, plan.problem)
             if job.mirrored:

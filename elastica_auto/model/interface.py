@@ -21,8 +21,9 @@ flag: ``second_variation``, ``shooting``, ``gradient_flow``, ``symmetry``,
 ``symmetric_values``, ``draw`` and the ``mirror``. Code outside the model layer tells no
 kind from another (no ``isinstance`` on them, `tests/test_layers.py`): what differs is in
 the answers, ``solved`` (the parameters solved for along with the states),
-``approximate_start`` (a completed start only approximately a solution) and
-``module_problem`` (the module's own problem a wrapper is built on) among them.
+``approximate_start`` (a completed start only approximately a solution),
+``module_problem`` (the module's own problem a wrapper is built on) and ``folds_of`` (the
+problem whose folds a fold-curve system's solutions are) among them.
 
 A problem built around another (`Wrapper`: `Augmented`, `Phased`) forwards every optional
 hook it does not change to its ``base``, or refuses it with a reason (`Wrapper.REFUSED`),
@@ -59,6 +60,12 @@ class ProblemInterface(abc.ABC):
     #: A start completed from the module's exact start or guess is only approximately a
     #: solution (running integrals by the trapezoidal rule): it is always solved from.
     approximate_start: bool = False
+    #: For a fold-curve system (`elastica_auto.branches.codim2.fold_problem`): the problem
+    #: whose folds its solutions are (the module's, or its square problem with free
+    #: parameters), whose solved-for parameter is this one's first ``solved``; None for
+    #: every other problem. The walk labels a fold curve's cusps where it is set
+    #: (`elastica_auto.branches.codim2.FoldCurvePoint`).
+    folds_of: ProblemInterface | None = None
 
     # -- names --------------------------------------------------------------------------------
     @property
@@ -197,6 +204,10 @@ class Wrapper(ProblemInterface):
     @property
     def module_problem(self):
         return self.base.module_problem
+
+    @property
+    def folds_of(self):
+        return self.base.folds_of
 
     # -- the optional hooks, forwarded where not refused ---------------------------------------
     @property
