@@ -43,7 +43,7 @@ PARTS = [
     ("branches/stepper.py", "_correct", "corrector (predictor, Newton, mesh, tangent)"),
     ("branches/stepper.py", "start_solution", "corrector (predictor, Newton, mesh, tangent)"),
     ("branches/stepper.py", "_arc_checked", "corrector (predictor, Newton, mesh, tangent)"),
-    ("branches/stepper.py", "_complete_translates", "periodic translates"),
+    ("branches/kinds.py", "finish", "periodic translates"),
     ("branches/stepper.py", "", "the walk's own bookkeeping, progress"),
     ("execution/run.py", "_analyse", "analysis after the branches"),
     ("energy/loader.py", "", "run file, module load, CLI"),

@@ -417,16 +417,16 @@ def test_the_translate_check_alone_finds_the_fold_pairs(tmp_path, monkeypatch):
     compares periods computed apart, so the branches are computed whole here: a branch that
     repeats is otherwise its first period copied (`Walk._repeat`), and a pair its steps
     pass over is then missing from every copy, the probe being what finds it. In this
-    process (jobs = 1): the patches of the kinds and the stepper do not reach a cluster's
+    process (jobs = 1): the patches of the kinds do not reach a cluster's
     workers."""
-    from elastica_auto.branches import kinds, loops, stepper
+    from elastica_auto.branches import kinds, loops
 
     def patch(translates: bool):
         # the fold kind's probe of a dipping slope (`Fold.detect`) never starts
         monkeypatch.setattr(kinds, "pair_suspected", lambda step, dip=0.5: None)
         monkeypatch.setattr(loops.Period, "begin", lambda self, walk, course: None)
-        if not translates:
-            monkeypatch.setattr(stepper.Walk, "_complete_translates", lambda self: None)
+        if not translates:  # nor its search for folds at their translates after the walk
+            monkeypatch.setattr(kinds.Fold, "finish", lambda self, walk: None)
 
     patch(translates=False)
     missed = _cusp_folds(tmp_path / "without", ds_max=1.0)

@@ -213,11 +213,14 @@ def test_a_requested_event_kind_imports_only_the_event_type_and_core():
 
 #: What locating, reconciling and checking the turns (folds, branch points) is made of: the
 #: turn kinds' classes, their locators and probe, the fold rule's index change and the
-#: kernel's dimension. The turn kinds (`branches.kinds`, driven through
+#: kernel's dimension, the branch's folds and the search for them at their translates by a
+#: period after the walk (`Fold.finish`). The turn kinds (`branches.kinds`, driven through
 #: `registry.DETECTION`) use them; the stepper, which drives the kinds, does not.
 TURN_LOGIC = {
     "elastica_auto.branches.kinds": {"Fold", "BranchPoint", "SymmetricBranchPoint",
-                                     "EvenBranchPoint", "kernel_check", "rule_index"},
+                                     "EvenBranchPoint", "kernel_check", "rule_index",
+                                     "branch_folds", "missing_translates", "TRANSLATE_NEAR",
+                                     "TRANSLATE_SAME"},
     "elastica_auto.branches.registry": {"FOLD", "BRANCH_POINT", "SYMMETRIC_BRANCH_POINT",
                                         "EVEN_BRANCH_POINT"},
     "elastica_auto.branches.events": {"locate_fold", "locate_branch_point",
@@ -283,16 +286,21 @@ def test_the_stepper_imports_no_concrete_kind():
     assert stepper_kinds(graph()) == []
 
 
-#: The labels only their kinds write in a walk: a failure's MX (`kinds.Failure`, which the
-#: stepper hands every failure to) and a fold curve's CP (`codim2.FoldCurvePoint`, a placed
-#: kind of `registry.PLACEMENT`).
-KIND_LABELS = {"MX", "CP"}
+#: The labels only their kinds write or read in a walk: a failure's MX (`kinds.Failure`,
+#: which the stepper hands every failure to), a fold curve's CP (`codim2.FoldCurvePoint`, a
+#: placed kind of `registry.PLACEMENT`), and the turns' LP and BP (the turn kinds of
+#: `registry.DETECTION`: their points, their ``detect`` switches, the folds at their
+#: translates after the walk, `Fold.finish`). The stepper names the EP of its start and of
+#: the ends it carries out, and the UZ of a user value's translate in the period it copies.
+KIND_LABELS = {"MX", "CP", "LP", "BP"}
 
 
 def stepper_labels(root: Path = PACKAGE) -> list[str]:
     """The labels of `KIND_LABELS` the stepper names (``labels.MX``, or ``MX`` imported from
-    `core.labels`), as "line name": it hands a failure to its kind, and a fold curve's folds
-    are their kind's to label, so that neither is written by the loop itself."""
+    `core.labels`), as "line name": it hands a failure to its kind, a fold curve's folds
+    are their kind's to label, and the turns are their kinds' (the repeat resumes past a
+    turn by its property, `labels.TURNS`), so that none is written or read by the loop
+    itself."""
     path = root / "branches" / "stepper.py"
     out = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
@@ -304,7 +312,7 @@ def stepper_labels(root: Path = PACKAGE) -> list[str]:
     return out
 
 
-def test_the_stepper_writes_no_failure_or_cusp_label():
+def test_the_stepper_names_no_failure_cusp_or_turn_label():
     assert stepper_labels() == []
 
 
@@ -325,12 +333,18 @@ def test_the_stepper_writes_no_failure_or_cusp_label():
     ("branches/codim2.py", "return isinstance(base, Augmented)", lambda r: kind_checks(r)),
     ("branches/stepper.py", "return labels.MX", lambda r: stepper_labels(r)),
     ("branches/stepper.py", "from ..core.labels import CP", lambda r: stepper_labels(r)),
+    ("branches/stepper.py", "return labels.LP", lambda r: stepper_labels(r)),
+    ("branches/stepper.py", "from .kinds import branch_folds",
+     lambda r: stepper_turn_logic(graph(r))),
+    ("branches/stepper.py", "from .kinds import missing_translates",
+     lambda r: stepper_turn_logic(graph(r))),
 ])
 def test_the_checks_catch_what_they_forbid(tmp_path, where, line, check):
     """A copy of the package with one bad line, inside a function as the lazy imports are:
     an import from a higher layer, of a private name, and a circle (`newton` imports
     `collocation`); an isinstance on a kind of problem outside the model layer; the stepper
-    writing a failure's or a cusp's label."""
+    naming a failure's, a cusp's or a turn's label, or the branch's folds or their search at
+    the translates."""
     copy = tmp_path / "elastica_auto"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns(*NOT_ENGINE, "__pycache__"))
     assert not check(copy)

@@ -75,6 +75,10 @@ SAME_EVENT = 1e-3
 #: At most this many solves look for the minimum of the parameter's slope inside a step
 #: where the cubic model suspects a fold pair (:meth:`Fold.probe`).
 PROBES = 4
+#: A fold's translate by a period is looked for where the branch passes it with ordinates
+#: within TRANSLATE_NEAR (relative) of the fold's; it is reported missing within
+#: TRANSLATE_SAME (:meth:`Fold.finish`).
+TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
 
 
 class Retry(Exception):
@@ -191,7 +195,8 @@ class Event:
     ``arclength``, ``first``, ``until`` and ``period`` (the return to the start), and
     ``refolded`` (the folds a kind labelled otherwise: :func:`branch_folds`); the failure
     (:class:`Failure`) also ``opt``, ``base_point`` and ``end_at_base``, the walk's way of
-    ending the branch at its last accepted point. Nothing else.
+    ending the branch at its last accepted point; the fold's :meth:`finish` also ``refine``,
+    the walk's way of walking one of its steps again with short steps. Nothing else.
 
     A **turn kind** (a fold, a branch point: where the stability index may change) is driven
     on every step through :meth:`crosses` and :meth:`detect` on the step's :class:`Scan`, in
@@ -199,8 +204,9 @@ class Event:
     reconciled; the **placed kinds** (the registry's ``PLACEMENT``: user values, bounds,
     the kinds a run asks for, limits, the return to the start) then, in their order, through
     :meth:`place` on the step's :class:`Placement`, by default the points :meth:`find`
-    finds; before a step, :meth:`ahead` may end the branch, and before the walk's first,
-    :meth:`begin` reads its course."""
+    finds; before a step, :meth:`ahead` may end the branch, before the walk's first,
+    :meth:`begin` reads its course, and after the walk, every kind of both sets, in their
+    order, completes the branch as a whole through :meth:`finish` (the fold's translates)."""
 
     label: str = ""
     action: str = CONTINUE
@@ -251,6 +257,12 @@ class Event:
         """Before a step of length ``ds``: the point at which the branch ends without taking
         it (``sigma``: its distance from the last point accepted), or None (the default)."""
         return None
+
+    def finish(self, walk) -> None:
+        """After the walk, once the branch has ended: complete what the branch as a whole
+        owes this kind, which no single step could see (the fold's translates by a period:
+        :meth:`Fold.finish`), with the walk's ``refine`` where a step must be walked again.
+        The default: nothing."""
 
     def find(self, walk, step: Step) -> list[Hit]:
         """The points of this kind in the step: where the test function changes sign
@@ -539,6 +551,55 @@ class Fold(Event):
             if nxt is None or abs(nxt - u) < 1e-3:
                 return
             u = nxt
+
+    def finish(self, walk) -> None:
+        """For a parameter with a period, every fold at each of its translates. The solution
+        set is periodic in such a parameter, so a fold found at ``lam`` recurs wherever the
+        branch passes ``lam + k period`` with the same ordinates. Where it passes without
+        one (a fold pair stepped over), the step there is walked again (``walk.refine``, with
+        steps of at most 1/32 of its length), up to three rounds; a translate still missing
+        is a warning. Not in the refinement of a step (``walk.until``), nor on a branch a
+        fold stop ended (at its n-th fold: the folds past it are not the branch's)."""
+        period = walk.problem.parameters[walk.name].period
+        if period is None or walk.until is not None or walk.branch.end == labels.LP:
+            return
+        for _ in range(3):
+            gaps = missing_translates(walk, period, TRANSLATE_NEAR)
+            if not gaps or not any([walk.refine(i) for i in sorted(gaps, reverse=True)]):
+                break
+        for i, lam in sorted(missing_translates(walk, period, TRANSLATE_SAME).items()):
+            walk.branch.warnings.append(f"no fold where the branch passes {walk.name} = "
+                                        f"{lam:.6g}, a translate of a fold by a period")
+
+
+def missing_translates(walk, period: float, tol: float) -> dict[int, float]:
+    """{i: translate} for the branch's steps i -> i+1 that pass a translate of a located
+    fold (by whole periods, within the range the branch travelled) where the branch has no
+    fold: the steps whose ends bracket the translate's parameter and the fold's ordinates,
+    within ``tol`` (relative)."""
+    pts = walk.branch.points
+    lam = np.array([p.params[walk.name] for p in pts])
+    ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
+    folds = branch_folds(walk, located=True)
+    out = {}
+    for k in folds:
+        scale = 1.0 + np.abs(ords[k])
+        for j in range(math.ceil((lam.min() - lam[k]) / period),
+                       math.floor((lam.max() - lam[k]) / period) + 1):
+            target = lam[k] + j * period
+            if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
+                             and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
+                             for g in folds):
+                continue
+            # steps whose ends bracket the fold's parameter and ordinates, within tol: a
+            # fold's parameter is an extreme value, which the branch touches, not crosses
+            near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
+                    & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
+                    & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
+                    & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
+            for i in np.flatnonzero(near):
+                out[int(i)] = float(target)
+    return out
 
 
 def rule_index(scan: Scan) -> int | None:

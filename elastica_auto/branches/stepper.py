@@ -45,8 +45,9 @@ they ask for and the fold rule's check are theirs); step 5 is the placed kinds o
 (their solves, retries, warnings and ends are theirs; the walk adds the points in order and
 carries out the end: ``end``, or ``repeat``). The walk is one class made of named parts: the
 points and their room (``_Points``), detection (``_Detection``), the step's points in order
-(``_Placement``), the repeat by a period (``_Return``), fold translates (``_Translates``),
-and the loop (``Walk``).
+(``_Placement``), the repeat by a period (``_Return``), a step walked again with short steps
+(``_Refinement``, for a kind that finds after the walk that a step passed over its points:
+``Event.finish``, the fold's translates by a period), and the loop (``Walk``).
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ import numpy as np
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
 from .events import Step, UserValues, is_user_value
-from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan, branch_folds
+from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
 from .loops import turned, turned_tangent
 from . import registry
 from ..core import labels
@@ -75,9 +76,6 @@ from ..numerics.stability import Count, count
 #: located) fails is retried down to 1 / 2**RETRY_HALVINGS of the last step accepted (or of
 #: its own first length, if shorter).
 RETRY_HALVINGS = 6
-#: A fold's translate is looked for where the branch passes it with ordinates within
-#: TRANSLATE_NEAR (relative) of the fold's; it is reported missing within TRANSLATE_SAME.
-TRANSLATE_NEAR, TRANSLATE_SAME = 0.05, 1e-3
 #: ds grows after a step whose Newton iteration contracted at least this fast (and whose
 #: tangent turned by less than half of max_angle).
 EASY_CONTRACTION = 0.3
@@ -381,7 +379,7 @@ class _Detection:
         # them (they would approach the fold for ever)
         self.can_retry = max(retries, self.event_retries) < RETRY_HALVINGS
         scan = Scan(step, a_here, self.base_point.index_direct, counted.index, skip,
-                    {labels.LP: self.detect_lp, labels.BP: self.detect_bp}, self.can_retry,
+                    self.detected, self.can_retry,
                     self.ordinate, self.enters)
         turns = registry.DETECTION     # read here: a kind registered there is driven too
         for event in turns:
@@ -516,12 +514,13 @@ class _Return:
             j += 1
 
     def _resume(self, exact: dict) -> str:
-        """Go on from the last copy :meth:`_repeat` made that is not a fold or a branch point
-        (the later copies removed): its solution, solved again from its profile where it is
-        not a translate of the start, with the tangent along the branch."""
+        """Go on from the last copy :meth:`_repeat` made that is not a turn (a fold or a
+        branch point, `labels.TURNS`: its tangent is not unique), the later copies removed:
+        its solution, solved again from its profile where it is not a translate of the
+        start, with the tangent along the branch."""
         branch, name = self.branch, self.name
         pts = branch.points
-        while pts[-1].type in (labels.LP, labels.BP):
+        while pts[-1].type in labels.TURNS:
             pts.pop()
         point = pts[-1]
         sol = None
@@ -554,55 +553,12 @@ class _Return:
         return "moved"
 
 
-class _Translates:
-    """For a parameter with a period, every fold at each of its translates: a step that passes
-    a translate without its fold (a fold pair stepped over) is walked again with short
-    steps."""
+class _Refinement:
+    """A step of the branch walked again with short steps, for a kind that finds after the
+    walk that one step passed over what it looks for (`Event.finish`: the fold's
+    translates by a period, `elastica_auto.branches.kinds.Fold.finish`)."""
 
-    def _complete_translates(self):
-        """The solution set is periodic in a parameter with a period, so a fold found at
-        ``lam`` recurs wherever the branch passes ``lam + k period`` with the same ordinates.
-        Where it passes without one (a fold pair stepped over), the step there is walked again
-        with steps of at most 1/32 of its length; a translate still missing is a warning."""
-        period = self.problem.parameters[self.name].period
-        if period is None:
-            return
-        for _ in range(3):
-            gaps = self._missing_translates(period, TRANSLATE_NEAR)
-            if not gaps or not any([self._refine(i) for i in sorted(gaps, reverse=True)]):
-                break
-        for i, lam in sorted(self._missing_translates(period, TRANSLATE_SAME).items()):
-            self.branch.warnings.append(f"no fold where the branch passes {self.name} = "
-                                        f"{lam:.6g}, a translate of a fold by a period")
-
-    def _missing_translates(self, period: float, tol: float) -> dict[int, float]:
-        """{i: translate} for the steps i -> i+1 that pass a translate of a located fold (by
-        whole periods, within the range the branch travelled) where the branch has no fold."""
-        pts = self.branch.points
-        lam = np.array([p.params[self.name] for p in pts])
-        ords = np.array([list(p.ordinates.values()) for p in pts]).reshape(len(pts), -1)
-        folds = branch_folds(self, located=True)
-        out = {}
-        for k in folds:
-            scale = 1.0 + np.abs(ords[k])
-            for j in range(math.ceil((lam.min() - lam[k]) / period),
-                           math.floor((lam.max() - lam[k]) / period) + 1):
-                target = lam[k] + j * period
-                if j == 0 or any(abs(lam[g] - target) <= 1e-6 * (1 + abs(target))
-                                 and np.all(np.abs(ords[g] - ords[k]) <= 1e-4 * scale)
-                                 for g in folds):
-                    continue
-                # steps whose ends bracket the fold's parameter and ordinates, within tol: a
-                # fold's parameter is an extreme value, which the branch touches, not crosses
-                near = ((np.minimum(lam[:-1], lam[1:]) - tol * (1 + abs(target)) <= target)
-                        & (target <= np.maximum(lam[:-1], lam[1:]) + tol * (1 + abs(target)))
-                        & np.all(np.minimum(ords[:-1], ords[1:]) - tol * scale <= ords[k], axis=1)
-                        & np.all(ords[k] <= np.maximum(ords[:-1], ords[1:]) + tol * scale, axis=1))
-                for i in np.flatnonzero(near):
-                    out[int(i)] = float(target)
-        return out
-
-    def _refine(self, i: int) -> bool:
+    def refine(self, i: int) -> bool:
         """Walk the step from point i to point i+1 again with small steps, and put the points
         (and any folds, branch points, user points) it finds between them. False if it could
         not be done (the two points could not be solved again from their profiles, or there
@@ -653,7 +609,7 @@ class _Translates:
         return self.corr.point(state)
 
 
-class Walk(_Points, _Detection, _Placement, _Return, _Translates):
+class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
     """The state of one continuation (the last accepted solution, ds, the arclength) and its
     loop: predict and correct a step, check it, detect and place its points (the parts it is
     made of, each a class above), accept it."""
@@ -664,9 +620,8 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
         self.counted_values, self.watch = course.counted_values, course.watch
         self._aside = (0, 0, None)     # (points checked, those not counted, the last): _room
         self.all_folds, self.events = course.all_folds, course.events
-        # the kinds of special point looked for (the option ``detect``; none without events)
-        self.detect_lp = course.events and self.opt.detect[labels.LP]
-        self.detect_bp = course.events and self.opt.detect[labels.BP]
+        # label -> whether its kind is looked for (the option ``detect``; none without events)
+        self.detected = {label: course.events and on for label, on in self.opt.detect.items()}
         self.progress, self.singular_start = progress, singular_start
         self.name = branch.parameter
         self.a, self.base_point = None, None
@@ -690,11 +645,12 @@ class Walk(_Points, _Detection, _Placement, _Return, _Translates):
             event.begin(self, course)
 
     def run(self, a: Solution):
-        """Continue from ``a`` until the branch ends; then, for a periodic parameter, make
-        sure every fold recurs at its translates (:meth:`_complete_translates`)."""
+        """Continue from ``a`` until the branch ends; then every kind of the registry's two
+        sets, in their order, completes the branch as a whole (`Event.finish`: the fold's
+        translates by a period, walked again where missing with :meth:`refine`)."""
         self._walk(a)
-        if self.until is None and self.branch.end != labels.LP:
-            self._complete_translates()
+        for event in registry.DETECTION + registry.PLACEMENT:
+            event.finish(self)
 
     def _walk(self, a: Solution):
         opt = self.opt
