@@ -262,3 +262,27 @@ def test_a_reader_that_stops_reading_loses_nothing(cli_exe, small_cli_run, tmp_p
     assert len(mine.branches) == len(theirs.branches) == 2
     for a, b in zip(mine.branches, theirs.branches):
         np.testing.assert_array_equal(a.columns["psi"], b.columns["psi"])
+
+
+@pytest.mark.parametrize("args, says", [
+    (("plot", "x.h5", "-o", "x.png", "--where", "eps=1"),
+     "elastica-auto plot: No such option '--where'"),
+    (("path", "elastica_lever_arm", "--at", "eps=0.25", "P=2", "--to", "psi=1"),
+     "elastica-auto path: Got unexpected extra argument (P=2)"),
+    (("run", "rotating_arm", "-j", "abc"), "elastica-auto run: Invalid value for '--jobs'"),
+    (("show",), "elastica-auto show: Missing argument 'FILE'"),
+    (("nope",), "elastica-auto: No such command 'nope'"),
+    (("--nope",), "elastica-auto: No such option '--nope'"),
+])
+def test_a_command_line_that_does_not_parse_is_one_line(cli_exe, tmp_path, args, says):
+    """hostile2: an unknown option, an extra argument, a value of the wrong type, a missing
+    argument, an unknown command were click's three lines (usage, hint, ``Error: ...``); a
+    user error is one line, ``elastica-auto: error: ...``, exit status 2, naming the command
+    and its --help."""
+    proc = run_cli(cli_exe, *args, cwd=tmp_path)
+    assert proc.returncode == 2
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(f"elastica-auto: error: {says}"), line
+    name = says.split(":")[0]
+    assert line.endswith(f"('{name} --help' lists the options)"), line
+    assert proc.stdout == ""
