@@ -57,17 +57,75 @@ def resolve_run(name_or_path: str) -> Path:
     raise RunFileError(f"{name_or_path}: no such run; shipped runs: {', '.join(sorted(runs))}")
 
 
+def _usage(exc: click.UsageError):
+    """A command line click cannot parse: a user error in one line, naming the command and
+    where its options are listed (click's own report is three: usage, a hint, the error)."""
+    if isinstance(exc, getattr(click.exceptions, "NoArgsIsHelpError", ())):
+        raise exc   # `elastica-auto` alone: its help, as click gives it
+    name = exc.ctx.command_path if exc.ctx is not None else "elastica-auto"
+    _fail(f"{name}: {exc.format_message()} ('{name} --help' lists the options)")
+
+
+class _StdoutReader:
+    """``sys.stdout`` for a command whose reader may stop reading (``elastica-auto show
+    FILE.h5 | head``): a write or flush that meets a closed pipe (EPIPE) points the
+    standard output at ``os.devnull`` from then on, so that the command goes on and ends as
+    it would have (a run computes and saves every branch, its exit status its own), instead
+    of dying of an internal error halfway. Any other failure of the stream is raised."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _gone(self):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:        # the descriptor too: the interpreter's last flush at exit writes there
+            os.dup2(devnull, self._stream.fileno())
+        except (OSError, ValueError):   # a stream without a descriptor of its own
+            pass
+        finally:
+            os.close(devnull)
+        self._stream = open(os.devnull, "w", encoding="utf-8")
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def __getattr__(self, name):    # encoding, errors, isatty, fileno, buffer, ...
+        return getattr(self._stream, name)
+
+
 class _Commands(click.Group):
     """The command group. What any command may meet ends it with one line: a write that
-    fails (`WriteError`) with status 5, a name longer than the file system allows
-    (ENAMETOOLONG, from any path argument or option) as a user error; and an exception that
-    escapes a command is an internal error (a bug): one line saying so and its traceback,
-    exit status 4 (`_internal`), not Python's report with status 1, which reads as a failed
-    branch."""
+    fails (`WriteError`) with status 5, a standard output whose reader stopped reading
+    (``| head``) as nothing at all (`_StdoutReader`), a command line click cannot parse (an
+    unknown option, a missing argument, a value of the wrong type) as a user error, a name
+    longer than the file system allows (ENAMETOOLONG, from any path argument or option) as a
+    user error; and an exception that escapes a command is an internal error (a bug): one
+    line saying so and its traceback, exit status 4 (`_internal`), not Python's report with
+    status 1, which reads as a failed branch."""
+
+    def parse_args(self, ctx, args):
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as exc:     # before any command: `elastica-auto --nope`
+            _usage(exc)
 
     def invoke(self, ctx):
+        if not isinstance(sys.stdout, _StdoutReader):
+            sys.stdout = _StdoutReader(sys.stdout)
         try:
             return super().invoke(ctx)
+        except click.UsageError as exc:
+            _usage(exc)
         except (click.exceptions.Exit, click.ClickException, click.Abort, KeyboardInterrupt):
             raise
         except WriteError as exc:

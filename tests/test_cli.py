@@ -226,3 +226,63 @@ def test_the_snap_back_line_counts_folds_and_branch_points(capsys):
     report_run(SimpleNamespace(name="x"), SimpleNamespace(**{**vars(result),
                                                               "snaps": rows[:3]}))
     assert "3 stable targets at 2 folds ending" in capsys.readouterr().out
+
+
+def _closed_stdout(*command):
+    """Run ``command`` with its standard output a pipe nobody reads (its read end closed
+    before the command starts, as ``| head`` leaves it once it has its lines): every write
+    meets EPIPE."""
+    import os
+    import subprocess
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        return subprocess.run([str(c) for c in command], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write)
+
+
+def test_a_reader_that_stops_reading_loses_nothing(cli_exe, small_cli_run, tmp_path):
+    """`elastica-auto show FILE | head` (the README's own command) and `run ... | head`: a
+    closed standard output is no internal error. `show`, `snaps`, `list` end with status 0
+    and nothing on stderr; a run (default jobs: its local cluster) computes and saves every
+    branch, the same ones as with its output read."""
+    _, h5, first = small_cli_run
+    assert first.returncode == 0, first.stderr
+    for command in (("show", "--all", h5), ("snaps", h5), ("list",)):
+        proc = _closed_stdout(cli_exe, *command)
+        assert (proc.returncode, proc.stderr) == (0, ""), (command, proc.stderr)
+    toml = elastica_run_file(tmp_path / "small.toml", uz=[0, "pi/12", "pi/6", "pi/2"])
+    proc = _closed_stdout(cli_exe, "run", toml, "--out", tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr
+    assert "internal error" not in proc.stderr
+    mine, theirs = BranchFile(tmp_path / "out" / "small.h5"), BranchFile(h5)
+    assert not mine.missing
+    assert len(mine.branches) == len(theirs.branches) == 2
+    for a, b in zip(mine.branches, theirs.branches):
+        np.testing.assert_array_equal(a.columns["psi"], b.columns["psi"])
+
+
+@pytest.mark.parametrize("args, says", [
+    (("plot", "x.h5", "-o", "x.png", "--where", "eps=1"),
+     "elastica-auto plot: No such option '--where'"),
+    (("path", "elastica_lever_arm", "--at", "eps=0.25", "P=2", "--to", "psi=1"),
+     "elastica-auto path: Got unexpected extra argument (P=2)"),
+    (("run", "rotating_arm", "-j", "abc"), "elastica-auto run: Invalid value for '--jobs'"),
+    (("show",), "elastica-auto show: Missing argument 'FILE'"),
+    (("nope",), "elastica-auto: No such command 'nope'"),
+    (("--nope",), "elastica-auto: No such option '--nope'"),
+])
+def test_a_command_line_that_does_not_parse_is_one_line(cli_exe, tmp_path, args, says):
+    """hostile2: an unknown option, an extra argument, a value of the wrong type, a missing
+    argument, an unknown command were click's three lines (usage, hint, ``Error: ...``); a
+    user error is one line, ``elastica-auto: error: ...``, exit status 2, naming the command
+    and its --help."""
+    proc = run_cli(cli_exe, *args, cwd=tmp_path)
+    assert proc.returncode == 2
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(f"elastica-auto: error: {says}"), line
+    name = says.split(":")[0]
+    assert line.endswith(f"('{name} --help' lists the options)"), line
+    assert proc.stdout == ""

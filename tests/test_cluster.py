@@ -1364,3 +1364,45 @@ def test_a_task_ended_by_a_closing_client_is_not_reported_at_exit():
     assert "AllExit" in out["loud"].stderr
     assert out["quiet"].stderr.count("Task exception was never retrieved") == 1
     assert "AllExit" not in out["quiet"].stderr and "ValueError: other" in out["quiet"].stderr
+
+
+def test_an_address_where_no_scheduler_answers_is_one_line(monkeypatch):
+    """hostile2: --scheduler at a port where something other than a Dask scheduler listens.
+    An HTTP server (the dashboard's port 8787 given for the scheduler's 8786) sends no
+    handshake: the run waited for ever (Dask's client reads the handshake without a time
+    limit). A server that answers with bytes of its own (eight 0xff: read by Dask as a frame
+    length of 2^64 - 1 bytes) was an internal error (MemoryError). Each is now a
+    ClusterError naming the address, after the timeout at most. (The junk server first: it
+    fails at once without the check, where the HTTP server would hang.)"""
+    import http.server
+    import socketserver
+    import threading
+
+    from elastica_auto.core.errors import ClusterError
+    from elastica_auto.execution import cluster as cluster_mod
+
+    class Junk(socketserver.BaseRequestHandler):
+        def handle(self):
+            self.request.sendall(b"\xff" * 8)
+
+    monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT", 1.0)
+    http_server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
+                                                  http.server.SimpleHTTPRequestHandler)
+    junk_server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), Junk)
+    for server in (http_server, junk_server):
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        junk_address = f"tcp://127.0.0.1:{junk_server.server_address[1]}"
+        with pytest.raises(ClusterError, match=re.escape(
+                f"{junk_address} is not a Dask scheduler: what answers there sent what Dask "
+                "cannot read (")):
+            cluster_mod.connect(junk_address)
+        http_address = f"tcp://127.0.0.1:{http_server.server_address[1]}"
+        with pytest.raises(ClusterError, match=re.escape(
+                f"no Dask scheduler answers at {http_address}: something accepts connections "
+                "there but sent no Dask handshake within 2 s")):
+            cluster_mod.connect(http_address)
+    finally:
+        for server in (http_server, junk_server):
+            server.shutdown()
+            server.server_close()

@@ -97,11 +97,57 @@ def check_address(address: str) -> None:
                            "expected tcp://HOST:PORT")
 
 
+def check_answers(address: str) -> None:
+    """ClusterError (one line) unless a Dask scheduler answers at ``address`` within
+    `CONNECT_TIMEOUT` of the connection: one connection of Dask's own, its handshake
+    exchanged, then closed. Checked before a client is made, since Dask's client waits for
+    the other end's handshake without a time limit: an address where something else listens
+    (the scheduler's dashboard, an HTTP server on 8787, given for the scheduler's 8786) held
+    the run for ever, and one that answers with bytes of its own could make Dask read them
+    as the length of a frame of exabytes (a MemoryError, reported as an internal error)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed.comm import connect as dask_connect
+    from distributed.security import Security
+
+    async def handshake():
+        # the connection within CONNECT_TIMEOUT (Dask's own retries), then as long again
+        # for the handshake
+        comm = await asyncio.wait_for(
+            dask_connect(address, timeout=CONNECT_TIMEOUT,
+                         **Security().get_connection_args("client")),
+            2 * CONNECT_TIMEOUT)
+        await comm.close()
+
+    # in a thread of its own, with its own event loop: the caller may be running one (a
+    # notebook calling ea.continuation(..., scheduler=...))
+    with ThreadPoolExecutor(1) as pool:
+        try:
+            pool.submit(asyncio.run, handshake()).result()
+        except TimeoutError:    # asyncio's (first: it is an OSError)
+            raise ClusterError(
+                f"no Dask scheduler answers at {address}: something accepts connections "
+                f"there but sent no Dask handshake within {2 * CONNECT_TIMEOUT:g} s (a "
+                "dashboard's HTTP port?); give the scheduler's own address, tcp://HOST:PORT "
+                "(port 8786 unless it was started with another)") from None
+        except OSError as exc:
+            raise ClusterError(f"cannot reach the Dask scheduler at {address} "
+                               f"({type(exc).__name__}: {error_text(exc)[:200]})") from None
+        except Exception as exc:  # bytes Dask cannot read (MemoryError, a decoding error)
+            raise ClusterError(
+                f"{address} is not a Dask scheduler: what answers there sent what Dask cannot "
+                f"read ({type(exc).__name__}: {error_text(exc)[:200]}); give the scheduler's "
+                "own address, tcp://HOST:PORT") from None
+
+
 def connect(address: str):
     """A client of the scheduler at ``address`` with at least one worker that can import
-    elastica-auto; ClusterError (one line) otherwise (`check_address` first)."""
+    elastica-auto; ClusterError (one line) otherwise (`check_address`, then
+    `check_answers`, first)."""
     from distributed import Client
     check_address(address)
+    check_answers(address)
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
