@@ -209,6 +209,24 @@ def test_a_text_column_is_not_an_axis(viewer_file, cli_exe, tmp_path, column):
         assert numeric <= set(listed.split(", ")) and column not in listed.split(", ")
 
 
+def test_an_unknown_column_lists_every_numeric_column(viewer_file, cli_exe, tmp_path):
+    """Hostile round 3: `plot -y nope` listed only the parameters and ordinates, while
+    `index`, `arclength`, ... are axes too (docs/cli.md) and `-y index` draws. The list is
+    now every numeric column of the file (read with h5py)."""
+    import h5py
+
+    from helpers import run_cli
+    with h5py.File(viewer_file, "r") as f:
+        g = f["branches/001/columns"]
+        numeric = {k for k, d in g.items() if d.dtype.kind in "iuf"} - {"label"}
+    assert {"index", "arclength"} <= numeric
+    proc = run_cli(cli_exe, "plot", viewer_file, "-y", "nope", "-o", tmp_path / "x.png")
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    head, _, listed = proc.stderr.strip().partition("; columns: ")
+    assert head.endswith(f"'nope' is not a column of {viewer_file}")
+    assert numeric <= set(listed.split(", ")) <= numeric | {"branch", "pt"}
+
+
 # ------------------------------------- the line style changes at the fold (issue 45, item 8)
 def _style_of(line):
     """The (colour, dash) of a drawn line, to compare with `style.index_style`'s."""

@@ -183,9 +183,9 @@ def _numeric(values) -> bool:
 def default_columns(bf: BranchFile, xname: str | None = None,
                     yname: str | None = None) -> tuple[str, str]:
     """The columns of a diagram of ``bf``: ``xname`` and ``yname`` if given, checked (a
-    ValueError names the columns there are, or the numeric ones for a column of text such
-    as ``type``); by default the first branch's continued parameter against its
-    distinguished ordinate."""
+    ValueError for a column that is not there, or a column of text such as ``type``, lists
+    the numeric ones, the axes a diagram can have); by default the first branch's continued
+    parameter against its distinguished ordinate."""
     if not bf.branches:
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
@@ -194,12 +194,13 @@ def default_columns(bf: BranchFile, xname: str | None = None,
     solved = [q[len("free:"):] for q in bf.states if q.startswith("free:")]
     yname = yname or (solved[0] if solved else None) or b0.attrs.get("ordinate") \
         or bf.ordinates[0]
+    # every numeric column is an axis (a parameter, an ordinate, arclength, index, ...)
+    numeric = [q for q, v in b0.columns.items() if _numeric(v)]
     for name in (xname, yname):
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
-                             f"{', '.join(bf.parameters + bf.ordinates)}")
+                             f"{', '.join(numeric)}")
         if not _numeric(b0.columns[name]):
-            numeric = [q for q, v in b0.columns.items() if _numeric(v)]
             raise ValueError(f"{name!r} is not a numeric column of {bf.path}; numeric "
                              f"columns: {', '.join(numeric)}")
     return xname, yname
