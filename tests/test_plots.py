@@ -5,6 +5,7 @@ equation module's ``draw`` hook."""
 from __future__ import annotations
 
 import math
+import shutil
 import subprocess
 import sys
 
@@ -225,6 +226,27 @@ def test_an_unknown_column_lists_every_numeric_column(viewer_file, cli_exe, tmp_
     head, _, listed = proc.stderr.strip().partition("; columns: ")
     assert head.endswith(f"'nope' is not a column of {viewer_file}")
     assert numeric <= set(listed.split(", ")) <= numeric | {"branch", "pt"}
+
+
+def test_a_long_figure_title_is_wrapped_within_the_figure(tmp_path):
+    """Hostile round 3: `plot` of the tendon robot (fourteen parameters) cut its title at
+    both sides; the concentric tubes' fold curves (computed here, 3 s) reached past the
+    figure's edges.
+    The title is now on as many lines as it takes: its typeset extent, measured on the
+    rendered figure, lies inside the figure, and it still names every fixed value."""
+    from elastica_auto.execution import runfile
+    from helpers import REPO, run_plan
+    for run in ("concentric_tubes", "concentric_tubes_folds"):     # the second restarts
+        shutil.copy(REPO / "runs" / f"{run}.toml", tmp_path)      # from the first's file
+        bf = run_plan(runfile.load(tmp_path / f"{run}.toml"), tmp_path).file
+    fig = diagram_figure(bf)
+    FigureCanvasAgg(fig).draw()
+    title = fig._suptitle
+    box = title.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (box, fig.bbox)
+    for q in bf.parameters:
+        if q not in ("beta", "L"):
+            assert f"{bf.tex.get(q, q).strip('$')}=" in title.get_text(), q
 
 
 # ------------------------------------- the line style changes at the fold (issue 45, item 8)

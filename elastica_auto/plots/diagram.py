@@ -246,6 +246,25 @@ def checked_tex(bf: BranchFile, name: str, text: str) -> str:
     return text
 
 
+def _wrapped_suptitle(fig: Figure, head: str, parts: list[str]) -> None:
+    """The figure's title ``head; part, part, ...`` on as many lines as it takes to fit the
+    figure's width (a module with many parameters, the tendon robot's fourteen, had its
+    title cut at both sides): each part goes on the current line if the line, measured as
+    typeset, stays within 98 % of the width, else it starts a new line."""
+    title = fig.suptitle(head, fontsize=10)
+    width = 0.98 * fig.bbox.width
+    lines, line = [], head
+    for j, part in enumerate(parts):
+        trial = line + ("; " if j == 0 else ", ") + part
+        title.set_text(trial)
+        if title.get_window_extent().width > width and line:
+            lines.append(line + (";" if j == 0 else ","))
+            line = part
+        else:
+            line = trial
+    title.set_text("\n".join([*lines, line]))
+
+
 def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
                    period: float | None = None, index_column: str = "index") -> Figure:
     """The figure of ``yname`` against ``xname`` for every branch of ``bf``, one panel per
@@ -291,8 +310,8 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                 ax.set_xlabel(xlabel)
         fig.supylabel(ylabel)
         count = f"{len(bf.branches)} branch{'es' if len(bf.branches) != 1 else ''}"
-        fig.suptitle(f"{bf.run}: {count}" + (f"; {values_tex(bf, common)}" if common else ""),
-                     fontsize=10)
+        _wrapped_suptitle(fig, f"{bf.run}: {count}",
+                          [values_tex(bf, {q: v}) for q, v in common.items()])
         handles = [Line2D([], [], color=c, ls=d, lw=w, label=index_label(k))
                    for k in sorted(indices, key=lambda k: (k < 0, k))
                    for c, d, w in [index_style(k)]]
