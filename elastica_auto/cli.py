@@ -59,9 +59,8 @@ def resolve_run(name_or_path: str) -> Path:
 
 class _Commands(click.Group):
     """The command group. What any command may meet ends it with one line: a write that
-    fails (`WriteError`, or the standard output's pipe closed by its reader) with status 5,
-    a name longer than the file system allows (ENAMETOOLONG, from any path argument or
-    option) as a user error; and an exception that
+    fails (`WriteError`) with status 5, a name longer than the file system allows
+    (ENAMETOOLONG, from any path argument or option) as a user error; and an exception that
     escapes a command is an internal error (a bug): one line saying so and its traceback,
     exit status 4 (`_internal`), not Python's report with status 1, which reads as a failed
     branch."""
@@ -73,13 +72,6 @@ class _Commands(click.Group):
             raise
         except WriteError as exc:
             _fail(str(exc), EXIT_WRITE)
-        except BrokenPipeError:
-            # the standard output's reader has gone (`show FILE | head -1`): a write that
-            # failed, not a bug; stdout onto /dev/null first, so that Python's flush at exit
-            # does not meet the closed pipe again
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            _fail("the standard output was closed before everything was written to it "
-                  "(its reader ended)", EXIT_WRITE)
         except OSError as exc:
             if exc.errno != errno.ENAMETOOLONG:
                 _internal(exc, ctx.invoked_subcommand or "elastica-auto")
