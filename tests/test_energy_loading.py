@@ -277,6 +277,13 @@ BAD = {
     "rotation: not convex in the strains": (
         "density=(R.strain[0]**2 + R.strain[1]**2 - R.strain[2]**2)/2 + q*R.d3[2], "
         "coordinates=[R], parameters={q: 1.0}", "not strictly convex in R.u3'"),
+    # hostile round 3: the bending written as |d3'|^2 / 2 vanished without a word (the
+    # frame's entries are symbols, constant to sympy's diff(s)), the refusal naming a strain
+    # the user never wrote
+    "rotation: the frame's entries differentiated": (
+        "density=(R.d3.diff(s).T*R.d3.diff(s))[0]/2 + R.strain[2]**2/2 + q*R.d3[2], "
+        "coordinates=[R], parameters={q: 1.0}",
+        "the density does not contain R.u1: a frame's derivative is written in its strains"),
     "rotation: a strain in an end term": (
         "density=R.strain.dot(R.strain)/2, end1=q*R.strain[0], coordinates=[R], "
         "parameters={q: 1.0}", "end terms depend on the end values only"),

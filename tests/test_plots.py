@@ -5,6 +5,7 @@ equation module's ``draw`` hook."""
 from __future__ import annotations
 
 import math
+import shutil
 import subprocess
 import sys
 
@@ -207,6 +208,45 @@ def test_a_text_column_is_not_an_axis(viewer_file, cli_exe, tmp_path, column):
         head, _, listed = proc.stderr.strip().partition("; numeric columns: ")
         assert head.endswith(f"{column!r} is not a numeric column of {viewer_file}")
         assert numeric <= set(listed.split(", ")) and column not in listed.split(", ")
+
+
+def test_an_unknown_column_lists_every_numeric_column(viewer_file, cli_exe, tmp_path):
+    """Hostile round 3: `plot -y nope` listed only the parameters and ordinates, while
+    `index`, `arclength`, ... are axes too (docs/cli.md) and `-y index` draws. The list is
+    now every numeric column of the file (read with h5py)."""
+    import h5py
+
+    from helpers import run_cli
+    with h5py.File(viewer_file, "r") as f:
+        g = f["branches/001/columns"]
+        numeric = {k for k, d in g.items() if d.dtype.kind in "iuf"} - {"label"}
+    assert {"index", "arclength"} <= numeric
+    proc = run_cli(cli_exe, "plot", viewer_file, "-y", "nope", "-o", tmp_path / "x.png")
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    head, _, listed = proc.stderr.strip().partition("; columns: ")
+    assert head.endswith(f"'nope' is not a column of {viewer_file}")
+    assert numeric <= set(listed.split(", ")) <= numeric | {"branch", "pt"}
+
+
+def test_a_long_figure_title_is_wrapped_within_the_figure(tmp_path):
+    """Hostile round 3: `plot` of the tendon robot (fourteen parameters) cut its title at
+    both sides; the concentric tubes' fold curves (computed here, 3 s) reached past the
+    figure's edges.
+    The title is now on as many lines as it takes: its typeset extent, measured on the
+    rendered figure, lies inside the figure, and it still names every fixed value."""
+    from elastica_auto.execution import runfile
+    from helpers import REPO, run_plan
+    for run in ("concentric_tubes", "concentric_tubes_folds"):     # the second restarts
+        shutil.copy(REPO / "runs" / f"{run}.toml", tmp_path)      # from the first's file
+        bf = run_plan(runfile.load(tmp_path / f"{run}.toml"), tmp_path).file
+    fig = diagram_figure(bf)
+    FigureCanvasAgg(fig).draw()
+    title = fig._suptitle
+    box = title.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (box, fig.bbox)
+    for q in bf.parameters:
+        if q not in ("beta", "L"):
+            assert f"{bf.tex.get(q, q).strip('$')}=" in title.get_text(), q
 
 
 # ------------------------------------- the line style changes at the fold (issue 45, item 8)

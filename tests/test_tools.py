@@ -12,6 +12,8 @@ import re
 import subprocess
 import sys
 
+import numpy as np
+
 from elastica_auto.storage.store import BranchFile
 from helpers import REPO
 
@@ -54,3 +56,55 @@ def test_three_d_embedded_tables_of_a_planar_file(viewer_file):
             if c.startswith("LP")}
     assert ends and {round(e, 4) for e in ends} <= folds
     assert {r[4] for r in rows} == {"0"}          # the planar stable stretches
+
+
+class _Branch:
+    """A branch as `tools/three_d.py` reads one: columns, labels, the continued parameter."""
+
+    def __init__(self, lam, y, kinds):
+        n = len(lam)
+        self.parameter = "alpha"
+        self.attrs = {"ordinate": "mA"}
+        self.columns = {"alpha": np.asarray(lam, float), "mA": np.asarray(y, float),
+                        "type": np.array(kinds), "index_in": np.zeros(n),
+                        "index_out": np.zeros(n), "eps": np.full(n, 0.5), "P": np.full(n, 1.0)}
+
+    def __len__(self):
+        return len(self.columns["alpha"])
+
+    def label_names(self):
+        return [f"{t}{k}" if t in ("LP", "BP") else "" for k, t in enumerate(self.columns["type"])]
+
+
+def test_three_d_lists_a_stretch_once_whatever_its_points():
+    """Hostile round 3: `stretches out/rotating_load_3d.h5` listed the stretch from BP 5.8680
+    to BP 11.6189 twice (m1 -0.5825 and -0.0457), though docs/three-d.md says each stretch is
+    listed once: its two directions have their points at different places, and the ordinate
+    was read at the point nearest the middle, 0.37 from it on a steep stretch. It is now
+    interpolated at the middle: both directions of one stretch (here y = tanh(5 (a - m)),
+    steep at its middle m, its points 0.6 apart on one and 0.5 apart on the other, shifted)
+    give y(m) = 0 to the interpolation's error, and one row."""
+    sys.path.insert(0, str(REPO / "tools"))
+    try:
+        import three_d
+    finally:
+        sys.path.remove(str(REPO / "tools"))
+    lo, hi = 5.8680, 11.6189
+    mid = 0.5 * (lo + hi)
+
+    def branch(step, offset, reverse):
+        inner = np.arange(lo + offset, hi, step)
+        lam = np.concatenate(([lo - 0.3, lo], inner, [hi, hi + 0.3]))
+        kinds = ["RG", "BP", *["RG"] * len(inner), "BP", "RG"]
+        if reverse:                     # the other direction: the same stretch backwards
+            lam, kinds = lam[::-1], kinds[::-1]
+        return _Branch(lam, np.tanh(5 * (lam - mid)), kinds)
+
+    class _File:
+        branches = [branch(0.6, 0.05, False), branch(0.5, 0.37, True)]
+
+    rows = three_d.distinct_stretches(_File(), in_plane=0)
+    assert len(rows) == 1, rows
+    (_, (t0, v0), (t1, v1), ymid, _, _), = rows
+    assert (t0, t1) == ("BP", "BP") and abs(v0 - lo) < 1e-12 and abs(v1 - hi) < 1e-12
+    assert abs(ymid) < 0.5                 # tanh between neighbours at most 0.6 apart

@@ -108,7 +108,7 @@ def _near(a, b):
 def distinct_stretches(bf, in_plane=None):
     """The stretches of every branch of ``bf`` (index_in = ``in_plane`` if given), each
     once: as (fixed values, (type, value) at the lower end, (type, value) at the upper end,
-    the ordinate at the point nearest the middle, index_in, index_out), the lower end
+    the ordinate interpolated at the middle, index_in, index_out), the lower end
     reduced into [0, 2 pi); copies (the other direction, a translate by 2 pi) within 0.02
     in the located ends (0.3 where an end is a bracket) and 0.5 in the ordinate are left
     out.
@@ -128,8 +128,14 @@ def distinct_stretches(bf, in_plane=None):
             ends.sort(key=lambda e: e[1])
             shift = ends[0][1] - _reduce(ends[0][1])
             lo, hi = [(t, v - shift) for t, v in ends]
-            mid = i0 + int(np.argmin(np.abs(lam[i0:i1 + 1] - 0.5 * (ends[0][1] + ends[1][1]))))
-            row = (_key(br, parameter), lo, hi, float(y[mid]), a, b)
+            # the ordinate interpolated at the middle (the parameter is monotone along a
+            # stretch: it holds no fold); the point nearest the middle lies where the
+            # branch's steps put it, so the two directions of one stretch differed by more
+            # than the 0.5 that tells copies apart on a steep stretch
+            order = np.argsort(lam[i0:i1 + 1])
+            ymid = float(np.interp(0.5 * (ends[0][1] + ends[1][1]), lam[i0:i1 + 1][order],
+                                   y[i0:i1 + 1][order]))
+            row = (_key(br, parameter), lo, hi, ymid, a, b)
             if any(r[0] == row[0] and r[4:] == row[4:] and _near(r[1], lo) and _near(r[2], hi)
                    and abs(r[3] - row[3]) < 0.5 for r in out):
                 continue

@@ -1215,9 +1215,18 @@ def _check_convex(nm, A, defaults, linear):
             what = (f"d2L/d{labels[0]}'2 = {w[0]:.3g}" if kv == 1 else
                     f"the Hessian of L in the derivatives has the eigenvalue {w[0]:.3g}, "
                     f"mostly along {labels[i]}'")
+            hint = ""
+            if i >= k and all(sp.sympify(a) == 0 for a in A[i]):
+                # the strain is nowhere in L: the likely cause is a frame's derivative
+                # written as R.d3.diff(s), which is zero (the entries of R.matrix stand for
+                # the frame at s, symbols to sympy), not d3' = R (u x e3)
+                name = labels[i].split(".")[0]
+                hint = (f"; the density does not contain {labels[i]}: a frame's derivative "
+                        f"is written in its strains, R' = R [u]_x (d3' = {name}.matrix * "
+                        f"{name}.strain.cross(e3)), never {name}.d3.diff(s), which is zero")
             _fail(f"the density is not strictly convex in {labels[i]}' ({what} at "
                   f"{where}, the parameters at their defaults): the Legendre transform has "
-                  "no unique inverse there, and the second variation no index")
+                  f"no unique inverse there, and the second variation no index{hint}")
 
 
 def _summary(nm, d, L, B0, B1, rates, initial, final, essential, multipliers,

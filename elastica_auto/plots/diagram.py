@@ -183,9 +183,9 @@ def _numeric(values) -> bool:
 def default_columns(bf: BranchFile, xname: str | None = None,
                     yname: str | None = None) -> tuple[str, str]:
     """The columns of a diagram of ``bf``: ``xname`` and ``yname`` if given, checked (a
-    ValueError names the columns there are, or the numeric ones for a column of text such
-    as ``type``); by default the first branch's continued parameter against its
-    distinguished ordinate."""
+    ValueError for a column that is not there, or a column of text such as ``type``, lists
+    the numeric ones, the axes a diagram can have); by default the first branch's continued
+    parameter against its distinguished ordinate."""
     if not bf.branches:
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
@@ -194,12 +194,13 @@ def default_columns(bf: BranchFile, xname: str | None = None,
     solved = [q[len("free:"):] for q in bf.states if q.startswith("free:")]
     yname = yname or (solved[0] if solved else None) or b0.attrs.get("ordinate") \
         or bf.ordinates[0]
+    # every numeric column is an axis (a parameter, an ordinate, arclength, index, ...)
+    numeric = [q for q, v in b0.columns.items() if _numeric(v)]
     for name in (xname, yname):
         if name not in b0.columns:
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
-                             f"{', '.join(bf.parameters + bf.ordinates)}")
+                             f"{', '.join(numeric)}")
         if not _numeric(b0.columns[name]):
-            numeric = [q for q, v in b0.columns.items() if _numeric(v)]
             raise ValueError(f"{name!r} is not a numeric column of {bf.path}; numeric "
                              f"columns: {', '.join(numeric)}")
     return xname, yname
@@ -243,6 +244,25 @@ def checked_tex(bf: BranchFile, name: str, text: str) -> str:
         raise ValueError(f"{bf.equation}: {kind} {name!r}: its TeX label {label} cannot be "
                          f"typeset ({why})") from None
     return text
+
+
+def _wrapped_suptitle(fig: Figure, head: str, parts: list[str]) -> None:
+    """The figure's title ``head; part, part, ...`` on as many lines as it takes to fit the
+    figure's width (a module with many parameters, the tendon robot's fourteen, had its
+    title cut at both sides): each part goes on the current line if the line, measured as
+    typeset, stays within 98 % of the width, else it starts a new line."""
+    title = fig.suptitle(head, fontsize=10)
+    width = 0.98 * fig.bbox.width
+    lines, line = [], head
+    for j, part in enumerate(parts):
+        trial = line + ("; " if j == 0 else ", ") + part
+        title.set_text(trial)
+        if title.get_window_extent().width > width and line:
+            lines.append(line + (";" if j == 0 else ","))
+            line = part
+        else:
+            line = trial
+    title.set_text("\n".join([*lines, line]))
 
 
 def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None = None,
@@ -290,8 +310,8 @@ def diagram_figure(bf: BranchFile, xname: str | None = None, yname: str | None =
                 ax.set_xlabel(xlabel)
         fig.supylabel(ylabel)
         count = f"{len(bf.branches)} branch{'es' if len(bf.branches) != 1 else ''}"
-        fig.suptitle(f"{bf.run}: {count}" + (f"; {values_tex(bf, common)}" if common else ""),
-                     fontsize=10)
+        _wrapped_suptitle(fig, f"{bf.run}: {count}",
+                          [values_tex(bf, {q: v}) for q, v in common.items()])
         handles = [Line2D([], [], color=c, ls=d, lw=w, label=index_label(k))
                    for k in sorted(indices, key=lambda k: (k < 0, k))
                    for c, d, w in [index_style(k)]]
