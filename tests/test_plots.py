@@ -209,6 +209,28 @@ def test_a_text_column_is_not_an_axis(viewer_file, cli_exe, tmp_path, column):
         assert numeric <= set(listed.split(", ")) and column not in listed.split(", ")
 
 
+def test_an_unknown_column_lists_every_column_plot_accepts(viewer_file, cli_exe, tmp_path):
+    """User round: `plot -x nope` listed the parameters and ordinates only, while `-y index`
+    works. The list is every numeric column of the file (read with h5py), and each one
+    listed is accepted as an axis."""
+    import h5py
+
+    from helpers import run_cli
+    with h5py.File(viewer_file, "r") as f:
+        g = f["branches/001/columns"]
+        numeric = {k for k, d in g.items() if d.dtype.kind in "iuf"} - {"label"}
+    assert {"index", "arclength"} <= numeric
+    proc = run_cli(cli_exe, "plot", viewer_file, "-x", "nope", "-o", tmp_path / "x.png")
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    head, _, listed = proc.stderr.strip().partition("; columns: ")
+    assert head.endswith(f"'nope' is not a column of {viewer_file}")
+    # the stored numeric columns, and the branch's and point's numbers the reader adds
+    assert set(listed.split(", ")) == numeric | {"branch", "pt"}
+    proc = run_cli(cli_exe, "plot", viewer_file, "-y", "index", "-x", "arclength",
+                   "-o", tmp_path / "y.png")
+    assert proc.returncode == 0, proc.stderr
+
+
 # ------------------------------------- the line style changes at the fold (issue 45, item 8)
 def _style_of(line):
     """The (colour, dash) of a drawn line, to compare with `style.index_style`'s."""

@@ -183,9 +183,9 @@ def _numeric(values) -> bool:
 def default_columns(bf: BranchFile, xname: str | None = None,
                     yname: str | None = None) -> tuple[str, str]:
     """The columns of a diagram of ``bf``: ``xname`` and ``yname`` if given, checked (a
-    ValueError names the columns there are, or the numeric ones for a column of text such
-    as ``type``); by default the first branch's continued parameter against its
-    distinguished ordinate."""
+    ValueError names the numeric columns, those a diagram accepts, for a name that is not a
+    column or a column of text such as ``type``); by default the first branch's continued
+    parameter against its distinguished ordinate."""
     if not bf.branches:
         raise ValueError(f"{bf.path}: the file has no branches")
     b0 = bf.branches[0]
@@ -196,8 +196,10 @@ def default_columns(bf: BranchFile, xname: str | None = None,
         or bf.ordinates[0]
     for name in (xname, yname):
         if name not in b0.columns:
+            # every numeric column is accepted (index, arclength, ... too): name them all
+            numeric = [q for q, v in b0.columns.items() if _numeric(v)]
             raise ValueError(f"{name!r} is not a column of {bf.path}; columns: "
-                             f"{', '.join(bf.parameters + bf.ordinates)}")
+                             f"{', '.join(numeric)}")
         if not _numeric(b0.columns[name]):
             numeric = [q for q, v in b0.columns.items() if _numeric(v)]
             raise ValueError(f"{name!r} is not a numeric column of {bf.path}; numeric "
