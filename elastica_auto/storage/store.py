@@ -1513,24 +1513,39 @@ def write_atomically(out: Path, write, stage: str = "") -> Path:
     return out
 
 
+def is_stream(out: Path) -> bool:
+    """Whether ``out`` is a stream an export writes in place, appending: a path in /dev
+    (``/dev/stdout``, even when the shell redirects it to a file) or one that is no regular
+    file (a pipe, a terminal, a link to one). A rename over it would replace the device's
+    link with a file (as root, ``/dev/stdout`` itself), and opening it anew for writing would
+    truncate a file redirected to with ``>>``: appending is right for ``>`` and ``>>``."""
+    return Path("/dev") in out.absolute().parents or out.exists() and not out.is_file()
+
+
 def export_csv(bf: BranchFile, out: Path):
     """Every point of every branch, one row each (header: branch,pt,type,label,<parameters>,
     <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits.
 
     The CSV is written to a temporary file beside ``out`` and renamed over it, so a failed
-    export leaves ``out`` as it was. StoreError if ``out`` is the branch file itself or
-    cannot be written."""
+    export leaves ``out`` as it was; a stream (`is_stream`) is appended to in place.
+    StoreError if ``out`` is the branch file itself or cannot be written."""
     header = export_names(bf.parameters, bf.ordinates)
     out = Path(out)
     if same_file(bf.path, out):
         raise StoreError(f"{out} is the branch file being exported ({bf.path}); "
                          "choose another name for the CSV")
-    def write(tmp):
-        with open(tmp, "w", newline="") as fh:
+    def write(tmp, mode="w"):
+        with open(tmp, mode, newline="") as fh:
             w = csv.writer(fh)
             w.writerow(header)
             for row in rows(bf):
                 w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
                             for h in header])
 
+    if is_stream(out):
+        try:
+            write(out, "a")
+        except OSError as exc:
+            raise _cannot_write(out, exc) from exc
+        return out
     return write_atomically(out, write)
