@@ -590,9 +590,14 @@ def _held(plan: Plan, kept: store.BranchFile, count: int) -> tuple[list, BaseExc
     (`BranchFile.in_memory`), for the snap-back targets and landings of a resumed run; ([],
     the exception) if they cannot be read (a file damaged since it was opened): then the
     analyses of the branches computed now are made, and the kept branches' are recorded as
-    missing (`_analyse`)."""
+    missing (`_analyse`). None read where no analysis uses them: a problem without the
+    snap-back scan (`snap_targets` needs the shooting and second-variation hooks) and no
+    damped landings."""
+    problem = plan.problem
+    if not (problem.has_shooting and problem.has_second_variation or plan.damping):
+        return [], None
     try:
-        return [kept.in_memory(b, plan.problem) for b in kept.branches[:count]], None
+        return [kept.in_memory(b, problem) for b in kept.branches[:count]], None
     except store.StoreError as exc:
         return [], exc
 
