@@ -484,14 +484,19 @@ def snaps(file):
 def export(file, output):
     """Write every point of every branch of FILE.h5 to a CSV file."""
     from .storage.outputs import check_output
-    from .storage.store import export_csv
+    from .storage.store import export_csv, is_stream
     bf = _open(file, rows=True)
     try:
-        path = export_csv(bf, check_output(output, bf.path, "the CSV", "exported"))
+        path = check_output(output, bf.path, "the CSV", "exported")
+        if path.suffix.lower() not in ("", ".csv"):   # x.json would get CSV in it
+            _fail(f"-o {output}: export writes CSV only: name the file .csv (or give no "
+                  "suffix)")
+        path = export_csv(bf, path)
     except StoreError as exc:
         _fail(str(exc))
     n = sum(len(b) for b in bf.branches)
-    click.echo(f"{n} points of {len(bf.branches)} branches -> {path}")
+    click.echo(f"{n} points of {len(bf.branches)} branches -> {path}",
+               err=is_stream(path))   # not into the CSV on standard output
 
 
 @main.command()

@@ -113,6 +113,32 @@ def test_run_file_with_a_bad_parameter_name_is_a_user_error(cli_exe, tmp_path):
                                 "bad_cont.toml", "phi")
 
 
+def test_export_refuses_a_suffix_it_does_not_write(small_cli_run, cli_exe, tmp_path):
+    """User round: `export -o x.json` wrote CSV into x.json, exit 0. A suffix other than
+    .csv is one line, exit 2, naming the format, and writes nothing; a .CSV, a name without
+    a suffix and standard output are written."""
+    _, h5, _ = small_cli_run
+    for name in ("x.json", "x.txt", "x.csv.gz"):
+        _assert_one_line_user_error(run_cli(cli_exe, "export", h5, "-o", tmp_path / name),
+                                    name, "CSV only", ".csv")
+        assert not (tmp_path / name).exists()
+    want = None
+    for name in ("x.CSV", "table"):
+        proc = run_cli(cli_exe, "export", h5, "-o", tmp_path / name)
+        assert proc.returncode == 0, proc.stderr
+        want = want or (tmp_path / name).read_text()
+        assert (tmp_path / name).read_text() == want
+    # -o /dev/stdout: the CSV on standard output, written in place (renamed over it, the
+    # device's link would become a file: as root, /dev/stdout itself); shown here through a
+    # link of the test's own to the process's standard output, which a rename would replace
+    out = tmp_path / "out"
+    out.symlink_to("/proc/self/fd/1")
+    proc = run_cli(cli_exe, "export", h5, "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == want and out.is_symlink()
+    assert proc.stderr.endswith(f"-> {out}\n")      # the summary line: not in the CSV
+
+
 def test_show_and_export_on_a_file_that_is_not_hdf5(cli_exe, tmp_path):
     fake = tmp_path / "fake.h5"
     fake.write_text("not an HDF5 file\n")

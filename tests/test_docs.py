@@ -148,3 +148,14 @@ def test_the_run_file_error_examples_print_what_the_program_prints(tmp_path, cli
         proc = run_cli(cli_exe, "run", name, "--out", tmp_path / "out", cwd=tmp_path)
         assert proc.returncode == 2
         assert proc.stdout + proc.stderr == shown, name
+
+
+def test_no_page_cites_an_outside_address():
+    """The docs say things in the project's own words: no page links or names an http(s)
+    address (docs/cluster.md linked the Dask and dask-jobqueue sites, docs/energy.md
+    sympy's); a package is named by its name."""
+    cited = [f"{p.relative_to(REPO)}:{n}: {m.group(0)}"
+             for p in sorted(DOCS.rglob("*.md"))
+             for n, line in enumerate(p.read_text().splitlines(), start=1)
+             for m in re.finditer(r"(?i)\bhttps?://\S*", line)]
+    assert not cited, cited

@@ -110,3 +110,162 @@ def test_resuming_a_complete_file_computes_nothing(sweep, tmp_path, cli_exe):
     assert proc.stdout.strip() == (f"sweep: every cell is in {out / 'sweep.h5'} already "
                                    "(8 branches); nothing to compute")
     assert (out / "sweep.h5").stat().st_mtime_ns == before
+
+
+# -- a resumed file has a whole run's snap-back targets and landings (user round, resume45) --
+FOLDS = """\
+equation = "elastica_lever_arm"
+[parameters]
+eps = [0.25, 0.5]
+P = "pi^2/4"
+[continuation]
+parameter = "psi"
+directions = "both"
+bounds = ["-pi", "pi"]
+landing = true
+damping = [1.0]
+[options]
+mirror = false
+"""
+
+
+#: Snaps at subcritical branch points (`test_kirchhoff_runs`: b2 = 2, eps = 0.5), none at folds.
+BPS = """\
+equation = "kirchhoff_lever_arm"
+[parameters]
+P = "pi^2/4"
+eps = 0.5
+b2 = 2.0
+[continuation]
+parameter = "psi"
+directions = "both"
+bounds = [-1.4, 1.4]
+[options]
+max_points = 200
+mirror = false
+"""
+
+
+def _interrupted_after_first_branch(plan, out, monkeypatch):
+    """The run stopped by a Ctrl-C just after its first branch is computed (as the
+    robustness tests stop one, `test_an_interruption_after_a_branch_is_computed_keeps_it`):
+    its file holds that branch and no analysis."""
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.execution import schedule as schedule_module
+    real = schedule_module.compute_branch
+
+    def interrupted(*args, **kwargs):
+        branch = real(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)
+        return branch
+
+    monkeypatch.setattr(schedule_module, "compute_branch", interrupted)
+    assert run_module.execute(plan, out, jobs=1).interrupted
+    monkeypatch.undo()
+    saved = BranchFile(out / plan.output_name)
+    assert [b.attrs["end"] for b in saved.branches] == ["EP"] and saved.snaps == []
+
+
+def _same_rows(a, b):
+    assert len(a) == len(b)
+    for r, s in zip(a, b):
+        assert r.keys() == s.keys()
+        for key in r:
+            assert np.array_equal(r[key], s[key], equal_nan=not isinstance(r[key], str)), key
+
+
+@pytest.mark.parametrize("name, text, snaps, landings", [
+    ("folds", FOLDS, [("LP1", 2), ("LP2", 1), ("LP3", 4), ("LP4", 3)], {1, 2, 3, 4}),
+    ("bps", BPS, [("BP1", 2), ("BP2", 1)], set()),
+], ids=["folds", "bps"])
+def test_a_resumed_file_has_the_whole_runs_snap_targets_and_landings(tmp_path, monkeypatch,
+                                                                      name, text, snaps,
+                                                                      landings):
+    """User round: an interrupted run resumed had the snap-back targets and landings of the
+    branches computed after the resume only (the kept branches' folds had none, and nothing
+    said so), and the new branches' targets named no kept branch as theirs. Now the resumed
+    file's tables are the whole run's, row for row: in ``folds`` branch 1's target lies on
+    branch 2, computed after the resume, and branch 2's on branch 1, kept; in ``bps`` the
+    kept branch's snap is at a subcritical branch point (its decision read back from the
+    file). (No branch is the mirror image of another: a resumed run computes branch 2, whose
+    image branch 1 is kept, by continuation, whole runs by reflection, equal to rounding
+    only.)"""
+    from elastica_auto.execution import run as run_module
+    (tmp_path / f"{name}.toml").write_text(text)
+    plan = runfile.load(tmp_path / f"{name}.toml")
+    whole = run_module.execute(plan, tmp_path / "whole", jobs=1)
+    reference = BranchFile(tmp_path / "whole" / f"{name}.h5")
+    assert not whole.missing
+    assert [(r["lp"], r["on_branch"]) for r in reference.snaps] == snaps
+    assert {r["branch"] for r in reference.landings} == landings
+    out = tmp_path / "out"
+    _interrupted_after_first_branch(plan, out, monkeypatch)
+    resumed = run_module.execute(plan, out, jobs=1, resume=True)
+    assert resumed.kept == 1 and not resumed.missing and not resumed.interrupted
+    bf = BranchFile(out / f"{name}.h5")
+    assert bf.missing == []
+    for b, c in zip(bf.branches, reference.branches, strict=True):
+        assert np.array_equal(b.columns["psi"], c.columns["psi"])
+    _same_rows(bf.snaps, reference.snaps)
+    _same_rows(bf.landings, reference.landings)
+
+
+def test_kept_branches_that_cannot_be_read_back_are_missing_their_targets(tmp_path,
+                                                                         monkeypatch):
+    """Where the kept branches cannot be read back (a file damaged since it was opened, here
+    a StoreError in their reading), their snap-back targets and landings are recorded as
+    missing (kind "file", the run's exit status 3), and the branches computed now have
+    theirs, numbered in the file."""
+    from elastica_auto.execution import run as run_module
+    from elastica_auto.storage.store import StoreError
+    (tmp_path / "folds.toml").write_text(FOLDS)
+    plan = runfile.load(tmp_path / "folds.toml")
+    out = tmp_path / "out"
+    _interrupted_after_first_branch(plan, out, monkeypatch)
+
+    def unreadable(self, b, problem):
+        raise StoreError(f"{self.path}: damaged branch file: branch 001 unreadable")
+
+    monkeypatch.setattr(BranchFile, "in_memory", unreadable)
+    resumed = run_module.execute(plan, out, jobs=1, resume=True)
+    bf = BranchFile(out / "folds.h5")
+    assert [(m["what"], m["kind"]) for m in bf.missing] == [("snaps", "file"),
+                                                             ("landings", "file")]
+    assert all("kept branches 1-1 not computed" in m["message"] for m in bf.missing)
+    assert [m["what"] for m in resumed.missing] == ["snaps", "landings"]
+    assert not resumed.internal
+    assert sorted({r["branch"] for r in bf.snaps}) == [2, 3, 4]
+    assert sorted({r["branch"] for r in bf.landings}) == [2, 3, 4]
+
+
+def test_a_branch_read_back_is_the_branch_computed(tmp_path):
+    """`BranchFile.in_memory` gives back the branch a run computed, as the analyses use it:
+    each point's parameters, ordinates, index columns, label and profile, each labelled
+    point's solution and tangent, and each BP's subcritical decision (read back from its
+    note), compared with the run's branches in memory."""
+    from elastica_auto.execution import run as run_module
+    (tmp_path / "bps.toml").write_text(BPS)
+    plan = runfile.load(tmp_path / "bps.toml")
+    computed = run_module.execute(plan, tmp_path / "out", jobs=1).branches
+    bf = BranchFile(tmp_path / "out" / "bps.h5")
+    decided = [p.subcritical for br in computed for p in br.points if p.type == "BP"]
+    assert decided == [True, True]
+    for br, b in zip(computed, bf.branches, strict=True):
+        back = bf.in_memory(b, plan.problem)
+        assert (back.parameter, back.direction, back.number) == (br.parameter, br.direction,
+                                                                   br.number)
+        assert len(back.points) == len(br.points)
+        for p, q in zip(br.points, back.points):
+            assert (p.params, p.ordinates, p.type, p.label, p.note, p.subcritical) == \
+                (q.params, q.ordinates, q.type, q.label, q.note, q.subcritical)
+            assert (p.index, p.index_rule, p.index_direct) == (q.index, q.index_rule,
+                                                               q.index_direct)
+            assert np.array_equal(p.profile, q.profile)
+            if p.type:
+                assert np.array_equal(p.state.y, q.state.y)
+                assert np.array_equal(p.state.s, q.state.s)
+                assert p.state.params == q.state.params
+                assert (p.tangent is None) == (q.tangent is None)
+                if p.tangent is not None:
+                    assert np.array_equal(p.tangent.y, q.tangent.y)
+                    assert p.tangent.lam == q.tangent.lam

@@ -31,6 +31,13 @@ from .equilibria import (Equilibrium, beyond_fold, enumerate_equilibria, snap_lp
 BORN_POINTS = 4
 
 
+#: What `mark_subcritical` says in a BP's note, by its decision. The notes are stored: a
+#: branch read back from a file has its decisions from them (`read_subcritical`).
+SAID = {True: "subcritical: the branches born here are unstable (a snap)",
+        False: "supercritical: a stable branch is born here (no snap)",
+        None: "born branches not found (no snap reported)"}
+
+
 def subcritical(problem, branch, point) -> bool | None:
     """Whether the branch point ``point`` of ``branch`` is subcritical: both branches born
     there (the two orientations of the other direction, `branches.switching`) have index > 0
@@ -86,13 +93,22 @@ def mark_subcritical(problem, branch) -> None:
         else:
             try:
                 p.subcritical = subcritical(problem, branch, p)
-                said = {True: "subcritical: the branches born here are unstable (a snap)",
-                        False: "supercritical: a stable branch is born here (no snap)",
-                        None: "born branches not found (no snap reported)"}[p.subcritical]
+                said = SAID[p.subcritical]
             except (Exception, SystemExit) as exc:  # the module failing on a born branch
                 said = f"born branches failed ({type(exc).__name__}: {exc}); no snap reported"
             decided.append((key, p.state.y, p.subcritical, said))
         p.note = "; ".join(filter(None, (p.note, said)))
+
+
+def read_subcritical(branch) -> None:
+    """Set ``subcritical`` at each BP of ``branch``, a branch read back from a file, as
+    `mark_subcritical` decided it when the branch was computed: from what it said in the
+    point's note (SAID; its parts are joined by "; "), None where it said neither."""
+    for p in branch.points:
+        if p.type in labels.SWITCHES:
+            said = p.note.split("; ")
+            p.subcritical = True if SAID[True] in said else False if SAID[False] in said \
+                else None
 
 
 def snap_points(branch) -> list[tuple]:

@@ -515,9 +515,6 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
     done = {b.attrs.get("cell", "") for b in kept.branches[:count]} if kept else set()
     first = [start_job(plan, spec) for spec in plan.branches if cell(spec) not in done]
     result = RunResult(writer.path, [], 0.0, kept=count)
-    if kept is not None:
-        # what the kept branches' analyses could not make is still missing from the file
-        result.missing = [m for m in kept.missing if m["what"] != "branches"]
     if count:   # the branches are reported by their numbers in the file
         callbacks = dataclasses.replace(
             callbacks,
@@ -526,8 +523,13 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
             on_branch=callbacks.on_branch and (lambda k, br, f=callbacks.on_branch: f(k + count,
                                                                                       br)))
     if kept is not None and not first and count == len(kept.branches):  # all there already
+        # what the analyses of its branches could not make is still missing from the file
+        result.missing = [m for m in kept.missing if m["what"] != "branches"]
         result.path, result.seconds = kept.path, time.perf_counter() - t_run
         return result
+    # the kept branches as they were computed, read now (the run's saves may write their
+    # file again): analysed with the new ones, as a whole run analyses its branches
+    held = _held(plan, kept, count) if kept is not None else None
     scheduler = scheduler if scheduler is not None else plan.scheduler
     if worker_timeout is None:
         worker_timeout = plan.worker_timeout
@@ -549,7 +551,7 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
                 callbacks.on_start()
             try:
                 compute(plan, first, result, save, callbacks,
-                        Workers(jobs, client=client, worker_timeout=worker_timeout), kept)
+                        Workers(jobs, client=client, worker_timeout=worker_timeout), kept, held)
                 if not result.interrupted:
                     writer.extra["missing"] = json.dumps(result.missing)
                     writer.save(result.branches, result.snaps, result.maps, result.landings)
@@ -581,6 +583,23 @@ def execute(plan: Plan, out_dir: Path, callbacks: Callbacks = Callbacks(), jobs:
         raise ClusterLost(f"{lost}: {saved} branches saved to {writer.path}, {missing} not "
                           f"computed ({again})") from None
     return result
+
+
+def _held(plan: Plan, kept: store.BranchFile, count: int) -> tuple[list, BaseException | None]:
+    """The first ``count`` branches of the file ``kept`` read back as computed
+    (`BranchFile.in_memory`), for the snap-back targets and landings of a resumed run; ([],
+    the exception) if they cannot be read (a file damaged since it was opened): then the
+    analyses of the branches computed now are made, and the kept branches' are recorded as
+    missing (`_analyse`). None read where no analysis uses them: a problem without the
+    snap-back scan (`snap_targets` needs the shooting and second-variation hooks) and no
+    damped landings."""
+    problem = plan.problem
+    if not (problem.has_shooting and problem.has_second_variation or plan.damping):
+        return [], None
+    try:
+        return [kept.in_memory(b, problem) for b in kept.branches[:count]], None
+    except store.StoreError as exc:
+        return [], exc
 
 
 def _stopped(plan: Plan, result: RunResult, writer, save: Callable[[], None],
@@ -679,7 +698,8 @@ class Workers:
 
 
 def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], None],
-            callbacks: Callbacks = Callbacks(), workers: Workers = Workers(), kept=None):
+            callbacks: Callbacks = Callbacks(), workers: Workers = Workers(), kept=None,
+            held=None):
     """Compute the branches from ``first``, then the switches ``plan.switch_count`` asks
     for, then the snap-back targets (and, if the plan asks, the stability maps of the
     fold curves' planes, `elastica_auto.analysis.maps`, and the damped model's landings,
@@ -756,7 +776,7 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
     broken = True           # until the analysis is done (a Ctrl-C in it ends the workers)
     try:
         if not interrupted:
-            _analyse(plan, result, kept, pool, callbacks.on_landing, mapper)
+            _analyse(plan, result, kept, pool, callbacks.on_landing, mapper, held)
         broken = False
     finally:
         if pool is not None:
@@ -773,17 +793,26 @@ def _tasks_after(plan: Plan) -> bool:
 
 
 def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
-             on_landing: Callable[[int, int, dict], None] | None, mapper=None):
-    """The computed branches' snap-back targets, and as the plan asks, the damped model's
-    landings and the stability maps, into ``result`` (numbered after the ``kept`` file's
-    branches). An analysis that fails (the module raising or exiting in it, a numerical
-    failure, an internal error) leaves the branches standing: it is recorded in
-    ``result.missing`` (and stored in the file), and the run's exit status says so.
+             on_landing: Callable[[int, int, dict], None] | None, mapper=None, held=None):
+    """The branches' snap-back targets, and as the plan asks, the damped model's landings
+    and the stability maps, into ``result``. A resumed run (``kept``: the file it continues,
+    its first ``result.kept`` branches kept) analyses the kept branches with those computed
+    now, as a whole run does: the kept file's tables are not reused (an interrupted file,
+    or one that lost its cluster, has none, and a kept branch's target may lie on a branch
+    computed now: its ``on_branch``). ``held``: `_held`'s, the kept branches read back, or
+    the reason they could not be: then the kept branches' targets and landings are recorded
+    as missing (kind ``file``), their rows in the kept file, if any, kept. An analysis that
+    fails (the module raising or exiting in it, a numerical failure, an internal error)
+    leaves the branches standing: it is recorded in ``result.missing`` (and stored in the
+    file), and the run's exit status says so.
     ``pool``: a default run's (`Alongside`): its workers' equilibrium scans
     (`snap_targets`'s ``cache``). ``mapper``: computes the landings (overdamped and
     damped) and the maps' enumerations as tasks (the default run's `Alongside.map`, a
     cluster's `cluster.map_tasks`; default here, one after the other)."""
-    branches = result.branches
+    held, unread = held if held is not None else ([], None)
+    whole = kept is None or unread is None      # every branch of the file analysed here
+    branches = [*held, *result.branches] if whole else result.branches
+    shift = 0 if whole else result.kept         # the numbers of these branches in the file
 
     def failed(what: str, name: str, exc: BaseException):
         record = failure_record(exc, module_files(plan.problem.module))
@@ -800,6 +829,17 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
         for record in failures:
             result.missing.append({**record, "what": what})
 
+    if not whole:   # (kind "file": neither the module's failure nor the engine's)
+        for what, name in (("snaps", "snap-back targets"), ("landings", "damped landings")):
+            if what == "snaps" or plan.damping:
+                message = (f"{name} of the kept branches 1-{result.kept} not computed: they "
+                           f"could not be read back ({' '.join(str(unread).split())})")
+                result.missing.append({"what": what, "kind": "file",
+                                       "exception": type(unread).__name__,
+                                       "error": str(unread), "where": "?", "traceback": [],
+                                       "message": message})
+                result.warnings.append(message)
+
     failures: list[dict] = []
     try:
         snaps = snap_targets(plan.problem, branches, result.warnings, landing=plan.landing,
@@ -809,11 +849,11 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
     except (Exception, SystemExit) as exc:   # the module failing in the scan: keep the branches
         failed("snaps", "snap-back scan", exc)
     else:
-        for row in snaps:           # numbered after the kept branches
-            row["branch"] += result.kept
-            row["on_branch"] += result.kept if row["on_branch"] else 0
+        for row in snaps:           # numbered in the file
+            row["branch"] += shift
+            row["on_branch"] += shift if row["on_branch"] else 0
         result.snaps = snaps
-    if kept is not None:
+    if not whole:
         result.snaps = [r for r in kept.snaps if r["branch"] <= result.kept] + result.snaps
     if plan.damping:
         from ..analysis.landing import damping_sweep
@@ -827,13 +867,13 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
             failed("landings", "damped landings", exc)
         else:
             for row in landings:
-                row["branch"] += result.kept
+                row["branch"] += shift
             result.landings = landings
-        if kept is not None:
+        if not whole:
             result.landings = ([r for r in kept.landings if r["branch"] <= result.kept]
                                + result.landings)
     if plan.maps:
-        every = [*(kept.branches[:result.kept] if kept is not None else ()), *branches]
+        every = [*(kept.branches[:result.kept] if kept is not None else ()), *result.branches]
         try:
             result.maps = stability_maps(plan.base, every, plan.problem.free[0],
                                          plan.parameter,

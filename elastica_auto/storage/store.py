@@ -71,8 +71,8 @@ import h5py
 import numpy as np
 
 from .. import FORMAT_VERSION, __version__
-from ..branches.branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, StoredLabel,
-                     column_names, export_names)
+from ..branches.branch import (INDEX_COLUMNS, INDEX_UNKNOWN, PROFILE_GRID, Branch, Point,
+                               StoredLabel, column_names, export_names)
 from ..core.errors import StoreError, WriteError, error_text
 from ..core.solution import State, Tangent
 from . import verified
@@ -1444,6 +1444,42 @@ class BranchFile:
             self._maps = self._source.read("maps", _read_maps)
         return self._maps
 
+    def in_memory(self, b: StoredBranch, problem) -> Branch:
+        """Stored branch ``b`` as the `Branch` of ``problem`` it was saved from, for the
+        analyses of a run's branches (a resumed run's snap-back targets and landings of the
+        branches it keeps, `execution.run._analyse`): each point's parameters, ordinates,
+        index columns, label, note and profile, and each labelled point's solution and
+        tangent, exactly as stored (the columns and solutions are stored at full precision);
+        the BPs' decisions of `analysis.snaps.mark_subcritical` read back from their notes.
+        Everything is read now (StoreError if it cannot be)."""
+        from ..analysis.snaps import read_subcritical
+        try:
+            options = json.loads(b.attrs.get("options", "{}"))
+        except ValueError:
+            raise self._damaged(f"branch {b.number:03d}: attribute 'options' is not JSON") \
+                from None
+        br = Branch.of(problem, b.parameter, int(b.attrs["direction"]), str(b.attrs["start"]),
+                       options, end=str(b.attrs.get("end", "")),
+                       message=str(b.attrs.get("message", "")), number=b.number,
+                       cell=str(b.attrs.get("cell", "")))
+        c, profiles = b.columns, b.profiles
+        names = [str(q) for q in c["label"]]
+        for k in range(len(b)):
+            kind, name = str(c["type"][k]), names[k]
+            point = Point(params={q: float(c[q][k]) for q in self.parameters},
+                          ordinates={o: float(c[o][k]) for o in self.ordinates},
+                          arclength=float(c["arclength"][k]), ds=float(c["ds"][k]),
+                          niter=int(c["niter"][k]), nodes=int(c["nodes"][k]), type=kind,
+                          profile=profiles[k], fold_residual=float(c["fold_residual"][k]),
+                          note=str(c["note"][k]), label=int(name[len(kind):]) if kind else 0,
+                          **{q: int(c[q][k]) for q in INDEX_COLUMNS})
+            if kind:
+                stored = self.label(name)
+                point.state, point.tangent = stored.state, stored.tangent
+            br.points.append(point)
+        read_subcritical(br)
+        return br
+
     def label(self, name: str) -> StoredLabel:
         """The solution stored under a label such as ``UZ3`` (StoreError if there is none),
         read from the file now."""
@@ -1513,24 +1549,39 @@ def write_atomically(out: Path, write, stage: str = "") -> Path:
     return out
 
 
+def is_stream(out: Path) -> bool:
+    """Whether ``out`` is a stream an export writes in place, appending: a path in /dev
+    (``/dev/stdout``, even when the shell redirects it to a file) or one that is no regular
+    file (a pipe, a terminal, a link to one). A rename over it would replace the device's
+    link with a file (as root, ``/dev/stdout`` itself), and opening it anew for writing would
+    truncate a file redirected to with ``>>``: appending is right for ``>`` and ``>>``."""
+    return Path("/dev") in out.absolute().parents or out.exists() and not out.is_file()
+
+
 def export_csv(bf: BranchFile, out: Path):
     """Every point of every branch, one row each (header: branch,pt,type,label,<parameters>,
     <ordinates>,index,index_rule,index_direct). Floats are written with 17 significant digits.
 
     The CSV is written to a temporary file beside ``out`` and renamed over it, so a failed
-    export leaves ``out`` as it was. StoreError if ``out`` is the branch file itself or
-    cannot be written."""
+    export leaves ``out`` as it was; a stream (`is_stream`) is appended to in place.
+    StoreError if ``out`` is the branch file itself or cannot be written."""
     header = export_names(bf.parameters, bf.ordinates)
     out = Path(out)
     if same_file(bf.path, out):
         raise StoreError(f"{out} is the branch file being exported ({bf.path}); "
                          "choose another name for the CSV")
-    def write(tmp):
-        with open(tmp, "w", newline="") as fh:
+    def write(tmp, mode="w"):
+        with open(tmp, mode, newline="") as fh:
             w = csv.writer(fh)
             w.writerow(header)
             for row in rows(bf):
                 w.writerow([repr(row[h]) if isinstance(row[h], float) else row[h]
                             for h in header])
 
+    if is_stream(out):
+        try:
+            write(out, "a")
+        except OSError as exc:
+            raise _cannot_write(out, exc) from exc
+        return out
     return write_atomically(out, write)
