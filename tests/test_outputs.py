@@ -113,3 +113,11 @@ def test_an_unknown_figure_format_is_one_line(good_file, cli_exe, tmp_path):
     proc = run_cli(cli_exe, "plot", good_file, "-o", tmp_path / "x.xyz")
     one_line(proc, EXIT_USER, "x.xyz", "'xyz'", ".png")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_figure_name_without_a_suffix_is_written_as_png(good_file, cli_exe, tmp_path):
+    """docs/cli.md: `plot` writes its output's suffix's format, and PNG for a name without
+    one (matplotlib's default format, which the style does not change)."""
+    proc = run_cli(cli_exe, "plot", good_file, "-o", tmp_path / "figure")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "figure").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -95,6 +95,20 @@ def test_expressions_say_what_they_do_not_take(text, words):
     assert words in str(info.value) and "ctx=" not in str(info.value), str(info.value)
 
 
+@pytest.mark.parametrize("override, words", [
+    ("ncol=true", "[options] ncol: expected an integer, got true"),
+    ("tol=false", "[options] tol: expected a number or an expression string, got false"),
+    ("map=1", "[continuation] map: expected true or false, got 1"),
+    ('damping="x"', '[continuation] damping: expected a list of damping values, got "x"'),
+    ("damping=[true]", "expected a number or an expression string, got true"),
+])
+def test_a_refused_value_is_spelled_as_the_run_file_spells_it(tmp_path, override, words):
+    """``ncol = true`` was refused with "got True", Python's spelling of what the user did
+    not write: a refused value is quoted in TOML's."""
+    message = _refused(tmp_path, SMALL, override)
+    assert words in message, message
+
+
 def test_a_bad_stop_is_one_line_from_the_command_line(tmp_path, cli_exe):
     path = tmp_path / "stop.toml"
     path.write_text(SMALL + 'stop = ["m1 >= 1"]\n')

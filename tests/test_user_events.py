@@ -143,7 +143,7 @@ def test_events_not_a_list_is_refused(cli_exe, tmp_path):
     out = run_cli(cli_exe, "run", path, "--out", tmp_path / "o")
     assert out.returncode == 2
     assert out.stderr.strip() == (f"elastica-auto: error: {path}: [continuation] events: "
-                                  "expected a list [\"m0 = 0\"], got 'm1 = 1'")
+                                  "expected a list [\"m0 = 0\"], got \"m1 = 1\"")
 
 
 def test_the_api_refuses_a_bad_event_and_events_on_fold_curves():

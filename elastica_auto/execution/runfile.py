@@ -123,6 +123,20 @@ def _toml_key(key: str) -> str:
     return "[options]" if key == "options" else key
 
 
+def _toml(value) -> str:
+    """``value`` as a run file spells it (``true``, ``"x"``, ``[1, 2]``, ``{ a = 1 }``), for
+    messages about what a user wrote: Python's spelling (``True``, ``'x'``) is not theirs."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    return repr(value)
+
+
 def apply_overrides(doc: Document, overrides: Sequence[str], restart: str | None):
     """``NAME=VALUE`` into the table that has NAME: ``[options]`` for an option,
     ``[parameters]`` for a parameter of the module, ``[continuation]`` for one of its keys,
@@ -234,18 +248,18 @@ class Document:
 
     def number(self, key, v) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float, str)):
-            self.fail(key, f"expected a number or an expression string, got {v!r}")
+            self.fail(key, f"expected a number or an expression string, got {_toml(v)}")
         try:
             value = evaluate(v) if isinstance(v, str) else float(v)
         except ValueError as exc:
             self.fail(key, str(exc))
         if not math.isfinite(value):  # TOML's own nan and inf
-            self.fail(key, f"expected a finite number, got {v!r}")
+            self.fail(key, f"expected a finite number, got {_toml(v)}")
         return value
 
     def string(self, key, v) -> str:
         if not isinstance(v, str):
-            self.fail(key, f"expected a string, got {v!r}")
+            self.fail(key, f"expected a string, got {_toml(v)}")
         return v
 
     def table(self, key) -> dict:
@@ -292,7 +306,7 @@ class Document:
         if "bounds" in cont:
             b = cont["bounds"]
             if not isinstance(b, list) or len(b) != 2:
-                self.fail("[continuation] bounds", f"expected [lower, upper], got {b!r}")
+                self.fail("[continuation] bounds", f"expected [lower, upper], got {_toml(b)}")
             out["bounds"] = [self.number("[continuation] bounds", v) for v in b]
         for key in ("stop", "events", "uz", "free"):
             if key in cont:
@@ -300,30 +314,30 @@ class Document:
                     example = {"stop": "[\"LP4\"]", "events": "[\"m0 = 0\"]",
                                "uz": "of values", "free": "of parameter names"}[key]
                     self.fail(f"[continuation] {key}",
-                              f"expected a list {example}, got {cont[key]!r}")
+                              f"expected a list {example}, got {_toml(cont[key])}")
                 out[key] = cont[key]
         out["uz"] = [self.number("[continuation] uz", v) for v in out.get("uz", [])]
         if "uz_period" in cont:
             out["uz_period"] = self.number("[continuation] uz_period", cont["uz_period"])
         if "map" in cont:
             if not isinstance(cont["map"], bool):
-                self.fail("[continuation] map", f"expected true or false, got {cont['map']!r}")
+                self.fail("[continuation] map", f"expected true or false, got {_toml(cont['map'])}")
             out["map"] = cont["map"]
         if "landing" in cont:
             if not isinstance(cont["landing"], bool):
                 self.fail("[continuation] landing",
-                          f"expected true or false, got {cont['landing']!r}")
+                          f"expected true or false, got {_toml(cont['landing'])}")
             out["landing"] = cont["landing"]
         if "damping" in cont:
             if not isinstance(cont["damping"], list):
                 self.fail("[continuation] damping",
-                          f"expected a list of damping values, got {cont['damping']!r}")
+                          f"expected a list of damping values, got {_toml(cont['damping'])}")
             out["damping"] = [self.number("[continuation] damping", v) for v in cont["damping"]]
         if "damping_folds" in cont:
             folds = cont["damping_folds"]
             if not isinstance(folds, list):
                 self.fail("[continuation] damping_folds",
-                          f"expected a list of fold labels such as [\"LP3\"], got {folds!r}")
+                          f"expected a list of fold labels such as [\"LP3\"], got {_toml(folds)}")
             out["damping_folds"] = [self.string("[continuation] damping_folds", f) for f in folds]
         return parameter, out
 
@@ -361,13 +375,13 @@ class Document:
                 self.fail(where, f"unknown option; expected one of {sorted(known)}")
             if key in _INTEGER_OPTIONS:
                 if isinstance(v, bool) or not isinstance(v, int):
-                    self.fail(where, f"expected an integer, got {v!r}")
+                    self.fail(where, f"expected an integer, got {_toml(v)}")
                 values[key] = v
             elif key == "corrector":
                 values[key] = self.string(where, v)
             elif key == "mirror":
                 if not isinstance(v, bool):
-                    self.fail(where, f"expected true or false, got {v!r}")
+                    self.fail(where, f"expected true or false, got {_toml(v)}")
                 values[key] = v
             elif key == "detect":
                 values[key] = self.detect(where, v)
@@ -379,13 +393,13 @@ class Document:
         """``detect = { LP = false, BP = false }``: the kinds of special point looked for
         (`elastica_auto.core.options.DETECTABLE`), true or false each."""
         if not isinstance(v, dict):
-            self.fail(where, f"expected a table such as {{ LP = false }}, got {v!r}")
+            self.fail(where, f"expected a table such as {{ LP = false }}, got {_toml(v)}")
         for kind, on in v.items():
             if kind not in DETECTABLE:
                 self.fail(f"{where}.{kind}", f"unknown kind; expected one of "
                           f"{', '.join(DETECTABLE)}")
             if not isinstance(on, bool):
-                self.fail(f"{where}.{kind}", f"expected true or false, got {on!r}")
+                self.fail(f"{where}.{kind}", f"expected true or false, got {_toml(on)}")
         return dict(v)
 
     def parameters(self) -> dict[str, list[float]]:
@@ -404,10 +418,10 @@ class Document:
         """``{ from = A, to = B, num = N }``: N equally spaced values from A to B, both
         included (A alone if N = 1)."""
         if set(v) != {"from", "to", "num"}:
-            self.fail(where, f"a range is {{ from = A, to = B, num = N }}, got {v!r}")
+            self.fail(where, f"a range is {{ from = A, to = B, num = N }}, got {_toml(v)}")
         num = v["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            self.fail(f"{where}.num", f"expected a positive integer, got {num!r}")
+            self.fail(f"{where}.num", f"expected a positive integer, got {_toml(num)}")
         if num > MAX_BRANCHES:  # before the values are listed
             self.fail(f"{where}.num", f"{num:,} values; a plan has at most {MAX_BRANCHES:,} "
                       "branches")
@@ -434,7 +448,8 @@ class Document:
                     self.fail("switch", f"{item!r}: branch switching needs a BP label")
                 parsed.append(Switch(label))
         else:
-            self.fail("switch", f"expected a count or a list of \"FILE.h5:BPn\", got {switch!r}")
+            self.fail("switch", "expected a count or a list of \"FILE.h5:BPn\", got "
+                      + _toml(switch))
         starts = self.doc.get("start", [] if parsed else "trivial")
         starts = starts if isinstance(starts, list) else [starts]
         if not starts and not parsed:
@@ -475,7 +490,7 @@ class Document:
 
     def file_label(self, key, problem: Problem, s: str) -> StoredLabel:
         if ":" not in s:
-            self.fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {s!r}")
+            self.fail(key, f"expected \"trivial\" or \"FILE.h5:LABEL\", got {_toml(s)}")
         fname, name = s.rsplit(":", 1)
         try:
             return self.branch_file(key, problem, fname).label(name)
@@ -497,7 +512,7 @@ class Document:
         kind = self.string(f"{key}.type", sel.get("type", labels.UZ))
         where = sel.get("where", {})
         if not isinstance(where, dict):
-            self.fail(f"{key}.where", f"expected a table of parameter values, got {where!r}")
+            self.fail(f"{key}.where", f"expected a table of parameter values, got {_toml(where)}")
         want = {}
         for q, v in where.items():
             if q not in problem.parameters:
@@ -506,14 +521,14 @@ class Document:
             want[q] = self.number(f"{key}.where.{q}", v)
         index = sel.get("index")
         if index is not None and (isinstance(index, bool) or not isinstance(index, int)):
-            self.fail(f"{key}.index", f"expected an integer stability index, got {index!r}")
+            self.fail(f"{key}.index", f"expected an integer stability index, got {_toml(index)}")
         distinct = sel.get("distinct", True)
         if not isinstance(distinct, bool):
-            self.fail(f"{key}.distinct", f"expected true or false, got {distinct!r}")
+            self.fail(f"{key}.distinct", f"expected true or false, got {_toml(distinct)}")
         limit = sel.get("limit")
         if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int)
                                   or limit < 1):
-            self.fail(f"{key}.limit", f"expected a positive integer, got {limit!r}")
+            self.fail(f"{key}.limit", f"expected a positive integer, got {_toml(limit)}")
         names = sorted((n for n in bf.labels if n[:2] == kind), key=lambda n: int(n[2:]))
         out = []
         for n in names:
