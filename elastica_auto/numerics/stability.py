@@ -226,11 +226,13 @@ def rates(a, a_min, b, c):
     is of order GA (1000 elements for GA = 1000), the rates of order 1 (the terms of order GA
     cancel in A^-1 C and the Schur complement). A batched solve costs 0.6 ms on 200 points,
     70 times the bound: only where the bound asks for more elements. For k = 2 and 3, A^-1
-    is the adjugate over the determinant (:func:`_small_pivots`, a third of the solve's cost
-    on 3 x 3 blocks)."""
+    is the adjugate over the determinant (:func:`_adjugate`, a third of the solve's cost
+    on 3 x 3 blocks; without :func:`_small_pivots`' count of negative eigenvalues)."""
     k = a.shape[-1]
     if 2 <= k <= 3:
-        turn = _small_pivots(a, 0.0)[0] @ c
+        _, adj, coefficients = _adjugate(a)
+        adj /= coefficients[-1]
+        turn = adj.T.reshape(a.shape) @ c
     else:
         turn = np.linalg.solve(a, c)
     return np.sqrt(_norm(b - np.swapaxes(c, -1, -2) @ turn) / a_min) + _norm(turn)
@@ -576,15 +578,37 @@ def _small_pivots(m, scale):
     n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
     (n_2 xor n_3); a zero coefficient counts as positive."""
     p, k = len(m), m.shape[-1]
+    rows, adj, coefficients = _adjugate(m)
+    c_last, det = coefficients[-2], coefficients[-1]
+    if k == 2:
+        np.add(rows[0], rows[3], out=c_last)
+    else:
+        np.add(adj[0], adj[4], out=c_last)          # c00 + c11 + c22
+        c_last += adj[8]
+        np.add(rows[0], rows[4], out=coefficients[0])
+        coefficients[0] += rows[8]
+    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
+    negative = coefficients < 0
+    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
+    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
+    adj /= det
+    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+
+
+def _adjugate(m):
+    """The symmetric 2 x 2 or 3 x 3 blocks m (p, k, k) as rows (k k, p), an entry per row,
+    their adjugates in the same layout, and an array (k, p) whose last row is their
+    determinants (the others for :func:`_small_pivots` to fill): the closed forms that
+    :func:`_small_pivots` and :func:`rates` (A^-1 = adj / det) share."""
+    p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
     coefficients = np.empty((k, p))                # c_1, ..., c_k
-    c_last, det = coefficients[-2], coefficients[-1]
+    det = coefficients[-1]
     if k == 2:
         a, b, d = rows[0], rows[3], rows[1]
         np.multiply(a, b, out=det)
         det -= d * d
         adj = rows[_ADJ2] * _ADJ2_SIGN[:, None]
-        np.add(a, b, out=c_last)
     else:
         e = rows[_COF_FACTORS]                      # the factors of the cofactors (4, 6, p)
         cof = e[0] * e[1]
@@ -594,16 +618,7 @@ def _small_pivots(m, scale):
         np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
         det += rows[1] * adj[1]
         det += rows[2] * adj[2]
-        np.add(cof[0], cof[1], out=c_last)
-        c_last += cof[2]
-        np.add(rows[0], rows[4], out=coefficients[0])
-        coefficients[0] += rows[8]
-    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
-    negative = coefficients < 0
-    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
-    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
-    adj /= det
-    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+    return rows, adj, coefficients
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
