@@ -158,9 +158,9 @@ def _small_min_eig(a):
     # a component decoupled at every point (a Cosserat rod's shear stiffness, a literal zero
     # coupling in the hook): the 2 x 2 formula and that diagonal entry everywhere, a dozen
     # numpy calls fewer than the trigonometric form and its fix-up of near-double points
-    coupled = rows[_SYM3[3:]].any(axis=1).tolist()          # d, e, f: 01, 02, 12
-    for (diag, zero0, zero1, lo, hi, off), (i0, i1) in zip(_DECOUPLED3, _OFF_OF3):
-        if not (coupled[i0] or coupled[i1]):
+    coupled = dict(zip(_SYM3[3:].tolist(), rows[_SYM3[3:]].any(axis=1).tolist()))
+    for diag, zero0, zero1, lo, hi, off in _DECOUPLED3:
+        if not (coupled[zero0] or coupled[zero1]):
             a_lo, a_hi = rows[lo], rows[hi]
             two = 0.5 * (a_lo + a_hi) - np.hypot(0.5 * (a_lo - a_hi), rows[off])
             return np.minimum(rows[diag], two)
@@ -191,8 +191,6 @@ def _small_min_eig(a):
 #: off-diagonal entries, and the other two components' 2 x 2 block (diagonal, diagonal,
 #: off-diagonal).
 _DECOUPLED3 = ((0, 1, 2, 4, 8, 5), (4, 1, 5, 0, 8, 2), (8, 2, 5, 0, 4, 1))
-#: The same two off-diagonal entries of each component as places in (d, e, f) = (01, 02, 12).
-_OFF_OF3 = ((0, 1), (0, 2), (1, 2))
 _TINY = np.finfo(float).tiny
 #: det B / 2 above this: the two smallest eigenvalues are so close that the arccos, steep at
 #: 1, would lose up to half the digits of the smallest; below it at most a factor 1 /
