@@ -753,6 +753,15 @@ def test_smallest_eigenvalue_of_blocks_with_a_decoupled_stiff_component():
             err = np.abs(stability.min_eig(a) - ref) / np.abs(np.linalg.eigvalsh(soft)).max(
                 axis=1)
             assert np.max(err) < 1e-14, (stiff, j, np.max(err))
+            # decoupled at some points only (the others coupled to the stiff component): each
+            # point's own answer, LAPACK's where coupled
+            mixed = a.copy()
+            mixed[::3, j, rest[1]] = mixed[::3, rest[1], j] = 0.3
+            ref = ref.copy()
+            ref[::3] = np.linalg.eigvalsh(mixed[::3])[:, 0]
+            err = np.abs(stability.min_eig(mixed) - ref) / np.abs(
+                np.linalg.eigvalsh(mixed)).max(axis=1)
+            assert np.max(err) < 1e-14, (stiff, j, np.max(err))
 
 
 def test_the_rates_by_the_adjugate_match_a_solve():

@@ -149,10 +149,21 @@ def _small_min_eig(a):
     shear stiffness S of a Cosserat rod next to the bending stiffnesses, whose two smallest
     eigenvalues are close relative to S) are the smaller of that diagonal entry and the 2 x 2
     formula on the rest, accurate to rounding relative to each; the others go to the
-    eigensolver."""
+    eigensolver. Where one component is decoupled at every point (the Cosserat rod's parts:
+    the hook's literal zeros), that is the answer at every point, without the trigonometric
+    form."""
     rows = a.transpose(1, 2, 0).reshape(a.shape[-1] ** 2, -1)   # no copy for a hook's layout
     if a.shape[-1] == 2:
         return 0.5 * (rows[0] + rows[3]) - np.hypot(0.5 * (rows[0] - rows[3]), rows[1])
+    # a component decoupled at every point (a Cosserat rod's shear stiffness, a literal zero
+    # coupling in the hook): the 2 x 2 formula and that diagonal entry everywhere, a dozen
+    # numpy calls fewer than the trigonometric form and its fix-up of near-double points
+    coupled = dict(zip(_SYM3[3:].tolist(), rows[_SYM3[3:]].any(axis=1).tolist()))
+    for diag, zero0, zero1, lo, hi, off in _DECOUPLED3:
+        if not (coupled[zero0] or coupled[zero1]):
+            a_lo, a_hi = rows[lo], rows[hi]
+            two = 0.5 * (a_lo + a_hi) - np.hypot(0.5 * (a_lo - a_hi), rows[off])
+            return np.minimum(rows[diag], two)
     q = rows[_DIAG3].sum(axis=0) / 3
     a0, a1, a2 = rows[_DIAG3] - q
     d, e, f = rows[_SYM3[3:]]
@@ -213,11 +224,13 @@ def rates(a, a_min, b, c):
     is of order GA (1000 elements for GA = 1000), the rates of order 1 (the terms of order GA
     cancel in A^-1 C and the Schur complement). A batched solve costs 0.6 ms on 200 points,
     70 times the bound: only where the bound asks for more elements. For k = 2 and 3, A^-1
-    is the adjugate over the determinant (:func:`_small_pivots`, a third of the solve's cost
-    on 3 x 3 blocks)."""
+    is the adjugate over the determinant (:func:`_adjugate`, a third of the solve's cost
+    on 3 x 3 blocks; without :func:`_small_pivots`' count of negative eigenvalues)."""
     k = a.shape[-1]
     if 2 <= k <= 3:
-        turn = _small_pivots(a, 0.0)[0] @ c
+        _, adj, coefficients = _adjugate(a)
+        adj /= coefficients[-1]
+        turn = adj.T.reshape(a.shape) @ c
     else:
         turn = np.linalg.solve(a, c)
     return np.sqrt(_norm(b - np.swapaxes(c, -1, -2) @ turn) / a_min) + _norm(turn)
@@ -563,15 +576,37 @@ def _small_pivots(m, scale):
     n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
     (n_2 xor n_3); a zero coefficient counts as positive."""
     p, k = len(m), m.shape[-1]
+    rows, adj, coefficients = _adjugate(m)
+    c_last, det = coefficients[-2], coefficients[-1]
+    if k == 2:
+        np.add(rows[0], rows[3], out=c_last)
+    else:
+        np.add(adj[0], adj[4], out=c_last)          # c00 + c11 + c22
+        c_last += adj[8]
+        np.add(rows[0], rows[4], out=coefficients[0])
+        coefficients[0] += rows[8]
+    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
+    negative = coefficients < 0
+    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
+    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
+    adj /= det
+    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+
+
+def _adjugate(m):
+    """The symmetric 2 x 2 or 3 x 3 blocks m (p, k, k) as rows (k k, p), an entry per row,
+    their adjugates in the same layout, and an array (k, p) whose last row is their
+    determinants (the others for :func:`_small_pivots` to fill): the closed forms that
+    :func:`_small_pivots` and :func:`rates` (A^-1 = adj / det) share."""
+    p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
     coefficients = np.empty((k, p))                # c_1, ..., c_k
-    c_last, det = coefficients[-2], coefficients[-1]
+    det = coefficients[-1]
     if k == 2:
         a, b, d = rows[0], rows[3], rows[1]
         np.multiply(a, b, out=det)
         det -= d * d
         adj = rows[_ADJ2] * _ADJ2_SIGN[:, None]
-        np.add(a, b, out=c_last)
     else:
         e = rows[_COF_FACTORS]                      # the factors of the cofactors (4, 6, p)
         cof = e[0] * e[1]
@@ -581,16 +616,7 @@ def _small_pivots(m, scale):
         np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
         det += rows[1] * adj[1]
         det += rows[2] * adj[2]
-        np.add(cof[0], cof[1], out=c_last)
-        c_last += cof[2]
-        np.add(rows[0], rows[4], out=coefficients[0])
-        coefficients[0] += rows[8]
-    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
-    negative = coefficients < 0
-    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
-    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
-    adj /= det
-    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
+    return rows, adj, coefficients
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
