@@ -18,6 +18,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 import elastica_auto as ea
+from elastica_auto.core.errors import EXIT_OK
+from helpers import run_cli
 
 SPRING_COLUMN = '''
 import numpy as np
@@ -99,3 +101,52 @@ def test_a_gauge_that_is_nan_leaves_the_index_alone(tmp_path):
         assert p.index_direct == p.index == sum(c < p.params["P"] for c in loads), p.params
     assert [branch.transition(p) for p in branch.labelled if p.type == "BP"] == ["0 -> 1",
                                                                                    "1 -> 2"]
+
+
+# Half of a circular arch clamped at both ends (clamp to apex, by the symmetry of a symmetric
+# load), its natural curvature -a (theta the angle from the horizontal, a the clamp's), the
+# half-span held by the constraint x(1) = sin(a) / a with the thrust H its multiplier (E - H
+# (x(1) - X)), theta(1) = 0 at the apex, and a dead load F down on the apex (its potential F
+# y(1)). Continued in F from the unloaded arch, it snaps through at a fold.
+ARCH = '''
+import numpy as np
+
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy, Param
+    s, F, H, a = sp.symbols("s F H a", real=True)
+    theta, x, y = (sp.Function(n)(s) for n in ("theta", "x", "y"))
+    return Energy(density=(theta.diff(s) + a) ** 2 / 2, end1=F * y,
+                  s=s, coordinates=[theta], quadratures={x: sp.cos(theta), y: sp.sin(theta)},
+                  fixed0={theta: a, x: 0, y: 0}, fixed1={theta: 0, x: sp.sin(a) / a},
+                  multipliers={x: -H},
+                  parameters={F: Param(0.0, doc="the load on the apex"),
+                              H: Param(0.0, doc="the thrust, solved for"),
+                              a: Param(0.5, doc="the clamp's angle")})
+
+
+def exact_start(s, p):
+    a = p["a"]
+    th = a * (1 - s)
+    return np.vstack((th, np.zeros_like(s), (np.sin(a) - np.sin(th)) / a,
+                      (np.cos(th) - np.cos(a)) / a))
+'''
+
+
+def test_a_shooting_hook_that_free_parameters_keep_unused_is_said(tmp_path, cli_exe):
+    """A module with free parameters (the arch's thrust) cannot have its equilibria
+    enumerated by its `shooting` hook (docs/equation-modules.md): a run whose fold bounds a
+    stable segment says that the hook is not used and why, instead of leaving the snap-back
+    table empty without a word."""
+    (tmp_path / "arch.py").write_text(ARCH + "\n\ndef shooting(p):\n    raise RuntimeError\n")
+    (tmp_path / "arch.toml").write_text(
+        'equation = "arch.py"\nstart = "trivial"\n[parameters]\nF = 0\n[continuation]\n'
+        'parameter = "F"\nbounds = [-100, 100]\nstop = ["LP2"]\n[options]\nds = 0.5\n'
+        'ds_max = 2.0\n')
+    result = run_cli(cli_exe, "run", tmp_path / "arch.toml", "--out", tmp_path / "out", "-q",
+                     "-j", "1")
+    assert result.returncode == EXIT_OK, result.stderr
+    assert ("warning: no snap-back targets: the module's shooting hook is not used with the "
+            "free parameters H (the shooting scan enumerates the module's states at fixed "
+            "parameters, and the free parameters are solved for)") in result.stdout

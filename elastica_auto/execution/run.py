@@ -20,7 +20,8 @@ import numpy as np
 
 from ..analysis.equilibria import enumerate_equilibria, stable_side
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
+from ..analysis.snaps import (copy_key, mirror_key, scan_key, scans, snap_points,
+                              snap_targets)
 from ..branches import codim2, pitchfork, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin
@@ -786,6 +787,19 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             close(client, broken)
 
 
+def _shooting_unused(problem) -> str | None:
+    """Why the module's own ``shooting`` hook is not used for ``problem``, or None: a problem
+    with free parameters refuses it (`Augmented.REFUSED`), so that a fold bounding a stable
+    segment gets no snap-back targets; the run says so rather than leave the table empty."""
+    refusal = getattr(problem, "refusal", None)
+    why = refusal("shooting") if refusal is not None else None
+    if why is None or not callable(getattr(problem.module, "shooting", None)):
+        return None
+    free = ", ".join(getattr(problem, "free", ()))
+    return (f"the module's shooting hook is not used "
+            f"{f'with the free parameters {free}' if free else 'here'} ({why})")
+
+
 def _tasks_after(plan: Plan) -> bool:
     """Whether the analysis after the branches has tasks for workers: the landings (snap
     targets, damped model) and the stability maps' enumerations."""
@@ -840,6 +854,9 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
                                        "message": message})
                 result.warnings.append(message)
 
+    unused = _shooting_unused(plan.problem)
+    if unused and any(snap_points(b) for b in branches):
+        result.warnings.append(f"no snap-back targets: {unused}")
     failures: list[dict] = []
     try:
         snaps = snap_targets(plan.problem, branches, result.warnings, landing=plan.landing,
