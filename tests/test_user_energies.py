@@ -7,6 +7,9 @@ round 4), each against an answer derived here independently of the engine.
   natural condition `-m(0) + k theta(0) = 0`): `theta = cos(w (1 - s))`, `w = sqrt(P)`, so the
   critical loads are the roots of `w tan(w) = k`, one in each `((n - 1) pi, (n - 1/2) pi)`.
   The straight column's index is the number of them below P.
+- Half of a clamped circular arch under a load on its apex (a constraint with its
+  multiplier, the thrust): its snap-through folds against shooting, its index against the
+  Hessian of its energy discretised here.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import math
 import textwrap
 
 import numpy as np
+from pytest import approx as pytest_approx
 from scipy.optimize import brentq
 
 import elastica_auto as ea
@@ -23,6 +27,7 @@ from helpers import run_cli
 
 SPRING_COLUMN = '''
 import numpy as np
+from pytest import approx as pytest_approx
 
 from elastica_auto import Ordinate
 
@@ -110,6 +115,7 @@ def test_a_gauge_that_is_nan_leaves_the_index_alone(tmp_path):
 # y(1)). Continued in F from the unloaded arch, it snaps through at a fold.
 ARCH = '''
 import numpy as np
+from pytest import approx as pytest_approx
 
 
 def ENERGY():
@@ -150,3 +156,102 @@ def test_a_shooting_hook_that_free_parameters_keep_unused_is_said(tmp_path, cli_
     assert ("warning: no snap-back targets: the module's shooting hook is not used with the "
             "free parameters H (the shooting scan enumerates the module's states at fixed "
             "parameters, and the free parameters are solved for)") in result.stdout
+
+
+def _arch_shot(a, apex, guess):
+    """Shooting, independent of the engine: theta'' = F cos(theta) + H sin(theta) (the
+    Euler-Lagrange equation of (theta' + a)^2 / 2 + F sin(theta) - H cos(theta)) from
+    theta(0) = a, x(0) = y(0) = 0, with theta'(0), F and H found so that theta(1) = 0,
+    x(1) = sin(a) / a and the apex at y(1) = apex (the load the unknown: the load that holds
+    the apex there)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import fsolve
+
+    def ends(u):
+        k0, F, H = u
+        z = solve_ivp(lambda s, z: [z[1], F * np.cos(z[0]) + H * np.sin(z[0]), np.cos(z[0]),
+                                    np.sin(z[0])],
+                      (0, 1), [a, k0, 0, 0], method="DOP853", rtol=1e-12, atol=1e-13).y[:, -1]
+        return [z[0], z[2] - math.sin(a) / a, z[3] - apex]
+    u = fsolve(ends, guess, xtol=1e-12)
+    assert np.abs(ends(u)).max() < 1e-10, ends(u)
+    return u
+
+
+def _arch_index(a, F, H, theta, n=200):
+    """The index of the arch's equilibrium near ``theta`` (on a grid of n intervals) by a
+    finite-difference Hessian of its energy discretised here, independently of the engine:
+    E_h = sum h ((theta_j+1 - theta_j) / h + a)^2 / 2 + F h sum sin(theta_mid), theta held
+    at the ends, on the constraint c = h sum cos(theta_mid) - sin(a) / a = 0 (multiplier
+    mu = -H). Newton on the discrete stationarity (with the multiplier), then the negative
+    eigenvalues of the Hessian of the Lagrangian (central differences of its gradient) on
+    the constraint's tangent space."""
+    h = 1.0 / n
+
+    def full(t):
+        return np.concatenate([[a], t, [0.0]])
+
+    def gradient(t, mu):          # of E_h + mu c in the free values theta_1 .. theta_n-1
+        th = full(t)
+        slope, mid = np.diff(th) / h + a, (th[1:] + th[:-1]) / 2
+        node = h * (F * np.cos(mid) - mu * np.sin(mid)) / 2     # each interval's midpoint
+        g = np.zeros(n + 1)
+        g[:-1] += -slope + node
+        g[1:] += slope + node
+        return g[1:-1]
+
+    def constraint(t):
+        th = full(t)
+        return h * np.sum(np.cos((th[1:] + th[:-1]) / 2)) - math.sin(a) / a
+
+    def constraint_gradient(t):
+        th = full(t)
+        half = -h * np.sin((th[1:] + th[:-1]) / 2) / 2
+        return (half[:-1] + half[1:])
+
+    def hessian(t, mu, e=1e-6):
+        return np.array([(gradient(t + d, mu) - gradient(t - d, mu)) / (2 * e)
+                         for d in np.eye(len(t)) * e])
+
+    t = np.interp(np.linspace(0, 1, n + 1), np.linspace(0, 1, len(theta)), theta)[1:-1]
+    mu = -H
+    for _ in range(20):
+        w = constraint_gradient(t)
+        kkt = np.block([[hessian(t, mu), w[:, None]], [w[None, :], np.zeros((1, 1))]])
+        step = np.linalg.solve(kkt, -np.concatenate([gradient(t, mu), [constraint(t)]]))
+        t, mu = t + step[:-1], mu + step[-1]
+        if np.abs(step).max() < 1e-11:
+            break
+    assert np.abs(gradient(t, mu)).max() < 1e-9 and abs(constraint(t)) < 1e-12
+    basis = np.linalg.qr(np.column_stack([constraint_gradient(t),
+                                          np.eye(len(t))[:, :-1]]))[0][:, 1:]
+    return int(np.sum(np.linalg.eigvalsh(basis.T @ hessian(t, mu) @ basis) < 0))
+
+
+def test_the_arch_snaps_through_at_the_load_of_its_own_shooting(tmp_path):
+    """The fold: the load that holds the apex at the engine's fold's height, by shooting, is
+    the engine's and a maximum (the loads holding it a little higher or lower are smaller);
+    the second fold, a minimum, likewise. The index before, between and after the folds, by
+    the fold rule and combined, is that of the energy discretised independently (0, 1, 0)."""
+    problem = _module(tmp_path, ARCH)
+    (branch,) = ea.continuation(problem, {"F": 0.0}, "F", bounds=(-100, 8), ds=0.5,
+                                ds_max=2.0)
+    folds = branch.folds
+    assert [p.name for p in folds] == ["LP1", "LP2"]
+    assert [branch.transition(p) for p in folds] == ["0 -> 1", "1 -> 0"]
+    for p, top in zip(folds, (True, False)):
+        apex, guess = p.ordinates["dE_dF"], [p.state.y[1, 0] - 0.5, p.params["F"],
+                                             p.params["H"]]
+        k0, F, H = _arch_shot(0.5, apex, guess)
+        assert F == pytest_approx(p.params["F"], rel=1e-7)
+        assert H == pytest_approx(p.params["H"], rel=1e-6)
+        for d in (-1e-3, 1e-3):
+            near = _arch_shot(0.5, apex + d, [k0, F, H])[1]
+            assert (near < F) if top else (near > F)
+    cols = branch.columns
+    for k in range(0, len(branch.points), 7):
+        p = branch.points[k]
+        if p.type == "LP":
+            continue
+        fd = _arch_index(0.5, cols["F"][k], cols["H"][k], p.profile[0])
+        assert p.index == p.index_rule == fd, k
