@@ -137,6 +137,7 @@ def _from_values(plan: Plan, params: dict) -> State:
     if y is None:
         raise StartError(f"{problem.source} has no exact start or guess at {fixed}; "
                          "start from a label (start = \"FILE.h5:LABEL\")")
+    _check_finite(problem, s, y, what, fixed)
     state = State.from_values(problem, s, y, params)
     if not solve:
         _check_exact(problem, state, opt.tol, fixed)
@@ -148,6 +149,24 @@ def _from_values(plan: Plan, params: dict) -> State:
                          f"({exc})") from None
     state.params = problem.point_params(state.params, state.y)
     return state
+
+
+def _check_finite(problem, s, y, what: str, fixed: str) -> None:
+    """StartError unless the module's start ``y`` (its exact start or guess, ``what``) is
+    finite: a NaN in it (a 0/0 in the module's formula at those parameters) otherwise ended
+    the branch at its start with a message about the tangent's error estimate, not the
+    start, as a module failure (exit status 1) rather than the start's (2)."""
+    bad = ~np.isfinite(np.asarray(y, dtype=float))
+    if not bad.any():
+        return
+    k, i = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    rows = [*problem.states, *getattr(problem, "free", ())]
+    row = rows[k] if k < len(rows) else f"row {k + 1}"
+    hook = "exact_start" if what == "its exact start" else "guess"
+    raise StartError(f"{problem.source}: {what} at {fixed} is not finite: {hook}(s, p) "
+                     f"returned {y[k][i]} in {row} at s = {s[i]:.3g} ({int(bad.sum())} of "
+                     f"its {bad.size} values); it must return finite values, or None where "
+                     "it has no start")
 
 
 def _check_exact(problem, state: State, tol: float, fixed: str) -> None:
