@@ -255,3 +255,27 @@ def test_the_arch_snaps_through_at_the_load_of_its_own_shooting(tmp_path):
             continue
         fd = _arch_index(0.5, cols["F"][k], cols["H"][k], p.profile[0])
         assert p.index == p.index_rule == fd, k
+
+
+def test_a_distinguished_ordinate_that_is_nan_at_a_fold_leaves_the_rule_unapplied(tmp_path):
+    """Bratu's hand-written module (tests/reference/bratu.py) with its distinguished ordinate
+    dE/dlam NaN above lam = 3.4, around its fold at lam_c = 3.5138: the fold rule cannot read
+    the fold's sign there and restarts from the direct count past it, as where the parameter
+    has no distinguished ordinate. It raised ValueError (int of NaN) in the labelling, an
+    internal error (exit 4) ending the branch MX with every index lost. Below lam = 3.4 the
+    lower family is stable and the upper has index 1 (the closed form's fold, the module's
+    own tests)."""
+    from helpers import REFERENCE
+    source = (REFERENCE / "bratu.py").read_text()
+    head = "def _de_dlam(s, y, p):\n"
+    assert source.count(head) == 1
+    path = tmp_path / "bratu_nan.py"
+    path.write_text(source.replace(head, head + "    if p['lam'] > 3.4:\n"
+                                                "        return float('nan')\n"))
+    problem = ea.load_problem(path)
+    (branch,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 5), stop=["u_half > 3"])
+    assert branch.end == "EP" and [p.name for p in branch.folds] == ["LP1"]
+    fold = branch.points.index(branch.folds[0])
+    for k, p in enumerate(branch.points):
+        if p.params["lam"] < 3.4:
+            assert p.index == (0 if k < fold else 1), (k, p.params)
