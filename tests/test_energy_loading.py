@@ -252,6 +252,11 @@ BAD = {
         "density=t.diff(s)**2/2, coordinates=[t], parameters={q: 1.0}, "
         "quadratures={x: sp.sin(t)}, fixed0={x: 0}, end1=q*x*t",
         "a product of two integrals of h"),
+    # hostile round 4: the example in the line named x(0) whatever the quadrature
+    "a quadrature without its start": (
+        "density=t.diff(s)**2/2 + q*sp.cos(t), coordinates=[t], parameters={q: 1.0}, "
+        "quadratures={u: sp.sin(t)}", "the quadrature u has no initial value: give it in "
+        "fixed0 ({u: 0} for u(0) = 0)"),
     "constraint without multiplier": (
         "density=t.diff(s)**2/2 + q*sp.cos(t), coordinates=[t], parameters={q: 1.0}, "
         "quadratures={x: sp.sin(t)}, fixed0={x: 0}, fixed1={x: 0}", "name its multiplier"),

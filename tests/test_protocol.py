@@ -258,3 +258,25 @@ def test_a_nul_in_a_name_is_refused_on_load(tmp_path, text, words):
     with pytest.raises(ea.ProblemError) as info:
         ea.load_problem(str(path))
     assert words in str(info.value), str(info.value)
+
+
+def test_an_exact_start_that_is_not_finite_is_a_user_error(tmp_path, cli_exe):
+    """An exact_start that returns NaN (a 0/0 in the user's formula at the start's
+    parameters) is refused as an exact start that does not solve the problem, naming the
+    state and the place, exit status 2: it was a branch ending MX at its start (exit 1)
+    with "no tangent at the start point (the error estimate is not finite ...)", which does
+    not say that the start was NaN."""
+    path = tmp_path / "nan_exact.py"
+    nan_at_0 = "return np.vstack((0 * s, np.where(s == 0, np.nan, 0 * s)))"
+    path.write_text(WRONG_EXACT.replace("return np.zeros((2, len(s)))", nan_at_0))
+    problem = ea.load_problem(str(path))
+    with pytest.raises(ea.StartError, match=r"its exact start at lam=0, b=0 is not finite: "
+                       r"exact_start\(s, p\) returned nan in v at s = 0 \(1 of its 102 values"):
+        ea.continuation(problem, {"lam": 0.0}, "lam")
+    toml = tmp_path / "nan.toml"
+    toml.write_text('equation = "nan_exact.py"\n[continuation]\nparameter = "lam"\n')
+    result = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", "-q")
+    assert result.returncode == EXIT_USER and result.stdout == ""
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("elastica-auto: error: ") and "is not finite" in line
+    assert not (tmp_path / "out" / "nan.h5").exists()

@@ -103,8 +103,8 @@ def new_point(problem, state: State, *, type: str = "", arclength: float, ds: fl
     """The point of a branch at ``state``: its parameter values (free ones included), its
     ordinates, its profile on PROFILE_GRID and its stability index by direct count
     (``direct`` and the index of each part of the second variation, ``parts``, if the caller
-    has them; unknown where an ordinate is not finite); a labelled point keeps its solution
-    and tangent. The ordinates named after the form's parts take their counts."""
+    has them; unknown where a distinguished ordinate is not finite); a labelled point keeps
+    its solution and tangent. The ordinates named after the form's parts take their counts."""
     if type and type not in LABEL_TYPES:
         raise ValueError(f"unknown label type {type!r}")
     counted = None
@@ -112,8 +112,12 @@ def new_point(problem, state: State, *, type: str = "", arclength: float, ds: fl
         counted = count(problem, state)
         direct, parts = counted.index, counted.parts
     ordinates = problem.ordinate_values(state.s, state.y, state.params, parts)
-    if not all(math.isfinite(v) for v in ordinates.values()):
-        direct = INDEX_UNKNOWN  # non-finite ordinates: neither stable nor unstable
+    # A distinguished ordinate that is not finite leaves the point neither stable nor
+    # unstable (the fold rule reads it). Any other ordinate is a gauge of the module's: NaN
+    # there (a ratio 0/0 on a straight rod) says nothing of the state, whose index stands.
+    distinguished = {o.name for o in problem.ordinates.values() if o.parameter}
+    if not all(math.isfinite(v) for name, v in ordinates.items() if name in distinguished):
+        direct = INDEX_UNKNOWN
     elif direct is None:
         direct = INDEX_UNKNOWN  # no second_variation hook
     elif counted is not None and counted.refused:

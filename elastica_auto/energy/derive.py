@@ -704,7 +704,7 @@ def derive(energy: Energy) -> Derived:
     for j, name in enumerate(nm.quadratures):
         if j not in initial:
             _fail(f"the quadrature {name} has no initial value: give it in fixed0 "
-                  f"({{{name}: 0}} for x(0) = 0)")
+                  f"({{{name}: 0}} for {name}(0) = 0)")
     multipliers = {}
     for key, mu in energy.multipliers.items():
         kind, j = nm.coordinate(key, "multipliers")

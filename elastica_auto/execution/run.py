@@ -20,7 +20,8 @@ import numpy as np
 
 from ..analysis.equilibria import enumerate_equilibria, stable_side
 from ..analysis.maps import stability_maps
-from ..analysis.snaps import copy_key, mirror_key, scan_key, scans, snap_targets
+from ..analysis.snaps import (copy_key, mirror_key, scan_key, scans, snap_points,
+                              snap_targets)
 from ..branches import codim2, pitchfork, restart
 from ..branches.branch import Branch
 from ..branches.stepper import INTERRUPTED, Origin
@@ -136,6 +137,7 @@ def _from_values(plan: Plan, params: dict) -> State:
     if y is None:
         raise StartError(f"{problem.source} has no exact start or guess at {fixed}; "
                          "start from a label (start = \"FILE.h5:LABEL\")")
+    _check_finite(problem, s, y, what, fixed)
     state = State.from_values(problem, s, y, params)
     if not solve:
         _check_exact(problem, state, opt.tol, fixed)
@@ -147,6 +149,24 @@ def _from_values(plan: Plan, params: dict) -> State:
                          f"({exc})") from None
     state.params = problem.point_params(state.params, state.y)
     return state
+
+
+def _check_finite(problem, s, y, what: str, fixed: str) -> None:
+    """StartError unless the module's start ``y`` (its exact start or guess, ``what``) is
+    finite: a NaN in it (a 0/0 in the module's formula at those parameters) otherwise ended
+    the branch at its start with a message about the tangent's error estimate, not the
+    start, as a module failure (exit status 1) rather than the start's (2)."""
+    bad = ~np.isfinite(np.asarray(y, dtype=float))
+    if not bad.any():
+        return
+    k, i = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    rows = [*problem.states, *getattr(problem, "free", ())]
+    row = rows[k] if k < len(rows) else f"row {k + 1}"
+    hook = "exact_start" if what == "its exact start" else "guess"
+    raise StartError(f"{problem.source}: {what} at {fixed} is not finite: {hook}(s, p) "
+                     f"returned {y[k][i]} in {row} at s = {s[i]:.3g} ({int(bad.sum())} of "
+                     f"its {bad.size} values); it must return finite values, or None where "
+                     "it has no start")
 
 
 def _check_exact(problem, state: State, tol: float, fixed: str) -> None:
@@ -786,6 +806,19 @@ def compute(plan: Plan, first: list[Job], result: RunResult, save: Callable[[], 
             close(client, broken)
 
 
+def _shooting_unused(problem) -> str | None:
+    """Why the module's own ``shooting`` hook is not used for ``problem``, or None: a problem
+    with free parameters refuses it (`Augmented.REFUSED`), so that a fold bounding a stable
+    segment gets no snap-back targets; the run says so rather than leave the table empty."""
+    refusal = getattr(problem, "refusal", None)
+    why = refusal("shooting") if refusal is not None else None
+    if why is None or not callable(getattr(problem.module, "shooting", None)):
+        return None
+    free = ", ".join(getattr(problem, "free", ()))
+    return (f"the module's shooting hook is not used "
+            f"{f'with the free parameters {free}' if free else 'here'} ({why})")
+
+
 def _tasks_after(plan: Plan) -> bool:
     """Whether the analysis after the branches has tasks for workers: the landings (snap
     targets, damped model) and the stability maps' enumerations."""
@@ -840,6 +873,9 @@ def _analyse(plan: Plan, result: RunResult, kept, pool: Alongside | None,
                                        "message": message})
                 result.warnings.append(message)
 
+    unused = _shooting_unused(plan.problem)
+    if unused and any(snap_points(b) for b in branches):
+        result.warnings.append(f"no snap-back targets: {unused}")
     failures: list[dict] = []
     try:
         snaps = snap_targets(plan.problem, branches, result.warnings, landing=plan.landing,

@@ -736,7 +736,10 @@ def index_change(enters: str, curvature: float, slope: float) -> int:
     """Index change across a simple fold in the direction of travel, from the signs of the
     parameter's curvature xi'' and of the ordinate's slope dB/dtau there:
     ``+sign(xi'' dB/dtau)`` for a parameter entering the free end or the ODE, ``-sign(...)``
-    for one entering the fixed end; 0 if either vanishes (not a simple fold)."""
+    for one entering the fixed end; 0 if either vanishes (not a simple fold) or is not
+    finite (a module's distinguished ordinate NaN next to the fold: no sign to read)."""
+    if not (np.isfinite(curvature) and np.isfinite(slope)):
+        return 0
     change = int(np.sign(curvature) * np.sign(slope))
     return -change if enters == "fixed" else change
 
