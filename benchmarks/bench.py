@@ -8,8 +8,9 @@
    continuation step (wall time between accepted points, so rejected attempts and the
    location of LP/UZ/EP points are included), folds and the largest fold residual.
 3. Whole processes, for each corrector: ``elastica-auto run rotating_arm`` with ``--jobs 1``
-   and with the default (one process per core), ``examples/bratu.toml``, and every run of
-   ``make runs`` (in restart order) with their sum.
+   and with the default (one process per core), ``examples/bratu.toml``, the tendon robot's
+   ``tendon_lift`` (after ``tendon_weight``; issue 49's target, under 10 s), and every run
+   of ``make runs`` (in restart order) with their sum.
 
 4. Two-parameter continuation: one fold curve of 500 points (the rotating arm's first fold
    at P = pi^2/4 followed in eps, ds = ds_max = 0.02), its seconds and milliseconds per

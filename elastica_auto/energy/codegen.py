@@ -29,6 +29,25 @@ from .derive import Derived
 from .runtime import PREFIX, TRAILER
 
 
+def _lower(k: int) -> list[str]:
+    """The lines that fill d2L/dv2's lower triangle from its upper one (the Legendre map's
+    Jacobian is a Hessian, symmetric): printed once, each entry would be a second
+    expression for the same number, its own arithmetic on every Newton iteration."""
+    return [f"    Lvv[{i}, {j}] = Lvv[{j}, {i}]" for i in range(k) for j in range(i)]
+
+
+def _far(Lv, velocities) -> str:
+    """``, far=True`` where dL/dv is not finite at v = 0 whatever the other symbols (a norm
+    of the velocities, such as a tendon's length |v + u x d|: its gradient is 0/0 there),
+    else "": Newton's Legendre inverse then starts far out at once
+    (`runtime.legendre_inverse`) instead of finding out by an evaluation at 0 at every
+    call. Decided on the expressions as derived; a density singular at 0 only at some
+    states stays with the evaluation."""
+    zero = {v: 0 for v in velocities}
+    bad = (sp.nan, sp.zoo, sp.oo, -sp.oo)
+    return ", far=True" if any(e.subs(zero).has(*bad) for e in Lv) else ""
+
+
 class _Printer(NumPyPrinter):
     """numpy's printer, strict: a function numpy cannot evaluate is an error, not code that
     fails when it runs."""
@@ -473,6 +492,15 @@ class Module:
                           f"{fm})  # {r.name}")
         return before, chains, needs
 
+    def _remembered_velocity(self):
+        """``velocity``, Newton's (``newton_velocity``) remembered for the last few (s, y, p)
+        (`runtime.remembered`): rhs, rhs_jac, rhs_dp and the second variation are asked at
+        the same points one after the other, and Newton's inverse is most of their cost."""
+        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+                  *_docstring("The velocities (k, m) at (s, y, p): Newton's, remembered for the "
+                              "last few arguments (read-only)."),
+                  f"    return {PREFIX}runtime.remembered({PREFIX}newton_velocity, s, y, p)")
+
     def rotation_newton_system(self):
         """The system of a module with rotations whose density is not quadratic in the
         derivatives and strains: the velocities v (zeta' and the strains) from the momenta
@@ -506,26 +534,28 @@ class Module:
         Lv = [sp.diff(d.lagrangian, v) for v in vel]
         for i, e in enumerate(Lv):
             block.add(f"Lv[{i}]", e)
-            for j, w in enumerate(vel):
+            for j, w in enumerate(vel[i:], i):
                 block.add(f"Lvv[{i}, {j}]", sp.diff(e, w))
         self.function(f"{PREFIX}legendre(s, z, v, R, p)", "L, dL/dv (kv, m), d2L/dv2 (kv, kv, "
                       "m) at the frames R (one (3, 3, m) per rotation): what the Legendre "
                       "inverse needs.", block, kernel_unpack,
                       before=[f"    Lv = numpy.empty(({kv}, v.shape[1]))",
                               f"    Lvv = numpy.empty(({kv}, {kv}, v.shape[1]))"],
-                      after=["    return L, Lv, Lvv"])
+                      after=[*_lower(kv), "    return L, Lv, Lvv"])
         frames = ", ".join(f"{PREFIX}runtime.frame(y[{self._rows([d.row(q) for q in r.Q])}])"
                            for r in d.rotations)
         bodies = ", ".join(
             f"{PREFIX}runtime.body(F[{j}], y[{self._rows([d.row(m) for m in r.Mr])}])"
             for j, r in enumerate(d.rotations))
-        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+        self._remembered_velocity()
+        self.emit("", "", f"def {PREFIX}newton_velocity(s, y, p):",
                   *_docstring("zeta' and the strains from the momenta m and R^T m, by Newton's "
                               "method on L - (m, R^T m).v (runtime.legendre_inverse), (kv, m)."),
                   f"    F = [{frames}]",
                   f"    mom = numpy.concatenate((y[{self._rows(self.mrows)}], {bodies}))",
                   f"    return {PREFIX}runtime.legendre_inverse(lambda s_, z_, v_, p_: "
-                  f"{PREFIX}legendre(s_, z_, v_, F, p_), s, y[{self._rows(self.zrows)}], mom, p)")
+                  f"{PREFIX}legendre(s_, z_, v_, F, p_), s, y[{self._rows(self.zrows)}], mom, p"
+                  f"{_far(Lv, vel)})")
         # -- the equations at (y, v) ------------------------------------------------------
         names, unpack = self._states(True)
         unpack = self._node_rotations(names, unpack)
@@ -596,20 +626,22 @@ class Module:
         names, unpack = self._kernel()
         block = Block(names)
         block.add("L", d.lagrangian)
+        lv = [sp.diff(d.lagrangian, v) for v in d.V]
         for i, v in enumerate(d.V):
-            block.add(f"Lv[{i}]", sp.diff(d.lagrangian, v))
-            for j, w in enumerate(d.V):
-                block.add(f"Lvv[{i}, {j}]", sp.diff(d.lagrangian, v, w))
+            block.add(f"Lv[{i}]", lv[i])
+            for j, w in enumerate(d.V[i:], i):
+                block.add(f"Lvv[{i}, {j}]", sp.diff(lv[i], w))
         self.function(f"{PREFIX}legendre(s, z, v, p)", "L, dL/dv (k, m), d2L/dv2 (k, k, m): "
                       "what the Legendre inverse needs.", block, unpack,
                       before=[f"    Lv = numpy.empty(({k}, z.shape[1]))",
                               f"    Lvv = numpy.empty(({k}, {k}, z.shape[1]))"],
-                      after=["    return L, Lv, Lvv"])
-        self.emit("", "", f"def {PREFIX}velocity(s, y, p):",
+                      after=[*_lower(k), "    return L, Lv, Lvv"])
+        self._remembered_velocity()
+        self.emit("", "", f"def {PREFIX}newton_velocity(s, y, p):",
                   *_docstring("zeta' from the momenta, by Newton's method on L - m.v "
                               '(runtime.legendre_inverse).'),
                   f"    return {PREFIX}runtime.legendre_inverse({PREFIX}legendre, s, "
-                  f"y[{z_rows}], y[{m_rows}], p)")
+                  f"y[{z_rows}], y[{m_rows}], p{_far(lv, d.V)})")
         block = Block(names)
         for j, g in enumerate(d.rates):
             block.add(f"g[{j}]", g)

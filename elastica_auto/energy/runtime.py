@@ -32,12 +32,20 @@ PREFIX = "_derived_"
 TRAILER = "# (the end of the derived module)"
 
 #: Newton's method for the Legendre inverse stops at a point where |dL/dv - m| <= RESIDUAL
-#: (1 + |m|), or where its step is at rounding level; at most ITERATIONS steps, each with at
-#: most HALVINGS halvings of the line search. A point that does not converge is NaN: the
-#: engine's corrector sees a non-finite residual and shortens its step.
+#: (1 + |m|), where its step is at rounding level, where the quadratic rate says the step
+#: just taken was the last (FINAL) or where the steps stall at rounding's size (STALL); at
+#: most ITERATIONS steps, each with at most HALVINGS halvings of the line search. A point
+#: that does not converge is NaN: the engine's corrector sees a non-finite residual and
+#: shortens its step.
 RESIDUAL = 1e-14
 ITERATIONS = 50
 HALVINGS = 40
+#: A full Newton step ``delta`` after full steps ``delta_1``, ``delta_0`` is the last where
+#: the next one, about ``C delta^2`` by the quadratic rate with ``C`` the larger of
+#: ``delta / delta_1^2`` and ``delta_1 / delta_0^2``, is below FINAL (1 + |v|).
+FINAL = 1e-15
+#: Full steps under STALL (1 + |v|) that shrink less than twofold are rounding's noise.
+STALL = 1e-12
 
 
 def _solve(a, b):
@@ -50,7 +58,7 @@ def _solve(a, b):
     return np.moveaxis(np.linalg.solve(am, np.moveaxis(b, -1, 0)), 0, -1)
 
 
-def legendre_inverse(legendre, s, z, m, p):
+def legendre_inverse(legendre, s, z, m, p, far=False):
     """v with dL/dv (z, v, s) = m at every point, (k, m'): ``legendre(s, z, v, p)`` returns
     L (m'), dL/dv (k, m') and d2L/dv2 (k, k, m'). NaN where it does not converge or
     d2L/dv2 is not positive definite (the derivation checked convexity at samples only).
@@ -64,31 +72,61 @@ def legendre_inverse(legendre, s, z, m, p):
     is. Started near a kink instead (v = (1, ..., 1) in a turned frame), Newton can walk into
     it and stick: across the kink the Hessian is unbounded and the steps vanish. A minimiser
     at a kink (a tendon of zero length) is not found at all (the residual does not vanish
-    there): NaN."""
+    there): NaN.
+
+    ``far``: the generator found dL/dv not finite at v = 0 for every state (`codegen._far`):
+    the start is far out at every point, without the evaluation at 0 that would say so."""
     z, m = np.asarray(z, dtype=float), np.asarray(m, dtype=float)
     k, npts = m.shape
     s = np.broadcast_to(np.asarray(s, dtype=float), (npts,))
-    v = np.zeros((k, npts))
-    with np.errstate(all="ignore"):
-        L, Lv, Lvv = legendre(s, z, v, p)
-    singular = ~(np.isfinite(L) & np.all(np.isfinite(Lv), axis=0)
-                 & np.all(np.isfinite(Lvv), axis=(0, 1)))
-    if np.any(singular):
+    if far:
+        v = np.full((k, npts), 1e3)
+        singular = np.ones(npts, dtype=bool)
+    else:
+        v = np.zeros((k, npts))
+        with np.errstate(all="ignore"):
+            L, Lv, Lvv = legendre(s, z, v, p)
+        singular = ~(np.isfinite(L) & np.all(np.isfinite(Lv), axis=0)
+                     & np.all(np.isfinite(Lvv), axis=(0, 1)))
         v[:, singular] = 1e3
+    if np.any(singular):
         L, Lv, Lvv = legendre(s, z, v, p)
     phi = L - np.sum(m * v, axis=0)
     done = np.zeros(npts, dtype=bool)
     bad = np.zeros(npts, dtype=bool)
-    for _ in range(ITERATIONS):
+    last = np.full(npts, np.inf)          # the previous full Newton step's size (inf: none)
+    last2 = np.full(npts, np.inf)         # and the one before it
+    for iteration in range(ITERATIONS):
         r = Lv - m
         with np.errstate(all="ignore"):
             step = _solve(Lvv, r)
         if k == 1:
             bad |= ~(Lvv[0, 0] > 0)
         big = np.max(np.abs(step), axis=0)
-        done |= (np.max(np.abs(r), axis=0) <= RESIDUAL * (1 + np.max(np.abs(m), axis=0))) \
-            | (big <= 1e-15 * (1 + np.max(np.abs(v), axis=0)))
+        scale = 1 + np.max(np.abs(v), axis=0)
+        size = np.max(np.abs(r), axis=0) / (1 + np.max(np.abs(m), axis=0))
+        done |= (size <= RESIDUAL) | (big <= 1e-15 * scale)
         done &= ~bad
+        # Newton's quadratic rate: the step after this one is about C big^2, C estimated
+        # from the last three full steps, the larger of big / last^2 and last / last2^2
+        # (near a kink C grows as the tendon shortens, and a step that was not yet in the
+        # quadratic regime makes big / last^2 too small: the two must both be seen); where
+        # C big^2 would be at rounding level and the step shrank 1000-fold, this step is
+        # the last: taken in full, unchecked, which saves the evaluation that would only
+        # confirm it. (The first step from far out is none of Newton's quadratic rate.)
+        # Where the full steps stopped shrinking at a size of rounding's (STALL), the
+        # residual within 1000 RESIDUAL, Newton is at the floor of dL/dv's rounding, which
+        # for large terms (a stiffness S = 1000 times a strain) lies above RESIDUAL (1 +
+        # |m|): done, not NaN. (At a kink the steps vanish too, but the residual does not.)
+        with np.errstate(all="ignore"):
+            rate = np.maximum(big / (last * last), last / (last2 * last2))
+            final = ~(done | bad) & np.isfinite(last2) & (big <= 1e-3 * last) \
+                & (rate * big * big <= FINAL * scale)
+            done |= ~bad & (big <= STALL * scale) & (big >= 0.5 * last) \
+                & (size <= 1e3 * RESIDUAL)
+        final &= ~done
+        v[:, final] -= step[:, final]
+        done |= final
         if np.all(done | bad):
             break
         t = np.where(done | bad | ~np.isfinite(big), 0.0, 1.0)
@@ -102,12 +140,40 @@ def legendre_inverse(legendre, s, z, m, p):
             if np.all(ok):
                 break
             t = np.where(ok, t, 0.5 * t)
+        # (the first step from far out is no step of Newton's quadratic rate)
+        full = (t == 1.0) & ~(singular & (iteration == 0))
+        last2 = np.where(full, last, np.inf)
+        last = np.where(full, big, np.inf)
         v, L, Lv, Lvv, phi = trial, Lt, Lvt, Lvvt, phit
     else:
         r = Lv - m
         done |= np.max(np.abs(r), axis=0) <= RESIDUAL * (1 + np.max(np.abs(m), axis=0))
     v[:, ~done | bad] = np.nan
     return v
+
+
+def remembered(solve, s, y, p):
+    """``solve(s, y, p)`` (a generated module's Newton velocity), read-only, remembered for
+    the last few arguments: the engine asks rhs, rhs_jac, rhs_dp and the second variation
+    at the same points one after the other (at a tendon robot's point, a third of the
+    Legendre inverses were repeats), and each would solve again. A pure function of its
+    arguments (keyed by their bytes), so the order work is done in changes no result."""
+    s, y = np.asarray(s, dtype=float), np.ascontiguousarray(y, dtype=float)
+    items = tuple(sorted(p.items()))
+    try:
+        hash(items)
+    except TypeError:                  # a parameter that is an array: not remembered
+        return solve(s, y, p)
+    return _remembered(solve, s.shape, s.tobytes(), y.shape, y.tobytes(), items)
+
+
+@functools.lru_cache(maxsize=16)
+def _remembered(solve, s_shape, s_bytes, y_shape, y_bytes, items):
+    s = np.frombuffer(s_bytes).reshape(s_shape).copy()
+    y = np.frombuffer(y_bytes).reshape(y_shape).copy()
+    out = solve(s, y, dict(items))
+    out.flags.writeable = False
+    return out
 
 
 def hamilton_jacobian(A, C, B, gz, gv):
