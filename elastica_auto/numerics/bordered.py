@@ -20,8 +20,10 @@ integrals as extra ODE states, here only in the linear algebra):
 
 With unknowns ordered by node, ``z_i = (y_i, p_i, sigma_i)``, and rows ordered as the left
 boundary conditions, the intervals, the right boundary conditions, the matrix is banded with
-bandwidths of about twice the node block: LAPACK's ``dgbtrf`` factorises it with partial
-pivoting in O(m) work, stably whether or not F_y is singular. If ``M`` is the bordered
+bandwidths of about twice the node block: LAPACK's banded LU (``dgbtf2``, written out in C in
+``_banded.c``: at these bandwidths LAPACK's own spends most of its time in a BLAS call per
+column) factorises it with partial pivoting in O(m) work, stably whether or not F_y is
+singular. If ``M`` is the bordered
 matrix and ``M'`` the banded one, ``M' T = E M`` (T expands (y, p) into z, E places the rows
 of M among those of M'), so ``M^{-1} = P M'^{-1} E`` and ``M^{-T} = E^T M'^{-T} P^T`` with P
 reading (y, p) out of z; ``det M' = +-det M`` with a sign fixed by the structure alone, so
@@ -30,36 +32,11 @@ sign changes of ``det M'`` along a branch, on one mesh, are sign changes of ``de
 
 from __future__ import annotations
 
-import importlib.util
-import os
 from functools import lru_cache
 
 import numpy as np
 
-
-def _banded_lapack():
-    """LAPACK's banded LU routines ``dgbtrf`` and ``dgbtrs`` from scipy's Fortran wrappers.
-
-    ``import scipy.linalg.lapack`` first runs scipy.linalg's package initialisation, which
-    imports all of scipy.linalg (about 0.25 s here, more than a small run computes); the
-    wrapper extension itself loads in a few milliseconds, so it is loaded directly from its
-    file. Any failure falls back to the ordinary import."""
-    try:
-        scipy_dir = os.path.dirname(importlib.util.find_spec("scipy").origin)
-        folder = os.path.join(scipy_dir, "linalg")
-        name = next(f for f in os.listdir(folder)
-                    if f.startswith("_flapack.") and f.endswith((".so", ".pyd")))
-        spec = importlib.util.spec_from_file_location("scipy.linalg._flapack",
-                                                      os.path.join(folder, name))
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        return module.dgbtrf, module.dgbtrs
-    except Exception:  # an unusual installation: the documented route
-        from scipy.linalg.lapack import dgbtrf, dgbtrs
-        return dgbtrf, dgbtrs
-
-
-dgbtrf, dgbtrs = _banded_lapack()
+from . import _banded
 
 
 def split_rows(ga, gb, tol=0.0):
@@ -176,8 +153,10 @@ class Factorization:
     """The LU factors of one bordered system; solves it, its transpose, and variants of it
     with another border row (Sherman-Morrison)."""
 
-    def __init__(self, st: Structure, lu, piv, border=None):
-        self.st, self.lu, self.piv = st, lu, piv
+    def __init__(self, st: Structure, ab, piv, border=None):
+        # ab (N, ldab): the factors by columns (`_banded.lu`); lu = ab.T is LAPACK's view of
+        # them, (ldab, N), whose row kl + ku is U's diagonal
+        self.st, self.ab, self.lu, self.piv = st, ab, ab.T, piv
         self.border = border                    # [(c (n, m), d (k,))] as factorised
         self._u = None
 
@@ -213,7 +192,8 @@ class Factorization:
     def solve(self, col, bc, border=()):
         """(dy (n, m), dp (k,)) solving the system with right-hand side (col, bc, border)."""
         st = self.st
-        z, info = dgbtrs(self.lu, st.kl, st.ku, self._rhs(col, bc, border), self.piv)
+        z = self._rhs(col, bc, border)
+        _banded.solve(self.ab, st.kl, st.ku, self.piv, z, False)
         return z[st.col_y], z[st.col_p]
 
     def solve_transpose(self, ey, ep):
@@ -223,7 +203,8 @@ class Factorization:
         b = np.zeros(st.N)
         b[st.col_y] = ey
         b[st.col_p] = ep
-        w, info = dgbtrs(self.lu, st.kl, st.ku, b, self.piv, trans=1)
+        _banded.solve(self.ab, st.kl, st.ku, self.piv, b, True)
+        w = b
         w_bc = np.empty(st.n)
         w_bc[st.left] = w[st.row_left]
         w_bc[st.right] = w[st.row_right]
@@ -297,11 +278,12 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
     flat = ab.reshape(-1)
     flat[st.index_const] = st.value_const
     flat[st.index_k if k else st.index_0] = np.concatenate(values)
-    lu, piv, info = dgbtrf(ab.T, st.kl, st.ku, overwrite_ab=True)
+    piv = np.empty(st.N, dtype=np.intp)
+    info = _banded.lu(ab, st.kl, st.ku, piv)
     if info > 0:
         # exactly singular (a branch point hit exactly): a pivot of the size of rounding
         # keeps the solves finite, as inverse iteration for the kernel needs
-        diag = lu[st.kl + st.ku]
+        diag = ab[:, st.kl + st.ku]
         diag[info - 1] = np.finfo(float).eps * max(float(np.max(np.abs(diag))), 1.0)
-    return Factorization(st, lu, piv, [(np.asarray(c), np.asarray(d, dtype=float))
+    return Factorization(st, ab, piv, [(np.asarray(c), np.asarray(d, dtype=float))
                                       for c, d in border])
