@@ -110,22 +110,54 @@ class Structure:
             return (c * self.ldab + self.kl + self.ku + r - c).ravel()
 
         index = {g: flat(r, c) for g, (r, c) in groups.items()}
-        # all variable entries at once, in the order factor() lists their values
+        # The interval blocks, most of the entries, lie on strided patterns of the band array:
+        # an entry (r, c) is at c ldab + kv + r - c, so interval i's row L + i nn + a and
+        # column i nn + b (d0) is at kv + L + i nn ldab + a + b (ldab - 1), and likewise for
+        # the others. factor() writes them through views with these offsets and strides
+        # (array copies) instead of scattering them through index arrays.
+        ldab = self.ldab
+        self.block_strides = (nn * ldab * 8, 8, (ldab - 1) * 8)
+        self.block_views = {g: (int(index[g][0]), shape) for g, shape in (
+            ("d0", (m - 1, n, n)), ("d1", (m - 1, n, n)), ("pcol", (m - 1, n, k)),
+            ("acc", (m - 1, k, n))) if k or g in ("d0", "d1")}
+        for g, (offset, shape) in self.block_views.items():     # the patterns, checked once
+            pattern = (offset + np.arange(shape[0])[:, None, None] * nn * ldab
+                       + np.arange(shape[1])[None, :, None]
+                       + np.arange(shape[2])[None, None, :] * (ldab - 1))
+            assert np.array_equal(pattern.ravel(), index[g]), g
+        # the other variable entries (boundary rows, closures), in the order factor() lists
+        # their values
         self.index_0 = np.concatenate([index[g] for g in (
-            "d0", "d1", "left_y", "right_y", "init_y", "close_y")])
+            "left_y", "right_y", "init_y", "close_y")])
         self.index_k = np.concatenate([self.index_0] + [index[g] for g in (
-            "pcol", "left_p", "right_p", "acc", "close_p")])
+            "left_p", "right_p", "close_p")])
         const = [(flat(*np.broadcast_arrays(r, c)), v) for r, c, v in ones]
         self.index_const = np.concatenate([f for f, _ in const])
         self.value_const = np.concatenate([np.full(len(f), v) for f, v in const])
-        # rows of M' that hold the rows of M, and the unknowns of z that hold (y, p)
-        self.row_col = (L + i[:, :, 0] * nn + a[:, :, 0]).T          # (n, m-1)
+        # rows of M' that hold the rows of M, and the unknowns of z that hold p (the
+        # collocation rows of interval i are L + i nn + (0..n-1), node j's states
+        # j nn + (0..n-1): `interval_rows`, `node_states`)
         self.row_left = np.arange(na)
         self.row_right = right_row + np.arange(nb)
         self.row_border = right_row + nb + np.arange(k)
         self.row_mixed = right_row + nb + k + np.arange(len(mixed))
-        self.col_y = (np.arange(m)[None, :] * nn + np.arange(n)[:, None])  # (n, m)
         self.col_p = n + np.arange(k)
+
+    def block_view(self, ab, group):
+        """The entries of ``group`` (d0, d1: (m-1, n, n); pcol: (m-1, n, k); acc:
+        (m-1, k, n)) as a writable view of the band array ab (N, ldab)."""
+        offset, shape = self.block_views[group]
+        return np.ndarray(shape, dtype=float, buffer=ab, offset=8 * offset,
+                          strides=self.block_strides)
+
+    def interval_rows(self, b):
+        """The collocation rows of a banded-order vector b (N,), as a view (m-1, n): row i
+        holds interval i's."""
+        return b[self.L:self.L + (self.m - 1) * self.nn].reshape(self.m - 1, self.nn)[:, :self.n]
+
+    def node_states(self, z):
+        """The states (n, m) of a banded-order vector z (N,), a C-ordered copy."""
+        return z.reshape(self.m, self.nn)[:, :self.n].T.copy()
 
 
 #: The Sherman-Morrison update of :meth:`Factorization.solve_with_border` divides by
@@ -181,7 +213,7 @@ class Factorization:
     def _rhs(self, col, bc, border):
         st = self.st
         b = np.zeros(st.N)
-        b[st.row_col] = col
+        st.interval_rows(b)[...] = col.T
         bc = np.asarray(bc, dtype=float)
         b[st.row_left] = bc[st.left]
         b[st.row_right] = bc[st.right]
@@ -194,14 +226,14 @@ class Factorization:
         st = self.st
         z = self._rhs(col, bc, border)
         _banded.solve(self.ab, st.kl, st.ku, self.piv, z, False)
-        return z[st.col_y], z[st.col_p]
+        return st.node_states(z), z[st.col_p]
 
     def solve_transpose(self, ey, ep):
         """The solution w of ``M^T w = (ey, ep)``, as (w_col (n, m-1), w_bc (n,),
         w_border (k,)): the multipliers of the collocation, boundary and border rows."""
         st = self.st
         b = np.zeros(st.N)
-        b[st.col_y] = ey
+        b.reshape(st.m, st.nn)[:, :st.n] = ey.T
         b[st.col_p] = ep
         _banded.solve(self.ab, st.kl, st.ku, self.piv, b, True)
         w = b
@@ -209,7 +241,7 @@ class Factorization:
         w_bc[st.left] = w[st.row_left]
         w_bc[st.right] = w[st.row_right]
         w_bc[st.mixed] = w[st.row_mixed]
-        return w[st.row_col], w_bc, w[st.row_border]
+        return st.interval_rows(w).T.copy(), w_bc, w[st.row_border]
 
     # -- another last border row ---------------------------------------------------------------
     def null_direction(self):
@@ -258,25 +290,25 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
         split = split_rows(blocks.ga, blocks.gb)
     st = structure(n, m, k, split)
     ga, gb = blocks.ga, blocks.gb
-    values = [d0.ravel(), blocks.d1.ravel(), ga[st.left].ravel(), gb[st.right].ravel(),
-              *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
-              gb[st.mixed].ravel()]
-    if k == 1:      # the common case, without stacking
-        (name,), ((c, _),) = names, border
-        gp = blocks.dbc[name][:, None]
-        values += [blocks.dcol[name].T.ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
-                   -c[:, 1:].T.ravel(), np.asarray(border[0][1], dtype=float).reshape(1),
-                   *(gp[r] for r in st.mixed)]
-    elif k:
-        pcol = np.stack([blocks.dcol[nm] for nm in names], axis=-1)     # (n, m-1, k)
-        gp = np.stack([blocks.dbc[nm] for nm in names], axis=-1)       # (n, k)
-        values += [pcol.transpose(1, 0, 2).ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
-                   -np.stack([c[:, 1:] for c, _ in border]).transpose(2, 0, 1).ravel(),
-                   *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
-                   *(gp[r] for r in st.mixed)]
     ab = np.zeros((st.N, st.ldab))
     flat = ab.reshape(-1)
     flat[st.index_const] = st.value_const
+    st.block_view(ab, "d0")[...] = d0
+    st.block_view(ab, "d1")[...] = blocks.d1
+    values = [ga[st.left].ravel(), gb[st.right].ravel(),
+              *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
+              gb[st.mixed].ravel()]
+    if k:
+        pcol, acc = st.block_view(ab, "pcol"), st.block_view(ab, "acc")
+        for q, nm in enumerate(names):
+            pcol[:, :, q] = blocks.dcol[nm].T
+        for j, (c, _) in enumerate(border):
+            np.negative(c[:, 1:].T, out=acc[:, j, :])
+        gp = (blocks.dbc[names[0]][:, None] if k == 1          # (n, k)
+              else np.stack([blocks.dbc[nm] for nm in names], axis=-1))
+        values += [gp[st.left].ravel(), gp[st.right].ravel(),
+                   *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
+                   *(gp[r] for r in st.mixed)]
     flat[st.index_k if k else st.index_0] = np.concatenate(values)
     piv = np.empty(st.N, dtype=np.intp)
     info = _banded.lu(ab, st.kl, st.ku, piv)
