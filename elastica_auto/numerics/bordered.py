@@ -36,7 +36,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import _banded
+from ._banded import lu as banded_lu, solve as banded_solve
 
 
 def split_rows(ga, gb, tol=0.0):
@@ -225,7 +225,7 @@ class Factorization:
         """(dy (n, m), dp (k,)) solving the system with right-hand side (col, bc, border)."""
         st = self.st
         z = self._rhs(col, bc, border)
-        _banded.solve(self.ab, st.kl, st.ku, self.piv, z, False)
+        banded_solve(self.ab, st.kl, st.ku, self.piv, z, False)
         return st.node_states(z), z[st.col_p]
 
     def solve_transpose(self, ey, ep):
@@ -235,7 +235,7 @@ class Factorization:
         b = np.zeros(st.N)
         b.reshape(st.m, st.nn)[:, :st.n] = ey.T
         b[st.col_p] = ep
-        _banded.solve(self.ab, st.kl, st.ku, self.piv, b, True)
+        banded_solve(self.ab, st.kl, st.ku, self.piv, b, True)
         w = b
         w_bc = np.empty(st.n)
         w_bc[st.left] = w[st.row_left]
@@ -311,7 +311,7 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
                    *(gp[r] for r in st.mixed)]
     flat[st.index_k if k else st.index_0] = np.concatenate(values)
     piv = np.empty(st.N, dtype=np.intp)
-    info = _banded.lu(ab, st.kl, st.ku, piv)
+    info = banded_lu(ab, st.kl, st.ku, piv)
     if info > 0:
         # exactly singular (a branch point hit exactly): a pivot of the size of rounding
         # keeps the solves finite, as inverse iteration for the kernel needs
