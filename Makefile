@@ -10,7 +10,7 @@ FIG    ?= figures
 
 .PHONY: install demo test bench bench-auto clean
 
-$(BIN)/elastica-auto: pyproject.toml
+$(BIN)/elastica-auto: pyproject.toml setup.py elastica_auto/numerics/_banded.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'

@@ -20,8 +20,10 @@ integrals as extra ODE states, here only in the linear algebra):
 
 With unknowns ordered by node, ``z_i = (y_i, p_i, sigma_i)``, and rows ordered as the left
 boundary conditions, the intervals, the right boundary conditions, the matrix is banded with
-bandwidths of about twice the node block: LAPACK's ``dgbtrf`` factorises it with partial
-pivoting in O(m) work, stably whether or not F_y is singular. If ``M`` is the bordered
+bandwidths of about twice the node block: LAPACK's banded LU (``dgbtf2``, written out in C in
+``_banded.c``: at these bandwidths LAPACK's own spends most of its time in a BLAS call per
+column) factorises it with partial pivoting in O(m) work, stably whether or not F_y is
+singular. If ``M`` is the bordered
 matrix and ``M'`` the banded one, ``M' T = E M`` (T expands (y, p) into z, E places the rows
 of M among those of M'), so ``M^{-1} = P M'^{-1} E`` and ``M^{-T} = E^T M'^{-T} P^T`` with P
 reading (y, p) out of z; ``det M' = +-det M`` with a sign fixed by the structure alone, so
@@ -30,36 +32,11 @@ sign changes of ``det M'`` along a branch, on one mesh, are sign changes of ``de
 
 from __future__ import annotations
 
-import importlib.util
-import os
 from functools import lru_cache
 
 import numpy as np
 
-
-def _banded_lapack():
-    """LAPACK's banded LU routines ``dgbtrf`` and ``dgbtrs`` from scipy's Fortran wrappers.
-
-    ``import scipy.linalg.lapack`` first runs scipy.linalg's package initialisation, which
-    imports all of scipy.linalg (about 0.25 s here, more than a small run computes); the
-    wrapper extension itself loads in a few milliseconds, so it is loaded directly from its
-    file. Any failure falls back to the ordinary import."""
-    try:
-        scipy_dir = os.path.dirname(importlib.util.find_spec("scipy").origin)
-        folder = os.path.join(scipy_dir, "linalg")
-        name = next(f for f in os.listdir(folder)
-                    if f.startswith("_flapack.") and f.endswith((".so", ".pyd")))
-        spec = importlib.util.spec_from_file_location("scipy.linalg._flapack",
-                                                      os.path.join(folder, name))
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        return module.dgbtrf, module.dgbtrs
-    except Exception:  # an unusual installation: the documented route
-        from scipy.linalg.lapack import dgbtrf, dgbtrs
-        return dgbtrf, dgbtrs
-
-
-dgbtrf, dgbtrs = _banded_lapack()
+from ._banded import lu as banded_lu, solve as banded_solve
 
 
 def split_rows(ga, gb, tol=0.0):
@@ -133,22 +110,54 @@ class Structure:
             return (c * self.ldab + self.kl + self.ku + r - c).ravel()
 
         index = {g: flat(r, c) for g, (r, c) in groups.items()}
-        # all variable entries at once, in the order factor() lists their values
+        # The interval blocks, most of the entries, lie on strided patterns of the band array:
+        # an entry (r, c) is at c ldab + kv + r - c, so interval i's row L + i nn + a and
+        # column i nn + b (d0) is at kv + L + i nn ldab + a + b (ldab - 1), and likewise for
+        # the others. factor() writes them through views with these offsets and strides
+        # (array copies) instead of scattering them through index arrays.
+        ldab = self.ldab
+        self.block_strides = (nn * ldab * 8, 8, (ldab - 1) * 8)
+        self.block_views = {g: (int(index[g][0]), shape) for g, shape in (
+            ("d0", (m - 1, n, n)), ("d1", (m - 1, n, n)), ("pcol", (m - 1, n, k)),
+            ("acc", (m - 1, k, n))) if k or g in ("d0", "d1")}
+        for g, (offset, shape) in self.block_views.items():     # the patterns, checked once
+            pattern = (offset + np.arange(shape[0])[:, None, None] * nn * ldab
+                       + np.arange(shape[1])[None, :, None]
+                       + np.arange(shape[2])[None, None, :] * (ldab - 1))
+            assert np.array_equal(pattern.ravel(), index[g]), g
+        # the other variable entries (boundary rows, closures), in the order factor() lists
+        # their values
         self.index_0 = np.concatenate([index[g] for g in (
-            "d0", "d1", "left_y", "right_y", "init_y", "close_y")])
+            "left_y", "right_y", "init_y", "close_y")])
         self.index_k = np.concatenate([self.index_0] + [index[g] for g in (
-            "pcol", "left_p", "right_p", "acc", "close_p")])
+            "left_p", "right_p", "close_p")])
         const = [(flat(*np.broadcast_arrays(r, c)), v) for r, c, v in ones]
         self.index_const = np.concatenate([f for f, _ in const])
         self.value_const = np.concatenate([np.full(len(f), v) for f, v in const])
-        # rows of M' that hold the rows of M, and the unknowns of z that hold (y, p)
-        self.row_col = (L + i[:, :, 0] * nn + a[:, :, 0]).T          # (n, m-1)
+        # rows of M' that hold the rows of M, and the unknowns of z that hold p (the
+        # collocation rows of interval i are L + i nn + (0..n-1), node j's states
+        # j nn + (0..n-1): `interval_rows`, `node_states`)
         self.row_left = np.arange(na)
         self.row_right = right_row + np.arange(nb)
         self.row_border = right_row + nb + np.arange(k)
         self.row_mixed = right_row + nb + k + np.arange(len(mixed))
-        self.col_y = (np.arange(m)[None, :] * nn + np.arange(n)[:, None])  # (n, m)
         self.col_p = n + np.arange(k)
+
+    def block_view(self, ab, group):
+        """The entries of ``group`` (d0, d1: (m-1, n, n); pcol: (m-1, n, k); acc:
+        (m-1, k, n)) as a writable view of the band array ab (N, ldab)."""
+        offset, shape = self.block_views[group]
+        return np.ndarray(shape, dtype=float, buffer=ab, offset=8 * offset,
+                          strides=self.block_strides)
+
+    def interval_rows(self, b):
+        """The collocation rows of a banded-order vector b (N,), as a view (m-1, n): row i
+        holds interval i's."""
+        return b[self.L:self.L + (self.m - 1) * self.nn].reshape(self.m - 1, self.nn)[:, :self.n]
+
+    def node_states(self, z):
+        """The states (n, m) of a banded-order vector z (N,), a C-ordered copy."""
+        return z.reshape(self.m, self.nn)[:, :self.n].T.copy()
 
 
 #: The Sherman-Morrison update of :meth:`Factorization.solve_with_border` divides by
@@ -176,8 +185,10 @@ class Factorization:
     """The LU factors of one bordered system; solves it, its transpose, and variants of it
     with another border row (Sherman-Morrison)."""
 
-    def __init__(self, st: Structure, lu, piv, border=None):
-        self.st, self.lu, self.piv = st, lu, piv
+    def __init__(self, st: Structure, ab, piv, border=None):
+        # ab (N, ldab): the factors by columns (`_banded.lu`); lu = ab.T is LAPACK's view of
+        # them, (ldab, N), whose row kl + ku is U's diagonal
+        self.st, self.ab, self.lu, self.piv = st, ab, ab.T, piv
         self.border = border                    # [(c (n, m), d (k,))] as factorised
         self._u = None
 
@@ -202,7 +213,7 @@ class Factorization:
     def _rhs(self, col, bc, border):
         st = self.st
         b = np.zeros(st.N)
-        b[st.row_col] = col
+        st.interval_rows(b)[...] = col.T
         bc = np.asarray(bc, dtype=float)
         b[st.row_left] = bc[st.left]
         b[st.row_right] = bc[st.right]
@@ -213,22 +224,24 @@ class Factorization:
     def solve(self, col, bc, border=()):
         """(dy (n, m), dp (k,)) solving the system with right-hand side (col, bc, border)."""
         st = self.st
-        z, info = dgbtrs(self.lu, st.kl, st.ku, self._rhs(col, bc, border), self.piv)
-        return z[st.col_y], z[st.col_p]
+        z = self._rhs(col, bc, border)
+        banded_solve(self.ab, st.kl, st.ku, self.piv, z, False)
+        return st.node_states(z), z[st.col_p]
 
     def solve_transpose(self, ey, ep):
         """The solution w of ``M^T w = (ey, ep)``, as (w_col (n, m-1), w_bc (n,),
         w_border (k,)): the multipliers of the collocation, boundary and border rows."""
         st = self.st
         b = np.zeros(st.N)
-        b[st.col_y] = ey
+        b.reshape(st.m, st.nn)[:, :st.n] = ey.T
         b[st.col_p] = ep
-        w, info = dgbtrs(self.lu, st.kl, st.ku, b, self.piv, trans=1)
+        banded_solve(self.ab, st.kl, st.ku, self.piv, b, True)
+        w = b
         w_bc = np.empty(st.n)
         w_bc[st.left] = w[st.row_left]
         w_bc[st.right] = w[st.row_right]
         w_bc[st.mixed] = w[st.row_mixed]
-        return w[st.row_col], w_bc, w[st.row_border]
+        return st.interval_rows(w).T.copy(), w_bc, w[st.row_border]
 
     # -- another last border row ---------------------------------------------------------------
     def null_direction(self):
@@ -277,31 +290,32 @@ def factor(blocks, names, border=(), split=None) -> Factorization:
         split = split_rows(blocks.ga, blocks.gb)
     st = structure(n, m, k, split)
     ga, gb = blocks.ga, blocks.gb
-    values = [d0.ravel(), blocks.d1.ravel(), ga[st.left].ravel(), gb[st.right].ravel(),
-              *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
-              gb[st.mixed].ravel()]
-    if k == 1:      # the common case, without stacking
-        (name,), ((c, _),) = names, border
-        gp = blocks.dbc[name][:, None]
-        values += [blocks.dcol[name].T.ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
-                   -c[:, 1:].T.ravel(), np.asarray(border[0][1], dtype=float).reshape(1),
-                   *(gp[r] for r in st.mixed)]
-    elif k:
-        pcol = np.stack([blocks.dcol[nm] for nm in names], axis=-1)     # (n, m-1, k)
-        gp = np.stack([blocks.dbc[nm] for nm in names], axis=-1)       # (n, k)
-        values += [pcol.transpose(1, 0, 2).ravel(), gp[st.left].ravel(), gp[st.right].ravel(),
-                   -np.stack([c[:, 1:] for c, _ in border]).transpose(2, 0, 1).ravel(),
-                   *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
-                   *(gp[r] for r in st.mixed)]
     ab = np.zeros((st.N, st.ldab))
     flat = ab.reshape(-1)
     flat[st.index_const] = st.value_const
+    st.block_view(ab, "d0")[...] = d0
+    st.block_view(ab, "d1")[...] = blocks.d1
+    values = [ga[st.left].ravel(), gb[st.right].ravel(),
+              *(-c[:, 0] for c, _ in border), *(-ga[r] for r in st.mixed),
+              gb[st.mixed].ravel()]
+    if k:
+        pcol, acc = st.block_view(ab, "pcol"), st.block_view(ab, "acc")
+        for q, nm in enumerate(names):
+            pcol[:, :, q] = blocks.dcol[nm].T
+        for j, (c, _) in enumerate(border):
+            np.negative(c[:, 1:].T, out=acc[:, j, :])
+        gp = (blocks.dbc[names[0]][:, None] if k == 1          # (n, k)
+              else np.stack([blocks.dbc[nm] for nm in names], axis=-1))
+        values += [gp[st.left].ravel(), gp[st.right].ravel(),
+                   *(np.asarray(d, dtype=float).reshape(k) for _, d in border),
+                   *(gp[r] for r in st.mixed)]
     flat[st.index_k if k else st.index_0] = np.concatenate(values)
-    lu, piv, info = dgbtrf(ab.T, st.kl, st.ku, overwrite_ab=True)
+    piv = np.empty(st.N, dtype=np.intp)
+    info = banded_lu(ab, st.kl, st.ku, piv)
     if info > 0:
         # exactly singular (a branch point hit exactly): a pivot of the size of rounding
         # keeps the solves finite, as inverse iteration for the kernel needs
-        diag = lu[st.kl + st.ku]
+        diag = ab[:, st.kl + st.ku]
         diag[info - 1] = np.finfo(float).eps * max(float(np.max(np.abs(diag))), 1.0)
-    return Factorization(st, lu, piv, [(np.asarray(c), np.asarray(d, dtype=float))
+    return Factorization(st, ab, piv, [(np.asarray(c), np.asarray(d, dtype=float))
                                       for c, d in border])
