@@ -285,7 +285,9 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             return branch
         walk = Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         # under ncol = "auto" a cubic branch may still turn to Gauss collocation where its
-        # meshes grow (`Walk._choose_scheme`)
+        # meshes grow (`Walk._choose_scheme`), one restarted from a cubic label too: the
+        # label's scheme is kept where it is a solution of that scheme's equations, at the
+        # start, and the rule applies to the branch from there as to any other
         walk.scheme_open = auto and ncol == 0
         walk.run(a)
     except KeyboardInterrupt:

@@ -364,7 +364,8 @@ class Document:
                 values[key] = v
             elif key in _INTEGER_OPTIONS:
                 if isinstance(v, bool) or not isinstance(v, int):
-                    self.fail(where, f"expected an integer, got {v!r}")
+                    self.fail(where, "expected an integer" + (f' or "{NCOL_AUTO}"'
+                              if key == "ncol" else "") + f", got {v!r}")
                 values[key] = v
             elif key == "corrector":
                 values[key] = self.string(where, v)
