@@ -8,11 +8,12 @@ measured on (docs/numerics.md):
   Gauss collocation's stay at the floor: the branch turns to Gauss (ncol 4), and its first
   fold agrees with the same fold by the cubic scheme on a mesh refined to ``fold_tol =
   1e-8`` (a second method, the mesh converged: the reference of test_auto_demos);
-* the elastica (the shipped runs' kind): every branch stays cubic, and its points are
-  those of ``ncol = 0`` exactly (the same numbers: the choice adds no solve to the branch);
+* the elastica (the shipped runs' kind): every branch stays cubic (its points get a direct
+  index count, which needs the cubic scheme's fine meshes), and its points are those of
+  ``ncol = 0`` exactly (the same numbers: the choice adds no solve to the branch);
 * a user's ``ncol`` (0, or Gauss at 3) always wins;
-* a restart from a stored label starts with the scheme that computed it (its label solves
-  that scheme's equations), and says Gauss where it is used.
+* a restart from a stored label keeps the scheme that computed it, and says Gauss where it
+  is used.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import pytest
 from elastica_auto.core.options import NCOL_AUTO, ContinuationOptions, OptionsError
 from elastica_auto.execution import runfile
 from elastica_auto.numerics.correctors import (AUTO_GAUSS, GAUSS_PAYS, choose_ncol,
-                                               gauss_pays)
+                                               gauss_pays, may_turn_to_gauss)
 from helpers import REPO, ROTATING_ARM, run_cli, run_plan
 
 KAR = REPO / "benchmarks" / "auto" / "kar.toml"
@@ -72,9 +73,10 @@ def test_a_boundary_layer_turns_to_gauss_and_keeps_its_fold(kar_auto, tmp_path):
 
 
 def test_the_rule_on_the_states_themselves(kar_auto, tmp_path):
-    """`gauss_pays` on kar's fold (a boundary layer, solved by Gauss) says yes; on the
-    elastica's finest-meshed point of the rotating arm (a fold, meshed to fold_tol) no;
-    `choose_ncol` under "auto" follows it, and a number or a stored scheme wins."""
+    """`gauss_pays` on kar's fold (a boundary layer, solved by Gauss) says yes, and
+    `choose_ncol` under "auto" follows it, a number or a stored scheme winning. On the
+    elastica's finest-meshed point of the rotating arm at tol = 1e-9 the node estimate
+    says yes too, and the index keeps the cubic scheme."""
     opt = ContinuationOptions()
     plan = runfile.load(KAR)
     layer = kar_auto.file.label("LP1").state
@@ -85,11 +87,15 @@ def test_the_rule_on_the_states_themselves(kar_auto, tmp_path):
     assert choose_ncol(plan.problem, "gamma", ContinuationOptions(ncol=3), layer) == 3
     assert choose_ncol(plan.problem, "gamma",
                        ContinuationOptions(corrector="solve_bvp"), layer) == 0
-    arm = _small_arm(tmp_path / "arm", ())
+    arm = _small_arm(tmp_path / "arm", ("tol=1e-9",))
     finest = max((p for br in arm.result.branches for p in br.points if p.state is not None),
                  key=lambda p: len(p.state.s))
-    assert not gauss_pays(arm.plan.problem, "psi", opt, finest.state)
-    assert choose_ncol(arm.plan.problem, "psi", opt, finest.state) == 0
+    tight = ContinuationOptions(tol=1e-9)
+    assert gauss_pays(arm.plan.problem, "psi", tight, finest.state)   # the nodes alone
+    assert not may_turn_to_gauss(arm.plan.problem)                    # but an index
+    assert choose_ncol(arm.plan.problem, "psi", tight, finest.state) == 0
+    assert choose_ncol(arm.plan.problem, "psi", ContinuationOptions(ncol=4),
+                       finest.state) == 4
 
 
 def _small_arm(out, overrides):
@@ -100,8 +106,12 @@ def _small_arm(out, overrides):
 
 
 def test_the_elastica_stays_cubic_with_the_same_numbers(tmp_path):
-    auto = _small_arm(tmp_path / "auto", ())
-    cubic = _small_arm(tmp_path / "cubic", ("ncol=0",))
+    """At tol = 1e-9 the cubic meshes pass 8 (ntst + 1) nodes and Gauss's estimate stays at
+    the fewest: Gauss would pay by the estimate, but the elastica's points get a direct
+    index count, which Gauss's coarse meshes do not resolve (`may_turn_to_gauss`)."""
+    auto = _small_arm(tmp_path / "auto", ("tol=1e-9",))
+    cubic = _small_arm(tmp_path / "cubic", ("ncol=0", "tol=1e-9"))
+    assert max(n for br in cubic.file.branches for n in br.columns["nodes"]) > GAUSS_PAYS * 51
     assert ncols(auto) == ncols(cubic) == [0] * len(auto.file.branches)
     for a, b in zip(auto.file.branches, cubic.file.branches):
         for name in ("psi", "m1", "nodes", "index"):
@@ -118,10 +128,8 @@ def test_a_users_ncol_wins_on_the_boundary_layer(tmp_path):
 def test_the_choice_survives_a_restart_and_is_said(kar_auto, cli_exe, tmp_path):
     """From kar's fold computed by Gauss under "auto", a restart keeps Gauss at 4 from its
     start on (its first point is the label's own solution, on the label's mesh), and the
-    summary says so. From the same fold computed by the cubic scheme (ncol = 0), whose
-    start alone would choose Gauss, the restart starts cubic, on the label's own mesh (the
-    label is a solution of the cubic equations), and the rule turns it to Gauss after its
-    first step, as it turns any cubic branch whose mesh is that large."""
+    summary says so. From the same fold computed by the cubic scheme (ncol = 0), where
+    the start alone would choose Gauss, the restart keeps the cubic scheme throughout."""
     text = KAR.read_text().replace('start = "trivial"', 'start = "kar.h5:LP1"')
     text = text.replace('equation = "kar.py"', f'equation = "{KAR.parent / "kar.py"}"')
     text = text.replace("max_points = 500", "max_points = 6")
@@ -137,20 +145,20 @@ def test_the_choice_survives_a_restart_and_is_said(kar_auto, cli_exe, tmp_path):
         (out / "kar.h5").write_bytes(source.path.read_bytes())
         proc = run_cli(cli_exe, "run", restart, "--out", out, "-q", "-j", "1")
         assert proc.returncode == 0, proc.stderr
+        ncol = ncols_of(source)
         line = next(x for x in proc.stdout.splitlines() if x.startswith("branch 1/"))
-        assert "Gauss ncol 4" in line, line
-        assert [json.loads(a)["ncol"] for a in _branch_options(out / "again.h5")] == [4]
+        assert ("Gauss ncol 4" in line) == (ncol == AUTO_GAUSS), line
+        assert [json.loads(a)["ncol"] for a in _branch_options(out / "again.h5")] == [ncol]
         assert json.loads(_settings(out / "again.h5"))["options"]["ncol"] == NCOL_AUTO
         label = source.label("LP1").state
         with h5py.File(out / "again.h5") as h:
             (br,) = h["branches"].values()
             nodes = list(br["columns"]["nodes"][()])
         assert nodes[0] == len(label.s)
-        # Gauss's meshes after the start (from the Gauss label), after the first step (from
-        # the cubic one, whose first step is cubic)
-        first = 1 if source is kar_auto.file else 2
-        assert max(nodes[first:]) < GAUSS_PAYS * 51
-        assert first == 1 or min(nodes[:first]) > GAUSS_PAYS * 51
+        if ncol:
+            assert max(nodes) < GAUSS_PAYS * 51
+        else:
+            assert min(nodes) > GAUSS_PAYS * 51
 
 
 def ncols_of(file) -> int:

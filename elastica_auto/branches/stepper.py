@@ -61,7 +61,8 @@ import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
 from ..numerics.correctors import (AUTO_GAUSS, GAUSS_PAYS, CorrectorFailure, Solution,
-                                   choose_ncol, gauss_pays, make_corrector)
+                                   choose_ncol, gauss_pays, make_corrector,
+                                   may_turn_to_gauss)
 from .events import Step, UserValues, is_user_value
 from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
 from .loops import turned, turned_tangent
@@ -285,10 +286,10 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             return branch
         walk = Walk(branch, problem, corr, course, progress, origin.kind != "regular")
         # under ncol = "auto" a cubic branch may still turn to Gauss collocation where its
-        # meshes grow (`Walk._choose_scheme`), one restarted from a cubic label too: the
-        # label's scheme is kept where it is a solution of that scheme's equations, at the
-        # start, and the rule applies to the branch from there as to any other
-        walk.scheme_open = auto and ncol == 0
+        # meshes grow (`Walk._choose_scheme`); one from a stored label (a restart, a switch,
+        # a fold curve) keeps the label's scheme throughout, as does a problem with an index
+        walk.scheme_open = (auto and ncol == 0 and origin.ncol is None
+                            and may_turn_to_gauss(problem))
         walk.run(a)
     except KeyboardInterrupt:
         branch.interrupted = True
@@ -718,7 +719,9 @@ class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
 
     def _choose_scheme(self):
         """Under ``ncol = "auto"``, a cubic branch whose meshes have grown (a boundary layer
-        forming along it: AUTO's kar from its trivial start) is continued by Gauss
+        forming along it: AUTO's kar from its trivial start; not a branch from a stored
+        label, nor one of a problem with an index: ``scheme_open``, `_continue`) is
+        continued by Gauss
         collocation at AUTO_GAUSS points from its last accepted point on, where
         `~elastica_auto.numerics.correctors.gauss_pays` at that point: the rule that chose
         the start's scheme (`choose_ncol`), applied again. It is weighed only where the

@@ -77,9 +77,11 @@ class ContinuationOptions:
         solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
         ``"auto"`` (the default) chooses per branch from its start: Gauss collocation at
         ``ncol = 4`` where the cubic scheme's mesh there would have more than GAUSS_PAYS
-        times the nodes of Gauss collocation's, else the cubic scheme; a start from a stored
-        label keeps the scheme that computed it (`numerics.correctors.choose_ncol`;
-        docs/numerics.md). A branch records the integer chosen.
+        times the nodes of Gauss collocation's, at its start or as its mesh grows, else the
+        cubic scheme; a branch from a stored label keeps the scheme that computed it, and a
+        problem with a stability index (a ``second_variation`` hook) the cubic scheme
+        (`numerics.correctors.choose_ncol`; docs/numerics.md). A branch records the integer
+        used.
     mirror : bool
         A run that continues a start both ways, where the module's ``MIRROR`` maps the start
         to itself and the continued parameter to its negative, computes the ``+`` branch and

@@ -661,7 +661,8 @@ def choose_ncol(problem, parameter: str, options: ContinuationOptions, state: St
                 stored: int | None = None) -> int:
     """The discretisation ``ncol`` of a branch of ``problem`` in ``parameter`` started at
     ``state``: ``options.ncol`` where it is a number (the user's choice always wins), the
-    cubic scheme (0) for the solve_bvp corrector; under ``"auto"``, ``stored`` where the
+    cubic scheme (0) for the solve_bvp corrector and for a problem with a stability index
+    (`may_turn_to_gauss`); under ``"auto"``, ``stored`` where the
     start is a stored label computed with that ``ncol`` (a restart keeps its scheme), else
     the cheaper at ``tol`` by the start's own error estimates.
 
@@ -676,11 +677,23 @@ def choose_ncol(problem, parameter: str, options: ContinuationOptions, state: St
     choice on every machine, whatever the load."""
     if options.ncol != NCOL_AUTO:
         return int(options.ncol)
-    if options.corrector != Collocation.name:
+    if options.corrector != Collocation.name or not may_turn_to_gauss(problem):
         return 0
     if stored is not None:
         return int(stored)
     return AUTO_GAUSS if gauss_pays(problem, parameter, options, state) else 0
+
+
+def may_turn_to_gauss(problem) -> bool:
+    """Whether ``ncol = "auto"`` may choose Gauss collocation for ``problem`` at all: not
+    where its points get a direct count of the stability index (a ``second_variation``
+    hook). The count is made on the solution's own mesh (`elastica_auto.numerics.stability`),
+    and the meshes on which Gauss resolves the solution with few nodes do not resolve the
+    eigenfunctions it counts: on the shipped run `higher_loads` (the elastica at P up to
+    about 9 pi^2/4), Gauss at the fewest intervals, which its estimate asked for where the
+    cubic mesh had 409-649 nodes, changed the direct index at 4 points and the labels of
+    two branches. Such problems stay on the cubic scheme unless the user sets ``ncol``."""
+    return not getattr(problem, "has_second_variation", False)
 
 
 def gauss_pays(problem, parameter: str, options: ContinuationOptions, state: State) -> bool:
