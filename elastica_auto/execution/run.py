@@ -33,6 +33,7 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
+from ..core.options import NCOL_AUTO
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
@@ -247,7 +248,12 @@ def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | N
                 ncol: int | None) -> Job:
     if tangent is None:
         raise StartError(f"{spec.start}: no tangent stored with the branch point")
-    direction = switch_direction(plan.problem, state, tangent, plan.parameter, plan.options)
+    # the other branch's direction by the scheme that computed the branch point (the
+    # branch's ncol, under "auto"), on whose discrete equations it is a branch point
+    options = plan.options
+    if ncol is not None and options.ncol == NCOL_AUTO:
+        options = dataclasses.replace(options, ncol=ncol)
+    direction = switch_direction(plan.problem, state, tangent, plan.parameter, options)
     if direction is None:
         raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
                          "of the linearised problem not found)")
