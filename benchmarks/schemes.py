@@ -11,8 +11,8 @@ Unknowns per point: the node values ``n m`` for the cubic scheme (the banded sys
 ``n (k (m - 1) + 1)`` with Gauss collocation's stage values (what AUTO-07p counts), n the
 states of the branch file (a free parameter, carried as one more state at every node, is not
 counted); a branch that turned to Gauss along the way (``ncol = "auto"``) is counted at its
-recorded ``ncol`` throughout, which overcounts its cubic points. The reference: the same case by Gauss collocation at ``ncol = 6``,
-``tol = 1e-9``, ``fold_tol = 1e-11`` (``--reference gauss``, the default: on smooth problems
+recorded ``ncol`` throughout, which overcounts its cubic points. The reference: the same
+case by Gauss collocation at ``ncol = 6``, ``tol = 1e-9``, ``fold_tol = 1e-11`` (``--reference gauss``, the default: on smooth problems
 it sits on the fewest intervals and its folds are at rounding level, within 1e-15 of the closed
 forms of Bratu's fold, nep's pi^2/2 and lin's integers), or each scheme at ``tol = 1e-8``,
 ``fold_tol = 1e-10`` (``--reference same``, as many more runs). A special point is matched to
