@@ -14,8 +14,9 @@ counted); a branch that turned to Gauss along the way (``ncol = "auto"``) is cou
 recorded ``ncol`` throughout, which overcounts its cubic points. The reference: the same
 case by Gauss collocation at ``ncol = 6``, ``tol = 1e-9``, ``fold_tol = 1e-11``
 (``--reference gauss``, the default: on smooth problems it sits on the fewest intervals and
-its folds are at rounding level, within 1e-15 of the closed forms of Bratu's fold, nep's
-pi^2/2 and lin's integers), or each scheme at ``tol = 1e-8``,
+its folds are at rounding level; an earlier round found Gauss at 6 and ``tol = 1e-10``
+within 9e-16 of the closed forms of Bratu's fold, nep's pi^2/2 and lin's integers), or each
+scheme at ``tol = 1e-8``,
 ``fold_tol = 1e-10`` (``--reference same``, as many more runs). A special point is matched to
 the reference's nearest one of the same type; one farther than 1e-3 is counted as unmatched
 (the column "unmatched": a branch computed differently, not an error).
