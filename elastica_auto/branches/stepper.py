@@ -721,10 +721,9 @@ class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
         """Under ``ncol = "auto"``, a cubic branch whose meshes have grown (a boundary layer
         forming along it: AUTO's kar from its trivial start; not a branch from a stored
         label, nor one of a problem with an index: ``scheme_open``, `_continue`) is
-        continued by Gauss
-        collocation at AUTO_GAUSS points from its last accepted point on, where
-        `~elastica_auto.numerics.correctors.gauss_pays` at that point: the rule that chose
-        the start's scheme (`choose_ncol`), applied again. It is weighed only where the
+        continued by Gauss collocation at AUTO_GAUSS points from its last accepted point on,
+        where `~elastica_auto.numerics.correctors.gauss_pays` at that point: the rule that
+        chose the start's scheme (`choose_ncol`), applied again. It is weighed only where the
         accepted point's mesh has more than GAUSS_PAYS times the fewest nodes (below, Gauss
         cannot pay) and a quarter more nodes than where it was last weighed (so that a mesh
         that stays large is not weighed at every step), and at most once switched. The

@@ -12,9 +12,9 @@ from . import labels
 CORRECTORS = ("collocation", "solve_bvp")
 #: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
 NCOL_RANGE = (2, 7)
-#: The default ``ncol``: each branch's scheme chosen from its start
-#: (`elastica_auto.numerics.correctors.choose_ncol`), recorded with the branch as the
-#: integer it chose.
+#: The default ``ncol``: each branch's scheme chosen from its solutions, at its start and as
+#: its mesh grows (`elastica_auto.numerics.correctors.choose_ncol`), recorded with the
+#: branch as the integer used.
 NCOL_AUTO = "auto"
 
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
