@@ -336,7 +336,11 @@ def _report_branch(number: str, br, varying):
     cps = ", ".join(p.name for p in br.points if p.type == labels.CP)
     click.echo(f"branch {number} {_fmt_params(br.points[0].params, varying)}{start} "
                f"dir {'+' if br.direction > 0 else '-'}: {len(br.points)} points, "
-               f"{len(br.folds)} folds, {br.seconds:.2f} s; {br.end}: {br.message}"
+               f"{len(br.folds)} folds, {br.seconds:.2f} s"
+               # the scheme, where it is not the cubic one (ncol = "auto" may choose Gauss)
+               + (f", Gauss ncol {ncol}"
+                  if isinstance(ncol := br.options.get("ncol"), int) and ncol else "")
+               + f"; {br.end}: {br.message}"
                + (f"; folds {folds}" if folds else "") + (f"; {bps}" if bps else "")
                + (f"; cusps {cps}" if cps else ""))
     for w in br.warnings:

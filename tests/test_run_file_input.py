@@ -96,7 +96,7 @@ def test_expressions_say_what_they_do_not_take(text, words):
 
 
 @pytest.mark.parametrize("override, words", [
-    ("ncol=true", "[options] ncol: expected an integer, got true"),
+    ("ncol=true", "[options] ncol: expected an integer or \"auto\", got true"),
     ("tol=false", "[options] tol: expected a number or an expression string, got false"),
     ("map=1", "[continuation] map: expected true or false, got 1"),
     ('damping="x"', '[continuation] damping: expected a list of damping values, got "x"'),

@@ -242,7 +242,7 @@ def move(problem, origin: Origin, targets: dict[str, float], options: Continuati
             continue
         first = not moved
         start_here = Origin(state, origin.tangent if first and q == tangent_parameter else None,
-                            "singular" if singular and first else "regular")
+                            "singular" if singular and first else "regular", origin.ncol)
         state = _reached(problem, start_here, q, value, targets[q], options, where, moved)
         moved.append((q, value))
     if near == targets:

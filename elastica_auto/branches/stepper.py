@@ -60,14 +60,16 @@ from typing import Callable
 import numpy as np
 
 from .branch import PROFILE_GRID, Branch, Point, new_point
-from ..numerics.correctors import CorrectorFailure, Solution, make_corrector
+from ..numerics.correctors import (AUTO_GAUSS, GAUSS_PAYS, CorrectorFailure, Solution,
+                                   choose_ncol, gauss_pays, make_corrector,
+                                   may_turn_to_gauss)
 from .events import Step, UserValues, is_user_value
 from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
 from .loops import turned, turned_tangent
 from . import registry
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
-from ..core.options import ContinuationOptions
+from ..core.options import NCOL_AUTO, ContinuationOptions
 from ..core.solution import State, Tangent, difference, inner, norm, secant
 from ..model.problem import periods_applied
 from ..numerics.stability import Count, count
@@ -188,11 +190,15 @@ class Origin:
     tangent there), and what kind of point it is: ``"regular"``; ``"singular"`` (a fold or a
     branch point: none is sought in the first step, where the start's own would be found);
     ``"switch"`` (the other branch at a branch point: ``tangent`` is its direction, already
-    oriented, used as it is, since the bordered tangent system is singular there)."""
+    oriented, used as it is, since the bordered tangent system is singular there).
+    ``ncol``: the discretisation that computed ``state`` where it is a stored label's (its
+    branch's ``ncol``; None: not stored, or not chosen), which a branch under ``ncol =
+    "auto"`` keeps (`elastica_auto.numerics.correctors.choose_ncol`)."""
 
     state: State
     tangent: Tangent | None = None
     kind: str = "regular"
+    ncol: int | None = None
 
     def __post_init__(self):
         if self.kind not in ("regular", "singular", "switch"):
@@ -251,7 +257,7 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
     if phase is not None:   # a family of solutions the symmetry turns: continued with a phase
         problem = phase     # condition (elastica_auto.model.symmetry)
         origin = Origin(phase.lift(origin.state), phase.lift_tangent(origin.tangent),
-                        origin.kind)
+                        origin.kind, origin.ncol)
     _continue(branch, problem, course, origin, progress)
     if phase is not None:
         phase.drop(branch)
@@ -261,6 +267,16 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
 def _continue(branch: Branch, problem, course: Course, origin: Origin, progress):
     walk = None
     try:
+        # the discretisation, chosen from the start under ncol = "auto" and recorded as the
+        # number chosen: the branch's points are that scheme's, and a restart from them
+        # keeps it
+        auto = course.options.ncol == NCOL_AUTO and course.options.corrector == "collocation"
+        ncol = choose_ncol(problem, course.parameter, course.options, origin.state,
+                           origin.ncol)
+        if ncol != course.options.ncol:
+            course = dataclasses.replace(
+                course, options=dataclasses.replace(course.options, ncol=ncol))
+        branch.options = {**branch.options, "ncol": ncol}
         corr = make_corrector(problem, course.parameter, course.options)
         try:
             a = start_solution(corr, origin.state, branch.direction, origin.tangent,
@@ -269,6 +285,11 @@ def _continue(branch: Branch, problem, course: Course, origin: Origin, progress)
             registry.FAILURE.at_start(branch, problem, origin.state, exc)
             return branch
         walk = Walk(branch, problem, corr, course, progress, origin.kind != "regular")
+        # under ncol = "auto" a cubic branch may still turn to Gauss collocation where its
+        # meshes grow (`Walk._choose_scheme`); one from a stored label (a restart, a switch,
+        # a fold curve) keeps the label's scheme throughout, as does a problem with an index
+        walk.scheme_open = (auto and ncol == 0 and origin.ncol is None
+                            and may_turn_to_gauss(problem))
         walk.run(a)
     except KeyboardInterrupt:
         branch.interrupted = True
@@ -641,6 +662,9 @@ class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
         # the folds a placed kind labelled otherwise, which stay folds for the walk
         # (`kinds.branch_folds`): id of the solution -> (the solution, whether located)
         self.refolded = {}
+        # whether the cubic scheme may still give way to Gauss collocation (ncol = "auto":
+        # `_choose_scheme`), and the mesh size it was last weighed at
+        self.scheme_open, self.scheme_weighed = False, 0
         for event in registry.PLACEMENT:
             event.begin(self, course)
 
@@ -691,6 +715,41 @@ class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
             history.clear()
             retries = below = 0
             ds = ds_next
+            self._choose_scheme()
+
+    def _choose_scheme(self):
+        """Under ``ncol = "auto"``, a cubic branch whose meshes have grown (a boundary layer
+        forming along it: AUTO's kar from its trivial start; not a branch from a stored
+        label, nor one of a problem with an index: ``scheme_open``, `_continue`) is
+        continued by Gauss collocation at AUTO_GAUSS points from its last accepted point on,
+        where `~elastica_auto.numerics.correctors.gauss_pays` at that point: the rule that
+        chose the start's scheme (`choose_ncol`), applied again. It is weighed only where the
+        accepted point's mesh has more than GAUSS_PAYS times the fewest nodes (below, Gauss
+        cannot pay) and a quarter more nodes than where it was last weighed (so that a mesh
+        that stays large is not weighed at every step), and at most once switched. The
+        point is solved again by Gauss collocation at its parameters, on its own mesh, and
+        linearised along its tangent: the next step starts from it, and compares its test
+        functions with it (the determinant's sign and the tangent are Gauss's). The
+        branch records ``ncol`` as the scheme of its last points (a restart from it keeps
+        Gauss). A function of the points alone: deterministic."""
+        if not self.scheme_open:
+            return
+        nodes = len(self.a.mesh)
+        if nodes <= GAUSS_PAYS * (self.opt.ntst + 1) or nodes <= 1.25 * self.scheme_weighed:
+            return
+        self.scheme_weighed = nodes
+        if not gauss_pays(self.problem, self.name, self.opt, self.a.state):
+            return
+        opt = dataclasses.replace(self.opt, ncol=AUTO_GAUSS)
+        corr = make_corrector(self.problem, self.name, opt)
+        try:
+            sol = corr.linearize(corr.point(self.a.state).state, self.a.tangent)
+        except CorrectorFailure:
+            self.scheme_open = False     # kept cubic: the Gauss solve did not converge here
+            return
+        self.corr, self.opt, self.a, self.curvature = corr, opt, sol, None
+        self.scheme_open = False
+        self.branch.options = {**self.branch.options, "ncol": AUTO_GAUSS}
 
     def _step(self, ds: float, retries: int, below: int) -> tuple[float, bool]:
         """One step of length ds from self.a: returns (next ds, whether the branch ended);

@@ -12,6 +12,10 @@ from . import labels
 CORRECTORS = ("collocation", "solve_bvp")
 #: Gauss collocation points per interval (``ncol``; 0 is the cubic scheme).
 NCOL_RANGE = (2, 7)
+#: The default ``ncol``: each branch's scheme chosen from its solutions, at its start and as
+#: its mesh grows (`elastica_auto.numerics.correctors.choose_ncol`), recorded with the
+#: branch as the integer used.
+NCOL_AUTO = "auto"
 
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
 #: norm of `elastica_auto.core.solution` (the L2 norm of y plus |lam|), in the module's units. The
@@ -67,10 +71,17 @@ class ContinuationOptions:
         ``"collocation"`` (the default: Newton on the collocation equations with one banded
         LU per step and the mesh adapted between steps) or ``"solve_bvp"`` (the same
         discretisation solved by `scipy.integrate.solve_bvp`, an independent check).
-    ncol : int
+    ncol : int or "auto"
         The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
         points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
         solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
+        ``"auto"`` (the default) chooses per branch from its start: Gauss collocation at
+        ``ncol = 4`` where the cubic scheme's mesh there would have more than GAUSS_PAYS
+        times the nodes of Gauss collocation's, at its start or as its mesh grows, else the
+        cubic scheme; a branch from a stored label keeps the scheme that computed it, and a
+        problem with a stability index (a ``second_variation`` hook) the cubic scheme
+        (`numerics.correctors.choose_ncol`; docs/numerics.md). A branch records the integer
+        used.
     mirror : bool
         A run that continues a start both ways, where the module's ``MIRROR`` maps the start
         to itself and the continued parameter to its negative, computes the ``+`` branch and
@@ -97,7 +108,7 @@ class ContinuationOptions:
     fold_tol: float = 1e-7
     max_angle: float = 0.35
     corrector: str = "collocation"
-    ncol: int = 0
+    ncol: int | str = NCOL_AUTO
     mirror: bool = True
     detect: dict = field(default_factory=lambda: dict.fromkeys(DETECTABLE, True))
 
@@ -108,7 +119,8 @@ class ContinuationOptions:
         if not isinstance(self.mirror, bool):
             raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
         for f in fields(self):
-            if f.name in ("corrector", "mirror", "detect"):
+            if f.name in ("corrector", "mirror", "detect") \
+                    or (f.name == "ncol" and self.ncol == NCOL_AUTO):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -120,10 +132,12 @@ class ContinuationOptions:
             raise OptionsError(f"ds_max must be <= {MAX_STEP:g}, got {self.ds_max}")
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
-        if self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1] \
-                or int(self.ncol) != self.ncol:
-            raise OptionsError(f"ncol must be 0 (the cubic scheme) or an integer from "
-                               f"{NCOL_RANGE[0]} to {NCOL_RANGE[1]}, got {self.ncol!r}")
+        if self.ncol != NCOL_AUTO and (
+                self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1]
+                or int(self.ncol) != self.ncol):
+            raise OptionsError(f"ncol must be \"{NCOL_AUTO}\", 0 (the cubic scheme) or an "
+                               f"integer from {NCOL_RANGE[0]} to {NCOL_RANGE[1]}, "
+                               f"got {self.ncol!r}")
         for name in ("max_points", "ntst", "max_nodes"):
             v = getattr(self, name)
             if int(v) != v or v < 2:

@@ -155,7 +155,10 @@ def mirrored_branch(plan: Plan, k: int, job: Job, source: Branch,
     t0 = time.perf_counter()
     try:
         with Interruptions(raising=True):
-            br = image_of(plan.problem, source, new_branch(plan, job), plan.course)
+            # the image of the source's points: its scheme, as chosen for the source
+            blank = new_branch(plan, job)
+            blank.options = {**blank.options, "ncol": source.options.get("ncol")}
+            br = image_of(plan.problem, source, blank, plan.course)
     except KeyboardInterrupt:
         return compute_branch(plan, k, job, progress, lambda: True)
     finally:

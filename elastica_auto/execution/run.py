@@ -34,6 +34,7 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
 from ..core.interrupts import Interruptions
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
+from ..core.options import NCOL_AUTO
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
@@ -98,24 +99,33 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
                          (stored.tangent_parameter or plan.parameter) if curve else plan.parameter,
                          opt, str(spec.start))
     state, tangent = stored.state, stored.tangent
+    ncol = stored_ncol(stored)
     if curve:
-        return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored))))
+        return _checked(plan, Job(spec, Origin(_curve_start(plan, spec, stored), ncol=ncol)))
     if spec.start.kind == "switch":
         if labels.kind_of(spec.start.label) not in labels.SWITCHES:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
-        return _switch_job(plan, spec, state, tangent)
+        return _switch_job(plan, spec, state, tangent, ncol)
     # free parameters are solved for: a value given to one is no place to move to
     targets = {q: v for q, v in spec.params.items()
                if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP
         kind = "singular" if labels.kind_of(spec.start.label) in labels.SINGULAR else "regular"
-        state = restart.move(problem, Origin(state, tangent, kind), targets, opt,
+        state = restart.move(problem, Origin(state, tangent, kind, ncol), targets, opt,
                              tangent_parameter=stored.tangent_parameter, where=str(spec.start))
     if targets or stored.tangent_parameter != plan.parameter:
         tangent = None
     singular = labels.kind_of(spec.start.label) in labels.TURNS and not targets
     return _checked(plan, Job(spec, Origin(state, tangent,
-                                           "singular" if singular else "regular")))
+                                           "singular" if singular else "regular", ncol)))
+
+
+def stored_ncol(stored) -> int | None:
+    """The ``ncol`` of the branch that computed the stored label ``stored`` (its options'),
+    which a branch started from it keeps under ``ncol = "auto"``; None where the options
+    hold no number (a label of a path's equilibria, or of a branch never started)."""
+    value = (getattr(stored, "options", None) or {}).get("ncol")
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 #: The start kinds of two-parameter curves (`elastica_auto.execution.plan.Start`).
@@ -254,14 +264,21 @@ def start_job(plan: Plan, spec: BranchSpec) -> Job:
                          + f" ({record['where']})") from exc
 
 
-def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None) -> Job:
+def _switch_job(plan: Plan, spec: BranchSpec, state: State, tangent: Tangent | None,
+                ncol: int | None) -> Job:
     if tangent is None:
         raise StartError(f"{spec.start}: no tangent stored with the branch point")
-    direction = switch_direction(plan.problem, state, tangent, plan.parameter, plan.options)
+    # the other branch's direction by the scheme that computed the branch point (the
+    # branch's ncol, under "auto"), on whose discrete equations it is a branch point
+    options = plan.options
+    if ncol is not None and options.ncol == NCOL_AUTO:
+        options = dataclasses.replace(options, ncol=ncol)
+    direction = switch_direction(plan.problem, state, tangent, plan.parameter, options)
     if direction is None:
         raise StartError(f"{spec.start}: no second direction at the branch point (null vector "
                          "of the linearised problem not found)")
-    return _checked(plan, Job(spec, Origin(state, direction.scaled(spec.direction), "switch")))
+    return _checked(plan, Job(spec, Origin(state, direction.scaled(spec.direction), "switch",
+                                           ncol)))
 
 
 def _checked(plan: Plan, job: Job) -> Job:
@@ -425,7 +442,7 @@ def switch_jobs(plan: Plan, branches: list[Branch], warnings: list[str],
             for d in (1, -1):
                 spec = BranchSpec(Start("switch", None, p.name), {}, d)
                 try:
-                    jobs.append(_switch_job(plan, spec, p.state, p.tangent))
+                    jobs.append(_switch_job(plan, spec, p.state, p.tangent, stored_ncol(br)))
                 except StartError as exc:
                     warnings.append(str(exc))
                     continue

@@ -51,7 +51,7 @@ from typing import Sequence
 from ..core import labels
 from ..core.errors import PlanError, RunFileError, StoreError
 from ..core.expressions import evaluate
-from ..core.options import DETECTABLE, ContinuationOptions
+from ..core.options import DETECTABLE, NCOL_AUTO, ContinuationOptions
 from .plan import MAX_BRANCHES, BranchSpec, Plan, Request, Start, Switch, make_plan
 from ..model.problem import Problem, ProblemError, load_problem
 from ..storage.store import BranchFile, StoredLabel
@@ -365,7 +365,8 @@ class Document:
         return scheduler, timeout
 
     def options(self) -> dict:
-        """``[options]``: numbers (or expressions), integers, the corrector's name,
+        """``[options]``: numbers (or expressions), integers (``ncol`` also ``"auto"``), the
+        corrector's name,
         ``mirror`` (true or false) and ``detect`` (a table of true or false)."""
         known = {f.name for f in fields(ContinuationOptions)}
         values = {}
@@ -373,9 +374,12 @@ class Document:
             where = f"[options] {key}"
             if key not in known:
                 self.fail(where, f"unknown option; expected one of {sorted(known)}")
-            if key in _INTEGER_OPTIONS:
+            if key == "ncol" and v == NCOL_AUTO:
+                values[key] = v
+            elif key in _INTEGER_OPTIONS:
                 if isinstance(v, bool) or not isinstance(v, int):
-                    self.fail(where, f"expected an integer, got {_toml(v)}")
+                    self.fail(where, "expected an integer" + (f' or "{NCOL_AUTO}"'
+                              if key == "ncol" else "") + f", got {_toml(v)}")
                 values[key] = v
             elif key == "corrector":
                 values[key] = self.string(where, v)

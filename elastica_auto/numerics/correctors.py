@@ -28,7 +28,7 @@ tangent (the fold test function is its parameter component) and the sign of the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from .collocation import Discretisation, equidistributed_mesh
 from .gauss import GaussDiscretisation
 from .newton import NEWTON_TOL, Linearization, Row, fold_newton, kernel, newton, unit
 from ..core.errors import NumericalFailure
-from ..core.options import ContinuationOptions
+from ..core.options import NCOL_AUTO, ContinuationOptions
 from ..core.solution import State, Tangent, inner
 
 #: A regridded mesh aims at this fraction of the tolerance, so that it serves many steps;
@@ -340,7 +340,8 @@ class Collocation(_Linearized):
     name = "collocation"
 
     def __init__(self, problem, parameter: str, options: ContinuationOptions):
-        if options.ncol and type(self) is Collocation:   # never the cubic scheme unasked
+        if options.ncol not in (0, NCOL_AUTO) and type(self) is Collocation:
+            # never the cubic scheme unasked
             raise ValueError(f"ncol = {options.ncol} is Gauss collocation: make it with "
                              "make_corrector (or Gauss), not Collocation")
         self.problem, self.parameter, self.options = problem, parameter, options
@@ -635,7 +636,75 @@ CORRECTORS = {c.name: c for c in (Collocation, SolveBVP)}
 def make_corrector(problem, parameter: str, options: ContinuationOptions):
     """The corrector ``options.corrector`` names, for continuing ``problem`` in ``parameter``
     (:class:`~elastica_auto.numerics.corrector.Corrector`): the collocation corrector with
-    ``ncol`` Gauss points is :class:`Gauss`."""
-    if options.corrector == Collocation.name and options.ncol:
+    ``ncol`` Gauss points is :class:`Gauss`. With ``ncol = "auto"``, not yet chosen for a
+    branch (`choose_ncol`), it is the cubic scheme: a start solved from a module's guess,
+    and the solves of a run outside its branches."""
+    if options.corrector == Collocation.name and options.ncol not in (0, NCOL_AUTO):
         return Gauss(problem, parameter, options)
     return CORRECTORS[options.corrector](problem, parameter, options)
+
+
+#: Gauss collocation's points per interval where ``ncol = "auto"`` chooses it (AUTO-07p's
+#: usual NCOL; at 3 and 5 the measured costs are within 10% of 4's: docs/numerics.md).
+AUTO_GAUSS = 4
+#: ``ncol = "auto"`` chooses Gauss collocation where the cubic scheme's mesh at a branch's
+#: start would have more than GAUSS_PAYS times the nodes of Gauss collocation's. A Gauss
+#: step costs about 1.7x a cubic one per node on the planar elastica and more with more
+#: states (the condensation inverts an n k x n k block per interval), and each point has a
+#: fixed cost besides: measured, Gauss took 1.08x the cubic scheme's time at 2.7x fewer
+#: nodes (the elastica), 1.6x at 4.9x fewer (the spatial rod) and 0.55x at 13x fewer (a
+#: boundary layer, AUTO's kar) (docs/numerics.md, `benchmarks/schemes.py`).
+GAUSS_PAYS = 8
+
+
+def choose_ncol(problem, parameter: str, options: ContinuationOptions, state: State,
+                stored: int | None = None) -> int:
+    """The discretisation ``ncol`` of a branch of ``problem`` in ``parameter`` started at
+    ``state``: ``options.ncol`` where it is a number (the user's choice always wins), the
+    cubic scheme (0) for the solve_bvp corrector and for a problem with a stability index
+    (`may_turn_to_gauss`); under ``"auto"``, ``stored`` where the
+    start is a stored label computed with that ``ncol`` (a restart keeps its scheme), else
+    the cheaper at ``tol`` by the start's own error estimates.
+
+    The estimate: the mesh each scheme would equidistribute to ``tol`` from its error
+    estimate on the start's mesh (`Collocation.regrid`, the mesh a step from the start would
+    get; the cubic residual scales like h^3, Gauss's error like h^(k+1)). Gauss
+    collocation at AUTO_GAUSS points is chosen where the cubic mesh has more than
+    GAUSS_PAYS times its nodes. The cubic count is looked at first: at most GAUSS_PAYS
+    times the fewest nodes a mesh has (``ntst + 1``, where Gauss sits on smooth problems),
+    Gauss cannot pay and its estimate (which solves its stage equations on the start's
+    mesh) is not made. Both are functions of the start alone: the same start gives the same
+    choice on every machine, whatever the load."""
+    if options.ncol != NCOL_AUTO:
+        return int(options.ncol)
+    if options.corrector != Collocation.name or not may_turn_to_gauss(problem):
+        return 0
+    if stored is not None:
+        return int(stored)
+    return AUTO_GAUSS if gauss_pays(problem, parameter, options, state) else 0
+
+
+def may_turn_to_gauss(problem) -> bool:
+    """Whether ``ncol = "auto"`` may choose Gauss collocation for ``problem`` at all: not
+    where its points get a direct count of the stability index (a ``second_variation``
+    hook). The count is made on the solution's own mesh (`elastica_auto.numerics.stability`),
+    and the meshes on which Gauss resolves the solution with few nodes do not resolve the
+    eigenfunctions it counts: on the shipped run `higher_loads` (the elastica at P up to
+    about 9 pi^2/4), Gauss at the fewest intervals, which its estimate asked for where the
+    cubic mesh had 409-649 nodes, changed the direct index at 4 points and the labels of
+    two branches. Such problems stay on the cubic scheme unless the user sets ``ncol``."""
+    return not getattr(problem, "has_second_variation", False)
+
+
+def gauss_pays(problem, parameter: str, options: ContinuationOptions, state: State) -> bool:
+    """Whether Gauss collocation at AUTO_GAUSS points is the cheaper discretisation at
+    ``options.tol`` for the solution ``state`` (`choose_ncol`): the cubic scheme's mesh
+    equidistributed to tol from its error estimate on ``state``'s mesh has more than
+    GAUSS_PAYS times the nodes of Gauss collocation's (the second looked at only where the
+    first exceeds GAUSS_PAYS (ntst + 1))."""
+    cubic = Collocation(problem, parameter, replace(options, ncol=0))
+    nodes = len(cubic.regrid(state.s, cubic.error_estimate(state)))
+    if nodes <= GAUSS_PAYS * (options.ntst + 1):
+        return False
+    gauss = Gauss(problem, parameter, replace(options, ncol=AUTO_GAUSS))
+    return nodes > GAUSS_PAYS * len(gauss.regrid(state.s, gauss.error_estimate(state)))
