@@ -314,6 +314,44 @@ def test_resume_of_a_file_without_settings_needs_the_same_run_file(small_run, tm
     assert other.returncode == 2 and "its run file's text" in other.stderr, other.stderr
 
 
+def _settings_ncol_0(path):
+    """``path``'s stored settings as a file written when ``ncol`` defaulted to 0 has them."""
+    import h5py
+    with h5py.File(path, "r+") as f:
+        settings = json.loads(f.attrs["settings"])
+        assert settings["options"]["ncol"] == "auto"
+        settings["options"]["ncol"] = 0
+        f.attrs["settings"] = json.dumps(settings, sort_keys=True)
+
+
+def test_resume_of_a_file_written_when_the_cubic_scheme_was_the_default(small_run, tmp_path,
+                                                                         cli_exe):
+    """A file of the same run written before ``ncol = "auto"`` became the default (its
+    settings hold 0) resumes under the default where "auto" is the cubic scheme by rule (a
+    problem with an index count: the elastica); where "auto" could turn to Gauss (Bratu with
+    a prescribed mean, no index count) the refusal says what to add, and that resumes."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "small.h5").write_bytes((small_run / "out" / "small.h5").read_bytes())
+    _settings_ncol_0(out / "small.h5")
+    same = run_cli(cli_exe, "run", small_run / "small.toml", "--out", out, "-j", "1", "-q",
+                   "--resume")
+    assert same.returncode == 0 and "nothing to compute" in same.stdout, same.stderr
+
+    module = Path(__file__).resolve().parents[1] / "examples" / "bratu_level.py"
+    (tmp_path / "level.toml").write_text(
+        f'description = "no index count"\nequation = "{module}"\nstart = "trivial"\n'
+        '[continuation]\nparameter = "lam"\ndirections = "+"\nbounds = [0, 3]\n')
+    run = ("run", tmp_path / "level.toml", "--out", out, "-j", "1", "-q")
+    assert run_cli(cli_exe, *run).returncode == 0
+    _settings_ncol_0(out / "level.h5")
+    refused = run_cli(cli_exe, *run, "--resume")
+    assert refused.returncode == 2 and "options.ncol" in refused.stderr \
+        and "--set ncol=0" in refused.stderr, refused.stderr
+    resumed = run_cli(cli_exe, *run, "--resume", "--set", "ncol=0")
+    assert resumed.returncode == 0 and "nothing to compute" in resumed.stdout, resumed.stderr
+
+
 # -- figures refuse an incomplete file ----------------------------------------------------------
 
 def test_paper_figures_refuse_a_file_whose_analysis_failed(small_run, tmp_path):

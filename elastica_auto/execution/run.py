@@ -32,9 +32,9 @@ from ..core.errors import (ENGINE, EXIT_ANALYSIS_FAILED, EXIT_BRANCH_FAILED, EXI
                            StartError, WriteError, debugging, failure_record,
                            module_files)
 from ..core.interrupts import Interruptions
+from ..core.options import NCOL_AUTO
 from ..core.solution import State, Tangent, inner, norm, trapezoid_weights
 from ..core.values import same_value
-from ..core.options import NCOL_AUTO
 from ..numerics.collocation import Discretisation
 from ..numerics.correctors import CorrectorFailure, make_corrector
 from ..storage import store
@@ -705,10 +705,24 @@ def _settings_differ(plan: Plan, bf: store.BranchFile) -> str:
         if a == b:
             continue
         if isinstance(a, dict) and isinstance(b, dict):
-            out += [f"{key}.{k}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+            out += [f"{key}.{k}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)
+                    and not (key == "options" and k == "ncol"
+                             and _same_scheme(plan, a.get(k), b.get(k)))]
         else:
             out.append(names.get(key, key))
+    if "options.ncol" in out and stored.get("options", {}).get("ncol") == 0:
+        out[out.index("options.ncol")] = ("options.ncol (the file's 0, the cubic scheme, "
+                                          "was the default before \"auto\": --set ncol=0)")
     return ", ".join(out)
+
+
+def _same_scheme(plan: Plan, stored, new) -> bool:
+    """Whether ``ncol`` ``stored`` (a file's) and ``new`` (the plan's) compute the same: a
+    file written when the cubic scheme (0) was the default, resumed under the default
+    ``"auto"`` by a problem that ``"auto"`` never turns to Gauss (one with an index count:
+    `correctors.may_turn_to_gauss`): the same run, and its files stay resumable."""
+    from ..numerics.correctors import may_turn_to_gauss
+    return {stored, new} == {0, NCOL_AUTO} and not may_turn_to_gauss(plan.problem)
 
 
 def _label_counters(kept, count: int) -> dict[str, int]:
