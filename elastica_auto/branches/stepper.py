@@ -66,6 +66,7 @@ from ..numerics.correctors import (AUTO_GAUSS, GAUSS_PAYS, CorrectorFailure, Sol
 from .events import Step, UserValues, is_user_value
 from .kinds import REPEAT, Event, Hit, Placement, Retry, Scan
 from .loops import turned, turned_tangent
+from .switching import KERNEL_RTOL
 from . import registry
 from ..core import labels
 from ..core.errors import ENGINE, debugging, failure_record, module_files
@@ -135,7 +136,15 @@ def start_solution(corr, start: State, direction: int, guess: Tangent | None,
         sign = float(direction)
     else:
         sign = direction * _orientation(corr, start, t)
-    return _tangent_of(corr.linearize(start, t.scaled(sign)))
+    sol = _tangent_of(corr.linearize(start, t.scaled(sign)))
+    if guess is None and corr.kernel(sol)[1] <= KERNEL_RTOL:
+        # a start from values whose bordered Jacobian along its own tangent is singular: the
+        # kernel of [F_y, F_lam] has a second direction, which no tangent picks. Exact zero
+        # pivots once made its tangent NaN here; whether a pivot is exactly zero or of the
+        # size of rounding is rounding's choice, so the kernel is tested (its residual:
+        # rounding where singular, 1e-2 or more where regular; `switching.KERNEL_RTOL`)
+        raise CorrectorFailure(SINGULAR_START)
+    return sol
 
 
 #: Why a start has no tangent where its linearisation gives none that is finite.
