@@ -56,6 +56,23 @@ def test_the_default_is_auto_and_an_integer_keeps_its_meaning():
             ContinuationOptions(ncol=bad)
 
 
+def test_solve_bvp_refuses_a_gauss_ncol(cli_exe, tmp_path):
+    """The solve_bvp corrector solves the cubic scheme only: a Gauss ncol with it is refused
+    (it was computed cubic while the branch recorded ncol 4 and its line said "Gauss ncol
+    4"), in one line that says what to set; ncol 0 and "auto" stay accepted with it."""
+    for ncol in (2, 4, 7):
+        with pytest.raises(OptionsError, match='needs corrector = "collocation"'):
+            ContinuationOptions(corrector="solve_bvp", ncol=ncol)
+    for ncol in (0, NCOL_AUTO):
+        assert ContinuationOptions(corrector="solve_bvp", ncol=ncol).ncol == ncol
+    proc = run_cli(cli_exe, "run", KAR, "--out", tmp_path, "--set", "ncol=4",
+                   "--set", "corrector=solve_bvp")
+    assert proc.returncode == 2
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith("elastica-auto: error: ") and "set ncol = 0" in line
+    assert not list(tmp_path.iterdir())
+
+
 def test_a_boundary_layer_turns_to_gauss_and_keeps_its_fold(kar_auto, tmp_path):
     (br,) = kar_auto.file.branches
     assert ncols(kar_auto) == [AUTO_GAUSS]
