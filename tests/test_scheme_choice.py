@@ -51,8 +51,10 @@ def test_the_default_is_auto_and_an_integer_keeps_its_meaning():
     assert ContinuationOptions().ncol == NCOL_AUTO
     assert ContinuationOptions(ncol=0).ncol == 0
     assert ContinuationOptions(ncol=4).ncol == 4
-    for bad in ("fast", "AUTO", 1, 8):
-        with pytest.raises(OptionsError, match="ncol"):
+    # every refusal names what is accepted (a string was refused as "must be a finite
+    # number", which hid "auto")
+    for bad in ("fast", "AUTO", 1, 8, 4.5, True, None):
+        with pytest.raises(OptionsError, match='ncol must be "auto", 0 .* from 2 to 7'):
             ContinuationOptions(ncol=bad)
 
 

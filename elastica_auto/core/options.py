@@ -120,8 +120,7 @@ class ContinuationOptions:
         if not isinstance(self.mirror, bool):
             raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
         for f in fields(self):
-            if f.name in ("corrector", "mirror", "detect") \
-                    or (f.name == "ncol" and self.ncol == NCOL_AUTO):
+            if f.name in ("corrector", "mirror", "detect", "ncol"):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -134,7 +133,8 @@ class ContinuationOptions:
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
         if self.ncol != NCOL_AUTO and (
-                self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1]
+                isinstance(self.ncol, bool) or not isinstance(self.ncol, (int, float))
+                or self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1]
                 or int(self.ncol) != self.ncol):
             raise OptionsError(f"ncol must be \"{NCOL_AUTO}\", 0 (the cubic scheme) or an "
                                f"integer from {NCOL_RANGE[0]} to {NCOL_RANGE[1]}, "
