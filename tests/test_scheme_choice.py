@@ -205,3 +205,62 @@ def test_auto_in_a_run_file(tmp_path):
     with pytest.raises(Exception, match='ncol.*"auto"'):
         runfile.load(bad)
     assert dataclasses.replace(ContinuationOptions(), ncol=5).ncol == 5
+
+
+LAYERS = '''"""u'' = lam^2 sinh(u), u(0) = 1, u(1) = -1: layers of width 1/lam at both ends."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode", doc="inverse layer width")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], p["lam"] ** 2 * np.sinh(y[0])))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = p["lam"] ** 2 * np.cosh(y[0])
+    return jac
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0] - 1, yb[0] + 1))
+
+
+def exact_start(s, p):
+    if p["lam"] != 0:
+        return None
+    return np.vstack((1 - 2 * s, np.full(len(s), -2.0)))
+
+
+ORDINATES = [Ordinate("v0", "u'(0)", lambda s, y, p: y[1, 0], None, "u' at 0")]
+'''
+
+
+def test_a_gauss_label_restarts_under_solve_bvp(tmp_path):
+    """Layers of width 1/lam at both ends of u'' = lam^2 sinh(u), u(0) = 1, u(1) = -1: under
+    "auto" the branch from lam = 0 turns to Gauss (its label at lam = 300 sits on a few
+    dozen nodes). Restarted from that label with the solve_bvp corrector (the cubic scheme,
+    which needs ten times the nodes there), the branch goes on, and u'(0) is the closed
+    form of separated layers, -2 lam sinh(1/2) (the first integral u'^2 / 2 = lam^2
+    (cosh u - 1) with u -> 0 away from the ends; exponentially small corrections at lam
+    = 300). It ended MX at its first step: solve_bvp started on the label's mesh, at most
+    three times its nodes per step."""
+    import elastica_auto as ea
+    (tmp_path / "layers.py").write_text(LAYERS)
+    problem = ea.load_problem(str(tmp_path / "layers.py"))
+    (up,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 300), ds=0.1,
+                            ds_max=50)
+    assert up.options["ncol"] == AUTO_GAUSS and up.end == "EP"
+    label = up.label("EP2")
+    assert label.state.params["lam"] == 300 and len(label.state.s) < 100
+    (on,) = ea.continuation(problem, label, "lam", bounds=(0, 301), corrector="solve_bvp",
+                            max_points=8)
+    assert on.options["ncol"] == 0 and on.end == "EP", on.message
+    c = on.columns
+    assert len(c["lam"]) == 8 and c["lam"][-1] > 300
+    closed = -2 * c["lam"][1:] * np.sinh(0.5)
+    assert np.max(np.abs(c["v0"][1:] / closed - 1)) < 1e-7
