@@ -264,3 +264,63 @@ def test_a_gauss_label_restarts_under_solve_bvp(tmp_path):
     assert len(c["lam"]) == 8 and c["lam"][-1] > 300
     closed = -2 * c["lam"][1:] * np.sinh(0.5)
     assert np.max(np.abs(c["v0"][1:] / closed - 1)) < 1e-7
+
+
+LAYER_AT_ZERO = '''"""eps u'' + u' + lam exp(u) = 0, u(0) = u(1) = 0: a layer of width eps at 0."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode", doc="load"),
+              Parameter("eps", 0.1, "eps", "ode", doc="layer width")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -(y[1] + p["lam"] * np.exp(y[0])) / p["eps"]))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = -p["lam"] * np.exp(y[0]) / p["eps"]
+    jac[1, 1] = -1.0 / p["eps"]
+    return jac
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def exact_start(s, p):
+    return np.zeros((2, len(s))) if p["lam"] == 0 else None
+
+
+ORDINATES = [Ordinate("v0", "u'(0)", lambda s, y, p: y[1, 0], None, "u' at 0")]
+'''
+
+
+def test_gauss_continues_a_thinning_layer_across_a_regrid(tmp_path):
+    """eps u'' + u' + lam e^u = 0, u(0) = u(1) = 0 at lam = 0.3, continued by Gauss at 4
+    points in eps from 0.1 down to 1e-3: the layer at s = 0 thins across the 50 intervals
+    until the mesh is equidistributed (same node count, nodes moved into the layer). There
+    the trapezoid norm of the last tangent, moved onto the new nodes, was 0.8, and the turn
+    test read 36 degrees at every ds: the branch ended MX at eps = 0.015. It now reaches
+    1e-3, and u'(0) there agrees with scipy's solve_bvp at tol 1e-9 (a second method)."""
+    import elastica_auto as ea
+    from scipy.integrate import solve_bvp
+    (tmp_path / "layer.py").write_text(LAYER_AT_ZERO)
+    problem = ea.load_problem(str(tmp_path / "layer.py"))
+    (up,) = ea.continuation(problem, {"lam": 0.0, "eps": 0.1}, "lam", bounds=(-1, 0.3),
+                            ds=0.01, ds_max=0.05)
+    (down,) = ea.continuation(problem, up.label("EP2"), "eps", directions="-",
+                              bounds=(1e-3, 1), ds=0.01, ds_max=0.05, max_points=500, ncol=4)
+    assert down.end == "EP" and down.columns["eps"][-1] == 1e-3, down.message
+
+    def f(s, y):
+        return np.vstack((y[1], -(y[1] + 0.3 * np.exp(y[0])) / 1e-3))
+
+    s = np.linspace(0, 1, 4001)
+    ref = solve_bvp(f, lambda a, b: np.array([a[0], b[0]]), s, np.zeros((2, s.size)),
+                    tol=1e-9, max_nodes=500000)
+    assert ref.status == 0
+    assert abs(down.columns["v0"][-1] / ref.y[1, 0] - 1) < 1e-8
