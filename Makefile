@@ -47,10 +47,11 @@ clean:
 # ---------------------------------------------------------------------------------------------
 # The paper's experiments and figures (docs/figures.md). `make figures` computes every run a
 # figure needs (out/<run>.h5 from runs/<run>.toml, in restart order) and draws figures/*.png and
-# *.pdf. A branch file is recomputed only when its run file, the engine or a file it restarts
-# from changed; a figure is redrawn only when its branch files or the plotting code changed.
+# *.pdf. A branch file is recomputed only when its run file, the engine (its Python modules
+# and its C files) or a file it restarts from changed; a figure is redrawn only when its branch
+# files or the plotting code changed.
 RUNS   ?= runs
-ENGINE  = $(wildcard elastica_auto/*.py equations/*.py \
+ENGINE  = $(wildcard elastica_auto/*.py equations/*.py elastica_auto/*/*.c \
             $(filter-out elastica_auto/plots/%,$(wildcard elastica_auto/*/*.py)))
 PLOTS   = $(wildcard elastica_auto/plots/*.py)
 

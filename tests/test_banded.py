@@ -74,3 +74,30 @@ def test_the_kernel_refuses_buffers_of_the_wrong_kind():
         _banded.solve(ab, 1, 1, np.zeros(5, dtype=np.intp), np.zeros(4), False)
     with pytest.raises(ValueError, match="negative"):
         _banded.lu(ab, -1, 1, np.empty(5, dtype=np.intp))
+
+
+def test_a_build_without_a_c_compiler_says_what_the_install_needs(tmp_path, monkeypatch):
+    """setup.py's build_ext, run as pip's build runs it but with a compiler that fails
+    (``CC=/bin/false``, a machine without gcc), ends with the line naming what the install
+    needs (a C compiler and Python's headers) and the C file, not only setuptools' "command
+    ... returned non-zero exit status 1". The arguments are setup.py's own: the file is run
+    with `setuptools.setup` recording them, then its build_ext class builds its extensions."""
+    import setuptools
+    from setuptools.errors import CCompilerError
+
+    from helpers import REPO
+
+    given = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: given.update(kw))
+    exec(compile((REPO / "setup.py").read_text(), str(REPO / "setup.py"), "exec"),
+         {"__name__": "__main__"})
+    dist = setuptools.Distribution({"ext_modules": given["ext_modules"]})
+    cmd = given["cmdclass"]["build_ext"](dist)
+    cmd.build_temp, cmd.build_lib = str(tmp_path / "temp"), str(tmp_path / "lib")
+    cmd.ensure_finalized()
+    monkeypatch.setenv("CC", "/bin/false")
+    monkeypatch.chdir(REPO)
+    with pytest.raises(CCompilerError) as failed:
+        cmd.run()
+    assert "the install needs a C compiler and Python's headers" in str(failed.value)
+    assert "elastica_auto/numerics/_banded.c" in str(failed.value)

@@ -156,3 +156,19 @@ def test_drawn_lever_arm_and_load_balance_the_tip_moment(drawn, run):
             assert moment == pytest.approx(b.profiles[i][1, -1], abs=1e-5 * (1 + abs(p["P"])))
             n += 1
     assert n > 20
+
+
+def test_a_changed_c_file_recomputes_the_runs(tmp_path):
+    """The compiled banded LU is part of the engine: a change to its C file (rebuilt by
+    make's install step) recomputes a branch file as a change to a Python module does, and
+    nothing else does. An up-to-date stand-in file is enough: ``make -n`` only decides."""
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "rotating_arm.toml").write_text(
+        (REPO / "runs" / "rotating_arm.toml").read_text())
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "rotating_arm.h5").write_bytes(b"")
+    target = str(tmp_path / "out" / "rotating_arm.h5")
+    assert "elastica-auto run" not in _commands(tmp_path, target)
+    for changed in ("elastica_auto/numerics/_banded.c", "elastica_auto/numerics/newton.py"):
+        assert re.findall(r"elastica-auto run \S*?/(\w+)\.toml",
+                          _commands(tmp_path, target, "-W", changed)) == ["rotating_arm"]

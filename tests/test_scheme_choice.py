@@ -51,9 +51,28 @@ def test_the_default_is_auto_and_an_integer_keeps_its_meaning():
     assert ContinuationOptions().ncol == NCOL_AUTO
     assert ContinuationOptions(ncol=0).ncol == 0
     assert ContinuationOptions(ncol=4).ncol == 4
-    for bad in ("fast", "AUTO", 1, 8):
-        with pytest.raises(OptionsError, match="ncol"):
+    # every refusal names what is accepted (a string was refused as "must be a finite
+    # number", which hid "auto")
+    for bad in ("fast", "AUTO", 1, 8, 4.5, True, None):
+        with pytest.raises(OptionsError, match='ncol must be "auto", 0 .* from 2 to 7'):
             ContinuationOptions(ncol=bad)
+
+
+def test_solve_bvp_refuses_a_gauss_ncol(cli_exe, tmp_path):
+    """The solve_bvp corrector solves the cubic scheme only: a Gauss ncol with it is refused
+    (it was computed cubic while the branch recorded ncol 4 and its line said "Gauss ncol
+    4"), in one line that says what to set; ncol 0 and "auto" stay accepted with it."""
+    for ncol in (2, 4, 7):
+        with pytest.raises(OptionsError, match='needs corrector = "collocation"'):
+            ContinuationOptions(corrector="solve_bvp", ncol=ncol)
+    for ncol in (0, NCOL_AUTO):
+        assert ContinuationOptions(corrector="solve_bvp", ncol=ncol).ncol == ncol
+    proc = run_cli(cli_exe, "run", KAR, "--out", tmp_path, "--set", "ncol=4",
+                   "--set", "corrector=solve_bvp")
+    assert proc.returncode == 2
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith("elastica-auto: error: ") and "set ncol = 0" in line
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_boundary_layer_turns_to_gauss_and_keeps_its_fold(kar_auto, tmp_path):
@@ -186,3 +205,122 @@ def test_auto_in_a_run_file(tmp_path):
     with pytest.raises(Exception, match='ncol.*"auto"'):
         runfile.load(bad)
     assert dataclasses.replace(ContinuationOptions(), ncol=5).ncol == 5
+
+
+LAYERS = '''"""u'' = lam^2 sinh(u), u(0) = 1, u(1) = -1: layers of width 1/lam at both ends."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode", doc="inverse layer width")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], p["lam"] ** 2 * np.sinh(y[0])))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = p["lam"] ** 2 * np.cosh(y[0])
+    return jac
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0] - 1, yb[0] + 1))
+
+
+def exact_start(s, p):
+    if p["lam"] != 0:
+        return None
+    return np.vstack((1 - 2 * s, np.full(len(s), -2.0)))
+
+
+ORDINATES = [Ordinate("v0", "u'(0)", lambda s, y, p: y[1, 0], None, "u' at 0")]
+'''
+
+
+def test_a_gauss_label_restarts_under_solve_bvp(tmp_path):
+    """Layers of width 1/lam at both ends of u'' = lam^2 sinh(u), u(0) = 1, u(1) = -1: under
+    "auto" the branch from lam = 0 turns to Gauss (its label at lam = 300 sits on a few
+    dozen nodes). Restarted from that label with the solve_bvp corrector (the cubic scheme,
+    which needs ten times the nodes there), the branch goes on, and u'(0) is the closed
+    form of separated layers, -2 lam sinh(1/2) (the first integral u'^2 / 2 = lam^2
+    (cosh u - 1) with u -> 0 away from the ends; exponentially small corrections at lam
+    = 300). It ended MX at its first step: solve_bvp started on the label's mesh, at most
+    three times its nodes per step."""
+    import elastica_auto as ea
+    (tmp_path / "layers.py").write_text(LAYERS)
+    problem = ea.load_problem(str(tmp_path / "layers.py"))
+    (up,) = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 300), ds=0.1,
+                            ds_max=50)
+    assert up.options["ncol"] == AUTO_GAUSS and up.end == "EP"
+    label = up.label("EP2")
+    assert label.state.params["lam"] == 300 and len(label.state.s) < 100
+    (on,) = ea.continuation(problem, label, "lam", bounds=(0, 301), corrector="solve_bvp",
+                            max_points=8)
+    assert on.options["ncol"] == 0 and on.end == "EP", on.message
+    c = on.columns
+    assert len(c["lam"]) == 8 and c["lam"][-1] > 300
+    closed = -2 * c["lam"][1:] * np.sinh(0.5)
+    assert np.max(np.abs(c["v0"][1:] / closed - 1)) < 1e-7
+
+
+LAYER_AT_ZERO = '''"""eps u'' + u' + lam exp(u) = 0, u(0) = u(1) = 0: a layer of width eps at 0."""
+import numpy as np
+from elastica_auto import Ordinate, Parameter
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode", doc="load"),
+              Parameter("eps", 0.1, "eps", "ode", doc="layer width")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -(y[1] + p["lam"] * np.exp(y[0])) / p["eps"]))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = -p["lam"] * np.exp(y[0]) / p["eps"]
+    jac[1, 1] = -1.0 / p["eps"]
+    return jac
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def exact_start(s, p):
+    return np.zeros((2, len(s))) if p["lam"] == 0 else None
+
+
+ORDINATES = [Ordinate("v0", "u'(0)", lambda s, y, p: y[1, 0], None, "u' at 0")]
+'''
+
+
+def test_gauss_continues_a_thinning_layer_across_a_regrid(tmp_path):
+    """eps u'' + u' + lam e^u = 0, u(0) = u(1) = 0 at lam = 0.3, continued by Gauss at 4
+    points in eps from 0.1 down to 1e-3: the layer at s = 0 thins across the 50 intervals
+    until the mesh is equidistributed (same node count, nodes moved into the layer). There
+    the trapezoid norm of the last tangent, moved onto the new nodes, was 0.8, and the turn
+    test read 36 degrees at every ds: the branch ended MX at eps = 0.015. It now reaches
+    1e-3, and u'(0) there agrees with scipy's solve_bvp at tol 1e-9 (a second method)."""
+    import elastica_auto as ea
+    from scipy.integrate import solve_bvp
+    (tmp_path / "layer.py").write_text(LAYER_AT_ZERO)
+    problem = ea.load_problem(str(tmp_path / "layer.py"))
+    (up,) = ea.continuation(problem, {"lam": 0.0, "eps": 0.1}, "lam", bounds=(-1, 0.3),
+                            ds=0.01, ds_max=0.05)
+    (down,) = ea.continuation(problem, up.label("EP2"), "eps", directions="-",
+                              bounds=(1e-3, 1), ds=0.01, ds_max=0.05, max_points=500, ncol=4)
+    assert down.end == "EP" and down.columns["eps"][-1] == 1e-3, down.message
+
+    def f(s, y):
+        return np.vstack((y[1], -(y[1] + 0.3 * np.exp(y[0])) / 1e-3))
+
+    s = np.linspace(0, 1, 4001)
+    ref = solve_bvp(f, lambda a, b: np.array([a[0], b[0]]), s, np.zeros((2, s.size)),
+                    tol=1e-9, max_nodes=500000)
+    assert ref.status == 0
+    assert abs(down.columns["v0"][-1] / ref.y[1, 0] - 1) < 1e-8

@@ -783,7 +783,13 @@ class Walk(_Points, _Detection, _Placement, _Return, _Refinement):
         except CorrectorFailure as exc:
             raise _Reject(str(exc), ds / 2, exc.residual) from None
         s = b.mesh
-        cos_turn = inner(a.tangent.on(s), b.tangent, s)
+        # the cosine of the turn in the one metric of b's mesh: a's tangent is unit on its own
+        # mesh, and moved onto another (a regrid) it need not be, where the trapezoid rule on
+        # the nodes integrates it differently (a boundary layer across a few Gauss intervals
+        # whose nodes the regrid moved: norm^2 0.64 measured, and a turn of 0.1 degree read as
+        # 37, at every ds, which ended the branch MX)
+        ta = a.tangent.on(s)
+        cos_turn = inner(ta, b.tangent, s) / (norm(ta, s) * norm(b.tangent, s))
         if cos_turn < math.cos(opt.max_angle):
             raise _Reject(f"tangent turned by {math.degrees(math.acos(max(-1.0, cos_turn))):.1f}"
                           " deg > max_angle", ds / 2)

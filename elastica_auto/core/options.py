@@ -74,11 +74,12 @@ class ContinuationOptions:
     ncol : int or "auto"
         The collocation corrector's discretisation: Gauss collocation at ``ncol`` = 2..7
         points per interval (AUTO-07p's NCOL; order 2 ncol at the nodes), or 0 for
-        solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter.
-        ``"auto"`` (the default) chooses per branch from its start: Gauss collocation at
-        ``ncol = 4`` where the cubic scheme's mesh there would have more than GAUSS_PAYS
-        times the nodes of Gauss collocation's, at its start or as its mesh grows, else the
-        cubic scheme; a branch from a stored label keeps the scheme that computed it, and a
+        solve_bvp's 4th-order cubic scheme. The solve_bvp corrector always uses the latter:
+        it refuses a Gauss ``ncol`` (2..7) rather than compute with another scheme than the
+        one asked for. ``"auto"`` (the default) chooses per branch from its start: Gauss
+        collocation at ``ncol = 4`` where the cubic scheme's mesh there would have more than
+        GAUSS_PAYS times the nodes of Gauss collocation's, at its start or as its mesh grows,
+        else the cubic scheme; a branch from a stored label keeps the scheme that computed it, and a
         problem with a stability index (a ``second_variation`` hook) the cubic scheme
         (`numerics.correctors.choose_ncol`; docs/numerics.md). A branch records the integer
         used.
@@ -119,8 +120,7 @@ class ContinuationOptions:
         if not isinstance(self.mirror, bool):
             raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
         for f in fields(self):
-            if f.name in ("corrector", "mirror", "detect") \
-                    or (f.name == "ncol" and self.ncol == NCOL_AUTO):
+            if f.name in ("corrector", "mirror", "detect", "ncol"):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -133,11 +133,18 @@ class ContinuationOptions:
         if self.growth < 1:
             raise OptionsError(f"growth must be >= 1, got {self.growth}")
         if self.ncol != NCOL_AUTO and (
-                self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1]
+                isinstance(self.ncol, bool) or not isinstance(self.ncol, (int, float))
+                or self.ncol != 0 and not NCOL_RANGE[0] <= self.ncol <= NCOL_RANGE[1]
                 or int(self.ncol) != self.ncol):
             raise OptionsError(f"ncol must be \"{NCOL_AUTO}\", 0 (the cubic scheme) or an "
                                f"integer from {NCOL_RANGE[0]} to {NCOL_RANGE[1]}, "
                                f"got {self.ncol!r}")
+        if self.corrector != "collocation" and self.ncol not in (0, NCOL_AUTO):
+            # solve_bvp solves the cubic scheme only; a Gauss ncol would be ignored while the
+            # branch recorded it and its line said "Gauss ncol K"
+            raise OptionsError(f"ncol = {self.ncol} (Gauss collocation) needs corrector = "
+                               f"\"collocation\"; the {self.corrector} corrector solves the "
+                               f"cubic scheme only: set ncol = 0 or \"{NCOL_AUTO}\"")
         for name in ("max_points", "ntst", "max_nodes"):
             v = getattr(self, name)
             if int(v) != v or v < 2:

@@ -588,9 +588,20 @@ class SolveBVP(_Linearized):
 
     def next_mesh(self, a: Solution):
         """a's mesh, with every other node dropped where the residual is far below ``tol``
-        (solve_bvp itself only ever adds nodes)."""
+        (solve_bvp itself only ever adds nodes). Where a's residual exceeds ``tol`` on some
+        interval, which a point solve_bvp computed never does (it refines until every
+        interval's is below), a is a start from a label that another discretisation computed
+        (Gauss collocation's few intervals across a boundary layer, or a looser ``tol``): the
+        step gets the mesh equidistributed from that residual to REGRID_TARGET tol, as the
+        collocation corrector's regrid. From a's own mesh, solve_bvp, held to three times its
+        nodes in a step (`on_plane`), could not resolve the layer and the branch ended MX at
+        its first step ("the maximum number of mesh nodes is exceeded")."""
         from .bvp import coarsen
-        return coarsen(a.mesh, a.rms, self.options.tol, self.options.ntst + 1)
+        opt = self.options
+        if float(a.rms.max()) > opt.tol:
+            return equidistributed_mesh(a.mesh, a.rms, REGRID_TARGET * opt.tol, opt.ntst,
+                                        opt.max_nodes - 1, Discretisation.order)
+        return coarsen(a.mesh, a.rms, opt.tol, opt.ntst + 1)
 
     def fold_mesh(self, s, rms):
         """The mesh a branch point is solved again on: equidistributed from the residual
