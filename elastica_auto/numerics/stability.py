@@ -37,6 +37,7 @@ from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
+from . import _blocks
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
@@ -48,6 +49,7 @@ MAX_PHASE = 0.2
 #: A pivot eigenvalue within this many rounding errors of the largest diagonal block is zero
 #: to working precision: its sign, and so the count, would be a guess.
 SINGULAR_ULPS = 64.0
+_ULPS = SINGULAR_ULPS * np.finfo(float).eps
 
 
 @dataclass(frozen=True)
@@ -401,21 +403,30 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     k, r = form.k, len(form.constraints)
     if k == 1 and not r:
         return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
-    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
     h = np.diff(s)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
-    kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
-    # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
-    # products (as in _reduce)
-    x = np.empty((len(h), k, 2 * k))
-    x[:, :, :k] = k0m.transpose(0, 2, 1)
-    x[:, :, k:] = k2m.transpose(0, 2, 1)
-    y = kmm_inv @ x
-    z = x.transpose(0, 2, 1) @ y
-    d = np.zeros((len(s), k, k))
-    d[:-1] += k00 - z[:, :k, :k]
-    d[1:] += k22 - z[:, k:2 * k, k:2 * k]
-    u = k02 - z[:, :k, k:2 * k]
+    if k <= _blocks.KMAX:
+        # compiled: the element matrices, their midpoints eliminated (numerics/_blocks.c)
+        d, u = np.empty((len(s), k, k)), np.empty((len(h), k, k))
+        kmm_inv, y = np.empty((len(h), k, k)), np.empty((len(h), k, 2 * k))
+        negative, scale = _blocks.condense(s, a, b, c, _ULPS, d, u, kmm_inv, y)
+        if negative < 0:
+            raise _Singular("zero eigenvalue: an element's midpoint block is singular to "
+                            "working precision")
+    else:
+        (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
+        scale = _ULPS * float((np.abs(k00) + np.abs(k22)).max())
+        kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
+        # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
+        # products (as in _reduce)
+        x = np.empty((len(h), k, 2 * k))
+        x[:, :, :k] = k0m.transpose(0, 2, 1)
+        x[:, :, k:] = k2m.transpose(0, 2, 1)
+        y = kmm_inv @ x
+        z = x.transpose(0, 2, 1) @ y
+        d = np.zeros((len(s), k, k))
+        d[:-1] += k00 - z[:, :k, :k]
+        d[1:] += k22 - z[:, k:2 * k, k:2 * k]
+        u = k02 - z[:, :k, k:2 * k]
     d[0] += form.E0
     d[-1] += form.E1
     gt = g.transpose(1, 2, 0)                                       # (points, k, r)
@@ -435,7 +446,7 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
     total, size = s_mat
     w = np.linalg.eigvalsh(_dense_tail(d, u, f, -total))
-    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * size.max(initial=0)):
+    if np.any(np.abs(w) <= scale + _ULPS * size.max(initial=0)):
         raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
                         "precision (a fold or a branch point)" if not r else
                         "zero eigenvalue: the constrained form is singular to working "
@@ -467,7 +478,7 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
     call dominates."""
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
+    scale = _ULPS * float((np.abs(k00) + np.abs(k22)).max())
     if np.any(np.abs(kmm) <= scale):
         raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
                         "precision")
@@ -675,6 +686,12 @@ def _reduce(d, u, f, scale, s_mat):
     The first levels' pivots couple neighbours a few elements apart, where the stiffness
     dominates (MAX_PHASE): they are positive definite and well conditioned."""
     negative, k, r = 0, d.shape[-1], f.shape[2]
+    if k <= _blocks.KMAX:   # compiled (numerics/_blocks.c), in place
+        negative, n = _blocks.reduce(d, u, f, scale, DENSE_TAIL, *s_mat)
+        if negative < 0:
+            raise _Singular("zero eigenvalue: a pivot of the node matrix is singular to "
+                            "working precision")
+        return negative, d[:n], u[:n - 1], f[:n]
     while len(d) > DENSE_TAIL:
         inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
         negative += neg
