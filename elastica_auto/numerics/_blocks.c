@@ -26,8 +26,6 @@
 
 typedef Py_ssize_t idx;
 
-#define KMAX 3
-
 /* A float64 buffer of `ndim` dimensions with the shape `shape` (an entry < 0: any length,
    stored back), writable and C-contiguous if `out`; otherwise any strides. */
 static int get_array(PyObject *obj, Py_buffer *view, int ndim, idx *shape, int out,
@@ -66,11 +64,91 @@ static inline double at(const field *f, idx q, idx i, idx j)
     return *(const double *)(f->buf + q * f->s0 + i * f->s1 + j * f->s2);
 }
 
-/* The inverse (adjugate / determinant) and the number of negative eigenvalues of the
-   symmetric k x k block m (row-major, its upper triangle read), as `_small_pivots` and, for
-   k = 1, `_pivots`: -1 where it is singular to `scale`. */
-static int pivot(const double *m, idx k, double scale, double *inv)
+/* Sweeps of the cyclic Jacobi method at most: each sweep squares the off-diagonal part once
+   the eigenvalues are separated (quadratic convergence), so a 6 x 6 block takes 5 to 8. */
+#define JACOBI_SWEEPS 60
+
+/* The eigenvalues w and eigenvectors (the columns of v) of the symmetric k x k block m
+(row-major, its lower triangle read, as LAPACK's eigensolver reads it; a: room for k x k), by
+   the cyclic Jacobi method: each rotation in the plane (p, q),
+   A <- J^T A J with J_pp = J_qq = c, J_pq = s = -J_qp, t = s / c the smaller root of
+   t^2 + 2 t theta - 1 = 0, theta = (a_qq - a_pp) / (2 a_pq), zeroes a_pq; the sweeps go on
+   until every off-diagonal entry is below 1e-17 of the block's Frobenius norm, where the
+   diagonal is the spectrum to rounding (an eigenvalue moves by at most the off-diagonal
+   part's norm): the accuracy of LAPACK's eigensolver, eps |A|. */
+static void jacobi(const double *m, idx k, double *w, double *v, double *a)
 {
+    double fro = 0.0;
+    for (idx i = 0; i < k; i++)
+        for (idx j = 0; j < k; j++) {
+            a[i * k + j] = i >= j ? m[i * k + j] : m[j * k + i];
+            fro += a[i * k + j] * a[i * k + j];
+        }
+    const double small = 1e-17 * sqrt(fro);
+    for (idx i = 0; i < k * k; i++)
+        v[i] = (i / k == i % k) ? 1.0 : 0.0;
+    for (int sweep = 0; sweep < JACOBI_SWEEPS; sweep++) {
+        int rotated = 0;
+        for (idx p = 0; p < k - 1; p++)
+            for (idx q = p + 1; q < k; q++) {
+                const double apq = a[p * k + q];
+                if (fabs(apq) <= small)
+                    continue;
+                rotated = 1;
+                const double theta = (a[q * k + q] - a[p * k + p]) / (2.0 * apq);
+                double t = 1.0 / (fabs(theta) + sqrt(theta * theta + 1.0));
+                if (theta < 0)
+                    t = -t;
+                const double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+                for (idx r = 0; r < k; r++) {       /* A J: columns p and q */
+                    const double arp = a[r * k + p], arq = a[r * k + q];
+                    a[r * k + p] = c * arp - s * arq;
+                    a[r * k + q] = s * arp + c * arq;
+                }
+                for (idx r = 0; r < k; r++) {       /* J^T (A J): rows p and q */
+                    const double apr = a[p * k + r], aqr = a[q * k + r];
+                    a[p * k + r] = c * apr - s * aqr;
+                    a[q * k + r] = s * apr + c * aqr;
+                }
+                a[p * k + q] = a[q * k + p] = 0.0;
+                for (idx r = 0; r < k; r++) {       /* V J */
+                    const double vrp = v[r * k + p], vrq = v[r * k + q];
+                    v[r * k + p] = c * vrp - s * vrq;
+                    v[r * k + q] = s * vrp + c * vrq;
+                }
+            }
+        if (!rotated)
+            break;
+    }
+    for (idx i = 0; i < k; i++)
+        w[i] = a[i * k + i];
+}
+
+/* The inverse and the number of negative eigenvalues of the symmetric k x k block m
+   (row-major), as `_pivots`: -1 where it is singular to `scale`. k = 2, 3: the adjugate over
+   the determinant and Descartes' rule of signs on the characteristic polynomial; k >= 4: the
+   eigendecomposition (Jacobi), singular where an eigenvalue is within scale of zero, the
+   inverse V diag(1 / w) V^T (work: room for 2 k^2 + k numbers). */
+static int pivot(const double *m, idx k, double scale, double *inv, double *work)
+{
+    if (k > 3) {
+        double *w = work, *v = w + k;
+        jacobi(m, k, w, v, v + k * k);
+        int negative = 0;
+        for (idx i = 0; i < k; i++) {
+            if (fabs(w[i]) <= scale)
+                return -1;
+            negative += w[i] < 0;
+        }
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                double t = 0.0;
+                for (idx q = 0; q < k; q++)
+                    t += (v[i * k + q] / w[q]) * v[j * k + q];
+                inv[i * k + j] = t;
+            }
+        return negative;
+    }
     if (k == 1) {
         const double w = m[0];
         if (fabs(w) <= scale)
@@ -167,8 +245,8 @@ static PyObject *condense(PyObject *self, PyObject *args)
         return NULL;
     }
     const idx k = sh_a[1];
-    if (k < 1 || k > KMAX || sh_a[2] != k) {
-        PyErr_Format(PyExc_ValueError, "a: blocks of 1 to %d components", KMAX);
+    if (k < 1 || sh_a[2] != k) {
+        PyErr_SetString(PyExc_ValueError, "a: square blocks");
         PyBuffer_Release(&vs);
         PyBuffer_Release(&va);
         return NULL;
@@ -202,7 +280,8 @@ static PyObject *condense(PyObject *self, PyObject *args)
 
     /* the element matrices k00, k22, k02, k0m, k2m, kmm of every element first (the scale,
        which decides the pivots' singularity, is the largest |k00| + |k22| of them all) */
-    double *blocks = PyMem_Malloc((size_t)(n_el * 6 * kk) * sizeof(double));
+    double *blocks = PyMem_Malloc((size_t)(n_el * 6 * kk + k * w + w * w + 2 * kk + k)
+                                  * sizeof(double));
     if (!blocks) {
         for (int i = 0; i < 8; i++)
             PyBuffer_Release(views[i]);
@@ -259,9 +338,9 @@ static PyObject *condense(PyObject *self, PyObject *args)
     memset(d, 0, (size_t)(n * kk) * sizeof(double));
     for (idx e = 0; e < n_el; e++) {
         const double *blk = blocks + e * 6 * kk;
-        double *inv_e = inv + e * kk, *y_e = y + e * k * w, x[KMAX * 2 * KMAX],
-               z[4 * KMAX * KMAX];
-        const int neg = pivot(blk + 5 * kk, k, scale, inv_e);
+        double *inv_e = inv + e * kk, *y_e = y + e * k * w, *x = blocks + n_el * 6 * kk,
+               *z = x + k * w;
+        const int neg = pivot(blk + 5 * kk, k, scale, inv_e, z + w * w);
         if (neg < 0) {
             negative = -1;
             break;
@@ -303,14 +382,18 @@ static PyObject *reduce(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "OOOdnOO", &d_obj, &u_obj, &f_obj, &scale, &tail, &total_obj,
                           &size_obj))
         return NULL;
+    if (tail < 1) {
+        PyErr_SetString(PyExc_ValueError, "tail: at least one node is left");
+        return NULL;
+    }
     Py_buffer vd, vu, vf, vt, vs;
     idx sh_d[3] = {-1, -1, -1};
     if (get_array(d_obj, &vd, 3, sh_d, 1, "d") < 0)
         return NULL;
     idx n = sh_d[0];
     const idx k = sh_d[1];
-    if (n < 1 || k < 1 || k > KMAX || sh_d[2] != k) {
-        PyErr_Format(PyExc_ValueError, "d: at least one block of 1 to %d components", KMAX);
+    if (n < 1 || k < 1 || sh_d[2] != k) {
+        PyErr_SetString(PyExc_ValueError, "d: at least one square block");
         PyBuffer_Release(&vd);
         return NULL;
     }
@@ -333,15 +416,15 @@ static PyObject *reduce(PyObject *self, PyObject *args)
     /* per odd node of the first level: its pivot's inverse, x, y = D^-1 x, z = x^T y; and
        the k x r products of the constraint columns */
     const idx room = n / 2 + 1;
-    double *scratch = PyMem_Malloc((size_t)(room * (kk + 2 * k * w + w * w) + 3 * kr + 1)
-                                   * sizeof(double));
+    double *scratch = PyMem_Malloc((size_t)(room * (kk + 2 * k * w + w * w) + 3 * kr
+                                            + 2 * kk + k) * sizeof(double));
     if (!scratch) {
         for (int i = 0; i < 5; i++)
             PyBuffer_Release(views[i]);
         return PyErr_NoMemory();
     }
     double *inv = scratch, *x = inv + room * kk, *y = x + room * k * w, *z = y + room * k * w,
-           *fa = z + room * w * w, *fb = fa + kr, *fc = fb + kr;
+           *fa = z + room * w * w, *fb = fa + kr, *fc = fb + kr, *work = fc + kr;
     int negative = 0;
 
     Py_BEGIN_ALLOW_THREADS
@@ -350,7 +433,7 @@ static PyObject *reduce(PyObject *self, PyObject *args)
         for (idx j = 0; j < p; j++) {
             const double *dj = d + (2 * j + 1) * kk, *u_left = u + 2 * j * kk;
             double *inv_j = inv + j * kk, *x_j = x + j * k * w;
-            const int neg = pivot(dj, k, scale, inv_j);
+            const int neg = pivot(dj, k, scale, inv_j, work);
             if (neg < 0) {
                 negative = -1;
                 break;
@@ -472,15 +555,10 @@ static PyMethodDef methods[] = {
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_blocks",
     "The direct count's element matrices, midpoint elimination and odd-even reduction for "
-    "blocks of 1 to 3 components (numerics/stability.py).", -1, methods,
+    "blocks of any size (numerics/stability.py).", -1, methods,
 };
 
 PyMODINIT_FUNC PyInit__blocks(void)
 {
-    PyObject *m = PyModule_Create(&module);
-    if (m && PyModule_AddIntConstant(m, "KMAX", KMAX) < 0) {   /* the largest block size */
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    return PyModule_Create(&module);
 }
