@@ -1,23 +1,26 @@
-/* The direct count's block work, numerics/stability.py's `_inertia` for pivot blocks of k = 1,
-   2 and 3 components: the P2 element matrices, the elimination of each element's midpoint, and
-   the levels of the odd-even (cyclic) reduction of the block tridiagonal node matrix, with
-   the count of its pivots' negative eigenvalues (docs/stability.md, "The direct count").
+/* The direct count's block work, numerics/stability.py's `_inertia` for forms of k components
+   (any k): the P2 element matrices, the elimination of each element's midpoint, and the
+   levels of the odd-even (cyclic) reduction of the block tridiagonal node matrix and its
+   constraint columns, with the count of the pivots' negative eigenvalues (docs/stability.md,
+   "The direct count"). The last nodes' matrix is left to stability.py's eigenvalue solve.
 
    Why compiled: at the engine's sizes (100 to 200 blocks of 3 x 3 per level) each of these
-   steps written with numpy is a few dozen calls on small arrays, and the calls' own cost, not
-   the arithmetic, is most of the time. The loops here do the same operations, in the order
-   stability.py describes, without a call per operation.
+   steps written with numpy was a few dozen calls on small arrays, and the calls' own cost,
+   not the arithmetic, was most of the time. The loops here do the same operations without a
+   call per operation.
 
-   The algorithm and its decisions are stability.py's: the element matrices by Simpson's rule
-   on the P2 basis, their terms in its order; each pivot's inverse as its adjugate over its
-   determinant and its negative eigenvalues by Descartes' rule of signs on its characteristic
-   polynomial (`_small_pivots`), singular where |det| <= scale |c_(k-1)|; the products of an
-   elimination associated as K D^-1 K' (y = D^-1 x first, then x^T y), each sum taken over its
-   index in increasing order. The arithmetic is plain IEEE double, each product and sum
-   rounded (built with -ffp-contract=off: no fused multiply-add), so the results are the same
-   bits on every machine and with every BLAS. Arrays are reached through the buffer protocol
-   (float64; the fields with any strides, the outputs C-contiguous), so numpy is not needed to
-   build this file. */
+   The algorithm and its decisions are those stability.py documents: the element matrices by
+   Simpson's rule on the P2 basis, their terms in the order of its formulas; a pivot of 2 or 3
+   components inverted as its adjugate over its determinant, its negative eigenvalues counted
+   by Descartes' rule of signs on its characteristic polynomial, singular where |det| <= scale
+   |c_(k-1)|; a larger pivot by its eigendecomposition (Jacobi's method), singular where an
+   eigenvalue is within scale of zero; the products of an elimination associated as K D^-1 K'
+   (y = D^-1 x first, then x^T y), each sum taken over its index in increasing order. The
+   arithmetic is plain IEEE double, each product and sum rounded (built with
+   -ffp-contract=off: no fused multiply-add), so the results are the same bits on every
+   machine and with every BLAS. Arrays are reached through the buffer protocol (float64; the
+   fields with any strides, the outputs C-contiguous), so numpy is not needed to build this
+   file. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -125,7 +128,7 @@ static void jacobi(const double *m, idx k, double *w, double *v, double *a)
 }
 
 /* The inverse and the number of negative eigenvalues of the symmetric k x k block m
-   (row-major), as `_pivots`: -1 where it is singular to `scale`. k = 2, 3: the adjugate over
+   (row-major): -1 where it is singular to `scale`. k = 2, 3: the adjugate over
    the determinant and Descartes' rule of signs on the characteristic polynomial; k >= 4: the
    eigendecomposition (Jacobi), singular where an eigenvalue is within scale of zero, the
    inverse V diag(1 / w) V^T (work: room for 2 k^2 + k numbers). */
@@ -548,7 +551,7 @@ static PyMethodDef methods[] = {
     {"reduce", reduce, METH_VARARGS,
      "reduce(d, u, f, scale, tail, total, size) -> (negative, n): the odd-even reduction "
      "of the block tridiagonal node matrix in place down to `tail` nodes or fewer "
-     "(stability._reduce)."},
+     "(stability._inertia)."},
     {NULL, NULL, 0, NULL},
 };
 
