@@ -37,6 +37,7 @@ from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
+from . import _blocks
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
@@ -48,6 +49,7 @@ MAX_PHASE = 0.2
 #: A pivot eigenvalue within this many rounding errors of the largest diagonal block is zero
 #: to working precision: its sign, and so the count, would be a guess.
 SINGULAR_ULPS = 64.0
+_ULPS = SINGULAR_ULPS * np.finfo(float).eps
 
 
 @dataclass(frozen=True)
@@ -225,11 +227,11 @@ def rates(a, a_min, b, c):
     cancel in A^-1 C and the Schur complement). A batched solve costs 0.6 ms on 200 points,
     70 times the bound: only where the bound asks for more elements. For k = 2 and 3, A^-1
     is the adjugate over the determinant (:func:`_adjugate`, a third of the solve's cost
-    on 3 x 3 blocks; without :func:`_small_pivots`' count of negative eigenvalues)."""
+    on 3 x 3 blocks)."""
     k = a.shape[-1]
     if 2 <= k <= 3:
-        _, adj, coefficients = _adjugate(a)
-        adj /= coefficients[-1]
+        adj, det = _adjugate(a)
+        adj /= det
         turn = adj.T.reshape(a.shape) @ c
     else:
         turn = np.linalg.solve(a, c)
@@ -396,26 +398,35 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     """The index of ``form`` by P2 elements on the nodes ``s`` (:func:`count_form`), its
     fields on the nodes and midpoints. Each midpoint belongs to one element and is eliminated
     there (Haynsworth: In(K) = In(K_mm) + In(K / K_mm)), leaving a block tridiagonal matrix on
-    the nodes, whose inertia :func:`_reduce` (or, for k = 1 without constraints,
-    :func:`_sturm`) counts."""
+    the nodes; all its nodes but the last DENSE_TAIL or fewer are eliminated by odd-even
+    (cyclic) reduction, and the matrix left is counted as one dense matrix (for k = 1
+    without constraints, :func:`_sturm` counts the node matrix's pivots instead).
+
+    The element matrices (:func:`_element_blocks`' formulas), the midpoints' elimination and
+    the reduction's levels are compiled (numerics/_blocks.c: a few dozen numpy calls each on
+    100-200 small blocks cost more than their arithmetic). The reduction is a block LDL^T of
+    the node matrix K with the nodes ordered odd ones first, level by level: the odd nodes of
+    a level are coupled only to even ones, so their pivots are the diagonal blocks
+    themselves; their Schur complement is again block tridiagonal on the even nodes. By
+    Haynsworth's additivity the negative eigenvalues of all the pivots, the last matrix's
+    included, are n_-(K) (Sylvester); the constraint columns, eliminated alongside,
+    accumulate C K^-1 C^T (and, for the scale of its rounding, |C| |K^-1| |C|^T). A pivot of
+    2 or 3 components counts its negative eigenvalues by Descartes' rule on its
+    characteristic polynomial and is inverted by its adjugate; a larger one by its
+    eigendecomposition (Jacobi's method). The first levels' pivots couple neighbours a few
+    elements apart, where the stiffness dominates (MAX_PHASE): they are positive definite and
+    well conditioned."""
     k, r = form.k, len(form.constraints)
     if k == 1 and not r:
         return _inertia_scalar(form, s, a[:, 0, 0], b[:, 0, 0], c[:, 0, 0])
-    (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
     h = np.diff(s)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
-    kmm_inv, negative = _pivots(kmm, scale, "an element's midpoint block")
-    # x = [K_m0, K_m2] for each midpoint, y = K_mm^-1 x: x^T y holds its elimination's
-    # products (as in _reduce)
-    x = np.empty((len(h), k, 2 * k))
-    x[:, :, :k] = k0m.transpose(0, 2, 1)
-    x[:, :, k:] = k2m.transpose(0, 2, 1)
-    y = kmm_inv @ x
-    z = x.transpose(0, 2, 1) @ y
-    d = np.zeros((len(s), k, k))
-    d[:-1] += k00 - z[:, :k, :k]
-    d[1:] += k22 - z[:, k:2 * k, k:2 * k]
-    u = k02 - z[:, :k, k:2 * k]
+    d, u = np.empty((len(s), k, k)), np.empty((len(h), k, k))
+    # kmm_inv: the midpoint blocks' inverses; y = kmm_inv [K_m0, K_m2] (k, 2k) each
+    kmm_inv, y = np.empty((len(h), k, k)), np.empty((len(h), k, 2 * k))
+    negative, scale = _blocks.condense(s, a, b, c, _ULPS, d, u, kmm_inv, y)
+    if negative < 0:
+        raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
+                        "precision")
     d[0] += form.E0
     d[-1] += form.E1
     gt = g.transpose(1, 2, 0)                                       # (points, k, r)
@@ -426,8 +437,12 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
         _accumulate(cm, kmm_inv, s_mat)
-    neg_k, d, u, f = _reduce(d, u, f, scale, s_mat)
+    neg_k, n = _blocks.reduce(d, u, f, scale, DENSE_TAIL, *s_mat)     # in place
+    if neg_k < 0:
+        raise _Singular("zero eigenvalue: a pivot of the node matrix is singular to working "
+                        "precision")
     negative += neg_k
+    d, u, f = d[:n], u[:n - 1], f[:n]
     # What is left, the block tridiagonal matrix D of the last nodes and, with constraints,
     # the multipliers, [[D, F], [F^T, -C K'^-1 C^T]] (K' the eliminated part), is counted as
     # one dense matrix. Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but it
@@ -435,7 +450,7 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
     total, size = s_mat
     w = np.linalg.eigvalsh(_dense_tail(d, u, f, -total))
-    if np.any(np.abs(w) <= scale + SINGULAR_ULPS * np.finfo(float).eps * size.max(initial=0)):
+    if np.any(np.abs(w) <= scale + _ULPS * size.max(initial=0)):
         raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
                         "precision (a fold or a branch point)" if not r else
                         "zero eigenvalue: the constrained form is singular to working "
@@ -467,7 +482,7 @@ def _inertia_scalar(form, s, a, b, c) -> int:
     cost of the block form on the planar rod's meshes of 50-200 nodes, where numpy's cost per
     call dominates."""
     (k00, k02, k22), (k0m, k2m, kmm) = _element_blocks(s, a, b, c)
-    scale = SINGULAR_ULPS * np.finfo(float).eps * float((np.abs(k00) + np.abs(k22)).max())
+    scale = _ULPS * float((np.abs(k00) + np.abs(k22)).max())
     if np.any(np.abs(kmm) <= scale):
         raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
                         "precision")
@@ -540,68 +555,13 @@ def _restrict(d, u, f, end, free, fixed):
     f[end][nf:, :] = 0.0
 
 
-def _pivots(blocks, scale, what):
-    """(inverses, number of negative eigenvalues) of the symmetric pivot blocks (p, k, k);
-    _Singular if an eigenvalue is within ``scale`` of zero. Blocks of k = 2 and 3 by closed
-    forms (:func:`_small_pivots`), larger ones by their eigendecomposition."""
-    k = blocks.shape[-1]
-    if k == 1:
-        w = blocks[:, 0, 0]
-        if np.count_nonzero(np.abs(w) <= scale):
-            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
-        return 1.0 / blocks, int(np.count_nonzero(w < 0))
-    if k <= 3:
-        inv, negative, singular = _small_pivots(blocks, scale)
-        if singular:
-            raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
-        return inv, negative
-    w, v = np.linalg.eigh(blocks)
-    if np.any(np.abs(w) <= scale):
-        raise _Singular(f"zero eigenvalue: {what} is singular to working precision")
-    return (v / w[:, None, :]) @ v.transpose(0, 2, 1), int(np.count_nonzero(w < 0))
-
-
-def _small_pivots(m, scale):
-    """Inverses, negative eigenvalues and singularity of symmetric 2 x 2 or 3 x 3 blocks
-    (p, k, k) by closed forms: numpy's batched eigensolver costs ten times as much on them.
-
-    The inverse is the adjugate over the determinant. The negative eigenvalues of M are the
-    positive roots of det(x I + M) = x^k + c_1 x^(k-1) + ... + c_k (c_j the sums of the
-    principal j x j minors), and for a polynomial with only real roots Descartes' rule of
-    signs is exact: their number is the number of sign changes of (1, c_1, ..., c_k). A
-    middle coefficient at rounding level does not matter: where one is zero its neighbours
-    have opposite signs (Newton's inequalities), so either sign gives the same count; the
-    last, det M, is checked against zero: |det M| <= ``scale`` |c_(k-1)| where an eigenvalue
-    is within ``scale`` of zero (c_(k-1) is then about the product of the others). With
-    n_j = (c_j < 0), the sign changes of (1, c_1, c_2, c_3) number n_1 + (n_1 xor n_2) +
-    (n_2 xor n_3); a zero coefficient counts as positive."""
-    p, k = len(m), m.shape[-1]
-    rows, adj, coefficients = _adjugate(m)
-    c_last, det = coefficients[-2], coefficients[-1]
-    if k == 2:
-        np.add(rows[0], rows[3], out=c_last)
-    else:
-        np.add(adj[0], adj[4], out=c_last)          # c00 + c11 + c22
-        c_last += adj[8]
-        np.add(rows[0], rows[4], out=coefficients[0])
-        coefficients[0] += rows[8]
-    # the sign changes of (1, c_1, ..., c_k): the negatives of c_1 and the changes between rows
-    negative = coefficients < 0
-    changes = np.count_nonzero(negative[0]) + np.count_nonzero(negative[1:] != negative[:-1])
-    singular = np.count_nonzero(np.abs(det) <= scale * np.abs(c_last)) > 0
-    adj /= det
-    return adj.T.reshape(p, k, k), (0 if singular else int(changes)), singular
-
-
 def _adjugate(m):
-    """The symmetric 2 x 2 or 3 x 3 blocks m (p, k, k) as rows (k k, p), an entry per row,
-    their adjugates in the same layout, and an array (k, p) whose last row is their
-    determinants (the others for :func:`_small_pivots` to fill): the closed forms that
-    :func:`_small_pivots` and :func:`rates` (A^-1 = adj / det) share."""
+    """The adjugates of the symmetric 2 x 2 or 3 x 3 blocks m (p, k, k) as rows (k k, p),
+    an entry per row, and their determinants (p,): A^-1 = adj / det for :func:`rates` (the
+    closed forms the compiled pivots use too, numerics/_blocks.c)."""
     p, k = len(m), m.shape[-1]
     rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
-    coefficients = np.empty((k, p))                # c_1, ..., c_k
-    det = coefficients[-1]
+    det = np.empty(p)
     if k == 2:
         a, b, d = rows[0], rows[3], rows[1]
         np.multiply(a, b, out=det)
@@ -616,7 +576,7 @@ def _adjugate(m):
         np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
         det += rows[1] * adj[1]
         det += rows[2] * adj[2]
-    return rows, adj, coefficients
+    return adj, det
 
 
 #: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
@@ -658,54 +618,6 @@ def _sturm(diag, off2, scale) -> int:
 #: and replaces the last four levels of a 100-node mesh (10% of a k = 3 count, 17% with a
 #: constraint, benchmarks/bench.py --index).
 DENSE_TAIL = 16
-
-
-def _reduce(d, u, f, scale, s_mat):
-    """Eliminate all nodes but the last DENSE_TAIL or fewer: (the negative eigenvalues of
-    their pivots, and the blocks d, u, f of what is left), adding C K^-1 C^T of the
-    eliminated part to ``s_mat`` (:func:`_accumulate`), for the block
-    tridiagonal K (diagonal blocks ``d`` (N, k, k), upper blocks ``u`` (N-1, k, k): u[i] =
-    K[i, i+1]) and the constraint columns ``f`` (N, k, r), by odd-even (cyclic) reduction: a
-    block LDL^T of K with the nodes ordered odd ones first, level by level. The odd nodes of a
-    level are coupled only to even ones, so their pivots are the diagonal blocks themselves,
-    inverted all at once; their Schur complement is again block tridiagonal on the even
-    nodes. By Haynsworth's additivity the negative eigenvalues of all the pivots, the last
-    included, are n_-(K) (Sylvester), and the constraint columns, eliminated alongside,
-    accumulate C K^-1 C^T (and, for the scale of its rounding, |C| |K^-1| |C|^T).
-    The first levels' pivots couple neighbours a few elements apart, where the stiffness
-    dominates (MAX_PHASE): they are positive definite and well conditioned."""
-    negative, k, r = 0, d.shape[-1], f.shape[2]
-    while len(d) > DENSE_TAIL:
-        inv, neg = _pivots(d[1::2], scale, "a pivot of the node matrix")
-        negative += neg
-        p, n_right = len(inv), len(u) // 2
-        # x = [K[o, o-1], K[o, o+1]] for each odd node o (the last may have no right
-        # neighbour: zero), y = D_o^-1 x: x^T y holds the even nodes' new blocks, y^T K[o,
-        # o+1] their coupling (each product associated as K D^-1 K' was before, to the last
-        # bit: a count next to a zero eigenvalue turns on it)
-        x = np.empty((p, k, 2 * k))
-        x[:, :, :k] = u[0::2].transpose(0, 2, 1)
-        x[:n_right, :, k:] = u[1::2]
-        if n_right < p:
-            x[n_right:, :, k:] = 0.0
-        y = inv @ x
-        z = x.transpose(0, 2, 1) @ y
-        de = d[0::2].copy()
-        de[:p] -= z[:, :k, :k]
-        de[1:n_right + 1] -= z[:n_right, k:, k:]
-        u = -(y[:n_right, :, :k].transpose(0, 2, 1) @ x[:n_right, :, k:])
-        if r:
-            fo = f[1::2]
-            fe = f[0::2].copy()
-            fe[:p] -= y[:, :, :k].transpose(0, 2, 1) @ fo
-            fe[1:n_right + 1] -= y[:n_right, :, k:].transpose(0, 2, 1) @ fo[:n_right]
-            _accumulate(fo, inv, s_mat)
-            f = fe
-        else:
-            f = f[0::2]
-        d = de
-    return negative, d, u, f
-
 
 
 def kernel_dimension(problem, state, delta: float | None = None) -> int:

@@ -1,0 +1,567 @@
+/* The direct count's block work, numerics/stability.py's `_inertia` for forms of k components
+   (any k): the P2 element matrices, the elimination of each element's midpoint, and the
+   levels of the odd-even (cyclic) reduction of the block tridiagonal node matrix and its
+   constraint columns, with the count of the pivots' negative eigenvalues (docs/stability.md,
+   "The direct count"). The last nodes' matrix is left to stability.py's eigenvalue solve.
+
+   Why compiled: at the engine's sizes (100 to 200 blocks of 3 x 3 per level) each of these
+   steps written with numpy was a few dozen calls on small arrays, and the calls' own cost,
+   not the arithmetic, was most of the time. The loops here do the same operations without a
+   call per operation.
+
+   The algorithm and its decisions are those stability.py documents: the element matrices by
+   Simpson's rule on the P2 basis, their terms in the order of its formulas; a pivot of 2 or 3
+   components inverted as its adjugate over its determinant, its negative eigenvalues counted
+   by Descartes' rule of signs on its characteristic polynomial, singular where |det| <= scale
+   |c_(k-1)|; a larger pivot by its eigendecomposition (Jacobi's method), singular where an
+   eigenvalue is within scale of zero; the products of an elimination associated as K D^-1 K'
+   (y = D^-1 x first, then x^T y), each sum taken over its index in increasing order. The
+   arithmetic is plain IEEE double, each product and sum rounded (built with
+   -ffp-contract=off: no fused multiply-add), so the results are the same bits on every
+   machine and with every BLAS. Arrays are reached through the buffer protocol (float64; the
+   fields with any strides, the outputs C-contiguous), so numpy is not needed to build this
+   file. */
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+typedef Py_ssize_t idx;
+
+/* A float64 buffer of `ndim` dimensions with the shape `shape` (an entry < 0: any length,
+   stored back), writable and C-contiguous if `out`; otherwise any strides. */
+static int get_array(PyObject *obj, Py_buffer *view, int ndim, idx *shape, int out,
+                     const char *what)
+{
+    int flags = out ? (PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT)
+                    : (PyBUF_STRIDES | PyBUF_FORMAT);
+    if (PyObject_GetBuffer(obj, view, flags) < 0)
+        return -1;
+    const char *f = view->format ? view->format : "B";
+    if (*f == '@' || *f == '=' || *f == '<')
+        f++;
+    int ok = view->itemsize == 8 && strcmp(f, "d") == 0 && view->ndim == ndim;
+    for (int i = 0; ok && i < ndim; i++) {
+        if (shape[i] < 0)
+            shape[i] = view->shape[i];
+        ok = view->shape[i] == shape[i] && (view->strides[i] % 8) == 0;
+    }
+    if (!ok) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a float64 array of %d dimensions, "
+                     "its shape (%zd, ...)", what, ndim, shape[0]);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* A field (P, k, k) of any strides: entry (q, i, j). */
+typedef struct {
+    const char *buf;
+    idx s0, s1, s2;
+} field;
+
+static inline double at(const field *f, idx q, idx i, idx j)
+{
+    return *(const double *)(f->buf + q * f->s0 + i * f->s1 + j * f->s2);
+}
+
+/* Sweeps of the cyclic Jacobi method at most: each sweep squares the off-diagonal part once
+   the eigenvalues are separated (quadratic convergence), so a 6 x 6 block takes 5 to 8. */
+#define JACOBI_SWEEPS 60
+
+/* The eigenvalues w and eigenvectors (the columns of v) of the symmetric k x k block m
+(row-major, its lower triangle read, as LAPACK's eigensolver reads it; a: room for k x k), by
+   the cyclic Jacobi method: each rotation in the plane (p, q),
+   A <- J^T A J with J_pp = J_qq = c, J_pq = s = -J_qp, t = s / c the smaller root of
+   t^2 + 2 t theta - 1 = 0, theta = (a_qq - a_pp) / (2 a_pq), zeroes a_pq; the sweeps go on
+   until every off-diagonal entry is below 1e-17 of the block's Frobenius norm, where the
+   diagonal is the spectrum to rounding (an eigenvalue moves by at most the off-diagonal
+   part's norm): the accuracy of LAPACK's eigensolver, eps |A|. */
+static void jacobi(const double *m, idx k, double *w, double *v, double *a)
+{
+    double fro = 0.0;
+    for (idx i = 0; i < k; i++)
+        for (idx j = 0; j < k; j++) {
+            a[i * k + j] = i >= j ? m[i * k + j] : m[j * k + i];
+            fro += a[i * k + j] * a[i * k + j];
+        }
+    const double small = 1e-17 * sqrt(fro);
+    for (idx i = 0; i < k * k; i++)
+        v[i] = (i / k == i % k) ? 1.0 : 0.0;
+    for (int sweep = 0; sweep < JACOBI_SWEEPS; sweep++) {
+        int rotated = 0;
+        for (idx p = 0; p < k - 1; p++)
+            for (idx q = p + 1; q < k; q++) {
+                const double apq = a[p * k + q];
+                if (fabs(apq) <= small)
+                    continue;
+                rotated = 1;
+                const double theta = (a[q * k + q] - a[p * k + p]) / (2.0 * apq);
+                double t = 1.0 / (fabs(theta) + sqrt(theta * theta + 1.0));
+                if (theta < 0)
+                    t = -t;
+                const double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+                for (idx r = 0; r < k; r++) {       /* A J: columns p and q */
+                    const double arp = a[r * k + p], arq = a[r * k + q];
+                    a[r * k + p] = c * arp - s * arq;
+                    a[r * k + q] = s * arp + c * arq;
+                }
+                for (idx r = 0; r < k; r++) {       /* J^T (A J): rows p and q */
+                    const double apr = a[p * k + r], aqr = a[q * k + r];
+                    a[p * k + r] = c * apr - s * aqr;
+                    a[q * k + r] = s * apr + c * aqr;
+                }
+                a[p * k + q] = a[q * k + p] = 0.0;
+                for (idx r = 0; r < k; r++) {       /* V J */
+                    const double vrp = v[r * k + p], vrq = v[r * k + q];
+                    v[r * k + p] = c * vrp - s * vrq;
+                    v[r * k + q] = s * vrp + c * vrq;
+                }
+            }
+        if (!rotated)
+            break;
+    }
+    for (idx i = 0; i < k; i++)
+        w[i] = a[i * k + i];
+}
+
+/* The inverse and the number of negative eigenvalues of the symmetric k x k block m
+   (row-major): -1 where it is singular to `scale`. k = 2, 3: the adjugate over
+   the determinant and Descartes' rule of signs on the characteristic polynomial; k >= 4: the
+   eigendecomposition (Jacobi), singular where an eigenvalue is within scale of zero, the
+   inverse V diag(1 / w) V^T (work: room for 2 k^2 + k numbers). */
+static int pivot(const double *m, idx k, double scale, double *inv, double *work)
+{
+    if (k > 3) {
+        double *w = work, *v = w + k;
+        jacobi(m, k, w, v, v + k * k);
+        int negative = 0;
+        for (idx i = 0; i < k; i++) {
+            if (fabs(w[i]) <= scale)
+                return -1;
+            negative += w[i] < 0;
+        }
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                double t = 0.0;
+                for (idx q = 0; q < k; q++)
+                    t += (v[i * k + q] / w[q]) * v[j * k + q];
+                inv[i * k + j] = t;
+            }
+        return negative;
+    }
+    if (k == 1) {
+        const double w = m[0];
+        if (fabs(w) <= scale)
+            return -1;
+        inv[0] = 1.0 / w;
+        return w < 0;
+    }
+    double c1, c2, det;
+    if (k == 2) {
+        const double a = m[0], b = m[3], d = m[1];
+        det = a * b;
+        det -= d * d;
+        c2 = det;
+        c1 = a + b;
+        const double c_last = c1;
+        if (fabs(det) <= scale * fabs(c_last))
+            return -1;
+        inv[0] = b / det;
+        inv[1] = (d * -1.0) / det;
+        inv[2] = (d * -1.0) / det;
+        inv[3] = a / det;
+        const int n1 = c1 < 0, n2 = c2 < 0;
+        return n1 + (n1 != n2);
+    }
+    const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[2], f = m[5];
+    const double c00 = b * c - f * f, c11 = a * c - e * e, c22 = a * b - d * d;
+    const double c01 = e * f - d * c, c02 = d * f - b * e, c12 = d * e - a * f;
+    det = a * c00;
+    det += d * c01;
+    det += e * c02;
+    double c_last = c00 + c11;
+    c_last += c22;
+    c1 = a + b;
+    c1 += c;
+    c2 = c_last;
+    if (fabs(det) <= scale * fabs(c_last))
+        return -1;
+    inv[0] = c00 / det;
+    inv[1] = c01 / det;
+    inv[2] = c02 / det;
+    inv[3] = c01 / det;
+    inv[4] = c11 / det;
+    inv[5] = c12 / det;
+    inv[6] = c02 / det;
+    inv[7] = c12 / det;
+    inv[8] = c22 / det;
+    const int n1 = c1 < 0, n2 = c2 < 0, n3 = det < 0;
+    return n1 + (n1 != n2) + (n2 != n3);
+}
+
+/* y = inv x (k x k times k x w) and z = x^T y (w x w), each sum over its index in order. */
+static void eliminate(const double *inv, const double *x, idx k, idx w, double *y, double *z)
+{
+    for (idx i = 0; i < k; i++)
+        for (idx j = 0; j < w; j++) {
+            double t = 0.0;
+            for (idx m = 0; m < k; m++)
+                t += inv[i * k + m] * x[m * w + j];
+            y[i * w + j] = t;
+        }
+    if (z)
+        for (idx i = 0; i < w; i++)
+            for (idx j = 0; j < w; j++) {
+                double t = 0.0;
+                for (idx m = 0; m < k; m++)
+                    t += x[m * w + i] * y[m * w + j];
+                z[i * w + j] = t;
+            }
+}
+
+/* condense(s, a, b, c, ulps, d, u, inv, y) -> (negative, scale), negative -1 where a midpoint
+   block is singular. s: the N nodes; a, b, c: the fields (2N - 1, k, k) on the nodes and
+   midpoints (any strides); d (N, k, k), u (N - 1, k, k): the node matrix's diagonal and upper
+   blocks after the midpoints' elimination (without E0, E1); inv (N - 1, k, k): the midpoint
+   blocks' inverses; y (N - 1, k, 2k): inv [K_m0, K_m2] (`_inertia`'s y); scale = ulps times
+   the largest |k00| + |k22|. */
+static PyObject *condense(PyObject *self, PyObject *args)
+{
+    PyObject *s_obj, *a_obj, *b_obj, *c_obj, *d_obj, *u_obj, *inv_obj, *y_obj;
+    double ulps;
+    if (!PyArg_ParseTuple(args, "OOOOdOOOO", &s_obj, &a_obj, &b_obj, &c_obj, &ulps, &d_obj,
+                          &u_obj, &inv_obj, &y_obj))
+        return NULL;
+    Py_buffer vs, va, vb, vc, vd, vu, vinv, vy;
+    idx sh_s[1] = {-1};
+    if (get_array(s_obj, &vs, 1, sh_s, 0, "s") < 0)
+        return NULL;
+    const idx n = sh_s[0], n_el = n - 1, np_ = 2 * n - 1;
+    idx sh_a[3] = {np_, -1, -1};
+    if (n < 2 || get_array(a_obj, &va, 3, sh_a, 0, "a") < 0) {
+        if (n < 2)
+            PyErr_SetString(PyExc_ValueError, "s: at least two nodes");
+        PyBuffer_Release(&vs);
+        return NULL;
+    }
+    const idx k = sh_a[1];
+    if (k < 1 || sh_a[2] != k) {
+        PyErr_SetString(PyExc_ValueError, "a: square blocks");
+        PyBuffer_Release(&vs);
+        PyBuffer_Release(&va);
+        return NULL;
+    }
+    idx sh_f[3] = {np_, k, k}, sh_d[3] = {n, k, k}, sh_u[3] = {n_el, k, k},
+        sh_inv[3] = {n_el, k, k}, sh_y[3] = {n_el, k, 2 * k};
+    int got = 2;
+    Py_buffer *views[8] = {&vs, &va, &vb, &vc, &vd, &vu, &vinv, &vy};
+    if (get_array(b_obj, &vb, 3, sh_f, 0, "b") == 0 && ++got
+        && get_array(c_obj, &vc, 3, sh_f, 0, "c") == 0 && ++got
+        && get_array(d_obj, &vd, 3, sh_d, 1, "d") == 0 && ++got
+        && get_array(u_obj, &vu, 3, sh_u, 1, "u") == 0 && ++got
+        && get_array(inv_obj, &vinv, 3, sh_inv, 1, "inv") == 0 && ++got
+        && get_array(y_obj, &vy, 3, sh_y, 1, "y") == 0)
+        got = 8;
+    if (got < 8) {
+        for (int i = 0; i < got; i++)
+            PyBuffer_Release(views[i]);
+        return NULL;
+    }
+    const char *sb = (const char *)vs.buf;
+    const idx ss = vs.strides[0];
+    const field fa = {va.buf, va.strides[0], va.strides[1], va.strides[2]};
+    const field fb = {vb.buf, vb.strides[0], vb.strides[1], vb.strides[2]};
+    const field fc = {vc.buf, vc.strides[0], vc.strides[1], vc.strides[2]};
+    double *d = (double *)vd.buf, *u = (double *)vu.buf, *inv = (double *)vinv.buf,
+           *y = (double *)vy.buf;
+    const idx kk = k * k, w = 2 * k;
+    int negative = 0;
+    double scale = 0.0;
+
+    /* the element matrices k00, k22, k02, k0m, k2m, kmm of every element first (the scale,
+       which decides the pivots' singularity, is the largest |k00| + |k22| of them all) */
+    double *blocks = PyMem_Malloc((size_t)(n_el * 6 * kk + k * w + w * w + 2 * kk + k)
+                                  * sizeof(double));
+    if (!blocks) {
+        for (int i = 0; i < 8; i++)
+            PyBuffer_Release(views[i]);
+        return PyErr_NoMemory();
+    }
+
+    Py_BEGIN_ALLOW_THREADS
+    /* (w0 a0 + wm am + w2 a2) / (6 h) for k00, k22, k02, k0m, k2m (stability._P2_A) */
+    static const double w0[5] = {9, 1, 3, -12, -4}, wm[5] = {4, 4, -4, 0, 0},
+                        w2[5] = {1, 9, 3, -4, -12};
+    double big = 0.0;
+    for (idx e = 0; e < n_el; e++) {
+        const double h = *(const double *)(sb + (e + 1) * ss) - *(const double *)(sb + e * ss);
+        const idx q0 = 2 * e, qm = 2 * e + 1, q2 = 2 * e + 2;
+        double *blk = blocks + e * 6 * kk;        /* k00, k22, k02, k0m, k2m, kmm */
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                const idx ij = i * k + j;
+                const double a0 = at(&fa, q0, i, j), am = at(&fa, qm, i, j),
+                             a2 = at(&fa, q2, i, j);
+                for (int t = 0; t < 5; t++) {
+                    double v = w0[t] * a0;
+                    v += wm[t] * am;
+                    v += w2[t] * a2;
+                    blk[t * kk + ij] = v / (6 * h);
+                }
+                blk[ij] += (h / 6) * at(&fb, q0, i, j);
+                blk[kk + ij] += (h / 6) * at(&fb, q2, i, j);
+                blk[5 * kk + ij] = (16.0 / 6.0) * (a0 + a2) / h
+                                   + (4.0 / 6.0) * h * at(&fb, qm, i, j);
+            }
+        /* the terms of C (c0t, c2t: C transposed at the element's ends) */
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                const idx ij = i * k + j;
+                const double c0 = at(&fc, q0, i, j), c0t = at(&fc, q0, j, i),
+                             cm = at(&fc, qm, i, j), c2 = at(&fc, q2, i, j),
+                             c2t = at(&fc, q2, j, i);
+                blk[ij] -= 0.5 * (c0 + c0t);
+                blk[kk + ij] += 0.5 * (c2 + c2t);
+                blk[2 * kk + ij] += (c2 - c0t) / 6;
+                blk[3 * kk + ij] += (4.0 / 6.0) * (c0t - cm);
+                blk[4 * kk + ij] += (4.0 / 6.0) * (cm - c2t);
+            }
+        for (idx t = 0; t < kk; t++) {
+            const double v = fabs(blk[t]) + fabs(blk[kk + t]);
+            if (v > big)
+                big = v;
+        }
+    }
+    scale = ulps * big;
+    /* each midpoint eliminated: x = [K_m0, K_m2] = [k0m^T, k2m^T] (k x 2k), y = kmm^-1 x,
+       z = x^T y; d[e] gets k00 - z[:k, :k], d[e + 1] k22 - z[k:, k:], u[e] = k02 - z[:k, k:] */
+    memset(d, 0, (size_t)(n * kk) * sizeof(double));
+    for (idx e = 0; e < n_el; e++) {
+        const double *blk = blocks + e * 6 * kk;
+        double *inv_e = inv + e * kk, *y_e = y + e * k * w, *x = blocks + n_el * 6 * kk,
+               *z = x + k * w;
+        const int neg = pivot(blk + 5 * kk, k, scale, inv_e, z + w * w);
+        if (neg < 0) {
+            negative = -1;
+            break;
+        }
+        negative += neg;
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                x[i * w + j] = blk[3 * kk + j * k + i];
+                x[i * w + k + j] = blk[4 * kk + j * k + i];
+            }
+        eliminate(inv_e, x, k, w, y_e, z);
+        double *d0 = d + e * kk, *d2 = d + (e + 1) * kk, *ue = u + e * kk;
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                d0[i * k + j] += blk[i * k + j] - z[i * w + j];
+                d2[i * k + j] += blk[kk + i * k + j] - z[(k + i) * w + k + j];
+                ue[i * k + j] = blk[2 * kk + i * k + j] - z[i * w + k + j];
+            }
+    }
+    Py_END_ALLOW_THREADS
+
+    PyMem_Free(blocks);
+    for (int i = 0; i < 8; i++)
+        PyBuffer_Release(views[i]);
+    return Py_BuildValue("(id)", negative, scale);
+}
+
+/* reduce(d, u, f, scale, tail, total, size) -> (negative, n): `_reduce`'s levels of the
+   odd-even reduction of the block tridiagonal node matrix (diagonal d (N, k, k), upper u
+   (N - 1, k, k)) and its constraint columns f (N, k, r), in place, until `tail` nodes or
+   fewer are left: negative counts the eliminated pivots' negative eigenvalues (-1 where one
+   is singular to `scale`), and d, u, f begin with the n nodes left. total and size (r, r)
+   accumulate C K^-1 C^T of the eliminated nodes and the same sum of absolute values. */
+static PyObject *reduce(PyObject *self, PyObject *args)
+{
+    PyObject *d_obj, *u_obj, *f_obj, *total_obj, *size_obj;
+    double scale;
+    idx tail;
+    if (!PyArg_ParseTuple(args, "OOOdnOO", &d_obj, &u_obj, &f_obj, &scale, &tail, &total_obj,
+                          &size_obj))
+        return NULL;
+    if (tail < 1) {
+        PyErr_SetString(PyExc_ValueError, "tail: at least one node is left");
+        return NULL;
+    }
+    Py_buffer vd, vu, vf, vt, vs;
+    idx sh_d[3] = {-1, -1, -1};
+    if (get_array(d_obj, &vd, 3, sh_d, 1, "d") < 0)
+        return NULL;
+    idx n = sh_d[0];
+    const idx k = sh_d[1];
+    if (n < 1 || k < 1 || sh_d[2] != k) {
+        PyErr_SetString(PyExc_ValueError, "d: at least one square block");
+        PyBuffer_Release(&vd);
+        return NULL;
+    }
+    idx sh_u[3] = {n - 1, k, k}, sh_f[3] = {n, k, -1}, sh_t[2] = {-1, -1};
+    int got = 1;
+    Py_buffer *views[5] = {&vd, &vu, &vf, &vt, &vs};
+    if (get_array(u_obj, &vu, 3, sh_u, 1, "u") == 0 && ++got
+        && get_array(f_obj, &vf, 3, sh_f, 1, "f") == 0 && ++got
+        && (sh_t[0] = sh_t[1] = sh_f[2], get_array(total_obj, &vt, 2, sh_t, 1, "total") == 0)
+        && ++got && get_array(size_obj, &vs, 2, sh_t, 1, "size") == 0)
+        got = 5;
+    if (got < 5) {
+        for (int i = 0; i < got; i++)
+            PyBuffer_Release(views[i]);
+        return NULL;
+    }
+    const idx r = sh_f[2], kk = k * k, w = 2 * k, kr = k * r;
+    double *d = (double *)vd.buf, *u = (double *)vu.buf, *f = (double *)vf.buf,
+           *total = (double *)vt.buf, *size = (double *)vs.buf;
+    /* per odd node of the first level: its pivot's inverse, x, y = D^-1 x, z = x^T y; and
+       the k x r products of the constraint columns */
+    const idx room = n / 2 + 1;
+    double *scratch = PyMem_Malloc((size_t)(room * (kk + 2 * k * w + w * w) + 3 * kr
+                                            + 2 * kk + k) * sizeof(double));
+    if (!scratch) {
+        for (int i = 0; i < 5; i++)
+            PyBuffer_Release(views[i]);
+        return PyErr_NoMemory();
+    }
+    double *inv = scratch, *x = inv + room * kk, *y = x + room * k * w, *z = y + room * k * w,
+           *fa = z + room * w * w, *fb = fa + kr, *fc = fb + kr, *work = fc + kr;
+    int negative = 0;
+
+    Py_BEGIN_ALLOW_THREADS
+    while (n > tail && negative >= 0) {
+        const idx p = n / 2, n_right = (n - 1) / 2;
+        for (idx j = 0; j < p; j++) {
+            const double *dj = d + (2 * j + 1) * kk, *u_left = u + 2 * j * kk;
+            double *inv_j = inv + j * kk, *x_j = x + j * k * w;
+            const int neg = pivot(dj, k, scale, inv_j, work);
+            if (neg < 0) {
+                negative = -1;
+                break;
+            }
+            negative += neg;
+            /* x = [K[o, o-1], K[o, o+1]] = [u[o-1]^T, u[o]] (zero: no right neighbour) */
+            for (idx i = 0; i < k; i++)
+                for (idx m = 0; m < k; m++) {
+                    x_j[i * w + m] = u_left[m * k + i];
+                    x_j[i * w + k + m] = j < n_right ? u[(2 * j + 1) * kk + i * k + m] : 0.0;
+                }
+            eliminate(inv_j, x_j, k, w, y + j * k * w, z + j * w * w);
+            if (r) {   /* C K^-1 C^T of this pivot: fo^T (D^-1 fo), and its |.| sum */
+                const double *fo = f + (2 * j + 1) * kr;
+                for (idx i = 0; i < k; i++)
+                    for (idx c = 0; c < r; c++) {
+                        double t = 0.0, ta = 0.0;
+                        for (idx m = 0; m < k; m++) {
+                            t += inv_j[i * k + m] * fo[m * r + c];
+                            ta += fabs(inv_j[i * k + m]) * fabs(fo[m * r + c]);
+                        }
+                        fa[i * r + c] = t;
+                        fb[i * r + c] = ta;
+                    }
+                for (idx a = 0; a < r; a++)
+                    for (idx c = 0; c < r; c++) {
+                        double t = 0.0, ta = 0.0;
+                        for (idx m = 0; m < k; m++) {
+                            t += fo[m * r + a] * fa[m * r + c];
+                            ta += fabs(fo[m * r + a]) * fb[m * r + c];
+                        }
+                        total[a * r + c] += t;
+                        size[a * r + c] += ta;
+                    }
+            }
+        }
+        if (negative < 0)
+            break;
+        /* the even nodes, in place (node j from 2j and its odd neighbours 2j +- 1, all at or
+           after j): D - K D_o^-1 K^T of each neighbour, the left one's first */
+        const idx ne = n - p;
+        for (idx j = 0; j < ne; j++) {
+            double *dj = d + j * kk;
+            const double *de = d + 2 * j * kk;
+            for (idx t = 0; t < kk; t++)
+                dj[t] = de[t];
+            if (j < p) {
+                const double *zj = z + j * w * w;
+                for (idx i = 0; i < k; i++)
+                    for (idx m = 0; m < k; m++)
+                        dj[i * k + m] -= zj[i * w + m];
+            }
+            if (j >= 1 && j <= n_right) {
+                const double *zj = z + (j - 1) * w * w;
+                for (idx i = 0; i < k; i++)
+                    for (idx m = 0; m < k; m++)
+                        dj[i * k + m] -= zj[(k + i) * w + k + m];
+            }
+            if (j < n_right) {   /* the new coupling -(y[:, :k]^T x[:, k:]) */
+                const double *yj = y + j * k * w, *xj = x + j * k * w;
+                double *uj = u + j * kk;
+                for (idx i = 0; i < k; i++)
+                    for (idx m = 0; m < k; m++) {
+                        double t = 0.0;
+                        for (idx q = 0; q < k; q++)
+                            t += yj[q * w + i] * xj[q * w + k + m];
+                        uj[i * k + m] = -t;
+                    }
+            }
+            if (r) {   /* f[2j] - y[:, :k]^T fo_j - y_(j-1)[:, k:]^T fo_(j-1) */
+                for (idx t = 0; t < kr; t++)
+                    fc[t] = f[2 * j * kr + t];
+                if (j < p) {
+                    const double *yj = y + j * k * w, *fo = f + (2 * j + 1) * kr;
+                    for (idx i = 0; i < k; i++)
+                        for (idx c = 0; c < r; c++) {
+                            double t = 0.0;
+                            for (idx q = 0; q < k; q++)
+                                t += yj[q * w + i] * fo[q * r + c];
+                            fc[i * r + c] -= t;
+                        }
+                }
+                if (j >= 1 && j <= n_right) {
+                    const double *yj = y + (j - 1) * k * w, *fo = f + (2 * j - 1) * kr;
+                    for (idx i = 0; i < k; i++)
+                        for (idx c = 0; c < r; c++) {
+                            double t = 0.0;
+                            for (idx q = 0; q < k; q++)
+                                t += yj[q * w + k + i] * fo[q * r + c];
+                            fc[i * r + c] -= t;
+                        }
+                }
+                for (idx t = 0; t < kr; t++)
+                    f[j * kr + t] = fc[t];
+            }
+        }
+        n = ne;
+    }
+    Py_END_ALLOW_THREADS
+
+    PyMem_Free(scratch);
+    for (int i = 0; i < 5; i++)
+        PyBuffer_Release(views[i]);
+    return Py_BuildValue("(in)", negative, n);
+}
+
+static PyMethodDef methods[] = {
+    {"condense", condense, METH_VARARGS,
+     "condense(s, a, b, c, ulps, d, u, inv, y) -> (negative, scale): the P2 element matrices "
+     "of the fields a, b, c (2N - 1, k, k) on the nodes s and their midpoints eliminated, "
+     "the node matrix's blocks in d (N, k, k) and u (N - 1, k, k) (stability._inertia)."},
+    {"reduce", reduce, METH_VARARGS,
+     "reduce(d, u, f, scale, tail, total, size) -> (negative, n): the odd-even reduction "
+     "of the block tridiagonal node matrix in place down to `tail` nodes or fewer "
+     "(stability._inertia)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_blocks",
+    "The direct count's element matrices, midpoint elimination and odd-even reduction for "
+    "blocks of any size (numerics/stability.py).", -1, methods,
+};
+
+PyMODINIT_FUNC PyInit__blocks(void)
+{
+    return PyModule_Create(&module);
+}
