@@ -37,7 +37,7 @@ from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
-from . import _blocks
+from ._blocks import condense as blocks_condense, reduce as blocks_reduce
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
@@ -423,7 +423,7 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     d, u = np.empty((len(s), k, k)), np.empty((len(h), k, k))
     # kmm_inv: the midpoint blocks' inverses; y = kmm_inv [K_m0, K_m2] (k, 2k) each
     kmm_inv, y = np.empty((len(h), k, k)), np.empty((len(h), k, 2 * k))
-    negative, scale = _blocks.condense(s, a, b, c, _ULPS, d, u, kmm_inv, y)
+    negative, scale = blocks_condense(s, a, b, c, _ULPS, d, u, kmm_inv, y)
     if negative < 0:
         raise _Singular("zero eigenvalue: an element's midpoint block is singular to working "
                         "precision")
@@ -437,7 +437,7 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     s_mat = [np.zeros((r, r)), np.zeros((r, r))]
     if r:
         _accumulate(cm, kmm_inv, s_mat)
-    neg_k, n = _blocks.reduce(d, u, f, scale, DENSE_TAIL, *s_mat)     # in place
+    neg_k, n = blocks_reduce(d, u, f, scale, DENSE_TAIL, *s_mat)     # in place
     if neg_k < 0:
         raise _Singular("zero eigenvalue: a pivot of the node matrix is singular to working "
                         "precision")
