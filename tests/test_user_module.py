@@ -236,3 +236,89 @@ def test_a_bound_just_below_the_fold_ends_the_branch_there(tmp_path, lam_c, ds):
     assert br.points[-1].type == "EP"
     assert br.points[-1].params["lam"] == pytest.approx(lam_fold - 1e-3, abs=1e-12)
     assert all(p.params["lam"] <= lam_fold - 1e-3 + 1e-12 for p in br.points)
+
+
+# ---- a module that imports a file beside it --------------------------------------------------
+
+def _split_module(folder):
+    """examples/bratu.py with one ordinate computed by a helper in a file beside it."""
+    folder.mkdir()
+    (folder / "bratu_helpers.py").write_text(
+        "def twice_slope(y):\n    return 2.0 * y[1, 0]\n")
+    text = (EXAMPLES / "bratu.py").read_text().replace(
+        "from elastica_auto import Ordinate, hermite\n",
+        "from elastica_auto import Ordinate, hermite\nfrom bratu_helpers import twice_slope\n")
+    text += ('\nORDINATES.append(Ordinate("du0x2", "2 u\'(0)", '
+             'lambda s, y, p: twice_slope(y), None, "twice the slope at x = 0"))\n')
+    (folder / "bratu_split.py").write_text(text)
+    return folder / "bratu_split.py"
+
+
+def test_a_module_imports_a_file_beside_it_wherever_it_is_run_from(tmp_path, monkeypatch,
+                                                                    cli_exe):
+    """As `python bratu_split.py` could, the module's top level imports a file from its own
+    folder, loaded from another current directory, on a worker (its text executed in a fresh
+    interpreter, as a local cluster's worker does) and through the CLI; the folder is not
+    left on sys.path."""
+    import pickle
+    import subprocess
+    import sys
+
+    path = _split_module(tmp_path / "models")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    before = list(sys.path)
+    problem = load_problem(path)
+    assert sys.path == before
+    s = np.linspace(0.0, 1.0, 5)
+    y = np.vstack((np.zeros(5), np.full(5, 0.75)))
+    assert problem.ordinates["du0x2"].fn(s, y, {"lam": 0.0}) == 1.5
+
+    blob = tmp_path / "problem.pickle"
+    blob.write_bytes(pickle.dumps(problem))
+    sys.modules.pop("bratu_helpers", None)
+    worker = subprocess.run(
+        [sys.executable, "-c", "import pickle, sys, numpy as np; "
+         f"p = pickle.loads(open({str(blob)!r}, 'rb').read()); "
+         "print(p.ordinates['du0x2'].fn(np.linspace(0, 1, 3), np.ones((2, 3)), "
+         "{'lam': 0.0}))"],
+        cwd=elsewhere, capture_output=True, text=True)
+    assert worker.returncode == 0, worker.stderr
+    assert worker.stdout.split() == ["2.0"]
+
+    toml = tmp_path / "models" / "split.toml"
+    toml.write_text('equation = "bratu_split.py"\nstart = "trivial"\n'
+                    '[continuation]\nparameter = "lam"\ndirections = "+"\n'
+                    '[options]\nmax_points = 5\n')
+    proc = run_cli(cli_exe, "run", toml, "--out", tmp_path / "out", cwd=elsewhere)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_an_energy_built_from_a_file_beside_it_is_derived_again_when_that_file_changes(
+        tmp_path, monkeypatch):
+    """The cache of generated code is keyed by the module's text and the texts of the files
+    beside it that it imports: changing the stiffness K in the imported file changes the
+    derived equation u' = v / K (the momentum v = K u' of K u'^2 / 2), not a stale one."""
+    import sys
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.delenv("ELASTICA_AUTO_ENERGY_CACHE", raising=False)
+    # two versions of bratu_k.py of one size within a second: no stale .pyc between them
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    folder = tmp_path / "models"
+    folder.mkdir()
+    text = (EXAMPLES / "bratu.py").read_text()
+    text = text.replace("from elastica_auto import Ordinate, hermite\n",
+                        "from elastica_auto import Ordinate, hermite\nfrom bratu_k import K\n")
+    text = text.replace("density=u.diff(s) ** 2 / 2", "density=K * u.diff(s) ** 2 / 2")
+    assert "density=K *" in text
+    (folder / "bratu_stiff.py").write_text(text)
+    s, y = np.linspace(0.0, 1.0, 3), np.vstack((np.zeros(3), np.ones(3)))
+    slopes = []
+    for k in (2.0, 4.0):
+        (folder / "bratu_k.py").write_text(f"K = {k}\n")
+        sys.modules.pop("bratu_k", None)
+        problem = load_problem(folder / "bratu_stiff.py")
+        slopes.append(problem.rhs(s, y, {"lam": 0.0})[0, 0])
+    assert slopes == [0.5, 0.25]

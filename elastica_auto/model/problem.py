@@ -87,11 +87,14 @@ Only equation modules know any physics; everything in `elastica_auto` is generic
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.util
 import math
 import numbers
 import os
+import re
+import sys
 import types
 import warnings
 from dataclasses import dataclass
@@ -787,7 +790,8 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None, 
     module = importlib.util.module_from_spec(spec)
     text = path.read_text(encoding="utf-8")
     try:
-        spec.loader.exec_module(module)
+        with _folder_first(path.parent):
+            spec.loader.exec_module(module)
     except Exception as exc:
         raise ProblemError(f"{source}: importing the module failed: "
                            f"{type(exc).__name__}: {exc}") from exc
@@ -797,10 +801,60 @@ def load_problem(name_or_path: str | os.PathLike, base_dir: Path | None = None, 
     generated = None
     if hasattr(module, "ENERGY"):
         from ..energy.loader import attach
-        generated = attach(module, source, text, cache=cache)
+        # the cache of generated code is keyed by the text ENERGY() comes from: the module's
+        # own and that of the files beside it that it imported (an energy built from them)
+        generated = attach(module, source, text + _sibling_texts(text, path), cache=cache)
     problem = Problem(module, source)
     problem._text, problem._generated = text, generated
     return problem
+
+
+@contextlib.contextmanager
+def _folder_first(folder: Path):
+    """The module's own folder first on ``sys.path`` while its top level runs, so that it can
+    import a file beside it (``import helpers``) as ``python mine.py`` could; taken off again
+    afterwards, so that a user's file named like a library does not shadow it for the rest of
+    the command. A worker executes the module's text under its file name and finds the same
+    files where that folder exists on its machine (a local cluster); a remote worker without
+    them fails to import, as the module's error."""
+    entry = str(folder)
+    if not folder.is_dir():
+        yield
+        return
+    sys.path.insert(0, entry)
+    try:
+        yield
+    finally:
+        try:
+            sys.path.remove(entry)
+        except ValueError:      # the module took it off itself
+            pass
+
+
+#: an import statement's modules and names: ``import a.b as c, d`` or ``from a.b import (c, d``
+_IMPORT = re.compile(r"^[ \t]*(?:import[ \t]+([\w., \t]+)|from[ \t]+([\w.]+)[ \t]+import"
+                     r"[ \t]+\(?([\w, \t]*))", re.MULTILINE)
+
+
+def _sibling_texts(text: str, path: Path) -> str:
+    """The texts of the files beside ``path`` that its ``text`` imports (``import helpers``,
+    ``from helpers import K``, ``from package import helpers`` where the package is this
+    folder: a dotted name's last part, or an imported name, that is a ``.py`` file here; not
+    itself), each after its file name, in the order of their names ('' where there are none):
+    what its ENERGY() may be built from. Read from the text, so the same for the same files
+    whatever this process has loaded before."""
+    names = set()
+    for plain, package, members in _IMPORT.findall(text):
+        for part in (plain.split(",") if plain else [package, *members.split(",")]):
+            words = part.split()
+            if words:
+                names.add(words[0].rsplit(".", 1)[-1])
+    texts = []
+    for name in sorted(names - {path.stem, "__init__"}):
+        file = path.parent / f"{name}.py"
+        if file.is_file():
+            texts.append(f"\n# {file.name}\n{file.read_text(encoding='utf-8')}")
+    return "".join(texts)
 
 
 @functools.lru_cache(maxsize=8)
@@ -816,7 +870,8 @@ def _from_text(source: str, filename: str, text: str, generated: str | None = No
     """
     module = types.ModuleType(f"elastica_auto_eq_{Path(filename).stem}")
     module.__file__ = filename
-    with warnings.catch_warnings():  # the command that sent it has shown them once already
+    with warnings.catch_warnings(), _folder_first(Path(filename).parent):
+        # (warnings: the command that sent it has shown them once already)
         warnings.simplefilter("ignore", DeprecationWarning)
         exec(compile(text, filename, "exec"), module.__dict__)
     if generated is not None:
