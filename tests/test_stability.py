@@ -835,3 +835,48 @@ def test_a_form_without_legendre_names_its_module_once():
     with pytest.raises(LegendreError) as named:
         count_form(form, mesh, source="mod")
     assert str(named.value) == "mod: " + str(bare.value)
+
+
+def test_folds_and_branch_points_are_not_counted_where_a_neighbour_pair_shows_the_crossing(
+        rotating_arm):
+    """An LP or BP row is singular by construction: its direct count, which would read the
+    sign of a zero eigenvalue from rounding, is -1, and `index` there is the rule's. Each
+    fold's two neighbours are counted and differ by one (the eigenvalue that crosses zero at
+    the row between them)."""
+    seen = 0
+    for br in rotating_arm.result.branches:
+        pts = br.points
+        for k, p in enumerate(pts):
+            if p.type not in ("LP", "BP"):
+                continue
+            assert p.index_direct == -1, (p.name, p.index_direct)
+            assert p.index == p.index_rule, p.name
+            if p.type == "LP" and 0 < k < len(pts) - 1:
+                before, after = pts[k - 1].index_direct, pts[k + 1].index_direct
+                assert before >= 0 and after >= 0 and abs(before - after) == 1, p.name
+                seen += 1
+    assert seen >= 4
+
+
+def test_a_spatial_rods_fold_has_no_part_counted_either():
+    """The spatial rod through its first folds (b2 = 2): on the LP rows the whole count and
+    each part's (index_in, index_out) are -1; beside them both parts are counted, and the
+    in-plane part is the one that changes across the fold."""
+    import elastica_auto as ea
+    rod = ea.load_problem("kirchhoff_lever_arm")
+    params = {"eps": 0.25, "P": math.pi ** 2 / 4, "psi": 0.0, "alpha": 0.0, "theta0": 0.0,
+              "b2": 2.0}
+    plus, = ea.continuation(rod, params, "psi", bounds=(-2.0, 2.0), directions="+")
+    pts, folds = plus.points, 0
+    for k, p in enumerate(pts):
+        if p.type != "LP":
+            continue
+        assert p.index_direct == -1
+        assert p.ordinates["index_in"] == p.ordinates["index_out"] == -1
+        if 0 < k < len(pts) - 1:
+            a, b = pts[k - 1].ordinates, pts[k + 1].ordinates
+            assert min(a["index_in"], b["index_in"], a["index_out"], b["index_out"]) >= 0
+            assert abs(a["index_in"] - b["index_in"]) == 1
+            assert a["index_out"] == b["index_out"]
+            folds += 1
+    assert folds >= 1

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..core import labels
 from ..core.solution import State, Tangent
+from ..model.second_variation import as_second_variation
 from ..numerics.stability import count
 
 #: Fixed grid on which every point's profile is stored (for configurations and tip traces).
@@ -108,7 +109,13 @@ def new_point(problem, state: State, *, type: str = "", arclength: float, ds: fl
     if type and type not in LABEL_TYPES:
         raise ValueError(f"unknown label type {type!r}")
     counted = None
-    if direct is None and problem.has_second_variation:
+    if type in labels.TURNS and problem.has_second_variation:
+        # A located fold or branch point is singular by construction: its count would read
+        # the sign of an eigenvalue zero to the location's accuracy, rounding's guess (the
+        # BLAS kernel's, or the compiler's); the rows beside it are counted, and `index` is
+        # the rule's there.
+        direct, parts = INDEX_UNKNOWN, uncounted_parts(problem, state)
+    elif direct is None and problem.has_second_variation:
         counted = count(problem, state)
         direct, parts = counted.index, counted.parts
     ordinates = problem.ordinate_values(state.s, state.y, state.params, parts)
@@ -129,6 +136,14 @@ def new_point(problem, state: State, *, type: str = "", arclength: float, ds: fl
                  fold_residual=float(fold_residual), note=note,
                  state=state if type else None, tangent=tangent if type else None,
                  index_direct=direct)
+
+
+def uncounted_parts(problem, state: State) -> dict[str, int]:
+    """Each part of the second variation (`SecondVariation` ``parts``, read from the form on
+    the state's nodes) -1, not counted: what a located fold or branch point has."""
+    form = as_second_variation(problem.second_variation(state.s, state.y, state.params),
+                               problem.source)
+    return dict.fromkeys(form.parts, INDEX_UNKNOWN)
 
 
 @dataclass

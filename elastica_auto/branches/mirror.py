@@ -46,7 +46,7 @@ import numpy as np
 
 from ..core import labels
 from ..core.solution import State, Tangent
-from .branch import Branch, Point
+from .branch import Branch, Point, uncounted_parts
 from .events import UserValues, is_user_value
 
 #: The check of a mirrored point: its residual and recomputed ordinates within this of the
@@ -191,7 +191,10 @@ def _checked(problem, p: Point) -> bool:
     own, image = residual(s.y, s.yp, s.params), residual(y, yp, params)
     if image > 2 * own + MIRROR_TOL * (1.0 + float(np.max(np.abs(s.y)))):
         return False
-    got = problem.ordinate_values(s.s, y, params)
+    # (a fold's or branch point's parts are not counted: `new_point`)
+    got = problem.ordinate_values(s.s, y, params, uncounted_parts(problem, s)
+                                  if p.type in labels.TURNS and problem.has_second_variation
+                                  else None)
     for k, want in problem.mirrored_ordinates(p.ordinates).items():
         if not (got[k] == want or abs(got[k] - want) <= MIRROR_TOL * (1.0 + abs(want))):
             return False
