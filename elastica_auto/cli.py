@@ -612,7 +612,7 @@ def path(equation, at, to, ds_max):
     except USER_ERRORS as exc:
         _fail(str(exc))
     try:
-        options = {} if ds_max is None else {"ds_max": ds_max, "ds": min(0.05, ds_max)}
+        options = {} if ds_max is None else {"ds_max": ds_max}
         snaps, branches = snaps_along(problem, a, b, **options)
     except USER_ERRORS as exc:
         _fail(str(exc))

@@ -1,0 +1,43 @@
+"""Small defects a sixth careful user met (brief hostile6): the default step inside bounds
+given alone, a user value on a bound, an end spring on an essential end, the hint of a
+refused resume. Each checked against what the option or the docs promise, not against a
+stored output."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import elastica_auto as ea
+from elastica_auto.core.options import ContinuationOptions, OptionsError
+from helpers import REPO
+
+BRATU = str(REPO / "examples" / "bratu.py")
+
+
+# -- the default ds clipped into [ds_min, ds_max] -----------------------------------------
+
+@pytest.mark.parametrize("bounds, ds", [({}, 0.05), ({"ds_max": 0.01}, 0.01),
+                                        ({"ds_min": 0.1}, 0.1),
+                                        ({"ds_min": 0.2, "ds_max": 0.3}, 0.2)])
+def test_default_ds_is_clipped_into_the_bounds_given(bounds, ds):
+    assert ContinuationOptions(**bounds).ds == ds
+
+
+@pytest.mark.parametrize("kw, text", [
+    ({"ds": 0.05, "ds_max": 0.01}, "ds_min <= |ds| <= ds_max"),   # a ds given is not clipped
+    ({"ds_min": 1.0, "ds_max": 0.5}, "need 0 < ds_min <= ds_max, got ds_min=1.0, ds_max=0.5"),
+])
+def test_a_ds_given_outside_its_bounds_is_still_refused(kw, text):
+    with pytest.raises(OptionsError, match=text.replace("|", r"\|")):
+        ContinuationOptions(**kw)
+
+
+def test_continuation_with_ds_max_alone_takes_steps_within_it():
+    """``ds_max=0.01`` without ``ds``: the branch is computed, and no two successive points
+    are farther apart in arclength than 0.01 (the steps' bound, which the option promises)."""
+    (br,) = ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam", ds_max=0.01,
+                            max_points=6)
+    steps = np.diff([p.arclength for p in br.points])
+    assert len(br.points) == 6 and steps.max() <= 0.01 * (1 + 1e-12)
+    assert br.options["ds"] == 0.01
