@@ -41,3 +41,27 @@ def test_continuation_with_ds_max_alone_takes_steps_within_it():
     steps = np.diff([p.arclength for p in br.points])
     assert len(br.points) == 6 and steps.max() <= 0.01 * (1 + 1e-12)
     assert br.options["ds"] == 0.01
+
+
+# -- a uz value on a bound: the EP there, solved at the value -----------------------------
+
+def _bratu_u_half(lam: float) -> float:
+    """u(1/2) on Bratu's lower family at ``lam`` from its closed form u(1/2) = 2 ln cosh(z/2),
+    lam = 2 z^2 / cosh(z/2)^2 (z below the fold's, z tanh(z/2) = 2), by bisection."""
+    lo, hi = 0.0, 2.3994      # z tanh(z / 2) = 2 at z = 2.39935: lam increases on [lo, hi]
+    for _ in range(200):
+        z = (lo + hi) / 2
+        lo, hi = (z, hi) if 2 * z * z / np.cosh(z / 2) ** 2 < lam else (lo, z)
+    return 2 * np.log(np.cosh(lo / 2))
+
+
+def test_a_uz_value_on_a_bound_is_the_end_point_there():
+    """``bounds = (-1, 2)``, ``uz = [0, 1, 2]`` from lam = 0: each end is one EP (the start
+    at 0, the bound at 2), not UZ as well (docs/run-files.md, ``uz``); the EP at 2 is solved
+    exactly there: its u(1/2) is the closed form's."""
+    (br,) = ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam", bounds=(-1, 2),
+                            uz=[0, 1, 2], ds_max=0.3)
+    labelled = [(p.type, p.params["lam"]) for p in br.points if p.type]
+    assert labelled == [("EP", 0.0), ("UZ", 1.0), ("EP", 2.0)]
+    end = br.points[-1]
+    assert end.ordinates["u_half"] == pytest.approx(_bratu_u_half(2.0), rel=1e-6)
