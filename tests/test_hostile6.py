@@ -10,7 +10,7 @@ import pytest
 
 import elastica_auto as ea
 from elastica_auto.core.options import ContinuationOptions, OptionsError
-from helpers import REPO
+from helpers import REPO, run_cli
 
 BRATU = str(REPO / "examples" / "bratu.py")
 
@@ -65,3 +65,26 @@ def test_a_uz_value_on_a_bound_is_the_end_point_there():
     assert labelled == [("EP", 0.0), ("UZ", 1.0), ("EP", 2.0)]
     end = br.points[-1]
     assert end.ordinates["u_half"] == pytest.approx(_bratu_u_half(2.0), rel=1e-6)
+
+
+# -- a refused resume says the two ncol, and the way back only where it is one --------------
+
+KAR = REPO / "benchmarks" / "auto" / "kar.toml"
+
+
+def test_a_resume_refused_for_ncol_names_both_values_and_hints_only_at_the_old_default(
+        cli_exe, tmp_path):
+    """A file by ``ncol = 0``: resumed with ``--set ncol=4`` (the user's own choice) the
+    refusal names both values and does not tell the user to ``--set ncol=0`` (which undoes
+    what they asked); resumed under the default "auto" (kar may turn to Gauss, so that is
+    another run) it says that 0 was the old default and how to resume."""
+    run = ("run", KAR, "--out", tmp_path, "-q", "-j", "1", "--set", "max_points=4")
+    assert run_cli(cli_exe, *run, "--set", "ncol=0").returncode == 0
+    mine = run_cli(cli_exe, *run, "--resume", "--set", "ncol=4")
+    assert mine.returncode == 2
+    assert "options.ncol (the file's 0, this run's 4)" in mine.stderr
+    assert "--set ncol=0" not in mine.stderr
+    default = run_cli(cli_exe, *run, "--resume")
+    assert default.returncode == 2
+    assert ("options.ncol (the file's 0, this run's \"auto\"; 0, the cubic scheme, was the "
+            "default before \"auto\": --set ncol=0 resumes it)") in default.stderr
