@@ -88,3 +88,44 @@ def test_a_resume_refused_for_ncol_names_both_values_and_hints_only_at_the_old_d
     assert default.returncode == 2
     assert ("options.ncol (the file's 0, this run's \"auto\"; 0, the cubic scheme, was the "
             "default before \"auto\": --set ncol=0 resumes it)") in default.stderr
+
+
+# -- an end term on an essential end is refused ---------------------------------------------
+
+SPRING = '''
+import numpy as np
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy, Param
+    s, P, k = sp.symbols("s P k", real=True)
+    th = sp.Function("theta")(s)
+    return Energy(density=th.diff(s) ** 2 / 2 + P * sp.cos(th), s=s, coordinates=[th],
+                  FIXED, end0=k * th ** 2 / 2, parameters={P: Param(1.0), k: Param(2.0)})
+
+def exact_start(s, p):
+    return np.zeros((2, len(s)))
+'''
+
+
+def _spring(tmp_path, fixed: str):
+    path = tmp_path / "spring.py"
+    path.write_text(SPRING.replace("FIXED", fixed))
+    return ea.load_problem(path, cache=False)
+
+
+def test_a_spring_at_an_essential_end_is_refused(tmp_path):
+    """``end0 = k theta(0)^2 / 2`` with ``fixed0 = {theta: 0}``: on every admissible
+    configuration the term is 0 (a constant), so ``k`` changes no equilibrium; it was
+    accepted, ``k`` called ``free`` with an ordinate dE/dk identically 0. Refused in one
+    line naming the term, the coordinate and both ways out."""
+    with pytest.raises(ea.ProblemError, match=r"end0 contains the term k\*theta\*\*2/2 in "
+                       r"theta at s = 0, which fixed0 prescribes.*leave theta out of fixed0"):
+        _spring(tmp_path, "fixed0={th: 0}")
+
+
+def test_the_same_spring_at_a_natural_end_is_accepted(tmp_path):
+    """The spring at s = 0 with the essential condition moved to s = 1 (``fixed1``):
+    accepted, ``k`` entering the end terms (the check refuses inert terms only)."""
+    problem = _spring(tmp_path, "fixed1={th: 0}")
+    assert problem.parameters["k"].enters == "free"
