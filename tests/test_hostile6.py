@@ -129,3 +129,34 @@ def test_the_same_spring_at_a_natural_end_is_accepted(tmp_path):
     accepted, ``k`` entering the end terms (the check refuses inert terms only)."""
     problem = _spring(tmp_path, "fixed1={th: 0}")
     assert problem.parameters["k"].enters == "free"
+
+
+# -- numpy values are numbers ---------------------------------------------------------------
+
+def test_numpy_values_and_options_give_the_branches_of_python_values():
+    """A user looping over ``np.arange`` or ``np.linspace`` passes numpy scalars and arrays:
+    ``np.int64`` start values, bounds, uz values and ``max_points``, and an array of
+    ``params`` values, were refused as "expected a finite number, got np.int64(1)". They
+    are numbers: the branches are those of the same call with Python values, number for
+    number, and the options stored with a branch are Python numbers (JSON)."""
+    import json
+
+    problem = ea.load_problem(BRATU)
+    plain = ea.continuation(problem, {}, "lam", bounds=(-1, 3), uz=[1, 2],
+                            max_points=12, ds=0.2, params={"lam": [0]})
+    numpy = ea.continuation(problem, {}, "lam", bounds=(np.int64(-1), np.int32(3)),
+                            uz=np.arange(1, 3), max_points=np.int64(12), ds=np.float64(0.2),
+                            params={"lam": np.zeros(1, dtype=np.int64)})
+    start = ea.continuation(problem, {"lam": np.int64(0)}, "lam", bounds=(-1, 3), ds=0.2,
+                            max_points=np.int64(3))
+    assert np.array_equal(start[0].columns["u_half"], plain[0].columns["u_half"][:3])
+    assert len(plain) == len(numpy) == 1
+    for name in ("lam", "du0", "u_half", "arclength", "index"):
+        assert np.array_equal(plain[0].columns[name], numpy[0].columns[name])
+    assert list(plain[0].columns["type"]) == list(numpy[0].columns["type"])
+    assert json.dumps(numpy[0].options) == json.dumps(plain[0].options)
+
+
+def test_a_numpy_bool_is_not_a_number():
+    with pytest.raises(OptionsError, match="tol must be a finite number, got np.True_"):
+        ContinuationOptions(tol=np.True_)

@@ -6,6 +6,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 
 from . import labels
+from .values import plain, real_number
 
 
 #: The correctors (:mod:`elastica_auto.numerics.correctors`).
@@ -120,6 +121,10 @@ class ContinuationOptions:
     detect: dict = field(default_factory=lambda: dict.fromkeys(DETECTABLE, True))
 
     def __post_init__(self):
+        for f in fields(self):
+            # a numpy scalar (np.int64 from np.arange) as the Python number it holds: checked
+            # as one, and stored in the branch's options (JSON) as one
+            object.__setattr__(self, f.name, plain(getattr(self, f.name)))
         if self.corrector not in CORRECTORS:
             raise OptionsError(f"corrector must be one of {', '.join(CORRECTORS)}, "
                                f"got {self.corrector!r}")
@@ -137,7 +142,7 @@ class ContinuationOptions:
             if f.name in ("corrector", "mirror", "detect", "ncol"):
                 continue
             v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            if not real_number(v) or not math.isfinite(v):
                 raise OptionsError(f"{f.name} must be a finite number, got {v!r}")
         if not given and not 0 < self.ds_min <= self.ds_max:
             raise OptionsError(f"need 0 < ds_min <= ds_max, got ds_min={self.ds_min}, "
@@ -181,7 +186,7 @@ class ContinuationOptions:
 
 
 def _finite_number(v) -> bool:
-    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+    return real_number(v) and math.isfinite(v)
 
 
 def _detect(value) -> dict:
