@@ -160,3 +160,38 @@ def test_numpy_values_and_options_give_the_branches_of_python_values():
 def test_a_numpy_bool_is_not_a_number():
     with pytest.raises(OptionsError, match="tol must be a finite number, got np.True_"):
         ContinuationOptions(tol=np.True_)
+
+
+# -- docs/hdf5.md's reading with h5py alone -------------------------------------------------
+
+def test_the_h5py_recipe_of_the_docs_reads_what_branchfile_reads(tmp_path):
+    """The snippet of docs/hdf5.md ("Reading a file with h5py alone"), run on a file with a
+    fold: the label's mesh and states and the point's profile are
+    BranchFile's, bit for bit."""
+    import json
+
+    import h5py
+
+    problem = ea.load_problem(BRATU)
+    branches = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), uz=[1],
+                               directions="both", max_points=40)
+    path = tmp_path / "b.h5"
+    ea.save(branches, path)
+    bf = ea.BranchFile(path)
+    (name,) = [n for n in bf.labels if n.startswith("LP")]
+    with h5py.File(path, "r") as f:
+        states = json.loads(f.attrs["states"])
+        branch, pt = json.loads(f.attrs["labels"])[name]
+        g = f["branches"][f"{branch:03d}"]
+        sol = g["solutions"]
+        i = [n.decode() for n in sol["label"][()]].index(name)
+        j = sol["mesh"][i]
+        a, b = sol["nodes"][j], sol["nodes"][j + 1]
+        s, y = sol["s"][a:b], sol["y"][:, a:b]
+        profile = g["profiles"][g["profile_rows"][pt - 1]]
+        grid = f["profile_grid"][()]
+    label = bf.label(name)
+    assert states == list(problem.states) and grid.shape == (101,)
+    assert np.array_equal(s, label.state.s) and np.array_equal(y, label.state.y)
+    assert np.array_equal(profile, bf.branches[branch - 1].profiles_at([pt - 1])[0])
+    assert bf.branches[branch - 1].columns["type"][pt - 1] == "LP"
