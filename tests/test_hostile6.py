@@ -195,3 +195,27 @@ def test_the_h5py_recipe_of_the_docs_reads_what_branchfile_reads(tmp_path):
     assert np.array_equal(s, label.state.s) and np.array_equal(y, label.state.y)
     assert np.array_equal(profile, bf.branches[branch - 1].profiles_at([pt - 1])[0])
     assert bf.branches[branch - 1].columns["type"][pt - 1] == "LP"
+
+
+# -- `snaps` on a file without targets says which reason holds ------------------------------
+
+def test_snaps_without_targets_says_why(cli_exe, tmp_path):
+    """Bratu has a fold ending its stable segment (LP1, 0 -> 1) and no shooting hook: the
+    command names the fold and the module; stopped before the fold, the file has no such
+    fold, and the command says that instead (it said both reasons at once, either way)."""
+    problem = ea.load_problem(BRATU)
+    folded = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 4), max_points=40)
+    short = ea.continuation(problem, {"lam": 0.0}, "lam", bounds=(-1, 2))
+    ea.save(folded, tmp_path / "folded.h5")
+    ea.save(short, tmp_path / "short.h5")
+    (lp,) = [p for p in folded[0].points if p.type == "LP"]
+    assert folded[0].transition(lp) == "0 -> 1"
+    out = run_cli(cli_exe, "snaps", tmp_path / "folded.h5")
+    assert out.returncode == 0
+    assert out.stdout.startswith("no snap-back targets: LP1 ends a stable segment, but the "
+                                 "run computed none: its equation module (")
+    assert "has no shooting hook" in out.stdout
+    out = run_cli(cli_exe, "snaps", tmp_path / "short.h5")
+    assert out.returncode == 0
+    assert out.stdout.strip() == ("no snap-back targets: no fold with a known index ends a "
+                                  "stable segment (index 0 on one side)")
