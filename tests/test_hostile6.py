@@ -219,3 +219,109 @@ def test_snaps_without_targets_says_why(cli_exe, tmp_path):
     assert out.returncode == 0
     assert out.stdout.strip() == ("no snap-back targets: no fold with a known index ends a "
                                   "stable segment (index 0 on one side)")
+
+
+# -- a user's spatial rod: intrinsic curvature kappa s, a spring on the tip's frame ----------
+
+PRECURVED = '''
+"""A pre-curved, pre-twisted rod in space: clamped at s = 0 along e_z, a dead load P along
+-e_z at s = 1 and a rotational spring kr (1 - d3(1).e_z) on the tip's frame. Intrinsic
+strains (kappa s, 0, tau); stiffnesses 1, b2, c."""
+import numpy as np
+
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy, Param, Rotation
+    s, P, kappa, tau, kr, b2, c = sp.symbols("s P kappa tau kr b2 c", real=True)
+    R = Rotation("R")
+    x, y, z = (sp.Function(n)(s) for n in ("x", "y", "z"))
+    u1, u2, u3 = R.strain
+    W = ((u1 - kappa * s) ** 2 + b2 * u2 ** 2 + c * (u3 - tau) ** 2) / 2
+    return Energy(density=W, end1=P * z + kr * (1 - R.d3[2]), s=s, coordinates=[R],
+                  quadratures={x: R.d3[0], y: R.d3[1], z: R.d3[2]},
+                  fixed0={R: (1, 0, 0, 0), x: 0, y: 0, z: 0},
+                  parameters={P: Param(1.0), kappa: Param(0.0), tau: Param(0.3),
+                              kr: Param(0.5), b2: Param(2.0), c: Param(0.8)})
+
+
+def exact_start(s, p):
+    """Straight along e_z, twisted by tau s about it, no moment: exact at kappa = 0."""
+    if p["kappa"] != 0:
+        return None
+    out = np.zeros((10, len(s)))
+    out[0] = np.cos(p["tau"] * s / 2)
+    out[3] = np.sin(p["tau"] * s / 2)
+    out[9] = s
+    return out
+'''
+
+
+@pytest.fixture(scope="module")
+def precurved(tmp_path_factory):
+    path = tmp_path_factory.mktemp("precurved") / "precurved.py"
+    path.write_text(PRECURVED)
+    return ea.load_problem(path)
+
+
+def _tip_spring_loads(B: float, kr: float, n: int) -> list[float]:
+    """The straight clamped column's critical loads with a rotational spring kr on its tip's
+    tangent: B theta'' + P theta = 0, theta(0) = 0, B theta'(1) + kr theta(1) = 0, so
+    theta = sin(w s), P = B w^2 with B w cos w + kr sin w = 0 (w in ((k - 1/2) pi, (k + 1/2)
+    pi), k = 1..n)."""
+    from scipy.optimize import brentq
+    f = lambda w: B * w * np.cos(w) + kr * np.sin(w)     # noqa: E731
+    return [B * brentq(f, (k - 0.5) * np.pi + 1e-9, (k + 0.5) * np.pi - 1e-9) ** 2
+            for k in range(1, n + 1)]
+
+
+def test_a_users_rod_with_a_spring_on_its_tip_frame_buckles_at_the_closed_form(precurved):
+    """Untwisted (tau = 0) and straight (kappa = 0), the rod buckles in each principal plane
+    (stiffness 1, then b2 = 2) where the tip spring's closed form says; the index counts the
+    loads passed."""
+    (br,) = ea.continuation(precurved, {"P": 0.0, "kappa": 0.0, "tau": 0.0}, "P",
+                            bounds=(-1, 30), ds_max=0.5)
+    bps = [p for p in br.points if p.type == "BP"]
+    exact = sorted(_tip_spring_loads(1.0, 0.5, 2) + _tip_spring_loads(2.0, 0.5, 1))
+    assert [p.params["P"] for p in bps] == pytest.approx(exact, rel=1e-8)
+    assert [br.transition(p) for p in bps] == ["0 -> 1", "1 -> 2", "2 -> 3"]
+
+
+def test_a_users_precurved_rod_against_shooting(precurved):
+    """kappa continued from the straight twisted rod at P = 1: at the UZ points the clamp's
+    moment m(0) and the tip's position agree with a shooting solve written here (the frame
+    as a 3 x 3 matrix, R' = R [u]_x, m' = P d3 x e_z, r' = d3, u = K^-1 R^T m + u_hat;
+    m(1) = kr d3(1) x e_z, the spring's moment), and dE/dP is z(1)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import root
+
+    (br,) = ea.continuation(precurved, {"P": 1.0, "kappa": 0.0}, "kappa", bounds=(-1, 3),
+                            uz=[1.0, 2.5], ds_max=0.2)
+
+    def cross_matrix(v):
+        return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+    def shoot(m0, p):
+        K = np.diag([1.0, p["b2"], p["c"]])
+
+        def rhs(s, y):
+            R, m = y[:9].reshape(3, 3), y[9:12]
+            u = np.linalg.solve(K, R.T @ m) + np.array([p["kappa"] * s, 0.0, p["tau"]])
+            return np.concatenate([(R @ cross_matrix(u)).ravel(),
+                                   np.cross(R[:, 2], [0.0, 0.0, p["P"]]), R[:, 2]])
+        y0 = np.concatenate([np.eye(3).ravel(), m0, np.zeros(3)])
+        return solve_ivp(rhs, (0, 1), y0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+
+    def mismatch(m0, p):
+        end = shoot(m0, p)
+        return end[9:12] - p["kr"] * np.cross(end[:9].reshape(3, 3)[:, 2], [0.0, 0.0, 1.0])
+
+    uz = [p for p in br.points if p.type == "UZ"]
+    assert [p.params["kappa"] for p in uz] == [1.0, 2.5]
+    for p in uz:
+        y = p.state.y                       # R_q0..R_q3, m_R1..m_R3, x, y, z
+        sol = root(mismatch, y[4:7, 0] + 0.05, args=(p.params,), tol=1e-13)
+        assert sol.success
+        assert np.abs(sol.x - y[4:7, 0]).max() < 1e-8
+        assert np.abs(shoot(sol.x, p.params)[12:15] - y[7:10, -1]).max() < 1e-8
+        assert p.ordinates["dE_dP"] == pytest.approx(y[9, -1], rel=1e-12)
