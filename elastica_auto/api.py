@@ -24,6 +24,7 @@ from typing import Iterable, Mapping
 
 from .storage import store
 from .branches.branch import Branch
+from .core import labels
 from .core.errors import ClusterLost, PlanError, StoreError
 from .core.options import ContinuationOptions
 from .execution.plan import Request, StartLike, make_plan
@@ -82,8 +83,9 @@ class Branches(list):
         for br in self:
             if any(p.name == name and p.type for p in br.points):
                 return br.label(name)
-        names = [p.name for br in self for p in br.points if p.type]
-        raise KeyError(f"no label {name!r}; labels: {', '.join(names) or 'none'}")
+        names = sorted((p.name for br in self for p in br.points if p.type),
+                       key=labels.label_order)
+        raise KeyError(f"no label {name!r}; labels: {labels.compact(names) or 'none'}")
 
 
 class Interrupted(KeyboardInterrupt):

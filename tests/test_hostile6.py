@@ -325,3 +325,21 @@ def test_a_users_precurved_rod_against_shooting(precurved):
         assert np.abs(sol.x - y[4:7, 0]).max() < 1e-8
         assert np.abs(shoot(sol.x, p.params)[12:15] - y[7:10, -1]).max() < 1e-8
         assert p.ordinates["dE_dP"] == pytest.approx(y[9, -1], rel=1e-12)
+
+
+# -- a missing label's message lists the labels compactly -----------------------------------
+
+def test_a_missing_label_lists_the_labels_as_ranges():
+    """``Branches.label`` and ``Branch.label`` of a name not there list the labels as
+    BranchFile's message does (``UZ1-UZ40``), not each of them (hundreds on a paper run):
+    the ranges are those counted on the branch's own points."""
+    (br,) = branches = ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam",
+                                       bounds=(-1, 4), uz=np.linspace(0.1, 3.4, 20),
+                                       max_points=80)
+    n_uz = sum(p.type == "UZ" for p in br.points)
+    assert n_uz > 20                            # values below and above the fold
+    expected = f"labels: EP1-EP2, LP1, UZ1-UZ{n_uz}"
+    with pytest.raises(KeyError, match=f"no label 'UZ999'; {expected}"):
+        branches.label("UZ999")
+    with pytest.raises(KeyError, match=f"no label 'LP2' on this branch; {expected}"):
+        br.label("LP2")
