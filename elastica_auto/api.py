@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import numbers
 import time
 from pathlib import Path
 from typing import Iterable, Mapping
@@ -27,6 +28,7 @@ from .branches.branch import Branch
 from .core import labels
 from .core.errors import ClusterLost, PlanError, StoreError
 from .core.options import ContinuationOptions
+from .core.values import real_number
 from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
 from .execution.jobs import Callbacks, Progress
@@ -203,13 +205,18 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         The cluster had no worker for ``worker_timeout`` seconds; ``exc.branches`` holds
         every branch, those not computed ending MX with the message "not computed: ...".
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+    if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
-    if worker_timeout is not None and (isinstance(worker_timeout, bool)
-                                       or not isinstance(worker_timeout, (int, float))
+    jobs = int(jobs)
+    if worker_timeout is not None and (not real_number(worker_timeout)
                                        or not 0 < worker_timeout < float("inf")):
         raise PlanError("worker_timeout", f"expected a positive number of seconds, got "
                                           f"{worker_timeout!r}")
+    if progress is not None and not callable(progress):
+        # refused here: called at the first step, it would end the branch MX as an internal
+        # error (a bug of the engine) rather than the argument's
+        raise PlanError("progress", f"expected a function progress(branch, points, folds, "
+                                    f"value), got {progress!r}")
     request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
                       uz_period=uz_period, stop=stop, events=events, switch=switch,
                       switch_depth=switch_depth, free=free, map=map,

@@ -343,3 +343,20 @@ def test_a_missing_label_lists_the_labels_as_ranges():
         branches.label("UZ999")
     with pytest.raises(KeyError, match=f"no label 'LP2' on this branch; {expected}"):
         br.label("LP2")
+
+
+# -- progress that is not a function; jobs as a numpy integer --------------------------------
+
+def test_a_progress_that_is_not_a_function_is_the_arguments_error():
+    """``progress=3`` was accepted, and the branch ended MX as an "internal error" (a bug of
+    the engine's, its diagnostics said) at the first step: it is a PlanError naming it."""
+    with pytest.raises(ea.PlanError, match=r"progress: expected a function progress\(branch, "
+                                           r"points, folds, value\), got 3") as info:
+        ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam", progress=3)
+    assert info.value.key == "progress"
+
+
+def test_jobs_as_a_numpy_integer():
+    (br,) = ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam", max_points=3,
+                            jobs=np.int64(1))
+    assert len(br.points) == 3
