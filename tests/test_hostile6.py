@@ -360,3 +360,24 @@ def test_jobs_as_a_numpy_integer():
     (br,) = ea.continuation(ea.load_problem(BRATU), {"lam": 0.0}, "lam", max_points=3,
                             jobs=np.int64(1))
     assert len(br.points) == 3
+
+
+def test_a_spring_on_a_clamped_frame_is_refused(tmp_path):
+    """The same for a frame: ``end0 = k (1 - d3(0).e_z)`` with the frame clamped at s = 0."""
+    path = tmp_path / "frame_spring.py"
+    path.write_text('''
+import numpy as np
+
+def ENERGY():
+    import sympy as sp
+    from elastica_auto.energy import Energy, Param, Rotation
+    s, q, k = sp.symbols("s q k", real=True)
+    R = Rotation("R")
+    u1, u2, u3 = R.strain
+    return Energy(density=(u1 ** 2 + u2 ** 2 + u3 ** 2) / 2 + q * (1 - s) * R.d3[2], s=s,
+                  coordinates=[R], fixed0={R: (1, 0, 0, 0)}, end0=k * (1 - R.d3[2]),
+                  parameters={q: Param(0.0), k: Param(1.0)})
+''')
+    with pytest.raises(ea.ProblemError, match=r"end0 contains the term k\*\(1 - R33\(0\)\) in R "
+                                              r"at s = 0, which fixed0 prescribes"):
+        ea.load_problem(path, cache=False)
