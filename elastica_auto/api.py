@@ -263,6 +263,12 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     the file's stem). Snap-back targets, damped landings, stability maps and what the
     analysis could not make (``missing``) are saved if ``branches`` is one continuation's.
     """
+    if isinstance(branches, Branch):
+        raise PlanError("branches", "expected a list of branches, got one Branch: save the "
+                        "continuation's result whole, or [branch] with problem=")
+    if not isinstance(branches, Iterable) or isinstance(branches, (str, bytes)):
+        raise PlanError("branches", f"expected a non-empty list of branches, got "
+                        f"{type(branches).__name__}")
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
         raise PlanError("branches", "expected a non-empty list of branches")

@@ -381,3 +381,18 @@ def ENERGY():
     with pytest.raises(ea.ProblemError, match=r"end0 contains the term k\*\(1 - R33\(0\)\) in R "
                                               r"at s = 0, which fixed0 prescribes"):
         ea.load_problem(path, cache=False)
+
+
+def test_save_of_one_branch_says_how(tmp_path):
+    """``ea.save(branches[0], path)`` raised a bare TypeError ('Branch' object is not
+    iterable); it is a PlanError saying what to pass, and ``[branch]`` with ``problem=``
+    writes the file."""
+    problem = ea.load_problem(BRATU)
+    branches = ea.continuation(problem, {"lam": 0.0}, "lam", max_points=3)
+    with pytest.raises(ea.PlanError, match="got one Branch: save the continuation's result "
+                                           "whole, or \\[branch\\] with problem="):
+        ea.save(branches[0], "/nonexistent/never.h5")
+    with pytest.raises(ea.PlanError, match="expected a non-empty list of branches, got int"):
+        ea.save(3, "/nonexistent/never.h5")
+    path = ea.save([branches[0]], tmp_path / "one.h5", problem=problem)
+    assert len(ea.BranchFile(path).branches) == 1
