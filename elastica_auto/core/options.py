@@ -19,7 +19,7 @@ NCOL_RANGE = (2, 7)
 NCOL_AUTO = "auto"
 
 #: The initial step where none is given: clipped into [ds_min, ds_max] when those exclude it
-#: (``ds_max = 0.01`` alone starts with steps of 0.01, as AUTO-07p's DS = DSMAX would).
+#: (``ds_max = 0.01`` alone starts with a step of 0.01).
 DEFAULT_DS = 0.05
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
 #: norm of `elastica_auto.core.solution` (the L2 norm of y plus |lam|), in the module's units. The
