@@ -441,7 +441,12 @@ def _no_snaps(bf) -> str:
     """Why a file has no snap-back targets, from what it holds: no fold ends a stable segment
     (no LP whose transition has index 0 on one side), or some do and the run computed none
     (the equation module has no ``shooting`` hook, or the run did not use it: its warnings,
-    `show`, say which)."""
+    `show`, say which), or the run was interrupted before its scan (a branch ended so)."""
+    from .branches.stepper import INTERRUPTED
+    cut = [b.number for b in bf.branches if b.attrs.get("message") == INTERRUPTED]
+    if cut:
+        return (f"no snap-back targets: the run was interrupted (branch {cut[0]}) before its "
+                f"snap-back scan; elastica-auto run {bf.run} --resume completes it")
     folds = [name for b in bf.branches
              for t, name, tr in zip(b.columns["type"], b.columns["label"], b.columns["transition"])
              if t in labels.FOLDS and "0" in str(tr).split(" -> ")]

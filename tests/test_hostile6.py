@@ -396,3 +396,23 @@ def test_save_of_one_branch_says_how(tmp_path):
         ea.save(3, "/nonexistent/never.h5")
     path = ea.save([branches[0]], tmp_path / "one.h5", problem=problem)
     assert len(ea.BranchFile(path).branches) == 1
+
+
+def test_snaps_of_an_interrupted_run_says_so(cli_exe, tmp_path):
+    """A run interrupted before its snap-back scan (here Ctrl-C raised from the progress
+    callback once a few points are in: an event, not a time) has no targets because of
+    that, not for want of a shooting hook: the command says so and how to complete it."""
+    problem = ea.load_problem("elastica_lever_arm")
+
+    def interrupt(branch, points, folds, value):
+        if points >= 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(ea.Interrupted) as info:
+        ea.continuation(problem, {"eps": 0.25, "P": np.pi ** 2 / 4}, "psi", progress=interrupt)
+    ea.save(info.value.branches, tmp_path / "cut.h5")
+    out = run_cli(cli_exe, "snaps", tmp_path / "cut.h5")
+    assert out.returncode == 0
+    assert out.stdout.strip() == ("no snap-back targets: the run was interrupted (branch 1) "
+                                  "before its snap-back scan; elastica-auto run cut --resume "
+                                  "completes it")
