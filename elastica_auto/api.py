@@ -18,14 +18,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import numbers
 import time
 from pathlib import Path
 from typing import Iterable, Mapping
 
 from .storage import store
 from .branches.branch import Branch
+from .core import labels
 from .core.errors import ClusterLost, PlanError, StoreError
 from .core.options import ContinuationOptions
+from .core.values import real_number
 from .execution.plan import Request, StartLike, make_plan
 from .model.problem import Problem
 from .execution.jobs import Callbacks, Progress
@@ -82,8 +85,9 @@ class Branches(list):
         for br in self:
             if any(p.name == name and p.type for p in br.points):
                 return br.label(name)
-        names = [p.name for br in self for p in br.points if p.type]
-        raise KeyError(f"no label {name!r}; labels: {', '.join(names) or 'none'}")
+        names = sorted((p.name for br in self for p in br.points if p.type),
+                       key=labels.label_order)
+        raise KeyError(f"no label {name!r}; labels: {labels.compact(names) or 'none'}")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -201,13 +205,18 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         The cluster had no worker for ``worker_timeout`` seconds; ``exc.branches`` holds
         every branch, those not computed ending MX with the message "not computed: ...".
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+    if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral) or jobs < 1:
         raise PlanError("jobs", f"expected a positive integer, got {jobs!r}")
-    if worker_timeout is not None and (isinstance(worker_timeout, bool)
-                                       or not isinstance(worker_timeout, (int, float))
+    jobs = int(jobs)
+    if worker_timeout is not None and (not real_number(worker_timeout)
                                        or not 0 < worker_timeout < float("inf")):
         raise PlanError("worker_timeout", f"expected a positive number of seconds, got "
                                           f"{worker_timeout!r}")
+    if progress is not None and not callable(progress):
+        # refused here: called at the first step, it would end the branch MX as an internal
+        # error (a bug of the engine) rather than the argument's
+        raise PlanError("progress", f"expected a function progress(branch, points, folds, "
+                                    f"value), got {progress!r}")
     request = Request(params=params, bounds=bounds, directions=directions, uz=uz,
                       uz_period=uz_period, stop=stop, events=events, switch=switch,
                       switch_depth=switch_depth, free=free, map=map,
@@ -254,6 +263,12 @@ def save(branches: Iterable[Branch], path: str | Path, *, problem: Problem | Non
     the file's stem). Snap-back targets, damped landings, stability maps and what the
     analysis could not make (``missing``) are saved if ``branches`` is one continuation's.
     """
+    if isinstance(branches, Branch):
+        raise PlanError("branches", "expected a list of branches, got one Branch: save the "
+                        "continuation's result whole, or [branch] with problem=")
+    if not isinstance(branches, Iterable) or isinstance(branches, (str, bytes)):
+        raise PlanError("branches", f"expected a non-empty list of branches, got "
+                        f"{type(branches).__name__}")
     given, branches = branches, list(branches)
     if not branches or not all(isinstance(b, Branch) for b in branches):
         raise PlanError("branches", "expected a non-empty list of branches")

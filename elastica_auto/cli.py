@@ -437,6 +437,29 @@ def show(file, all_points, tracebacks):
         click.echo(f"traceback of the internal error in {what}:\n{text.rstrip()}")
 
 
+def _no_snaps(bf) -> str:
+    """Why a file has no snap-back targets, from what it holds: no fold ends a stable segment
+    (no LP whose transition has index 0 on one side), or some do and the run computed none
+    (the equation module has no ``shooting`` hook, or the run did not use it: its warnings,
+    `show`, say which), or the run was interrupted before its scan (a branch ended so)."""
+    from .branches.stepper import INTERRUPTED
+    cut = [b.number for b in bf.branches if b.attrs.get("message") == INTERRUPTED]
+    if cut:
+        return (f"no snap-back targets: the run was interrupted (branch {cut[0]}) before its "
+                f"snap-back scan; elastica-auto run {bf.run} --resume completes it")
+    folds = [name for b in bf.branches
+             for t, name, tr in zip(b.columns["type"], b.columns["label"], b.columns["transition"])
+             if t in labels.FOLDS and "0" in str(tr).split(" -> ")]
+    if not folds:
+        return ("no snap-back targets: no fold with a known index ends a stable segment "
+                "(index 0 on one side)")
+    shown = ", ".join(folds[:6]) + (f", ... ({len(folds)} folds)" if len(folds) > 6 else "")
+    verb = "ends a stable segment" if len(folds) == 1 else "end stable segments"
+    return (f"no snap-back targets: {shown} {verb}, but the run computed none: "
+            f"its equation module ({bf.equation}) has no shooting hook, or the run did not "
+            "use it (see its warnings: elastica-auto show)")
+
+
 @main.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 def snaps(file):
@@ -446,8 +469,7 @@ def snaps(file):
     then the damped model's landings, if the run asked for them."""
     bf = _open(file)
     if not bf.snaps:
-        click.echo("no snap-back targets (no fold bounds a stable segment, or the equation "
-                   "module has no shooting/second_variation hooks)")
+        click.echo(_no_snaps(bf))
         return
     ords = [c[len("target_"):] for c in bf.snaps[0] if c.startswith("target_")]
     landing = "landed" in bf.snaps[0]
@@ -612,7 +634,7 @@ def path(equation, at, to, ds_max):
     except USER_ERRORS as exc:
         _fail(str(exc))
     try:
-        options = {} if ds_max is None else {"ds_max": ds_max, "ds": min(0.05, ds_max)}
+        options = {} if ds_max is None else {"ds_max": ds_max}
         snaps, branches = snaps_along(problem, a, b, **options)
     except USER_ERRORS as exc:
         _fail(str(exc))

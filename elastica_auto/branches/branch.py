@@ -224,8 +224,9 @@ class Branch:
             if p.type and p.name == name:
                 return StoredLabel(name, self.number, pt, p.state, p.tangent, self.parameter,
                                    None, self.equation, self.state_names, dict(self.options))
-        names = [p.name for p in self.points if p.type]
-        raise KeyError(f"no label {name!r} on this branch; labels: {', '.join(names) or 'none'}")
+        names = sorted((p.name for p in self.points if p.type), key=labels.label_order)
+        raise KeyError(f"no label {name!r} on this branch; labels: "
+                       f"{labels.compact(names) or 'none'}")
 
     @property
     def disagreements(self) -> list[Point]:

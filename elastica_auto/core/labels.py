@@ -75,3 +75,23 @@ def kind_of(name: str) -> str:
     """The label of a labelled point's name (``"BP3"`` -> ``"BP"``): its letters before the
     number."""
     return name.rstrip("0123456789")
+
+
+def label_order(label: str) -> tuple:
+    """A label's place among labels: by type, then number (``UZ2`` before ``UZ10``)."""
+    number = label[2:]
+    return (label[:2], int(number) if number.isdigit() else -1, label)
+
+
+def compact(labels) -> str:
+    """Labels compactly, in the order given, runs of consecutive numbers of one type as
+    ranges: ``UZ1-UZ3, LP2`` (a message naming the labels of a run of hundreds stays a
+    line)."""
+    runs: list[list] = []       # [first, last, type, number of the last]
+    for label in labels:
+        kind, number = label[:2], int(label[2:]) if label[2:].isdigit() else None
+        if runs and number is not None and runs[-1][2:] == [kind, number - 1]:
+            runs[-1][1], runs[-1][3] = label, number
+        else:
+            runs.append([label, label, kind, number])
+    return ", ".join(first if first == last else f"{first}-{last}" for first, last, *_ in runs)

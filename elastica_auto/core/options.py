@@ -6,6 +6,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 
 from . import labels
+from .values import plain, real_number
 
 
 #: The correctors (:mod:`elastica_auto.numerics.correctors`).
@@ -17,6 +18,9 @@ NCOL_RANGE = (2, 7)
 #: branch as the integer used.
 NCOL_AUTO = "auto"
 
+#: The initial step where none is given: clipped into [ds_min, ds_max] when those exclude it
+#: (``ds_max = 0.01`` alone starts with a step of 0.01).
+DEFAULT_DS = 0.05
 #: Largest allowed ds_max. A step is pseudo-arclength: the distance moved in (y, lam) in the
 #: norm of `elastica_auto.core.solution` (the L2 norm of y plus |lam|), in the module's units. The
 #: predictor is a straight line along the tangent, which a curved branch leaves within a few
@@ -41,6 +45,9 @@ class ContinuationOptions:
     ----------
     ds : float
         Initial pseudo-arclength step (its sign is ignored; the direction is set per branch).
+        Not given (None), it is DEFAULT_DS (0.05) clipped into ``[ds_min, ds_max]``: bounds
+        given alone are obeyed, not refused for a default nobody asked for; a ``ds`` given
+        outside them is an OptionsError.
     ds_min, ds_max : float
         Bounds on |ds|; ``ds_min <= |ds| <= ds_max <= MAX_STEP`` (1e3). The step halves on
         corrector failure and the branch ends with MX once it would drop below ``ds_min``.
@@ -98,7 +105,7 @@ class ContinuationOptions:
         OptionsError.
     """
 
-    ds: float = 0.05
+    ds: float | None = None
     ds_min: float = 1e-6
     ds_max: float = 0.5
     growth: float = 1.4
@@ -114,17 +121,32 @@ class ContinuationOptions:
     detect: dict = field(default_factory=lambda: dict.fromkeys(DETECTABLE, True))
 
     def __post_init__(self):
+        for f in fields(self):
+            # a numpy scalar (np.int64 from np.arange) as the Python number it holds: checked
+            # as one, and stored in the branch's options (JSON) as one
+            object.__setattr__(self, f.name, plain(getattr(self, f.name)))
         if self.corrector not in CORRECTORS:
             raise OptionsError(f"corrector must be one of {', '.join(CORRECTORS)}, "
                                f"got {self.corrector!r}")
         if not isinstance(self.mirror, bool):
             raise OptionsError(f"mirror must be true or false, got {self.mirror!r}")
+        given = self.ds is not None
+        if not given:
+            # the default step within the bounds given (those checked below)
+            lo, hi = self.ds_min, self.ds_max
+            ds = DEFAULT_DS
+            if _finite_number(lo) and _finite_number(hi):
+                ds = max(lo, min(DEFAULT_DS, hi))
+            object.__setattr__(self, "ds", ds)
         for f in fields(self):
             if f.name in ("corrector", "mirror", "detect", "ncol"):
                 continue
             v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            if not real_number(v) or not math.isfinite(v):
                 raise OptionsError(f"{f.name} must be a finite number, got {v!r}")
+        if not given and not 0 < self.ds_min <= self.ds_max:
+            raise OptionsError(f"need 0 < ds_min <= ds_max, got ds_min={self.ds_min}, "
+                               f"ds_max={self.ds_max}")
         if not 0 < self.ds_min <= abs(self.ds) <= self.ds_max:
             raise OptionsError(f"need 0 < ds_min <= |ds| <= ds_max, got ds_min={self.ds_min}, "
                                f"ds={self.ds}, ds_max={self.ds_max}")
@@ -161,6 +183,10 @@ class ContinuationOptions:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _finite_number(v) -> bool:
+    return real_number(v) and math.isfinite(v)
 
 
 def _detect(value) -> dict:

@@ -15,8 +15,23 @@ size: 1e-12 and 2e-12 are different values, 1e12 and 1e12 + 1 the same.
 from __future__ import annotations
 
 import math
+import numbers
 
 SAME_VALUE_RTOL = 1e-9
+
+
+def real_number(v) -> bool:
+    """Whether ``v`` is a real number a user may give for a value or an option: a Python int
+    or float, or a numpy scalar such as ``np.int64`` (from ``np.arange``) or ``np.float32``
+    (numbers.Real), but not a bool (an int to Python, never meant as a number here)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
+def plain(v):
+    """A numpy scalar as the Python int or float it holds (what JSON and TOML write); any
+    other value as it is."""
+    item = getattr(v, "item", None)
+    return item() if isinstance(v, numbers.Number) and callable(item) else v
 
 
 def same_value(a: float, b: float, period: float | None = None) -> bool:

@@ -664,6 +664,39 @@ class _Directions:
         return sp.Add(*[R[c, b] * sp.diff(expr, i.U[b]) for b in range(3)])
 
 
+def _check_end_live(nm, end: int, B, essential: dict, clamps: dict) -> None:
+    """Refuse a term of the end term ``B`` (``end0``, ``end1``, a sum's top-level terms) that
+    contains end values, all of them prescribed at that end (``fixed0``/``fixed1``: essential
+    coordinates, clamped frames). On every admissible configuration such a term is a
+    constant: the natural condition it was written for is replaced by the essential one, so
+    it changes no equilibrium, and a parameter in it alone (a spring constant) would be
+    called ``free`` with an ordinate that is zero. A term with one value left free (a
+    coupling ``k (theta(0) - phi(0))^2 / 2`` with ``theta(0)`` prescribed) is live."""
+    frames = {i: (r.start if end == 0 else r.end) for i, r in enumerate(nm.rot)}
+    fixed, live = {}, set()
+    for i, z in enumerate(nm.Z):
+        if i in essential:
+            fixed[z] = nm.coordinates[i]
+        else:
+            live.add(z)
+    for i, frame in frames.items():
+        for x in frame.entries:
+            if i in clamps:
+                fixed[x] = nm.rot[i].name
+            else:
+                live.add(x)
+    live |= set(nm.X)              # a quadrature's final value (a dead load on a position)
+    for term in sp.Add.make_args(B):
+        syms = term.free_symbols
+        if syms & set(fixed) and not syms & live:
+            names = sorted({fixed[x] for x in syms & set(fixed)})
+            _fail(f"end{end} contains the term {nm.user(term)} in {', '.join(names)} at "
+                  f"s = {end}, which fixed{end} prescribes: it is a constant there and "
+                  f"changes no equilibrium (a spring at an essential end does nothing); "
+                  f"drop it, or leave {', '.join(names)} out of fixed{end} to make that end "
+                  f"natural (the spring then sets it)")
+
+
 def derive(energy: Energy) -> Derived:
     """The derived expressions of ``energy`` (module docstring); ProblemError (one line)
     where the energy cannot be derived or the engine cannot express it."""
@@ -737,6 +770,8 @@ def derive(energy: Energy) -> Derived:
     B1 = nm.convert(energy.end1, "end1", end=1, derivatives=False, quadratures=True)
     B0 = B0.xreplace({X[j]: initial[j] for j in range(nq)})
     B1 = B1.xreplace({X[j]: final[j] for j in final})
+    for end, B in ((0, B0), (1, B1)):
+        _check_end_live(nm, end, B, essential[end], clamps[end])
     end_entries = {x for r in rot for x in r.end.entries}
     c1 = {}
     for j in range(nq):

@@ -27,6 +27,7 @@ from ..branches.kinds import Event, Limit
 from ..branches.registry import parse_events
 from ..core.expressions import evaluate
 from ..core.options import ContinuationOptions, OptionsError
+from ..core.values import real_number
 from ..model.interface import ProblemInterface
 from ..model.problem import Problem
 from ..branches.stepper import Course, Stops
@@ -398,8 +399,7 @@ def _damping(damping, folds, landing: bool):
     if isinstance(damping, (str, bytes)) or not isinstance(damping, Iterable):
         raise PlanError("damping", f"expected a list of damping values, got {damping!r}")
     damping = tuple(damping)
-    if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-               and c > 0 for c in damping):
+    if not all(real_number(c) and math.isfinite(c) and c > 0 for c in damping):
         raise PlanError("damping", f"expected positive numbers, got {list(damping)!r}")
     if damping and not landing:
         raise PlanError("damping", "the damped model's landings need landing = true")
@@ -528,7 +528,7 @@ def _label_free(base: Problem, label) -> tuple[str, ...]:
 
 
 def _finite(key: str, v) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if not real_number(v) or not math.isfinite(v):
         raise PlanError(key, f"expected a finite number, got {v!r}")
     return float(v)
 
@@ -623,7 +623,9 @@ def _grid(problem: Problem, params) -> dict[str, list[float]]:
         if name not in problem.parameters:
             raise PlanError(f"params.{name}", f"unknown parameter; {problem.source} declares "
                             f"{', '.join(problem.parameter_names)}")
-        values = list(v) if isinstance(v, (list, tuple)) else [v]
+        # a list, tuple or 1-D numpy array (np.linspace) of values, or one value
+        values = (list(v) if isinstance(v, (list, tuple))
+                  or isinstance(v, np.ndarray) and v.ndim == 1 else [v])
         if not values:
             raise PlanError(f"params.{name}", "empty list")
         grid[name] = [_finite(f"params.{name}", x) for x in values]

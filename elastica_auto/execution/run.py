@@ -710,9 +710,15 @@ def _settings_differ(plan: Plan, bf: store.BranchFile) -> str:
                              and _same_scheme(plan, a.get(k), b.get(k)))]
         else:
             out.append(names.get(key, key))
-    if "options.ncol" in out and stored.get("options", {}).get("ncol") == 0:
-        out[out.index("options.ncol")] = ("options.ncol (the file's 0, the cubic scheme, "
-                                          "was the default before \"auto\": --set ncol=0)")
+    if "options.ncol" in out:
+        # the values, and where the run left ncol at its default "auto" and the file has 0
+        # (the default when it was written), the way to resume it; a run that asks for
+        # another ncol itself is told the two values only
+        was, now = stored.get("options", {}).get("ncol"), new.get("options", {}).get("ncol")
+        hint = ("; 0, the cubic scheme, was the default before \"auto\": --set ncol=0 "
+                "resumes it" if was == 0 and now == NCOL_AUTO else "")
+        out[out.index("options.ncol")] = (f"options.ncol (the file's {json.dumps(was)}, this "
+                                          f"run's {json.dumps(now)}{hint})")
     return ", ".join(out)
 
 

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.labels import FOLDS, TURNS
+from ..core.labels import FOLDS, TURNS, compact, label_order
 from ..core.errors import USER_ERRORS
 from ..storage.outputs import check_output as _check_output
 from ..storage.outputs import write_output
@@ -99,26 +99,8 @@ class Images(dict):
         by_error: dict[str, list[str]] = {}
         for label, error in self.failed.items():
             by_error.setdefault(error, []).append(label)
-        return "; ".join(f"{_label_list(sorted(labels, key=_label_order))}: draw hook "
+        return "; ".join(f"{compact(sorted(labels, key=label_order))}: draw hook "
                          f"failed ({error})" for error, labels in by_error.items())
-
-
-def _label_order(label: str) -> tuple:
-    """A label's place among labels: by type, then number (``UZ2`` before ``UZ10``)."""
-    number = label[2:]
-    return (label[:2], int(number) if number.isdigit() else -1, label)
-
-
-def _label_list(labels) -> str:
-    """Labels compactly, runs of consecutive numbers of one type as ranges: ``UZ1-UZ3, LP2``."""
-    runs: list[list] = []       # [first, last, type, number of the last]
-    for label in labels:
-        kind, number = label[:2], int(label[2:]) if label[2:].isdigit() else None
-        if runs and number is not None and runs[-1][2:] == [kind, number - 1]:
-            runs[-1][1], runs[-1][3] = label, number
-        else:
-            runs.append([label, label, kind, number])
-    return ", ".join(first if first == last else f"{first}-{last}" for first, last, *_ in runs)
 
 
 def configuration_images(bf: BranchFile, problem=None, workers: int | None = None) -> Images:
