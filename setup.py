@@ -34,5 +34,5 @@ flags = [] if sysconfig.get_platform().startswith("win") else ["-ffp-contract=of
 setup(ext_modules=[Extension(f"elastica_auto.numerics.{name}",
                              sources=[f"elastica_auto/numerics/{name}.c"],
                              extra_compile_args=flags)
-                   for name in ("_banded", "_blocks")],
+                   for name in ("_banded", "_blocks", "_frames")],
       cmdclass={"build_ext": BuildExt})

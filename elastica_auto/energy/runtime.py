@@ -25,6 +25,8 @@ import functools
 
 import numpy as np
 
+from ..numerics._frames import chain as _frames_chain
+
 #: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
 #: a module with ENERGY may not define such names itself.
 PREFIX = "_derived_"
@@ -496,14 +498,12 @@ def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
     """Add to ``jac`` (n, n, npts) the derivatives through a frame R = R(q / |q|) (3, 3,
     npts) and its body moment R^T m: for the rows ``rows_r`` with f_r = df/dR (r, 3, 3,
     npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
-    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2."""
-    dR = frame_derivatives(q, R)                                  # dR/dq_j: (4, 3, 3, npts)
-    if f_r is not None:
-        jac[np.ix_(rows_r, qcols)] += np.einsum("iabm,jabm->ijm", f_r, dR)
-    if f_m is not None:
-        dmb = np.einsum("jacm,am->cjm", dR, m)                   # d(R^T m)/dq_j: (3, 4, npts)
-        jac[np.ix_(rows_m, qcols)] += np.einsum("icm,cjm->ijm", f_m, dmb)
-        jac[np.ix_(rows_m, mcols)] += np.einsum("icm,acm->iam", f_m, R)
+    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2:
+    df/dq_j += f_r : dR/dq_j + f_m . (dR/dq_j)^T m and df/dm += f_m R^T. Compiled
+    (numerics/_frames.c: the same sums point by point, where numpy took the frames'
+    derivatives, four einsums and three fancy-indexed additions, most of a spatial rod's
+    Jacobian)."""
+    _frames_chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
 
 
 def in_rows(values, order, columns=False):

@@ -1,0 +1,125 @@
+"""What makes a generated module cheaper (docs/soft-robots.md, "Cost") against what is
+independent of it:
+
+* the compiled chain through a frame (`runtime.chain`, numerics/_frames.c) against central
+  differences of R(q / |q|) and R^T m in q and m, at random quaternions with |q| != 1;
+* the number factors gathered first (`codegen._Hoist`) against the expression as sympy
+  evaluates it, on random arrays and numbers, with fewer array operations;
+* the Legendre inverse expanded where shorter (`derive._shorter`): the Cosserat rod's x' is
+  R v_hat + n / S (the closed form of its constitutive law) and m' = -x' x n at random
+  states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import elastica_auto as ea
+from elastica_auto.energy import runtime
+from elastica_auto.energy.codegen import _Hoist
+from elastica_auto.energy.derive import _shorter
+
+
+def test_the_chain_is_the_derivative_through_the_frame_and_the_body_moment():
+    """f = sum F_r : R(q) + F_m . R(q)^T m (F_r, F_m fixed random coefficients, rows_r and
+    rows_m overlapping): chain's df/dq and df/dm against central differences."""
+    rng = np.random.default_rng(7)
+    npts, n = 5, 9
+    q = rng.normal(size=(4, npts)) * 1.7
+    m = rng.normal(size=(3, npts))
+    f_r = rng.normal(size=(3, 3, 3, npts))
+    f_m = rng.normal(size=(2, 3, npts))
+    rows_r, rows_m, qcols, mcols = [0, 4, 8], [4, 6], [1, 2, 3, 5], [0, 6, 7]
+
+    def f(q, m):
+        out = np.zeros((n, npts))
+        R = runtime.frame(q)
+        out[rows_r] += np.einsum("iabp,abp->ip", f_r, R)
+        out[rows_m] += np.einsum("icp,cp->ip", f_m, runtime.body(R, m))
+        return out
+
+    jac = rng.normal(size=(n, n, npts))
+    expected = jac.copy()
+    runtime.chain(jac, runtime.frame(q), q, m, qcols, mcols, rows_r, f_r, rows_m, f_m)
+    h = 1e-6
+    for j, col in enumerate(qcols):
+        dq = np.zeros_like(q)
+        dq[j] = h
+        expected[:, col] += (f(q + dq, m) - f(q - dq, m)) / (2 * h)
+    for a, col in enumerate(mcols):
+        dm = np.zeros_like(m)
+        dm[a] = h
+        expected[:, col] += (f(q, m + dm) - f(q, m - dm)) / (2 * h)
+    assert np.allclose(jac, expected, rtol=0, atol=1e-8)
+    # the frame's rows alone (no body moment): the same derivatives in those rows
+    frame_only = np.zeros((n, n, npts))
+    runtime.chain(frame_only, runtime.frame(q), q, m, qcols, mcols, rows_r, f_r, [], None)
+    f_m[:] = 0.0
+    for j, col in enumerate(qcols):
+        dq = np.zeros_like(q)
+        dq[j] = h
+        assert np.allclose(frame_only[:, col], (f(q + dq, m) - f(q - dq, m)) / (2 * h),
+                           rtol=0, atol=1e-8)
+    assert not np.any(frame_only[:, mcols])
+
+
+def _array_operations(expr, scalars):
+    """The array operations Python does evaluating ``expr`` as printed: a binary operation
+    with an array operand (left to right, numbers first as the printer puts them)."""
+    count = 0
+    for node in sp.preorder_traversal(expr):
+        if node.is_Mul or node.is_Add:
+            args = node.args
+            arrays = [a for a in args if not a.free_symbols <= scalars]
+            if arrays:
+                count += len(args) - 1 - (sum(1 for a in args if a.free_symbols <= scalars
+                                              and a.is_Number and a == -1))
+    return count
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_gathered_number_factors_give_the_expression_with_fewer_array_operations(seed):
+    rng = np.random.default_rng(seed)
+    p = sp.symbols("p0:4")
+    x = sp.symbols("x0:3")
+    terms = []
+    for _ in range(6):
+        factors = [p[i] for i in rng.integers(0, 4, size=rng.integers(0, 3))]
+        factors += [x[i] for i in rng.integers(0, 3, size=rng.integers(1, 3))]
+        terms.append(sp.Rational(int(rng.integers(-3, 4)) or 1, 2) * sp.Mul(*factors))
+    expr = sp.Add(*terms) * (p[0] + p[1] + x[0]) + p[2] * p[3] * x[1]
+    hoist = _Hoist(set(p))
+    out = hoist(expr)
+    defined = dict(hoist.new())
+    values = {s: float(v) for s, v in zip(p, rng.normal(size=4))}
+    arrays = {s: rng.normal(size=7) for s in x}
+    numbers = {k: sp.lambdify(list(values), e)(*values.values()) for k, e in defined.items()}
+    got = sp.lambdify([*values, *arrays, *numbers], out)(*values.values(), *arrays.values(),
+                                                       *numbers.values())
+    want = sp.lambdify([*values, *arrays], expr)(*values.values(), *arrays.values())
+    assert np.allclose(got, want, rtol=1e-13, atol=1e-13)
+    scalars = set(p) | set(defined)
+    assert _array_operations(out, scalars) < _array_operations(expr, set(p))
+
+
+def test_a_shearable_rod_s_stretch_is_its_closed_form_and_its_strain_cancels():
+    """cosserat_rod: x' = R(q) v_hat + n / S at random states (|q| != 1) and parameters;
+    the moment balance m' = -x' x n; `derive._shorter` on a quotient whose expansion is
+    shorter and on one whose expansion is longer."""
+    rod = ea.load_problem("cosserat_rod")
+    rng = np.random.default_rng(3)
+    y = rng.normal(size=(13, 9))
+    p = rod.defaults()
+    p.update(S=float(rng.uniform(5, 50)), v1=0.1, v2=-0.2, v3=1.3)
+    f = rod.rhs(np.linspace(0, 1, 9), y, p)
+    R = runtime.frame(y[3:7])
+    v_hat = np.array([p["v1"], p["v2"], p["v3"]])
+    assert np.allclose(f[0:3], np.einsum("abk,b->ak", R, v_hat) + y[10:13] / p["S"],
+                       rtol=1e-13, atol=1e-13)
+    assert np.allclose(f[7:10], -np.cross(f[0:3], y[10:13], axis=0), rtol=1e-12, atol=1e-12)
+    a, n = sp.symbols("a n")
+    S = sp.Symbol("S", positive=True)
+    assert _shorter((S * a + n) / S) == a + n / S
+    assert _shorter((a + n) ** 3 / S) == (a + n) ** 3 / S     # its expansion is longer
