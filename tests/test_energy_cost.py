@@ -1,6 +1,9 @@
 """What makes a generated module cheaper (docs/soft-robots.md, "Cost") against what is
 independent of it:
 
+* the compiled frame, body moment and quaternion rate (numerics/_frames.c) against their
+  closed forms: R(q / |q|) = (w^2 - v.v) I + 2 v v^T + 2 w [v]_x for q / |q| = (w, v), R^T m,
+  and the Hamilton product q (x) (0, u) / 2 written out, on views with any strides;
 * the compiled chain through a frame (`runtime.chain`, numerics/_frames.c) against central
   differences of R(q / |q|) and R^T m in q and m, at random quaternions with |q| != 1;
 * the number factors gathered first (`codegen._Hoist`) against the expression as sympy
@@ -20,6 +23,29 @@ import elastica_auto as ea
 from elastica_auto.energy import runtime
 from elastica_auto.energy.codegen import _Hoist
 from elastica_auto.energy.derive import _shorter
+
+
+def test_the_compiled_frame_body_and_rate_are_their_closed_forms():
+    rng = np.random.default_rng(11)
+    y = rng.normal(size=(13, 2 * 17))[:, ::2]            # strided rows, as a module's y[3:7]
+    q, m = y[3:7], y[7:10]
+    R = runtime.frame(q)
+    unit = q / np.linalg.norm(q, axis=0)
+    w, v = unit[0], unit[1:]
+    cross = np.zeros((3, 3, q.shape[1]))
+    cross[0, 1], cross[0, 2], cross[1, 2] = -v[2], v[1], -v[0]
+    cross[1, 0], cross[2, 0], cross[2, 1] = v[2], -v[1], v[0]
+    expected = ((w * w - (v * v).sum(axis=0)) * np.eye(3)[:, :, None]
+                + 2 * v[:, None] * v[None, :] + 2 * w * cross)
+    assert np.allclose(R, expected, rtol=0, atol=1e-14)
+    assert np.allclose(runtime.body(R, m), np.einsum("acp,ap->cp", R, m), rtol=0, atol=1e-14)
+    u = rng.normal(size=(3, q.shape[1]))
+    a0, a1, a2, a3 = q
+    b1, b2, b3 = u[0], u[1], 0.7
+    hamilton = 0.5 * np.array([-a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a2 * b3 - a3 * b2,
+                               a0 * b2 + a3 * b1 - a1 * b3, a0 * b3 + a1 * b2 - a2 * b1])
+    assert np.allclose(runtime.quaternion_rate(q, u[0], u[1], 0.7), hamilton, rtol=0,
+                       atol=1e-14)
 
 
 def test_the_chain_is_the_derivative_through_the_frame_and_the_body_moment():

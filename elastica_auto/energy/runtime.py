@@ -25,7 +25,7 @@ import functools
 
 import numpy as np
 
-from ..numerics._frames import chain as _frames_chain
+from ..numerics import _frames as _compiled
 
 #: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
 #: a module with ENERGY may not define such names itself.
@@ -442,14 +442,14 @@ _LINEAR = _D.reshape(36, 4)                               # D_j(q) = (_LINEAR @ 
 
 def frame(q):
     """R(q / |q|), (3, 3, m) for quaternions q (4, m) (or (3, 3) for q (4,)), scalar first:
-    the quadratic form over |q|^2, a rotation for any q != 0."""
+    the quadratic form over |q|^2, a rotation for any q != 0. On m points compiled
+    (numerics/_frames.c: the same sums point by point, one call where numpy took four)."""
     q = np.asarray(q, dtype=float)
     if q.ndim == 1:
         return (_QUADRATIC @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
-    npts = q.shape[1]
-    out = _QUADRATIC @ (q[:, None, :] * q[None, :, :]).reshape(16, npts)
-    out /= np.einsum("ij,ij->j", q, q)
-    return out.reshape(3, 3, npts)
+    out = np.empty((3, 3, q.shape[1]))
+    _compiled.frame(q, _QUADRATIC, out)
+    return out
 
 
 def _half_left():
@@ -474,15 +474,20 @@ _HALF_LEFT = _half_left()
 
 def quaternion_rate(q, u1, u2, u3):
     """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
-    (m,) or a number): one product for all points."""
+    (m,) or a number): H @ (u (x) q) point by point (numerics/_frames.c)."""
     u = np.empty((3, q.shape[1]))
     u[0], u[1], u[2] = u1, u2, u3
-    return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
+    out = np.empty(q.shape)
+    _compiled.quaternion_rate(q, u, _HALF_LEFT, out)
+    return out
 
 
 def body(R, m):
-    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m)."""
-    return (R * m[:, None, :]).sum(axis=0)
+    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m), point by point
+    (numerics/_frames.c)."""
+    out = np.empty(m.shape)
+    _compiled.body(R, m, out)
+    return out
 
 
 def frame_derivatives(q, R):
@@ -503,7 +508,7 @@ def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
     (numerics/_frames.c: the same sums point by point, where numpy took the frames'
     derivatives, four einsums and three fancy-indexed additions, most of a spatial rod's
     Jacobian)."""
-    _frames_chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
+    _compiled.chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
 
 
 def in_rows(values, order, columns=False):
