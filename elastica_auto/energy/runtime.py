@@ -215,16 +215,17 @@ def acceleration(density, lvs, s, z, v, p):
 def field(rows, m):
     """A (k, k) matrix of entries that are numbers or arrays on m points: (k, k) where all
     are numbers, else (k, k, m). The generated second variation writes every entry, most of
-    them often a literal 0 (the spatial Cosserat rod's A, B and C: 74 of 108): those are the
-    array's initial zeros, and only the others are written (a numpy call each, which on a few
-    hundred points costs more than the arithmetic)."""
-    if not any(isinstance(e, np.ndarray) and e.ndim for row in rows for e in row):
-        return np.array(rows, dtype=float)
-    out = np.zeros((len(rows), len(rows[0]), m))
-    for i, row in enumerate(rows):
-        for j, v in enumerate(row):
-            if type(v) is not int or v:
-                out[i, j] = v
+    them often a literal 0 (the spatial Cosserat rod's A, B and C: 74 of 108; its end terms
+    E0, E1: most of 72): those are the array's initial zeros, and only the others are written
+    (a numpy call each, which on a few hundred points costs more than the arithmetic; and
+    numpy's conversion of a nested list of numbers costs more than writing the few nonzero
+    ones into zeros)."""
+    given = [(i, j, v) for i, row in enumerate(rows) for j, v in enumerate(row)
+             if type(v) is not int or v]
+    arrays = any(isinstance(v, np.ndarray) and v.ndim for _, _, v in given)
+    out = np.zeros((len(rows), len(rows[0]), m) if arrays else (len(rows), len(rows[0])))
+    for i, j, v in given:
+        out[i, j] = v
     return out
 
 
