@@ -6,8 +6,6 @@ independent of it:
   and the Hamilton product q (x) (0, u) / 2 written out, on views with any strides;
 * the compiled chain through a frame (`runtime.chain`, numerics/_frames.c) against central
   differences of R(q / |q|) and R^T m in q and m, at random quaternions with |q| != 1;
-* the number factors gathered first (`codegen._Hoist`) against the expression as sympy
-  evaluates it, on random arrays and numbers, with fewer array operations;
 * the Legendre inverse expanded where shorter (`derive._shorter`): the Cosserat rod's x' is
   R v_hat + n / S (the closed form of its constitutive law) and m' = -x' x n at random
   states.
@@ -16,12 +14,10 @@ independent of it:
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import sympy as sp
 
 import elastica_auto as ea
 from elastica_auto.energy import runtime
-from elastica_auto.energy.codegen import _Hoist
 from elastica_auto.energy.derive import _shorter
 
 
@@ -89,45 +85,6 @@ def test_the_chain_is_the_derivative_through_the_frame_and_the_body_moment():
         assert np.allclose(frame_only[:, col], (f(q + dq, m) - f(q - dq, m)) / (2 * h),
                            rtol=0, atol=1e-8)
     assert not np.any(frame_only[:, mcols])
-
-
-def _array_operations(expr, scalars):
-    """The array operations Python does evaluating ``expr`` as printed: a binary operation
-    with an array operand (left to right, numbers first as the printer puts them)."""
-    count = 0
-    for node in sp.preorder_traversal(expr):
-        if node.is_Mul or node.is_Add:
-            args = node.args
-            arrays = [a for a in args if not a.free_symbols <= scalars]
-            if arrays:
-                count += len(args) - 1 - (sum(1 for a in args if a.free_symbols <= scalars
-                                              and a.is_Number and a == -1))
-    return count
-
-
-@pytest.mark.parametrize("seed", range(5))
-def test_gathered_number_factors_give_the_expression_with_fewer_array_operations(seed):
-    rng = np.random.default_rng(seed)
-    p = sp.symbols("p0:4")
-    x = sp.symbols("x0:3")
-    terms = []
-    for _ in range(6):
-        factors = [p[i] for i in rng.integers(0, 4, size=rng.integers(0, 3))]
-        factors += [x[i] for i in rng.integers(0, 3, size=rng.integers(1, 3))]
-        terms.append(sp.Rational(int(rng.integers(-3, 4)) or 1, 2) * sp.Mul(*factors))
-    expr = sp.Add(*terms) * (p[0] + p[1] + x[0]) + p[2] * p[3] * x[1]
-    hoist = _Hoist(set(p))
-    out = hoist(expr)
-    defined = dict(hoist.new())
-    values = {s: float(v) for s, v in zip(p, rng.normal(size=4))}
-    arrays = {s: rng.normal(size=7) for s in x}
-    numbers = {k: sp.lambdify(list(values), e)(*values.values()) for k, e in defined.items()}
-    got = sp.lambdify([*values, *arrays, *numbers], out)(*values.values(), *arrays.values(),
-                                                       *numbers.values())
-    want = sp.lambdify([*values, *arrays], expr)(*values.values(), *arrays.values())
-    assert np.allclose(got, want, rtol=1e-13, atol=1e-13)
-    scalars = set(p) | set(defined)
-    assert _array_operations(out, scalars) < _array_operations(expr, set(p))
 
 
 def test_a_shearable_rod_s_stretch_is_its_closed_form_and_its_strain_cancels():

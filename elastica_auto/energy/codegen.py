@@ -11,8 +11,7 @@ Safety of the text: the internal symbols print as ``s``, ``y3``, ``v0``, ``p2``,
 (and ``t0``, ... for common subexpressions; for a rotation ``j`` its frame ``F0`` and body
 moment ``MB0`` at the nodes with their entries ``R0_12``, ``mb0_1``, its strains ``u0_1``, its
 frames at the ends ``R0a_12``, ``R0b_12`` with ``n0a``, ``dR0b_12_3`` and their common
-subexpressions ``c0a_4``; ``k0``, ... for the number factors of a product of numbers and
-arrays, gathered first: `_Hoist`), names no user name can take, since every user symbol was replaced
+subexpressions ``c0a_4``), names no user name can take, since every user symbol was replaced
 before printing. User names appear only as string literals (``repr``) and
 in ``#`` comments (they are printable: no line breaks). Module-level helpers are named
 ``_derived_...``; a module that defines such a name itself is refused (`loader`).
@@ -132,75 +131,15 @@ class Block:
                 used |= set(entry[2])
         out = [self.indent + entry[1] for entry in unpack if entry[0] in used]
         out += frame_lines
-        hoist = _Hoist({x for x in symbols.values() if _PARAMETER.fullmatch(x.name)})
-
-        def hoisted(e):
-            e = hoist(e)
-            out.extend(f"{self.indent}{k} = {text(v)}" for k, v in hoist.new())
-            return e
-
         for t, e in temps:
-            e = hoisted(e)
-            hoist.scalar(t, e)
             out.append(f"{self.indent}{t} = {text(e)}")
         self.printed = []
         for (target, _), e in zip(self.items, reduced):
-            code = text(hoisted(e))
+            code = text(e)
             self.printed.append(code)
             if target is not None:
                 out.append(f"{self.indent}{target} = {code}")
         return out
-
-
-#: the printed names of the parameters (numbers in every generated function)
-_PARAMETER = re.compile(r"p\d+")
-
-
-class _Hoist:
-    """Products and sums that mix numbers (the parameters, the common subexpressions made of
-    them only) with arrays (the states' values on the points), their number factors (terms)
-    gathered into one number ``k0``, ``k1``, ... first. Python evaluates ``R0_20*p13*p15*t23``
-    left to right, an array operation per factor after the first array; ``k0 = p13*p15``
-    once per call makes it ``R0_20*k0*t23``, one array operation fewer. On the points of a
-    mesh (100 to 300 numbers) an array operation costs about a microsecond whatever it
-    computes, so their number is the generated code's cost. The regrouping reassociates a
-    product (a sum): the value changes at rounding level only."""
-
-    def __init__(self, scalars):
-        self.scalars = set(scalars)
-        self.defined = {}               # a number expression -> its symbol
-        self.pending = []               # (symbol, expression) not yet printed
-
-    def is_scalar(self, e) -> bool:
-        return e.free_symbols <= self.scalars
-
-    def scalar(self, symbol, e):
-        """Note that the common subexpression ``symbol = e`` is a number if ``e`` is."""
-        if self.is_scalar(e):
-            self.scalars.add(symbol)
-
-    def new(self):
-        """The definitions made since the last call, in order: printed before their use."""
-        out, self.pending = self.pending, []
-        return out
-
-    def __call__(self, e):
-        if e.is_Atom or self.is_scalar(e):
-            return e
-        args = [self(a) for a in e.args]
-        if e.is_Mul or e.is_Add:
-            # -1 costs nothing where it is printed (a unary minus on the number after it)
-            numbers = [a for a in args if self.is_scalar(a) and a is not sp.S.NegativeOne]
-            if len(numbers) >= 2:
-                key = e.func(*numbers)
-                symbol = self.defined.get(key)
-                if symbol is None:
-                    symbol = sp.Symbol(f"k{len(self.defined)}")
-                    self.defined[key] = symbol
-                    self.scalars.add(symbol)
-                    self.pending.append((symbol, key))
-                return e.func(symbol, *(a for a in args if a not in numbers))
-        return e.func(*args)
 
 
 def _total(expr, x, frames):
