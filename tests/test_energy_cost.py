@@ -1,10 +1,10 @@
 """What makes a generated module cheaper (docs/soft-robots.md, "Cost") against what is
 independent of it:
 
-* the compiled frame, body moment and quaternion rate (numerics/_frames.c) against their
+* the compiled frame, body moment and quaternion rate (energy/_frames.c) against their
   closed forms: R(q / |q|) = (w^2 - v.v) I + 2 v v^T + 2 w [v]_x for q / |q| = (w, v), R^T m,
   and the Hamilton product q (x) (0, u) / 2 written out, on views with any strides;
-* the compiled chain through a frame (`runtime.chain`, numerics/_frames.c) against central
+* the compiled chain through a frame (`runtime.chain`, energy/_frames.c) against central
   differences of R(q / |q|) and R^T m in q and m, at random quaternions with |q| != 1;
 * the Legendre inverse expanded where shorter (`derive._shorter`): the Cosserat rod's x' is
   R v_hat + n / S (the closed form of its constitutive law) and m' = -x' x n at random

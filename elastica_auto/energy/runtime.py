@@ -25,7 +25,8 @@ import functools
 
 import numpy as np
 
-from ..numerics import _frames as _compiled
+from ._frames import body as _body, chain as _chain, frame as _frame
+from ._frames import quaternion_rate as _quaternion_rate
 
 #: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
 #: a module with ENERGY may not define such names itself.
@@ -444,12 +445,12 @@ _LINEAR = _D.reshape(36, 4)                               # D_j(q) = (_LINEAR @ 
 def frame(q):
     """R(q / |q|), (3, 3, m) for quaternions q (4, m) (or (3, 3) for q (4,)), scalar first:
     the quadratic form over |q|^2, a rotation for any q != 0. On m points compiled
-    (numerics/_frames.c: the same sums point by point, one call where numpy took four)."""
+    (energy/_frames.c: the same sums point by point, one call where numpy took four)."""
     q = np.asarray(q, dtype=float)
     if q.ndim == 1:
         return (_QUADRATIC @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
     out = np.empty((3, 3, q.shape[1]))
-    _compiled.frame(q, _QUADRATIC, out)
+    _frame(q, _QUADRATIC, out)
     return out
 
 
@@ -475,19 +476,19 @@ _HALF_LEFT = _half_left()
 
 def quaternion_rate(q, u1, u2, u3):
     """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
-    (m,) or a number): H @ (u (x) q) point by point (numerics/_frames.c)."""
+    (m,) or a number): H @ (u (x) q) point by point (energy/_frames.c)."""
     u = np.empty((3, q.shape[1]))
     u[0], u[1], u[2] = u1, u2, u3
     out = np.empty(q.shape)
-    _compiled.quaternion_rate(q, u, _HALF_LEFT, out)
+    _quaternion_rate(q, u, _HALF_LEFT, out)
     return out
 
 
 def body(R, m):
     """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m), point by point
-    (numerics/_frames.c)."""
+    (energy/_frames.c)."""
     out = np.empty(m.shape)
-    _compiled.body(R, m, out)
+    _body(R, m, out)
     return out
 
 
@@ -506,10 +507,10 @@ def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
     npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
     ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2:
     df/dq_j += f_r : dR/dq_j + f_m . (dR/dq_j)^T m and df/dm += f_m R^T. Compiled
-    (numerics/_frames.c: the same sums point by point, where numpy took the frames'
+    (energy/_frames.c: the same sums point by point, where numpy took the frames'
     derivatives, four einsums and three fancy-indexed additions, most of a spatial rod's
     Jacobian)."""
-    _compiled.chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
+    _chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
 
 
 def in_rows(values, order, columns=False):
