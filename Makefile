@@ -11,7 +11,7 @@ FIG    ?= figures
 .PHONY: install demo test bench bench-auto clean
 
 $(BIN)/elastica-auto: pyproject.toml setup.py elastica_auto/numerics/_banded.c \
-		elastica_auto/numerics/_blocks.c
+		elastica_auto/numerics/_blocks.c elastica_auto/energy/_frames.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'

@@ -31,8 +31,9 @@ class BuildExt(build_ext):
 
 flags = [] if sysconfig.get_platform().startswith("win") else ["-ffp-contract=off"]
 
-setup(ext_modules=[Extension(f"elastica_auto.numerics.{name}",
-                             sources=[f"elastica_auto/numerics/{name}.c"],
+setup(ext_modules=[Extension(f"elastica_auto.{package}.{name}",
+                             sources=[f"elastica_auto/{package}/{name}.c"],
                              extra_compile_args=flags)
-                   for name in ("_banded", "_blocks")],
+                   for package, name in (("numerics", "_banded"), ("numerics", "_blocks"),
+                                         ("energy", "_frames"))],
       cmdclass={"build_ext": BuildExt})

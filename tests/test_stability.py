@@ -765,8 +765,10 @@ def test_smallest_eigenvalue_of_blocks_with_a_decoupled_stiff_component():
 
 
 def test_the_rates_by_the_adjugate_match_a_solve():
-    """The refinement's rates (stability.rates) with A^-1 C by the adjugate (k = 2, 3)
-    against numpy's solve, on random positive definite A and any C, to rounding."""
+    """The refinement's rates (stability.rates) with A^-1 C by the adjugate (k = 2, 3,
+    compiled) against numpy's solve, on random positive definite A and any C, to rounding;
+    the fields laid out as the count hands them (views with any strides: every other point
+    of a larger array, the hook's (k, k, P) transposed)."""
     rng = np.random.default_rng(5)
     for k in (2, 3):
         x = rng.normal(size=(101, k, k))
@@ -778,6 +780,10 @@ def test_the_rates_by_the_adjugate_match_a_solve():
         frobenius = lambda m: np.sqrt(np.sum(m * m, axis=(-2, -1)))  # noqa: E731
         ref = np.sqrt(frobenius(b - c.transpose(0, 2, 1) @ turn) / a_min) + frobenius(turn)
         assert np.allclose(stability.rates(a, a_min, b, c), ref, rtol=1e-12, atol=0)
+        strided = [np.repeat(m.transpose(1, 2, 0), 2, axis=2).transpose(2, 0, 1)[::2]
+                   for m in (a, b, c)]
+        assert np.allclose(stability.rates(strided[0], a_min, *strided[1:]), ref, rtol=1e-12,
+                           atol=0)
 
 
 def test_the_rule_past_a_branch_point_followed_by_a_fold_reads_the_count_beyond_it():

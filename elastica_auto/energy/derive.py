@@ -828,8 +828,8 @@ def derive(energy: Energy) -> Derived:
         rhs_vec = sp.Matrix([momenta[i] - b[i] for i in range(len(velocities))])
         sol = [rhs_vec[0] / Am[0, 0]] if len(velocities) == 1 else list(Am.LUsolve(rhs_vec))
         unknowns = momenta
-        velocity = [sp.factor_terms(sp.cancel(v)) if v.is_rational_function(*unknowns) else v
-                    for v in sol]
+        velocity = [_shorter(sp.factor_terms(sp.cancel(v)) if v.is_rational_function(*unknowns)
+                             else v) for v in sol]
 
     def on_solution(expr):
         return expr.xreplace(dict(zip(velocities, velocity))) if linear else expr
@@ -1063,6 +1063,16 @@ def derive(energy: Energy) -> Derived:
                                multipliers, clamps)
     derived.user = nm.user
     return derived
+
+
+def _shorter(v):
+    """``v`` or its expansion, whichever has fewer operations. A shearable rod's x' = (S R
+    v_hat + n) / S over one denominator expands to R v_hat + n / S, whose R v_hat then
+    cancels, as sympy adds terms, against the - R v_hat of the strain x' - R v_hat in the
+    equations and the second variation (n / S where the common denominator left S (x' - R
+    v_hat) as seven products and sums of arrays)."""
+    expanded = sp.expand(v)
+    return expanded if sp.count_ops(expanded) < sp.count_ops(v) else v
 
 
 def _rotation_total(nm, e, Leff):

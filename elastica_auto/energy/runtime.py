@@ -25,6 +25,9 @@ import functools
 
 import numpy as np
 
+from ._frames import body as _body, chain as _chain, frame as _frame
+from ._frames import quaternion_rate as _quaternion_rate
+
 #: The prefix of a generated module's own top-level helpers (`elastica_auto.energy.codegen`);
 #: a module with ENERGY may not define such names itself.
 PREFIX = "_derived_"
@@ -213,16 +216,17 @@ def acceleration(density, lvs, s, z, v, p):
 def field(rows, m):
     """A (k, k) matrix of entries that are numbers or arrays on m points: (k, k) where all
     are numbers, else (k, k, m). The generated second variation writes every entry, most of
-    them often a literal 0 (the spatial Cosserat rod's A, B and C: 74 of 108): those are the
-    array's initial zeros, and only the others are written (a numpy call each, which on a few
-    hundred points costs more than the arithmetic)."""
-    if not any(isinstance(e, np.ndarray) and e.ndim for row in rows for e in row):
-        return np.array(rows, dtype=float)
-    out = np.zeros((len(rows), len(rows[0]), m))
-    for i, row in enumerate(rows):
-        for j, v in enumerate(row):
-            if type(v) is not int or v:
-                out[i, j] = v
+    them often a literal 0 (the spatial Cosserat rod's A, B and C: 74 of 108; its end terms
+    E0, E1: most of 72): those are the array's initial zeros, and only the others are written
+    (a numpy call each, which on a few hundred points costs more than the arithmetic; and
+    numpy's conversion of a nested list of numbers costs more than writing the few nonzero
+    ones into zeros)."""
+    given = [(i, j, v) for i, row in enumerate(rows) for j, v in enumerate(row)
+             if type(v) is not int or v]
+    arrays = any(isinstance(v, np.ndarray) and v.ndim for _, _, v in given)
+    out = np.zeros((len(rows), len(rows[0]), m) if arrays else (len(rows), len(rows[0])))
+    for i, j, v in given:
+        out[i, j] = v
     return out
 
 
@@ -440,14 +444,14 @@ _LINEAR = _D.reshape(36, 4)                               # D_j(q) = (_LINEAR @ 
 
 def frame(q):
     """R(q / |q|), (3, 3, m) for quaternions q (4, m) (or (3, 3) for q (4,)), scalar first:
-    the quadratic form over |q|^2, a rotation for any q != 0."""
+    the quadratic form over |q|^2, a rotation for any q != 0. On m points compiled
+    (energy/_frames.c: the same sums point by point, one call where numpy took four)."""
     q = np.asarray(q, dtype=float)
     if q.ndim == 1:
         return (_QUADRATIC @ np.outer(q, q).reshape(16)).reshape(3, 3) / (q @ q)
-    npts = q.shape[1]
-    out = _QUADRATIC @ (q[:, None, :] * q[None, :, :]).reshape(16, npts)
-    out /= np.einsum("ij,ij->j", q, q)
-    return out.reshape(3, 3, npts)
+    out = np.empty((3, 3, q.shape[1]))
+    _frame(q, _QUADRATIC, out)
+    return out
 
 
 def _half_left():
@@ -472,15 +476,20 @@ _HALF_LEFT = _half_left()
 
 def quaternion_rate(q, u1, u2, u3):
     """q' = q (x) (0, u) / 2, (4, m), for the quaternions q (4, m) and the body strains u (each
-    (m,) or a number): one product for all points."""
+    (m,) or a number): H @ (u (x) q) point by point (energy/_frames.c)."""
     u = np.empty((3, q.shape[1]))
     u[0], u[1], u[2] = u1, u2, u3
-    return _HALF_LEFT @ (u[:, None, :] * q[None, :, :]).reshape(12, -1)
+    out = np.empty(q.shape)
+    _quaternion_rate(q, u, _HALF_LEFT, out)
+    return out
 
 
 def body(R, m):
-    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m)."""
-    return (R * m[:, None, :]).sum(axis=0)
+    """R^T m, (3, m): a spatial vector m (3, m) in the body frame R (3, 3, m), point by point
+    (energy/_frames.c)."""
+    out = np.empty(m.shape)
+    _body(R, m, out)
+    return out
 
 
 def frame_derivatives(q, R):
@@ -496,14 +505,12 @@ def chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m):
     """Add to ``jac`` (n, n, npts) the derivatives through a frame R = R(q / |q|) (3, 3,
     npts) and its body moment R^T m: for the rows ``rows_r`` with f_r = df/dR (r, 3, 3,
     npts) and the rows ``rows_m`` with f_m = df/d(R^T m) (r', 3, npts), the columns
-    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2."""
-    dR = frame_derivatives(q, R)                                  # dR/dq_j: (4, 3, 3, npts)
-    if f_r is not None:
-        jac[np.ix_(rows_r, qcols)] += np.einsum("iabm,jabm->ijm", f_r, dR)
-    if f_m is not None:
-        dmb = np.einsum("jacm,am->cjm", dR, m)                   # d(R^T m)/dq_j: (3, 4, npts)
-        jac[np.ix_(rows_m, qcols)] += np.einsum("icm,cjm->ijm", f_m, dmb)
-        jac[np.ix_(rows_m, mcols)] += np.einsum("icm,acm->iam", f_m, R)
+    ``qcols`` of q and ``mcols`` of m, with dR/dq_j = 2 (D_j(q) - q_j R) / |q|^2:
+    df/dq_j += f_r : dR/dq_j + f_m . (dR/dq_j)^T m and df/dm += f_m R^T. Compiled
+    (energy/_frames.c: the same sums point by point, where numpy took the frames'
+    derivatives, four einsums and three fancy-indexed additions, most of a spatial rod's
+    Jacobian)."""
+    _chain(jac, R, q, m, qcols, mcols, rows_r, f_r, rows_m, f_m, _D)
 
 
 def in_rows(values, order, columns=False):

@@ -543,11 +543,109 @@ static PyObject *reduce(PyObject *self, PyObject *args)
     return Py_BuildValue("(in)", negative, n);
 }
 
+/* rates(a, a_min, b, c, out): the refinement's wavenumber at each of the P points (fields
+   (P, k, k), k = 2 or 3, any strides; a_min (P,)): sqrt(|B - C^T A^-1 C| / a_min) + |A^-1 C|
+   (Frobenius norms), A^-1 = adj(A) / det(A) by the same cofactors as `pivot` and
+   stability._adjugate (stability.rates: the numpy form was a dozen calls on 3 x 3 blocks). */
+static PyObject *rates(PyObject *self, PyObject *args)
+{
+    PyObject *a_obj, *amin_obj, *b_obj, *c_obj, *out_obj;
+    if (!PyArg_ParseTuple(args, "OOOOO", &a_obj, &amin_obj, &b_obj, &c_obj, &out_obj))
+        return NULL;
+    Py_buffer va, vm, vb, vc, vo;
+    idx sh_a[3] = {-1, -1, -1};
+    if (get_array(a_obj, &va, 3, sh_a, 0, "a") < 0)
+        return NULL;
+    const idx np_ = sh_a[0], k = sh_a[1];
+    if ((k != 2 && k != 3) || sh_a[2] != k) {
+        PyErr_SetString(PyExc_ValueError, "a: blocks of 2 x 2 or 3 x 3");
+        PyBuffer_Release(&va);
+        return NULL;
+    }
+    idx sh_f[3] = {np_, k, k}, sh_p[1] = {np_};
+    Py_buffer *views[5] = {&va, &vm, &vb, &vc, &vo};
+    int got = 1;
+    if (get_array(amin_obj, &vm, 1, sh_p, 0, "a_min") < 0)
+        goto fail;
+    got++;
+    if (get_array(b_obj, &vb, 3, sh_f, 0, "b") < 0)
+        goto fail;
+    got++;
+    if (get_array(c_obj, &vc, 3, sh_f, 0, "c") < 0)
+        goto fail;
+    got++;
+    if (get_array(out_obj, &vo, 1, sh_p, 1, "out") < 0)
+        goto fail;
+    got++;
+    const field fa = {va.buf, va.strides[0], va.strides[1], va.strides[2]};
+    const field fb = {vb.buf, vb.strides[0], vb.strides[1], vb.strides[2]};
+    const field fc = {vc.buf, vc.strides[0], vc.strides[1], vc.strides[2]};
+    double *out = (double *)vo.buf;
+    for (idx q = 0; q < np_; q++) {
+        double inv[9], turn[9];
+        if (k == 2) {
+            const double a = at(&fa, q, 0, 0), b = at(&fa, q, 1, 1), d = at(&fa, q, 0, 1);
+            double det = a * b;
+            det -= d * d;
+            inv[0] = b / det;
+            inv[1] = (d * -1.0) / det;
+            inv[2] = (d * -1.0) / det;
+            inv[3] = a / det;
+        } else {
+            const double a = at(&fa, q, 0, 0), b = at(&fa, q, 1, 1), c = at(&fa, q, 2, 2),
+                         d = at(&fa, q, 0, 1), e = at(&fa, q, 0, 2), f = at(&fa, q, 1, 2);
+            const double c00 = b * c - f * f, c11 = a * c - e * e, c22 = a * b - d * d,
+                         c01 = e * f - d * c, c02 = d * f - b * e, c12 = d * e - a * f;
+            double det = a * c00;
+            det += d * c01;
+            det += e * c02;
+            inv[0] = c00 / det;
+            inv[1] = c01 / det;
+            inv[2] = c02 / det;
+            inv[3] = c01 / det;
+            inv[4] = c11 / det;
+            inv[5] = c12 / det;
+            inv[6] = c02 / det;
+            inv[7] = c12 / det;
+            inv[8] = c22 / det;
+        }
+        double turn2 = 0.0, schur2 = 0.0;
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                double sum = 0.0;
+                for (idx l = 0; l < k; l++)
+                    sum += inv[i * k + l] * at(&fc, q, l, j);
+                turn[i * k + j] = sum;
+                turn2 += sum * sum;
+            }
+        for (idx i = 0; i < k; i++)
+            for (idx j = 0; j < k; j++) {
+                double sum = 0.0;
+                for (idx l = 0; l < k; l++)
+                    sum += at(&fc, q, l, i) * turn[l * k + j];
+                const double v = at(&fb, q, i, j) - sum;
+                schur2 += v * v;
+            }
+        const double a_min = *(const double *)((const char *)vm.buf + q * vm.strides[0]);
+        out[q] = sqrt(sqrt(schur2) / a_min) + sqrt(turn2);
+    }
+    for (int i = 0; i < got; i++)
+        PyBuffer_Release(views[i]);
+    Py_RETURN_NONE;
+fail:
+    for (int i = 0; i < got; i++)
+        PyBuffer_Release(views[i]);
+    return NULL;
+}
+
 static PyMethodDef methods[] = {
     {"condense", condense, METH_VARARGS,
      "condense(s, a, b, c, ulps, d, u, inv, y) -> (negative, scale): the P2 element matrices "
      "of the fields a, b, c (2N - 1, k, k) on the nodes s and their midpoints eliminated, "
      "the node matrix's blocks in d (N, k, k) and u (N - 1, k, k) (stability._inertia)."},
+    {"rates", rates, METH_VARARGS,
+     "rates(a, a_min, b, c, out): the refinement's wavenumber sqrt(|B - C^T A^-1 C| / a_min) "
+     "+ |A^-1 C| at each point, k = 2 or 3 (stability.rates)."},
     {"reduce", reduce, METH_VARARGS,
      "reduce(d, u, f, scale, tail, total, size) -> (negative, n): the odd-even reduction "
      "of the block tridiagonal node matrix in place down to `tail` nodes or fewer "

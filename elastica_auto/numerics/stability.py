@@ -37,7 +37,7 @@ from ..core import labels
 from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
-from ._blocks import condense as blocks_condense, reduce as blocks_reduce
+from ._blocks import condense as blocks_condense, rates as blocks_rates, reduce as blocks_reduce
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
@@ -226,15 +226,15 @@ def rates(a, a_min, b, c):
     is of order GA (1000 elements for GA = 1000), the rates of order 1 (the terms of order GA
     cancel in A^-1 C and the Schur complement). A batched solve costs 0.6 ms on 200 points,
     70 times the bound: only where the bound asks for more elements. For k = 2 and 3, A^-1
-    is the adjugate over the determinant (:func:`_adjugate`, a third of the solve's cost
-    on 3 x 3 blocks)."""
+    is the adjugate over the determinant, point by point (numerics/_blocks.c `rates`, the
+    cofactors of its pivots: the numpy form was a dozen calls on the 3 x 3 blocks, 0.05 ms
+    on 201 points)."""
     k = a.shape[-1]
     if 2 <= k <= 3:
-        adj, det = _adjugate(a)
-        adj /= det
-        turn = adj.T.reshape(a.shape) @ c
-    else:
-        turn = np.linalg.solve(a, c)
+        out = np.empty(len(a))
+        blocks_rates(a, a_min, b, c, out)
+        return out
+    turn = np.linalg.solve(a, c)
     return np.sqrt(_norm(b - np.swapaxes(c, -1, -2) @ turn) / a_min) + _norm(turn)
 
 
@@ -555,43 +555,10 @@ def _restrict(d, u, f, end, free, fixed):
     f[end][nf:, :] = 0.0
 
 
-def _adjugate(m):
-    """The adjugates of the symmetric 2 x 2 or 3 x 3 blocks m (p, k, k) as rows (k k, p),
-    an entry per row, and their determinants (p,): A^-1 = adj / det for :func:`rates` (the
-    closed forms the compiled pivots use too, numerics/_blocks.c)."""
-    p, k = len(m), m.shape[-1]
-    rows = m.reshape(p, k * k).T        # an entry per row: each operation on contiguous rows
-    det = np.empty(p)
-    if k == 2:
-        a, b, d = rows[0], rows[3], rows[1]
-        np.multiply(a, b, out=det)
-        det -= d * d
-        adj = rows[_ADJ2] * _ADJ2_SIGN[:, None]
-    else:
-        e = rows[_COF_FACTORS]                      # the factors of the cofactors (4, 6, p)
-        cof = e[0] * e[1]
-        cof -= e[2] * e[3]                          # c00, c11, c22, c01, c02, c12
-        adj = cof[_COF_TO_3X3]
-        # (sums written out: np.sum costs more than the additions on these rows)
-        np.multiply(rows[0], adj[0], out=det)      # a c00 + d c01 + e c02
-        det += rows[1] * adj[1]
-        det += rows[2] * adj[2]
-    return adj, det
-
-
-#: A symmetric 2 x 2 block flattened (a, d, d, b): its adjugate (b, -d, -d, a).
-_ADJ2, _ADJ2_SIGN = np.array([3, 1, 2, 0]), np.array([1.0, -1.0, -1.0, 1.0])
 #: The diagonal of a 3 x 3 block flattened.
 _DIAG3 = np.array([0, 4, 8])
 #: A symmetric 3 x 3 block flattened, its entries a, b, c (diagonal), d, e, f (01, 02, 12).
 _SYM3 = np.array([0, 4, 8, 1, 2, 5])
-#: Its cofactors c00, c11, c22, c01, c02, c12 as e[i] e[j] - e[k] e[l]: b c - f f, a c - e e,
-#: a b - d d, e f - d c, d f - b e, d e - a f.
-_COF = np.array([[1, 0, 0, 4, 3, 3], [2, 2, 1, 5, 5, 4], [5, 4, 3, 3, 1, 0], [5, 4, 3, 2, 4, 5]])
-#: The same factors as entries of the flattened block.
-_COF_FACTORS = _SYM3[_COF]
-#: The adjugate (the cofactors' symmetric matrix) flattened from them.
-_COF_TO_3X3 = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])
 
 
 def _sturm(diag, off2, scale) -> int:
