@@ -680,7 +680,9 @@ def derive(module, output, no_cache):
         problem = load_problem(module, cache=not no_cache)
         if problem.generated is None:
             _fail(f"{module}: defines no ENERGY(); there is nothing to derive")
-        text = printed(Path(module).read_text(encoding="utf-8"), problem.generated)
+        # the file load_problem read: a path, or a shipped module's name
+        text = printed(Path(problem.module.__file__).read_text(encoding="utf-8"),
+                       problem.generated)
     except USER_ERRORS as exc:
         _fail(str(exc))
     if output is None:

@@ -211,6 +211,12 @@ def test_the_printed_module_loads_and_gives_the_same_results(tmp_path, cli_exe, 
 def test_derive_prints_to_stdout_and_refuses_a_module_without_energy(cli_exe, tmp_path):
     result = run_cli(cli_exe, "derive", EXAMPLES / "heavy_column.py")
     assert result.returncode == 0 and "def rhs(s, y, p):" in result.stdout
+    # a shipped module by its name, as `run` takes it (its file was read as a path: exit 4)
+    result = run_cli(cli_exe, "derive", "elastica_lever_arm")
+    assert result.returncode == 0, result.stderr
+    assert "def rhs(s, y, p):" in result.stdout
+    assert result.stdout == run_cli(cli_exe, "derive", REPO / "equations" /
+                                    "elastica_lever_arm.py").stdout
     result = run_cli(cli_exe, "derive", REFERENCE / "bratu.py")
     assert result.returncode == EXIT_USER
     assert result.stderr.strip().splitlines() == [
