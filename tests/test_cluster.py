@@ -1004,7 +1004,9 @@ def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypat
     branch that finished on a worker, whose workers all die as the command fetches it (here
     killed just before its fetch). Dask computes it again, with no worker to do it: the
     fetch no longer waits for ever, and the run ends after worker_timeout with the branches
-    it had (the first and its mirror image), the other six not computed."""
+    it had (the first fetched at least; which branch finishes first is the cluster's
+    choice, and a mirror image whose turn comes after the cluster was lost is not made), the
+    others not computed."""
     import threading
 
     from elastica_auto.core.errors import ClusterLost
@@ -1038,10 +1040,12 @@ def test_a_result_lost_with_its_worker_does_not_hold_the_run(tmp_path, monkeypat
     assert not thread.is_alive() and len(ended) == 1
     assert "has had no worker for 1 s (worker_timeout)" in str(ended[0])
     saved = BranchFile(tmp_path / "out" / "rotating_arm.h5").branches
-    # the first two at least (fetched before the kill) and any other that finished before
-    # the workers died are whole; the rest, one at least, not computed
+    # the branch fetched first (before the kill: its key elastica-branch-K-...) and any
+    # other that finished before the workers died are whole; the rest, one at least, not
+    # computed
     ends = [b.attrs["end"] for b in saved]
-    assert len(saved) == 8 and ends[:2] == ["EP", "EP"] and "MX" in ends
+    first = int(str(fetches[0]).split("-")[2])
+    assert len(saved) == 8 and ends[first - 1] == "EP" and "MX" in ends
     assert all((b.attrs["end"], b.attrs["message"]) == ("MX", NOT_COMPUTED)
                for b in saved if b.attrs["end"] != "EP")
 
