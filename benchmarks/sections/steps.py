@@ -261,16 +261,26 @@ def size_cost(steps=30, schemes=(0, 4)):
     from elastica_auto.core.options import ContinuationOptions
     from elastica_auto.numerics.stability import index
     from elastica_auto.branches.stepper import start_solution
+    from elastica_auto.core.solution import Tangent, secant
     # the corrector a run makes (Gauss for ncol > 0), on commits before make_corrector too
     make = getattr(correctors, "make_corrector", None)
+
+    def curvature(a, b, name):
+        """The stepper's second-order predictor term after the step a -> b: the change of the
+        unit tangent per unit secant length (`branches.stepper`, as a run computes it)."""
+        _, dist = secant(a.state, b.state, name)
+        tb, ta = b.tangent.on(b.mesh), a.tangent.on(b.mesh)
+        return Tangent(b.mesh, (tb.y - ta.y) / dist, (tb.yp - ta.yp) / dist,
+                       (tb.lam - ta.lam) / dist)
 
     has_ncol = "ncol" in {f.name for f in dataclasses.fields(ContinuationOptions)}
     if not has_ncol:
         schemes = (0,)
-    print("one continuation step on a fixed mesh of 100 intervals, by system size: median CPU "
-          "ms, and the mean split (ms)")
-    head = ["system", "ncol", "ms/step", "assembly", "factor", "solves", "estimate+tests",
-            "index", "rest"]
+    print("one continuation step on a fixed mesh of 100 intervals, by system size, predicted "
+          "as a run predicts it (tangent and curvature): median CPU ms, the mean number of "
+          "Newton iterations, and the mean split (ms)")
+    head = ["system", "ncol", "ms/step", "newton", "assembly", "factor", "solves",
+            "estimate+tests", "index", "rest"]
     print(f"{head[0]:>28} {head[1]:>4} " + " ".join(f"{h:>9}" for h in head[2:]))
     for label, problem, name, start, ds, counted in _size_systems():
         for ncol in schemes:
@@ -281,21 +291,28 @@ def size_cost(steps=30, schemes=(0, 4)):
                     else correctors.Collocation(problem, name, opt))
             a = start_solution(corr, start, 1, None, False)
             for _ in range(3):                                  # warm-up
-                a = corr.step(a, ds)
-            times, idx = [], 0.0
+                a, before = corr.step(a, ds), a
+            # a run's steps after its first: the predictor a + ds t + ds^2 / 2 k, with the
+            # curvature k from the last two points (a tangent predictor alone needs a third
+            # Newton iteration on the spatial rods, which no run's step makes)
+            bend = curvature(before, a, name)
+            times, idx, niter = [], 0.0, 0
             with _Phases() as phases:
                 for _ in range(steps):
                     t0 = time.process_time()
-                    b = corr.step(a, ds)
+                    b = corr.step(a, ds, bend)
                     _ = b.sign
                     if counted:
                         t1 = time.process_time()
                         index(problem, b.state)
                         idx += time.process_time() - t1
+                    bend = curvature(a, b, name)
                     times.append(time.process_time() - t0)
+                    niter += b.niter
                     a = b
             split = {k: 1e3 * v / steps for k, v in phases.total.items()}
             split["index"] = 1e3 * idx / steps
             rest = 1e3 * float(np.mean(times)) - sum(split.values())
             print(f"{label:>28} {ncol:>4} {1e3 * statistics.median(times):>9.2f} "
-                  + " ".join(f"{split[k]:>9.2f}" for k in head[3:-1]) + f" {rest:>9.2f}")
+                  f"{niter / steps:>9.2f} "
+                  + " ".join(f"{split[k]:>9.2f}" for k in head[4:-1]) + f" {rest:>9.2f}")
