@@ -152,3 +152,21 @@ def test_blocks_are_the_derivatives_of_the_residuals(name):
         assert np.max(np.abs(blocks.dcol[key] - fd)) <= 1e-6 * np.max(np.abs(fd))
         moved += np.max(np.abs(fd)) > 0
     assert moved >= 1
+
+
+def test_the_compiled_assembly_refuses_arrays_of_the_wrong_shape_or_type():
+    from elastica_auto.numerics import _blocks
+
+    n, m = 3, 5
+    jac = np.zeros((n, n, 2 * m - 1))
+    with pytest.raises(ValueError):         # an even number of points: not 2m - 1
+        _blocks.cubic_gather(np.zeros((n, n, 8)), np.empty((8, n, n)), np.empty((3, n, 2 * n)))
+    with pytest.raises(ValueError):         # cat one interval short
+        _blocks.cubic_gather(jac, np.empty((2 * m - 1, n, n)), np.empty((m - 2, n, 2 * n)))
+    with pytest.raises(ValueError):         # a float32 output
+        _blocks.cubic_blocks(np.zeros((2 * m - 1, n, n)), np.zeros((m - 1, n, 2 * n)),
+                             np.ones(m - 1), np.ones(m - 1),
+                             np.empty((m - 1, n, n), dtype=np.float32), np.empty((m - 1, n, n)))
+    with pytest.raises(ValueError):         # a non-contiguous output
+        _blocks.cubic_column(np.zeros((n, 2 * m - 1)), np.zeros((m - 1, n, 1)), np.ones(m - 1),
+                             np.ones(m - 1), np.empty((m - 1, n)).T)
