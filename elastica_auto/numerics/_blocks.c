@@ -20,7 +20,11 @@
    -ffp-contract=off: no fused multiply-add), so the results are the same bits on every
    machine and with every BLAS. Arrays are reached through the buffer protocol (float64; the
    fields with any strides, the outputs C-contiguous), so numpy is not needed to build this
-   file. */
+   file.
+
+   The file also holds the cubic collocation's Jacobian assembly (`cubic_gather`,
+   `cubic_blocks`, `cubic_column`, below, for numerics/collocation.py), compiled for the same
+   reason. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -638,7 +642,202 @@ fail:
     return NULL;
 }
 
+/* The cubic (Lobatto IIIA) collocation's Jacobian blocks, numerics/collocation.py
+   `Discretisation.blocks` (docs/numerics.md, "The collocation corrector"). Why compiled: on
+   100 intervals of 13 x 13 blocks the numpy element-wise passes that assemble dC_i/dy_i and
+   dC_i/dy_{i+1} from f_y and the product J_mid [J_i, J_{i+1}] (a dozen of them, each a
+   temporary array) cost more than their arithmetic; these loops do the same IEEE operations,
+   in the same order and each rounded (no fused multiply-add), so the blocks are the same bits
+   as the numpy formulas'. The product itself stays numpy's batched matmul (BLAS): its sums
+   are rounded the way the BLAS kernel does them, not in index order, and a loop here would
+   change the results' last bits. */
+
+/* cubic_gather(jac, jac_all, cat): jac (n, n, M) any strides, f_y at the M = 2m - 1 nodes and
+   midpoints as the equation module gives it; jac_all (M, n, n): the same blocks contiguous,
+   (point, row, column); cat (m - 1, n, 2n): [J_i, J_{i+1}] side by side, the right factor of
+   the batched product J_mid [J_i, J_{i+1}]. Copies only. */
+static PyObject *cubic_gather(PyObject *self, PyObject *args)
+{
+    PyObject *jac_obj, *all_obj, *cat_obj;
+    if (!PyArg_ParseTuple(args, "OOO", &jac_obj, &all_obj, &cat_obj))
+        return NULL;
+    Py_buffer vj, va, vc;
+    idx sh_j[3] = {-1, -1, -1};
+    if (get_array(jac_obj, &vj, 3, sh_j, 0, "jac") < 0)
+        return NULL;
+    const idx n = sh_j[0], big = sh_j[2], m = (big + 1) / 2;
+    if (n < 1 || sh_j[1] != n || big < 3 || big % 2 == 0) {
+        PyErr_SetString(PyExc_ValueError, "jac: (n, n, 2m - 1) with m >= 2");
+        PyBuffer_Release(&vj);
+        return NULL;
+    }
+    idx sh_a[3] = {big, n, n}, sh_c[3] = {m - 1, n, 2 * n};
+    if (get_array(all_obj, &va, 3, sh_a, 1, "jac_all") < 0) {
+        PyBuffer_Release(&vj);
+        return NULL;
+    }
+    if (get_array(cat_obj, &vc, 3, sh_c, 1, "cat") < 0) {
+        PyBuffer_Release(&vj);
+        PyBuffer_Release(&va);
+        return NULL;
+    }
+    const char *jb = (const char *)vj.buf;
+    const idx s0 = vj.strides[0], s1 = vj.strides[1], s2 = vj.strides[2], nn = n * n;
+    double *all = (double *)va.buf, *cat = (double *)vc.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (idx a = 0; a < n; a++)
+        for (idx b = 0; b < n; b++) {
+            const char *src = jb + a * s0 + b * s1;
+            double *dst = all + a * n + b;
+            for (idx q = 0; q < big; q++)
+                dst[q * nn] = *(const double *)(src + q * s2);
+        }
+    for (idx i = 0; i < m - 1; i++)
+        for (idx a = 0; a < n; a++) {
+            memcpy(cat + (i * n + a) * 2 * n, all + i * nn + a * n, (size_t)n * sizeof(double));
+            memcpy(cat + (i * n + a) * 2 * n + n, all + (i + 1) * nn + a * n,
+                   (size_t)n * sizeof(double));
+        }
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&vj);
+    PyBuffer_Release(&va);
+    PyBuffer_Release(&vc);
+    Py_RETURN_NONE;
+}
+
+/* cubic_blocks(jac_all, prod, h6, h12, d0, d1): jac_all (2m - 1, n, n), f_y at the m nodes
+   then the m - 1 midpoints; prod (m - 1, n, 2n): J_mid,i [J_i, J_{i+1}]; h6, h12 (m - 1,):
+   h_i / 6 and h_i^2 / 12 (any strides); into d0, d1 (m - 1, n, n):
+       d0 = ((-I - h6 J_i) - (2 h6) J_mid) - h12 (J_mid J_i),
+       d1 = (( I - h6 J_{i+1}) - (2 h6) J_mid) + h12 (J_mid J_{i+1}),
+   left to right, each operation rounded: collocation.py's numpy formulas operation for
+   operation (-I off the diagonal is -0.0, as numpy's -eye is). */
+static PyObject *cubic_blocks(PyObject *self, PyObject *args)
+{
+    PyObject *jac_obj, *prod_obj, *h6_obj, *h12_obj, *d0_obj, *d1_obj;
+    if (!PyArg_ParseTuple(args, "OOOOOO", &jac_obj, &prod_obj, &h6_obj, &h12_obj, &d0_obj,
+                          &d1_obj))
+        return NULL;
+    Py_buffer vj, vp, v6, v12, v0, v1;
+    idx sh_j[3] = {-1, -1, -1};
+    if (get_array(jac_obj, &vj, 3, sh_j, 0, "jac_all") < 0)
+        return NULL;
+    const idx big = sh_j[0], n = sh_j[1], m = (big + 1) / 2;
+    if (n < 1 || sh_j[2] != n || big < 3 || big % 2 == 0) {
+        PyErr_SetString(PyExc_ValueError, "jac_all: (2m - 1, n, n) with m >= 2");
+        PyBuffer_Release(&vj);
+        return NULL;
+    }
+    idx sh_p[3] = {m - 1, n, 2 * n}, sh_h[1] = {m - 1}, sh_d[3] = {m - 1, n, n};
+    Py_buffer *views[6] = {&vj, &vp, &v6, &v12, &v0, &v1};
+    int got = 1;
+    if (get_array(prod_obj, &vp, 3, sh_p, 0, "prod") == 0 && ++got
+        && get_array(h6_obj, &v6, 1, sh_h, 0, "h6") == 0 && ++got
+        && get_array(h12_obj, &v12, 1, sh_h, 0, "h12") == 0 && ++got
+        && get_array(d0_obj, &v0, 3, sh_d, 1, "d0") == 0 && ++got
+        && get_array(d1_obj, &v1, 3, sh_d, 1, "d1") == 0)
+        got = 6;
+    if (got < 6) {
+        for (int i = 0; i < got; i++)
+            PyBuffer_Release(views[i]);
+        return NULL;
+    }
+    const field fj = {vj.buf, vj.strides[0], vj.strides[1], vj.strides[2]};
+    const field fp = {vp.buf, vp.strides[0], vp.strides[1], vp.strides[2]};
+    double *d0 = (double *)v0.buf, *d1 = (double *)v1.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (idx i = 0; i < m - 1; i++) {
+        const double h6 = *(const double *)((const char *)v6.buf + i * v6.strides[0]);
+        const double h12 = *(const double *)((const char *)v12.buf + i * v12.strides[0]);
+        const double h3 = 2 * h6;
+        for (idx a = 0; a < n; a++)
+            for (idx b = 0; b < n; b++) {
+                const double shared = h3 * at(&fj, m + i, a, b);
+                const double p0 = at(&fp, i, a, b) * h12, p1 = at(&fp, i, a, n + b) * h12;
+                double v0 = (a == b ? -1.0 : -0.0) - h6 * at(&fj, i, a, b);
+                v0 -= shared;
+                v0 -= p0;
+                double v1 = (a == b ? 1.0 : 0.0) - h6 * at(&fj, i + 1, a, b);
+                v1 -= shared;
+                v1 += p1;
+                d0[(i * n + a) * n + b] = v0;
+                d1[(i * n + a) * n + b] = v1;
+            }
+    }
+    Py_END_ALLOW_THREADS
+    for (int i = 0; i < 6; i++)
+        PyBuffer_Release(views[i]);
+    Py_RETURN_NONE;
+}
+
+/* cubic_column(fp, mv, h6, h12, out): fp (n, 2m - 1), f_p at the m nodes then the m - 1
+   midpoints; mv (m - 1, n, 1): J_mid,i (f_p,i+1 - f_p,i); h6, h12 (m - 1,) (any strides);
+   into out (n, m - 1) the parameter's column
+       dC_i/dp = (-h6 ((f_p,i + f_p,i+1) + 4 f_p,mid)) + h12 (J_mid (f_p,i+1 - f_p,i)),
+   collocation.py's numpy formula operation for operation. */
+static PyObject *cubic_column(PyObject *self, PyObject *args)
+{
+    PyObject *fp_obj, *mv_obj, *h6_obj, *h12_obj, *out_obj;
+    if (!PyArg_ParseTuple(args, "OOOOO", &fp_obj, &mv_obj, &h6_obj, &h12_obj, &out_obj))
+        return NULL;
+    Py_buffer vf, vm, v6, v12, vo;
+    idx sh_f[2] = {-1, -1};
+    if (get_array(fp_obj, &vf, 2, sh_f, 0, "fp") < 0)
+        return NULL;
+    const idx n = sh_f[0], big = sh_f[1], m = (big + 1) / 2;
+    if (n < 1 || big < 3 || big % 2 == 0) {
+        PyErr_SetString(PyExc_ValueError, "fp: (n, 2m - 1) with m >= 2");
+        PyBuffer_Release(&vf);
+        return NULL;
+    }
+    idx sh_m[3] = {m - 1, n, 1}, sh_h[1] = {m - 1}, sh_o[2] = {n, m - 1};
+    Py_buffer *views[5] = {&vf, &vm, &v6, &v12, &vo};
+    int got = 1;
+    if (get_array(mv_obj, &vm, 3, sh_m, 0, "mv") == 0 && ++got
+        && get_array(h6_obj, &v6, 1, sh_h, 0, "h6") == 0 && ++got
+        && get_array(h12_obj, &v12, 1, sh_h, 0, "h12") == 0 && ++got
+        && get_array(out_obj, &vo, 2, sh_o, 1, "out") == 0)
+        got = 5;
+    if (got < 5) {
+        for (int i = 0; i < got; i++)
+            PyBuffer_Release(views[i]);
+        return NULL;
+    }
+    const char *fb = (const char *)vf.buf, *mb = (const char *)vm.buf;
+    double *out = (double *)vo.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (idx a = 0; a < n; a++)
+        for (idx i = 0; i < m - 1; i++) {
+            const double h6 = *(const double *)((const char *)v6.buf + i * v6.strides[0]);
+            const double h12 = *(const double *)((const char *)v12.buf + i * v12.strides[0]);
+            const char *row = fb + a * vf.strides[0];
+            const double f0 = *(const double *)(row + i * vf.strides[1]),
+                         f1 = *(const double *)(row + (i + 1) * vf.strides[1]),
+                         fm = *(const double *)(row + (m + i) * vf.strides[1]),
+                         jd = *(const double *)(mb + i * vm.strides[0] + a * vm.strides[1]);
+            double sum = f0 + f1;
+            sum += 4 * fm;
+            out[a * (m - 1) + i] = (-h6 * sum) + h12 * jd;
+        }
+    Py_END_ALLOW_THREADS
+    for (int i = 0; i < 5; i++)
+        PyBuffer_Release(views[i]);
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
+    {"cubic_column", cubic_column, METH_VARARGS,
+     "cubic_column(fp, mv, h6, h12, out): the cubic collocation's parameter column dC_i/dp "
+     "into out (n, m - 1) from f_p (n, 2m - 1) and J_mid (f_p,i+1 - f_p,i) "
+     "(collocation.Discretisation.blocks)."},
+    {"cubic_gather", cubic_gather, METH_VARARGS,
+     "cubic_gather(jac, jac_all, cat): f_y (n, n, 2m - 1) copied to contiguous blocks "
+     "jac_all (2m - 1, n, n) and cat = [J_i, J_{i+1}] (m - 1, n, 2n) "
+     "(collocation.Discretisation.blocks)."},
+    {"cubic_blocks", cubic_blocks, METH_VARARGS,
+     "cubic_blocks(jac_all, prod, h6, h12, d0, d1): the cubic collocation's blocks "
+     "dC_i/dy_i, dC_i/dy_{i+1} into d0, d1 (m - 1, n, n) from f_y and the products "
+     "J_mid [J_i, J_{i+1}] (collocation.Discretisation.blocks)."},
     {"condense", condense, METH_VARARGS,
      "condense(s, a, b, c, ulps, d, u, inv, y) -> (negative, scale): the P2 element matrices "
      "of the fields a, b, c (2N - 1, k, k) on the nodes s and their midpoints eliminated, "
@@ -656,7 +855,8 @@ static PyMethodDef methods[] = {
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_blocks",
     "The direct count's element matrices, midpoint elimination and odd-even reduction for "
-    "blocks of any size (numerics/stability.py).", -1, methods,
+    "blocks of any size (numerics/stability.py), and the cubic collocation's Jacobian "
+    "blocks (numerics/collocation.py).", -1, methods,
 };
 
 PyMODINIT_FUNC PyInit__blocks(void)
