@@ -462,3 +462,22 @@ def test_legendre_condition_failure():
     with pytest.raises(ProblemError, match="positive definite") as err:
         count_form(engine_form(form), MESH)
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("field", ["A", "B"])
+def test_a_field_is_refused_where_it_is_not_symmetric_and_accepted_to_rounding(field):
+    # exactly symmetric (a derived module's fields): accepted by one comparison; a rounding
+    # error's asymmetry (1e-14 relative): accepted; 1e-6 at one point: refused, naming the
+    # entry and the point
+    m = 201
+    rng = np.random.default_rng(7)
+    x = rng.normal(size=(3, 3, m))
+    sym = x + x.transpose(1, 0, 2) + 6 * np.eye(3)[:, :, None]
+    other = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m))
+    for value in (sym, sym + 1e-14 * rng.normal(size=sym.shape)):
+        SecondVariation(**{field: value, "AB".replace(field, ""): other})
+    bad = sym.copy()
+    bad[0, 2, 17] += 1e-6
+    with pytest.raises(ProblemError, match=rf"{field} is not symmetric: {field}\[0, 2\] - "
+                                           rf"{field}\[2, 0\] = 1e-06 at point 17"):
+        SecondVariation(**{field: bad, "AB".replace(field, ""): other})

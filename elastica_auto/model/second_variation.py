@@ -212,8 +212,8 @@ def _end_parts_cached(layout, free_shape, free_bytes, fixed_shape, fixed_bytes):
 
 def _check_symmetric(name, m):
     """Refuse a matrix field (m', k, k) that is not symmetric at some point."""
-    if m.shape[-1] == 1:
-        return
+    if m.shape[-1] == 1 or np.array_equal(m, m.transpose(0, 2, 1)):
+        return      # (a derived module's fields are symmetric exactly: one comparison)
     gap = np.abs(m - m.transpose(0, 2, 1))
     if gap.max() > SYMMETRY_TOL * (1.0 + np.abs(m).max()):
         q, i, j = np.unravel_index(np.argmax(gap), gap.shape)
@@ -340,10 +340,9 @@ class SecondVariation:
         for j, (name, ix) in enumerate(zip(self.parts, index)):
             part = copy.copy(self)
             part.k, part.parts = len(comps[j]), {}
-            part.A, part.B, part.C = (m[:, ix, ix] if isinstance(ix, slice)
-                                      else m[:, ix][:, :, ix] for m in (self.A, self.B, self.C))
-            part.E0, part.E1 = (m[ix, ix] if isinstance(ix, slice) else m[np.ix_(ix, ix)]
-                                for m in (self.E0, self.E1))
+            rows = ix if isinstance(ix, slice) else ix[:, None]     # one gather, not two
+            part.A, part.B, part.C = (m[:, rows, ix] for m in (self.A, self.B, self.C))
+            part.E0, part.E1 = (m[rows, ix] for m in (self.E0, self.E1))
             (part.free0, part.fixed0), (part.free1, part.fixed1) = ends[0][j], ends[1][j]
             part.constraints = [Constraint(c.g[ix], c.d1[ix], c.d0[ix], c.kernel)
                                 for c, where in zip(self.constraints, kept) if where == j]
