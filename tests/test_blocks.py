@@ -199,3 +199,66 @@ def test_the_kernel_refuses_arrays_of_the_wrong_kind():
     with pytest.raises(ValueError, match="b"):
         _blocks.condense(s, a, np.zeros((4, 2, 2)), a, 1e-14, np.empty((3, 2, 2)),
                          np.empty((2, 2, 2)), np.empty((2, 2, 2)), np.empty((2, 2, 4)))
+
+
+def _tail_like(rng, kind, n):
+    """A symmetric test matrix: random; with a zero diagonal (every pivot 2 x 2 at first);
+    a planted spectrum over nine decades of both signs; block tridiagonal of 3 x 3 blocks
+    scaled over four decades (the shape `_inertia` hands over)."""
+    if kind == "random":
+        m = rng.standard_normal((n, n))
+        return m + m.T
+    if kind == "zero diagonal":
+        m = rng.standard_normal((n, n))
+        m = m + m.T
+        np.fill_diagonal(m, 0.0)
+        return m
+    if kind == "spectrum":
+        q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        w = rng.choice([-1.0, 1.0], n) * 10.0 ** rng.uniform(-6, 3, n)
+        m = (q * w) @ q.T
+        return 0.5 * (m + m.T)
+    k, nodes = 3, max(1, n // 3)
+    m = np.zeros((k * nodes, k * nodes))
+    for i in range(nodes):
+        for j in (i, i + 1):
+            if j < nodes:
+                b = rng.standard_normal((k, k)) * 10.0 ** rng.uniform(-2, 2)
+                m[i * k:(i + 1) * k, j * k:(j + 1) * k] = b
+                m[j * k:(j + 1) * k, i * k:(i + 1) * k] = b.T
+    return 0.5 * (m + m.T)
+
+
+@pytest.mark.parametrize("kind", ["random", "zero diagonal", "spectrum", "block tridiagonal"])
+def test_window_counts_the_eigenvalues_below_and_above_the_threshold(kind):
+    # `window`'s two pivoted LDL^T against numpy's eigenvalues: the numbers below tol and
+    # below -tol, on 300 matrices of 1 to 60 rows, tol from 1e-8 to 1e-1 of the largest
+    # eigenvalue (those with an eigenvalue within 1e-10 of +-tol, too close to call, skipped)
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(300):
+        m = _tail_like(rng, kind, int(rng.integers(1, 61)))
+        w = np.linalg.eigvalsh(m)
+        top = np.abs(w).max()
+        tol = 10.0 ** rng.uniform(-8, -1) * top
+        if not top or np.min(np.abs(np.abs(w) - tol)) < 1e-10 * top:     # [[0]]: no scale
+            continue
+        checked += 1
+        assert _blocks.window(m, tol) == (np.count_nonzero(w < tol),
+                                          np.count_nonzero(w < -tol))
+    assert checked > 250
+
+
+def test_window_sees_a_zero_eigenvalue_and_reads_any_strides():
+    # a projector (eigenvalues 0 and 1): one eigenvalue in [-tol, tol); exactly singular
+    # with tol = 0 (a zero pivot: -1); a transposed (strided) view reads as the matrix
+    rng = np.random.default_rng(5)
+    v = rng.standard_normal(10)
+    p = np.eye(10) - np.outer(v, v) / (v @ v)
+    assert _blocks.window(p, 1e-12) == (1, 0)
+    assert _blocks.window(np.zeros((4, 4)), 0.0) == (-1, -1)
+    assert _blocks.window(np.diag([1.0, -2.0, 3.0]), 0.1) == (1, 1)
+    m = _tail_like(rng, "random", 20)
+    assert _blocks.window(np.asfortranarray(m), 1e-9) == _blocks.window(m, 1e-9)
+    with pytest.raises(ValueError, match="square"):
+        _blocks.window(np.zeros((3, 4)), 0.1)

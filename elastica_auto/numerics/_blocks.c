@@ -825,6 +825,130 @@ static PyObject *cubic_column(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* The negative eigenvalues of the symmetric n x n matrix a (row-major, both triangles held;
+   overwritten) by its LDL^T factorisation with Bunch and Kaufman's diagonal pivoting (LAPACK's
+   dsytf2, its lower form): 1 x 1 and 2 x 2 pivots D, a = P L D L^T P^T, whose negative
+   eigenvalues are a's (Sylvester). -1 where a pivot is exactly zero (a singular a). Each
+   step picks the pivot from the column's largest entry and its row's (alpha = (1 + sqrt 17)
+   / 8 bounds the growth of the entries); a 2 x 2 pivot has one negative eigenvalue. */
+static idx bk_negatives(double *a, idx n)
+{
+    const double alpha = (1.0 + sqrt(17.0)) / 8.0;
+    idx negative = 0, k = 0;
+    while (k < n) {
+        const double absakk = fabs(a[k * n + k]);
+        idx imax = k;
+        double colmax = 0.0;
+        for (idx i = k + 1; i < n; i++)
+            if (fabs(a[i * n + k]) > colmax) {
+                colmax = fabs(a[i * n + k]);
+                imax = i;
+            }
+        if (absakk == 0.0 && colmax == 0.0)
+            return -1;
+        int two = 0;
+        idx kp = k;
+        if (absakk < alpha * colmax) {
+            double rowmax = 0.0;
+            for (idx j = k; j < n; j++)
+                if (j != imax && fabs(a[imax * n + j]) > rowmax)
+                    rowmax = fabs(a[imax * n + j]);
+            if (absakk >= alpha * colmax * (colmax / rowmax))
+                kp = k;
+            else if (fabs(a[imax * n + imax]) >= alpha * rowmax)
+                kp = imax;
+            else {
+                kp = imax;
+                two = 1;
+            }
+        }
+        const idx kk = k + two;           /* the row and column exchanged with kp */
+        if (kp != kk) {
+            for (idx j = 0; j < n; j++) {
+                double t = a[kk * n + j];
+                a[kk * n + j] = a[kp * n + j];
+                a[kp * n + j] = t;
+            }
+            for (idx i = 0; i < n; i++) {
+                double t = a[i * n + kk];
+                a[i * n + kk] = a[i * n + kp];
+                a[i * n + kp] = t;
+            }
+        }
+        if (!two) {
+            const double d = a[k * n + k];
+            if (d == 0.0)
+                return -1;
+            if (d < 0.0)
+                negative++;
+            for (idx i = k + 1; i < n; i++) {   /* a_ij -= (a_ik / d) a_kj */
+                const double l = a[i * n + k] / d;
+                for (idx j = k + 1; j < n; j++)
+                    a[i * n + j] -= l * a[k * n + j];
+            }
+            k += 1;
+        }
+        else {
+            const double d11 = a[k * n + k], d21 = a[(k + 1) * n + k],
+                         d22 = a[(k + 1) * n + k + 1];
+            /* chosen only where |d11| < alpha |d21| |d21| / rowmax and |d22| < alpha rowmax:
+               d11 d22 < alpha^2 d21^2 < d21^2, a negative determinant, one eigenvalue of
+               each sign */
+            const double det = d11 * d22 - d21 * d21;
+            negative += 1;
+            for (idx i = k + 2; i < n; i++) {   /* a_ij -= [a_ik, a_i,k+1] D^-1 [a_kj; a_k+1,j] */
+                const double x = a[i * n + k], y = a[i * n + k + 1];
+                const double w0 = (d22 * x - d21 * y) / det, w1 = (d11 * y - d21 * x) / det;
+                for (idx j = k + 2; j < n; j++)
+                    a[i * n + j] -= w0 * a[k * n + j] + w1 * a[(k + 1) * n + j];
+            }
+            k += 2;
+        }
+    }
+    return negative;
+}
+
+/* window(m, tol) -> (below, above): n_-(m - tol I) and n_-(m + tol I) of the symmetric
+   matrix m (n, n) (`bk_negatives`, -1 where one is singular): the numbers of its eigenvalues
+   below tol and below -tol (Sylvester), so below - above of them lie in [-tol, tol). */
+static PyObject *window(PyObject *self, PyObject *args)
+{
+    PyObject *m_obj;
+    double tol;
+    if (!PyArg_ParseTuple(args, "Od", &m_obj, &tol))
+        return NULL;
+    Py_buffer vm;
+    idx shape[2] = {-1, -1};
+    if (get_array(m_obj, &vm, 2, shape, 0, "m") < 0)
+        return NULL;
+    const idx n = shape[0];
+    if (shape[1] != n) {
+        PyErr_SetString(PyExc_ValueError, "m: expected a square matrix");
+        PyBuffer_Release(&vm);
+        return NULL;
+    }
+    double *work = PyMem_Malloc(sizeof(double) * (size_t)(2 * n * n + 1));
+    if (work == NULL) {
+        PyBuffer_Release(&vm);
+        return PyErr_NoMemory();
+    }
+    idx counts[2];
+    Py_BEGIN_ALLOW_THREADS
+    for (int side = 0; side < 2; side++) {
+        double *a = work + side * n * n;
+        const double shift = side == 0 ? -tol : tol;
+        for (idx i = 0; i < n; i++)
+            for (idx j = 0; j < n; j++)
+                a[i * n + j] = *(const double *)((const char *)vm.buf + i * vm.strides[0]
+                                                 + j * vm.strides[1]) + (i == j ? shift : 0.0);
+        counts[side] = bk_negatives(a, n);
+    }
+    Py_END_ALLOW_THREADS
+    PyMem_Free(work);
+    PyBuffer_Release(&vm);
+    return Py_BuildValue("(nn)", counts[0], counts[1]);
+}
+
 static PyMethodDef methods[] = {
     {"cubic_column", cubic_column, METH_VARARGS,
      "cubic_column(fp, mv, h6, h12, out): the cubic collocation's parameter column dC_i/dp "
@@ -845,6 +969,10 @@ static PyMethodDef methods[] = {
     {"rates", rates, METH_VARARGS,
      "rates(a, a_min, b, c, out): the refinement's wavenumber sqrt(|B - C^T A^-1 C| / a_min) "
      "+ |A^-1 C| at each point, k = 2 or 3 (stability.rates)."},
+    {"window", window, METH_VARARGS,
+     "window(m, tol) -> (below, above): the negative eigenvalues of m - tol I and m + tol I "
+     "by LDL^T with Bunch-Kaufman pivoting, -1 where singular (stability._inertia's last "
+     "nodes)."},
     {"reduce", reduce, METH_VARARGS,
      "reduce(d, u, f, scale, tail, total, size) -> (negative, n): the odd-even reduction "
      "of the block tridiagonal node matrix in place down to `tail` nodes or fewer "

@@ -38,6 +38,7 @@ from ..core.errors import ProblemError
 from ..model.second_variation import as_second_variation
 from ..core.solution import at_fractions
 from ._blocks import condense as blocks_condense, rates as blocks_rates, reduce as blocks_reduce
+from ._blocks import window as blocks_window
 
 #: Elements are small enough for the eigenfunctions near zero eigenvalue, which oscillate with
 #: wavenumber w = sqrt(|B| / A) (scalar form; :func:`_wavenumber`), when h w <= MAX_PHASE. P2
@@ -112,7 +113,7 @@ def count(problem, state) -> Count:
     if not problem.has_second_variation:
         return Count(-1, "no second_variation hook")
     if not (np.all(np.isfinite(state.y)) and np.all(np.isfinite(state.yp))
-            and all(np.isfinite(v) for v in state.params.values())):
+            and all(math.isfinite(v) for v in state.params.values())):
         return Count(-1, "the state is not finite")
     try:
         return count_form(form_on_state(problem, state), state.s, source=_source(problem))
@@ -399,8 +400,9 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     fields on the nodes and midpoints. Each midpoint belongs to one element and is eliminated
     there (Haynsworth: In(K) = In(K_mm) + In(K / K_mm)), leaving a block tridiagonal matrix on
     the nodes; all its nodes but the last DENSE_TAIL or fewer are eliminated by odd-even
-    (cyclic) reduction, and the matrix left is counted as one dense matrix (for k = 1
-    without constraints, :func:`_sturm` counts the node matrix's pivots instead).
+    (cyclic) reduction, and the matrix left is counted as one dense matrix by its LDL^T
+    with Bunch-Kaufman pivoting (for k = 1 without constraints, :func:`_sturm` counts the
+    node matrix's pivots instead).
 
     The element matrices (:func:`_element_blocks`' formulas), the midpoints' elimination and
     the reduction's levels are compiled (numerics/_blocks.c: a few dozen numpy calls each on
@@ -447,16 +449,22 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     # the multipliers, [[D, F], [F^T, -C K'^-1 C^T]] (K' the eliminated part), is counted as
     # one dense matrix. Its inertia is In(D) + In(-C K^-1 C^T) where D is nonsingular, but it
     # is counted as a whole: a constraint that removes a zero mode of K (a symmetry) makes D
-    # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r.
+    # singular and this matrix not. n_-(bordered) = n_-(form on ker C) + r. An eigenvalue
+    # within tol of zero is zero to working precision: the matrix shifted by -tol and by
+    # +tol has below and above negative eigenvalues (two LDL^T factorisations with
+    # Bunch-Kaufman pivoting, numerics/_blocks.c `window`; Sylvester), below - above of
+    # them in [-tol, tol); with none there the count is above. (An eigenvalue solve decides
+    # the same, at four times the cost: 50 against 13 microseconds on 39 rows.)
     total, size = s_mat
-    w = np.linalg.eigvalsh(_dense_tail(d, u, f, -total))
-    if np.any(np.abs(w) <= scale + _ULPS * size.max(initial=0)):
+    tol = scale + _ULPS * size.max(initial=0)
+    below, above = blocks_window(_dense_tail(d, u, f, -total), tol)
+    if below != above or above < 0:
         raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
                         "precision (a fold or a branch point)" if not r else
                         "zero eigenvalue: the constrained form is singular to working "
                         "precision (a fold or a branch point), or the constraints are "
                         "dependent")
-    return negative + int(np.count_nonzero(w < 0)) - r
+    return negative + above - r
 
 
 def _dense_tail(d, u, f, corner):
@@ -580,10 +588,11 @@ def _sturm(diag, off2, scale) -> int:
 
 
 #: The reduction stops at this many nodes or fewer, whose block tridiagonal matrix is then
-#: counted as one dense symmetric matrix: an eigenvalue solve of at most 3 x 16 + r rows
-#: costs about one level of the reduction, some fifteen array operations whatever its size,
-#: and replaces the last four levels of a 100-node mesh (10% of a k = 3 count, 17% with a
-#: constraint, benchmarks/bench.py --index).
+#: counted as one dense symmetric matrix (`_inertia`: two pivoted LDL^T of it shifted). The
+#: reduction's levels pivot on diagonal blocks without exchanges; past a few levels their
+#: rounding can exceed the singularity threshold, and a zero eigenvalue goes unseen: with 8
+#: or 4 nodes here, six labels of the shipped fold-curve and tendon files (singular, each
+#: refused with 16) got a count. 16 nodes keep them refused.
 DENSE_TAIL = 16
 
 
