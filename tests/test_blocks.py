@@ -262,3 +262,7 @@ def test_window_sees_a_zero_eigenvalue_and_reads_any_strides():
     assert _blocks.window(np.asfortranarray(m), 1e-9) == _blocks.window(m, 1e-9)
     with pytest.raises(ValueError, match="square"):
         _blocks.window(np.zeros((3, 4)), 0.1)
+    for bad in (np.nan, np.inf, -np.inf):       # no pivot decided by a comparison with NaN
+        m = np.eye(5)
+        m[2, 3] = m[3, 2] = bad
+        assert _blocks.window(m, 1e-9) == (-2, -2)

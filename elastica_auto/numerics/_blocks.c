@@ -910,7 +910,8 @@ static idx bk_negatives(double *a, idx n)
 
 /* window(m, tol) -> (below, above): n_-(m - tol I) and n_-(m + tol I) of the symmetric
    matrix m (n, n) (`bk_negatives`, -1 where one is singular): the numbers of its eigenvalues
-   below tol and below -tol (Sylvester), so below - above of them lie in [-tol, tol). */
+   below tol and below -tol (Sylvester), so below - above of them lie in [-tol, tol).
+   (-2, -2) where an entry of m is not finite (no comparison with NaN decides a pivot). */
 static PyObject *window(PyObject *self, PyObject *args)
 {
     PyObject *m_obj;
@@ -932,17 +933,20 @@ static PyObject *window(PyObject *self, PyObject *args)
         PyBuffer_Release(&vm);
         return PyErr_NoMemory();
     }
-    idx counts[2];
+    idx counts[2] = {-2, -2};
+    int finite = 1;
     Py_BEGIN_ALLOW_THREADS
-    for (int side = 0; side < 2; side++) {
-        double *a = work + side * n * n;
-        const double shift = side == 0 ? -tol : tol;
-        for (idx i = 0; i < n; i++)
-            for (idx j = 0; j < n; j++)
-                a[i * n + j] = *(const double *)((const char *)vm.buf + i * vm.strides[0]
-                                                 + j * vm.strides[1]) + (i == j ? shift : 0.0);
-        counts[side] = bk_negatives(a, n);
-    }
+    for (idx i = 0; i < n; i++)
+        for (idx j = 0; j < n; j++) {
+            const double v = *(const double *)((const char *)vm.buf + i * vm.strides[0]
+                                               + j * vm.strides[1]);
+            finite &= isfinite(v) != 0;
+            work[i * n + j] = v + (i == j ? -tol : 0.0);
+            work[n * n + i * n + j] = v + (i == j ? tol : 0.0);
+        }
+    if (finite && isfinite(tol))
+        for (int side = 0; side < 2; side++)
+            counts[side] = bk_negatives(work + side * n * n, n);
     Py_END_ALLOW_THREADS
     PyMem_Free(work);
     PyBuffer_Release(&vm);

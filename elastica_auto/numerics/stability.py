@@ -458,6 +458,8 @@ def _inertia(form, s, a, b, c, a_min, g) -> int:
     total, size = s_mat
     tol = scale + _ULPS * size.max(initial=0)
     below, above = blocks_window(_dense_tail(d, u, f, -total), tol)
+    if below == -2:
+        raise _Singular("the last nodes' matrix is not finite (the reduction overflowed)")
     if below != above or above < 0:
         raise _Singular("zero eigenvalue: the last nodes' block is singular to working "
                         "precision (a fold or a branch point)" if not r else
