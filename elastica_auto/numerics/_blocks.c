@@ -2,7 +2,8 @@
    (any k): the P2 element matrices, the elimination of each element's midpoint, and the
    levels of the odd-even (cyclic) reduction of the block tridiagonal node matrix and its
    constraint columns, with the count of the pivots' negative eigenvalues (docs/stability.md,
-   "The direct count"). The last nodes' matrix is left to stability.py's eigenvalue solve.
+   "The direct count"); and the last nodes' matrix's inertia about the singularity threshold
+   (`window`: two LDL^T factorisations with Bunch-Kaufman pivoting).
 
    Why compiled: at the engine's sizes (100 to 200 blocks of 3 x 3 per level) each of these
    steps written with numpy was a few dozen calls on small arrays, and the calls' own cost,
