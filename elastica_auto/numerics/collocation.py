@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.solution import at_fractions, trapezoid_weights
-from . import _blocks
+from ._blocks import cubic_blocks, cubic_column, cubic_gather
 
 #: Lobatto points inside an interval other than its midpoint, as fractions of its length.
 _LOBATTO = (0.5 - 0.5 * np.sqrt(3.0 / 7.0), 0.5 + 0.5 * np.sqrt(3.0 / 7.0))
@@ -162,13 +162,13 @@ class Discretisation:
         # operands: the blocks at the nodes and midpoints, and [J_i, J_{i+1}] side by side
         jac_all = np.empty((2 * m - 1, n, n))
         cat = np.empty((m - 1, n, 2 * n))
-        _blocks.cubic_gather(np.asarray(problem.rhs_jac(self.s_all, y_all, p), dtype=float),
+        cubic_gather(np.asarray(problem.rhs_jac(self.s_all, y_all, p), dtype=float),
                              jac_all, cat)
         jac, jac_mid = jac_all[:m], jac_all[m:]
         # J_mid J_i and J_mid J_{i+1} in one batched product
         prod = jac_mid @ cat
         d0, d1 = np.empty((m - 1, n, n)), np.empty((m - 1, n, n))
-        _blocks.cubic_blocks(jac_all, prod, self._h6, self._h12, d0, d1)
+        cubic_blocks(jac_all, prod, self._h6, self._h12, d0, d1)
         ga, gb = problem.bc_jac(ev.y[:, 0], ev.y[:, -1], p)
         dcol, dbc, fps = {}, {}, {}
         for name in names:
@@ -177,7 +177,7 @@ class Discretisation:
             # J_mid (f_p,i+1 - f_p,i), numpy's batched product as for the blocks
             mv = jac_mid @ (fp[:, 1:] - fp[:, :-1]).T[:, :, None]
             dcol[name] = np.empty((n, m - 1))
-            _blocks.cubic_column(fp_all, mv, self._h6, self._h12, dcol[name])
+            cubic_column(fp_all, mv, self._h6, self._h12, dcol[name])
             dbc[name] = problem.bc_dp(ev.y[:, 0], ev.y[:, -1], p, name)
         return Blocks(d0, d1, np.asarray(ga, dtype=float), np.asarray(gb, dtype=float),
                       dcol, dbc, jac, fps)
