@@ -185,3 +185,74 @@ def test_the_midspan_load_agrees_with_shooting_and_a_discrete_hessian(midspan):
     assert lp.ordinates["dE_dF"] == pytest.approx(dE_dF(*fold.x), rel=1e-7)
     assert br.transition(lp) == "1 -> 0"
     assert br.points[0].index == 1 == fd_index(0.0, 0.0)
+
+
+# -- a module's NaN in the Jacobian is the module's, not a singular Jacobian ----------------
+
+BRATU_NAN = '''
+"""Two uncoupled Bratu problems, u'' + lam exp(u) = 0 = w'' + lam exp(w), all ends 0, whose
+rhs is NaN beyond lam = 2 (the branch crosses a branch point's test there)."""
+import numpy as np
+from elastica_auto import Parameter
+
+STATES = ("u", "w", "v", "z")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode")]
+
+
+def rhs(s, y, p):
+    if p["lam"] > 2:
+        return np.full_like(y, np.nan)
+    return np.vstack((y[2], y[3], -p["lam"] * np.exp(y[0]), -p["lam"] * np.exp(y[1])))
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0], ya[1], yb[1]))
+
+
+def exact_start(s, p):
+    return np.zeros((4, len(s))) if p["lam"] == 0 else None
+'''
+BRATU_NAN_JAC = '''
+"""Bratu, u'' + lam exp(u) = 0, u(0) = u(1) = 0, whose rhs_jac is NaN beyond lam = 2."""
+import numpy as np
+from elastica_auto import Parameter
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.exp(y[0])))
+
+
+def rhs_jac(s, y, p):
+    jac = np.zeros((2, 2, y.shape[1]))
+    jac[0, 1] = 1.0
+    jac[1, 0] = -p["lam"] * np.exp(y[0]) if p["lam"] <= 2 else np.nan
+    return jac
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def exact_start(s, p):
+    return np.zeros((2, len(s))) if p["lam"] == 0 else None
+'''
+
+
+@pytest.mark.parametrize("where", ["rhs", "rhs_jac"])
+def test_a_jacobian_the_module_makes_nan_is_said_to_be_the_modules(tmp_path, where):
+    """The module's values are NaN beyond lam = 2 (the rhs of two uncoupled Bratu problems,
+    whose central differences in lam at a point just below 2 read lam > 2; or the rhs_jac of
+    one), the residual at the last point finite: the branch ends MX saying the module
+    returned NaN there. It said "a singular Jacobian" (rhs), which sends the user to the
+    end conditions, and ended with an internal error, a NaN count of mesh intervals from
+    the kernel's error estimate (rhs_jac: exit status 4, the engine blamed)."""
+    path = tmp_path / "bratu_nan.py"
+    path.write_text(BRATU_NAN if where == "rhs" else BRATU_NAN_JAC)
+    (br,) = ea.continuation(ea.load_problem(path), {"lam": 0.0}, "lam", bounds=(-1, 4),
+                            uz=[1, 2, 3], max_points=40)
+    assert br.end == "MX"
+    assert "the equation module returned NaN or inf there" in br.message, br.message
+    assert "singular Jacobian" not in br.message
