@@ -256,3 +256,52 @@ def test_a_jacobian_the_module_makes_nan_is_said_to_be_the_modules(tmp_path, whe
     assert br.end == "MX"
     assert "the equation module returned NaN or inf there" in br.message, br.message
     assert "singular Jacobian" not in br.message
+
+
+# -- a second variation whose A is not positive definite is said so -------------------------
+
+BRATU_LEGENDRE = '''
+"""Bratu, u'' + lam exp(u) = 0, u(0) = u(1) = 0, whose second variation's A turns negative
+beyond lam = 2 (a wrong hook: the Legendre condition fails there)."""
+import numpy as np
+from elastica_auto import Parameter, SecondVariation
+
+STATES = ("u", "v")
+PARAMETERS = [Parameter("lam", 0.0, "lam", "ode")]
+
+
+def rhs(s, y, p):
+    return np.vstack((y[1], -p["lam"] * np.exp(y[0])))
+
+
+def bc(ya, yb, p):
+    return np.array((ya[0], yb[0]))
+
+
+def exact_start(s, p):
+    return np.zeros((2, len(s))) if p["lam"] == 0 else None
+
+
+def second_variation(s, y, p):
+    return SecondVariation(-1.0 if p["lam"] > 2 else 1.0, -p["lam"] * np.exp(y[0]),
+                           fixed0=[0], fixed1=[0])
+'''
+
+
+def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
+    """Where A is not positive definite the form has no index (docs/stability.md): each such
+    point's index is unknown and its note says why, which nothing a user reads showed (the
+    run exited 0 with an empty index column). The branch has one warning naming how many
+    points, where, and the first reason; `run` and `show` print a branch's warnings."""
+    path = tmp_path / "legendre.py"
+    path.write_text(BRATU_LEGENDRE)
+    (br,) = ea.continuation(ea.load_problem(path), {"lam": 0.0}, "lam", bounds=(-1, 3),
+                            max_points=30)
+    undefined = [k for k, p in enumerate(br.points, 1) if p.index_direct == -1
+                 and p.type not in ("LP", "BP")]
+    assert undefined and all(br.points[k - 1].params["lam"] > 2 for k in undefined)
+    assert all(p.index_direct >= 0 for p in br.points if p.params["lam"] < 2)
+    (warning,) = [w for w in br.warnings if "no stability index" in w]
+    assert warning.startswith(f"no stability index at {len(undefined)} points "
+                              f"(pt {undefined[0]} to {undefined[-1]}, lam from ")
+    assert "A is not positive definite" in warning and "legendre.py" in warning
