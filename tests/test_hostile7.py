@@ -305,3 +305,33 @@ def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
     assert warning.startswith(f"no stability index at {len(undefined)} points "
                               f"(pt {undefined[0]} to {undefined[-1]}, lam from ")
     assert "A is not positive definite" in warning and "legendre.py" in warning
+
+
+# -- a value given to a free parameter from a label is refused, not ignored -----------------
+
+def test_a_value_for_a_free_parameter_from_a_label_is_refused(tmp_path, cli_exe):
+    """The clamped column's lateral reaction Q is solved for (its energy's multiplier). From a
+    label, `--set Q=1` was accepted and ignored: the branch started at the label's Q = 0, as
+    h5py reads it from the output. It is a user error naming the parameter and the label's
+    value; the label's own value is no change and is accepted."""
+    import h5py
+
+    from helpers import run_cli
+    toml = tmp_path / "col.toml"
+    toml.write_text(f'equation = "{EXAMPLES / "clamped_column.py"}"\n'
+                    '[parameters]\nP = 0\n[continuation]\nparameter = "P"\n'
+                    'directions = "+"\nbounds = [-1, 20]\nuz = [10]\n')
+    assert run_cli(cli_exe, "run", toml, "--out", tmp_path / "a", "-q").returncode == 0
+    with h5py.File(tmp_path / "a" / "col.h5", "r") as f:
+        uz = list(f["branches/001/columns/type"][()]).index(b"UZ")     # UZ1
+        q_stored = float(f["branches/001/columns/Q"][uz])
+    assert abs(q_stored) < 1e-9
+    bad = run_cli(cli_exe, "run", toml, "--from", tmp_path / "a" / "col.h5:UZ1", "--set", "Q=1",
+                  "--out", tmp_path / "b", "-q")
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.startswith("elastica-auto: error: ")
+    assert "Q = 1 is given, but Q is a free parameter of this run, solved for" in bad.stderr
+    assert not (tmp_path / "b" / "col.h5").exists()
+    same = run_cli(cli_exe, "run", toml, "--from", tmp_path / "a" / "col.h5:UZ1", "--set",
+                   f"Q={q_stored!r}", "--out", tmp_path / "c", "-q")
+    assert same.returncode == 0, same.stderr
