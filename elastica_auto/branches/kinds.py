@@ -478,7 +478,8 @@ class Fold(Event):
             scan.found.extend(self.points(walk, scan))
         except CorrectorFailure as exc:
             if scan.can_retry:
-                raise Retry(f"fold not located ({exc})", step.ds / 2, spends=True) from None
+                raise Retry(f"fold not located ({exc})", step.ds / 2, exc.residual,
+                            spends=True) from None
             b = step.b
             if 0 <= scan.index_a == scan.index_b and scan.on[labels.BP]:
                 # the parameter turns, the fold system is singular and no eigenvalue
@@ -671,7 +672,7 @@ class BranchPoint(Event):
             except CorrectorFailure as exc:
                 if scan.can_retry:
                     raise Retry(f"branch point not located ({exc})", step.ds / 2,
-                                spends=True) from None
+                                exc.residual, spends=True) from None
                 scan.unlocated = (f"branch point between {walk.name} = {step.a.lam:.6g} and "
                                   f"{step.b.lam:.6g} not located: {exc}")
         if scan.crossed[labels.LP]:
@@ -803,7 +804,8 @@ class ParameterValue(Event):
         except CorrectorFailure as exc:
             what = f"{self.what} {walk.name} = {value:.6g} not located"
             if placement.can_retry:
-                raise Retry(f"{what} ({exc})", step.ds / 2, spends=True) from None
+                raise Retry(f"{what} ({exc})", step.ds / 2, exc.residual,
+                            spends=True) from None
             walk.branch.warnings.append(f"{what}: {exc}")
             return None
 

@@ -270,7 +270,30 @@ def continue_branch(branch: Branch, problem, course: Course, origin: Origin,
     _continue(branch, problem, course, origin, progress)
     if phase is not None:
         phase.drop(branch)
+    _warn_undefined_index(branch)
     return branch
+
+
+#: the end of the note of a point whose second variation has no index (`count` refused it:
+#: A not positive definite, numerics/stability.py)
+UNDEFINED_INDEX = "the stability index is not defined"
+
+
+def _warn_undefined_index(branch: Branch) -> None:
+    """One warning for the points whose stability index the second variation does not
+    define (the Legendre condition fails: A not positive definite), with the first one's
+    reason. Each such point's note says so, but a note is read by nothing a user sees
+    (`show`, the run's lines): the index column was only empty there, and the run said
+    nothing of a hook whose A is wrong."""
+    where = [(k, p) for k, p in enumerate(branch.points, 1) if UNDEFINED_INDEX in p.note]
+    if not where:
+        return
+    name = branch.parameter
+    values = [p.params[name] for _, p in where]
+    reason = next(part for part in where[0][1].note.split("; ") if UNDEFINED_INDEX in part)
+    branch.warnings.append(
+        f"no stability index at {len(where)} points (pt {where[0][0]} to {where[-1][0]}, "
+        f"{name} from {min(values):.6g} to {max(values):.6g}): {reason}")
 
 
 def _continue(branch: Branch, problem, course: Course, origin: Origin, progress):

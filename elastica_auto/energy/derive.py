@@ -288,6 +288,33 @@ def _fail(message: str):
     raise ProblemError(f"ENERGY: {message}")
 
 
+# Functions that jump where their argument crosses a value: in the density or a rate, with s
+# in the argument, they put a jump (or a delta) at an interior point of the rod.
+_JUMPS = (sp.Heaviside, sp.DiracDelta, sp.Piecewise, sp.sign, sp.floor, sp.ceiling, sp.frac,
+          sp.Min, sp.Max)
+
+
+def _check_smooth_in_s(expr, what, s) -> None:
+    """Refuse a density or rate that jumps in s inside the rod (a point load at mid-span
+    written ``F Heaviside(1/2 - s) ...``). The solutions are collocation polynomials on
+    the mesh intervals, C^1 across the nodes (the cubic scheme), and the step control asks
+    their residual to fall below ``tol`` on every interval: a jump in y' at s = c leaves a
+    residual of the jump's size on the interval that holds c however the mesh is refined,
+    and the branch ends MX at its first step ("error estimate ... > tol"), which does not
+    say why. The two pieces are written instead as two halves folded onto [0, 1], where
+    the point is an end of both (docs/energy.md, a load inside the rod)."""
+    for f in sorted(expr.atoms(*_JUMPS), key=sp.default_sort_key):
+        # s in the argument itself, not only through a coordinate theta(s) (a kink in the
+        # state, a one-sided foundation Max(theta, 0), is the model's own, at no fixed point)
+        fields = {g: sp.Dummy() for g in (*f.atoms(sp.Derivative), *f.atoms(AppliedUndef))}
+        if s in f.xreplace(fields).free_symbols:
+            _fail(f"{what} contains {f}, which jumps in {s} inside the rod: the collocation "
+                  "cannot resolve a jump at an interior point (the branch would end MX at its "
+                  f"first step); write each piece of the rod as a coordinate of its own on "
+                  f"{s} in [0, 1], the point where they meet an end of both (a load inside "
+                  "the rod, docs/energy.md)")
+
+
 def _name_of(obj) -> str | None:
     """The name a user's key stands for: a coordinate or quadrature given as ``theta(s)``,
     ``theta(1)``, the function ``theta`` or the string ``"theta"``; a symbol's name; a
@@ -524,6 +551,8 @@ class _Names:
         if not isinstance(expr, sp.Expr):
             _fail(f"{what} is not a scalar expression: {expr!r:.80}")
         s = self.s
+        if end is None:
+            _check_smooth_in_s(expr, what, s)
         subs = {}
         for d in sorted(expr.atoms(sp.Derivative), key=sp.default_sort_key):
             f = d.expr

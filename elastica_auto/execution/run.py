@@ -106,7 +106,16 @@ def build_start(plan: Plan, spec: BranchSpec) -> Job:
         if labels.kind_of(spec.start.label) not in labels.SWITCHES:
             raise StartError(f"{spec.start}: switch needs a branch point (BP) label")
         return _switch_job(plan, spec, state, tangent, ncol)
-    # free parameters are solved for: a value given to one is no place to move to
+    # free parameters are solved for: a value given to one is no place to move to, and
+    # was ignored without a word (the run started at the label's own value)
+    ignored = {q: v for q, v in spec.params.items()
+               if q in problem.solved and v != state.params[q]}
+    if ignored:
+        q, v = next(iter(ignored.items()))
+        raise StartError(f"{spec.start}: {q} = {v:.12g} is given, but {q} is a free parameter "
+                         f"of this run, solved for (its value at {spec.start.label}: "
+                         f"{state.params[q]:.12g}): remove it from [parameters] (or --set), or "
+                         f"solve for another parameter in its place ([continuation] free)")
     targets = {q: v for q, v in spec.params.items()
                if q not in problem.solved and v != state.params[q]}
     if targets:  # by continuation: Newton at the new values fails at (and near) an LP, BP, CP

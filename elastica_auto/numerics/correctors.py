@@ -28,6 +28,7 @@ tangent (the fold test function is its parameter component) and the sign of the 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -70,6 +71,19 @@ class CorrectorFailure(NumericalFailure):
     def __init__(self, message: str, residual: float = float("nan")):
         super().__init__(message)
         self.residual = residual
+
+
+def _mesh(s, rms, target: float, min_intervals: int, max_intervals: int, order: int):
+    """`equidistributed_mesh` from the error estimate ``rms`` on ``s``; CorrectorFailure,
+    marked as the module's values (an infinite residual, which the stepper reports so),
+    where an estimate is not finite. The estimates of a tangent or a kernel read the
+    module's Jacobian (``rhs_jac``, or the differences of ``rhs``) between the nodes: a
+    Jacobian that is NaN there, with finite values at the nodes, left a NaN count of
+    intervals and the branch ended with an internal error."""
+    if not np.all(np.isfinite(rms)):
+        raise CorrectorFailure("the error estimate is not finite (the equations or their "
+                               "Jacobian are not finite between the nodes)", math.inf)
+    return equidistributed_mesh(s, rms, target, min_intervals, max_intervals, order)
 
 
 @dataclass
@@ -168,7 +182,7 @@ class Linearizer:
             # the equations not finite between the nodes (an energy module's Legendre inverse
             # that did not converge there): no error estimate, and no solution to step from
             raise CorrectorFailure("the error estimate is not finite (the equations are not "
-                                   "finite between the nodes)")
+                                   "finite between the nodes)", math.inf)
         return Solution(lin.state(), lin.tangent(), lin, rms, niter)
 
     def linearize(self, state: State, along: Tangent | None) -> Solution:
@@ -386,7 +400,7 @@ class Collocation(_Linearized):
 
     def regrid(self, s, rms, tol=None):
         opt = self.options
-        return equidistributed_mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
+        return _mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
                                     opt.ntst, opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def fold_mesh(self, s, rms):
@@ -395,7 +409,7 @@ class Collocation(_Linearized):
         ``fold_tol`` (it serves no further step, and a located point needs its solution and
         kernel within fold_tol only)."""
         opt = self.options
-        return equidistributed_mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
+        return _mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
                                     opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def next_mesh(self, a: Solution):
@@ -599,7 +613,7 @@ class SolveBVP(_Linearized):
         from .bvp import coarsen
         opt = self.options
         if float(a.rms.max()) > opt.tol:
-            return equidistributed_mesh(a.mesh, a.rms, REGRID_TARGET * opt.tol, opt.ntst,
+            return _mesh(a.mesh, a.rms, REGRID_TARGET * opt.tol, opt.ntst,
                                         opt.max_nodes - 1, Discretisation.order)
         return coarsen(a.mesh, a.rms, opt.tol, opt.ntst + 1)
 
@@ -608,7 +622,7 @@ class SolveBVP(_Linearized):
         ``rms`` on ``s`` for FOLD_TARGET of ``fold_tol`` (solve_bvp refines it further where
         its own residual asks for it)."""
         opt = self.options
-        return equidistributed_mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
+        return _mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
                                     opt.max_nodes - 1, Discretisation.order)
 
     def fold(self, near: Solution) -> FoldPoint:

@@ -204,6 +204,14 @@ class _Corrections:
                 and abs(g) <= self.floor[1])
 
 
+def _finite_blocks(blocks) -> bool:
+    """Every entry of the Jacobian ``blocks`` (`collocation.Blocks`) is finite: the
+    collocation and boundary rows' derivatives in the states and the parameters."""
+    arrays = [blocks.d0, blocks.d1, blocks.ga, blocks.gb, *blocks.dcol.values(),
+              *blocks.dbc.values()]
+    return all(np.isfinite(a).all() for a in arrays)
+
+
 @dataclass
 class NewtonResult:
     converged: bool
@@ -239,10 +247,17 @@ def newton(disc: Discretisation, name: str, params: dict, Y, lam: float, row: Ro
     dY, dlam, dK, size = correction(lin, Y, K, lam)
     if not np.isfinite(size):
         # the residuals not finite (``last`` unset: the module's values, marked by an
-        # infinite correction, which the stepper reports so), or finite with a correction that
-        # is not (NaN): the Jacobian there is singular, and the module not to blame
+        # infinite correction, which the stepper reports so); or finite, with a Jacobian that
+        # is not (the module's derivatives, or its values at the states and parameters next
+        # to the guess that the engine's differences read: a rhs that is NaN beyond a
+        # parameter value, with the guess just below it), the module's too; or both finite
+        # with a correction that is not (NaN): the Jacobian there is singular, and the module
+        # not to blame
         if correction.last is None:
             return NewtonResult(False, Y, lam, 0, "non-finite residual at the initial guess",
+                                correction=math.inf)
+        if not _finite_blocks(lin.blocks):
+            return NewtonResult(False, Y, lam, 0, "non-finite Jacobian at the initial guess",
                                 correction=math.inf)
         return NewtonResult(False, Y, lam, 0, "non-finite Newton correction at the initial "
                             "guess (a singular Jacobian)", correction=math.nan)
