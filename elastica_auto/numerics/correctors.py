@@ -401,7 +401,7 @@ class Collocation(_Linearized):
     def regrid(self, s, rms, tol=None):
         opt = self.options
         return _mesh(s, rms, REGRID_TARGET * (opt.tol if tol is None else tol),
-                                    opt.ntst, opt.max_nodes - 1, self._linearizer.disc(s).order)
+                     opt.ntst, opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def fold_mesh(self, s, rms):
         """The mesh, equidistributed from the error estimate ``rms`` on ``s``, on which a fold
@@ -410,7 +410,7 @@ class Collocation(_Linearized):
         kernel within fold_tol only)."""
         opt = self.options
         return _mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
-                                    opt.max_nodes - 1, self._linearizer.disc(s).order)
+                     opt.max_nodes - 1, self._linearizer.disc(s).order)
 
     def next_mesh(self, a: Solution):
         """The mesh for the step from ``a``: its own while its error estimate stays between
@@ -614,7 +614,7 @@ class SolveBVP(_Linearized):
         opt = self.options
         if float(a.rms.max()) > opt.tol:
             return _mesh(a.mesh, a.rms, REGRID_TARGET * opt.tol, opt.ntst,
-                                        opt.max_nodes - 1, Discretisation.order)
+                         opt.max_nodes - 1, Discretisation.order)
         return coarsen(a.mesh, a.rms, opt.tol, opt.ntst + 1)
 
     def fold_mesh(self, s, rms):
@@ -623,7 +623,7 @@ class SolveBVP(_Linearized):
         its own residual asks for it)."""
         opt = self.options
         return _mesh(s, rms, FOLD_TARGET * opt.fold_tol, opt.ntst,
-                                    opt.max_nodes - 1, Discretisation.order)
+                     opt.max_nodes - 1, Discretisation.order)
 
     def fold(self, near: Solution) -> FoldPoint:
         """The fold near ``near`` by solve_bvp on the fold's extended system (the BVP, its null
