@@ -307,6 +307,32 @@ def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
     assert "A is not positive definite" in warning and "legendre.py" in warning
 
 
+@pytest.mark.parametrize("where, said", [("B", "at s = "), ("E1", "in an end term")])
+def test_a_second_variation_that_is_not_finite_is_a_warning_of_the_branch(tmp_path, where,
+                                                                           said):
+    """A hook whose B (or end term) is NaN beyond lam = 2 at finite states: those points have
+    no index, and the reason was dropped (only the Legendre condition's was kept as the
+    point's note), so the run said nothing. Now the note and the branch's one warning say
+    where the form is not finite; below lam = 2 the points are counted as before."""
+    text = BRATU_LEGENDRE.replace(
+        "return SecondVariation(-1.0 if p[\"lam\"] > 2 else 1.0, -p[\"lam\"] * np.exp(y[0]),",
+        "bad = np.nan if p[\"lam\"] > 2 else 0.0\n"
+        "    return SecondVariation(1.0, -p[\"lam\"] * np.exp(y[0])"
+        + (" + bad * (s > 0.5)," if where == "B" else ", E1=bad,"))
+    assert "bad = np.nan" in text
+    path = tmp_path / "nan_form.py"
+    path.write_text(text)
+    (br,) = ea.continuation(ea.load_problem(path), {"lam": 0.0}, "lam", bounds=(-1, 3),
+                            max_points=30)
+    undefined = [k for k, p in enumerate(br.points, 1) if p.index_direct == -1
+                 and p.type not in ("LP", "BP")]
+    assert undefined and all(br.points[k - 1].params["lam"] > 2 for k in undefined)
+    assert all(p.index_direct >= 0 for p in br.points if p.params["lam"] < 2)
+    (warning,) = [w for w in br.warnings if "no stability index" in w]
+    assert f"nan_form.py: second_variation is not finite {said}" in warning
+    assert said in br.points[undefined[0] - 1].note
+
+
 # -- a value given to a free parameter from a label is refused, not ignored -----------------
 
 def test_a_value_for_a_free_parameter_from_a_label_is_refused(tmp_path, cli_exe):

@@ -57,7 +57,8 @@ _ULPS = SINGULAR_ULPS * np.finfo(float).eps
 class Count:
     """The direct count at one state: ``index`` (-1 if not counted) and, when it was not,
     ``reason`` (no hook, values not finite, a zero eigenvalue, the Legendre condition);
-    ``refused`` where the form has no index there (the Legendre condition fails); ``parts``
+    ``refused`` where the form has no index there (the Legendre condition fails, or the
+    module's form is not finite at a finite state); ``parts``
     the index of each of the form's named parts (`SecondVariation.split`; -1 for every part
     where the form does not decouple along them or that part has a zero eigenvalue)."""
 
@@ -281,10 +282,11 @@ def count_form(evaluate, mesh, *, shift: float = 0.0, source: str = "") -> Count
                 parts = {name: c.index for name, c in counts.items()}
                 failed = [f"{name}: {c.reason}" for name, c in counts.items() if c.index < 0]
                 return Count(-1 if failed else sum(parts.values()), "; ".join(failed),
-                             parts=parts)
+                             any(c.refused for c in counts.values()), parts=parts)
     whole = _count(lambda pts: form if pts is first else evaluate(pts), s, shift, source,
                    first)
-    return Count(whole.index, whole.reason, parts=dict.fromkeys(form.parts, -1))
+    return Count(whole.index, whole.reason, whole.refused,
+                 parts=dict.fromkeys(form.parts, -1))
 
 
 def _part_form(evaluate, first, name, part):
@@ -306,7 +308,7 @@ def _count(evaluate, s, shift, source, first) -> Count | None:
     if form is None:
         return None
     if coeffs is None:
-        return Count(-1, "the second variation is not finite")
+        return _not_finite(form, first, source)
     a, b, c, a_min, _ = coeffs
     h = np.diff(s)
     parts = _parts(h, _wavenumber(a_min, b, c))
@@ -317,15 +319,28 @@ def _count(evaluate, s, shift, source, first) -> Count | None:
         i = np.repeat(np.arange(len(h)), parts)
         j = np.arange(len(i)) - np.repeat(np.cumsum(parts) - parts, parts)
         s = np.append(s[i] + j * (h / parts)[i], s[-1])
-        form, coeffs = _evaluate(evaluate, nodes_and_midpoints(s), shift, source)
+        pts = nodes_and_midpoints(s)
+        form, coeffs = _evaluate(evaluate, pts, shift, source)
         if form is None:
             return None
         if coeffs is None:
-            return Count(-1, "the second variation is not finite")
+            return _not_finite(form, pts, source)
     try:
         return Count(_inertia(form, s, *coeffs))
     except _Singular as exc:
         return Count(-1, str(exc))
+
+
+def _not_finite(form, pts, source) -> Count:
+    """The count refused where the form's values are not finite at a finite state (the
+    module's hook made NaN or inf: a 0/0 of its formulas, say), saying where: a point of the
+    first field that is not finite there, or an end term or constraint."""
+    a, b, c, g = form.fields(len(pts))
+    bad = ~(np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2))
+            & np.isfinite(c).all(axis=(1, 2)) & np.isfinite(g).all(axis=(0, 2)))
+    where = f"at s = {pts[int(np.argmax(bad))]:.6g}" if bad.any() else "in an end term"
+    return Count(-1, f"{source + ': ' if source else ''}second_variation is not finite "
+                     f"{where}: the stability index is not defined there", refused=True)
 
 
 def _evaluate(evaluate, pts, shift, source):
