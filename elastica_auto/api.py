@@ -26,7 +26,7 @@ from typing import Iterable, Mapping
 from .storage import store
 from .branches.branch import Branch
 from .core import labels
-from .core.errors import ClusterLost, PlanError, StoreError
+from .core.errors import CallbackError, ClusterLost, PlanError, StoreError
 from .core.options import ContinuationOptions
 from .core.values import real_number
 from .execution.plan import Request, StartLike, make_plan
@@ -97,6 +97,20 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, branches: Branches):
         super().__init__("continuation interrupted")
         self.branches = branches
+
+
+def _as_callback(progress: Progress | None) -> Progress | None:
+    """``progress`` calling through: what it raises is the caller's (`CallbackError`, the
+    branch's diagnostics of kind "caller" naming its line), not an internal error."""
+    if progress is None:
+        return None
+
+    def call(branch, points, folds, value):
+        try:
+            progress(branch, points, folds, value)
+        except Exception as exc:
+            raise CallbackError("progress") from exc
+    return call
 
 
 def continuation(problem: Problem, start: StartLike | Iterable[StartLike], parameter: str, *,
@@ -178,7 +192,9 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         before the continuation ends with ClusterLost (default 60: a worker that dies is
         replaced within seconds; workers that reached a batch system's walltime are not).
     progress : callable, optional
-        Called as ``progress(branch, points, folds, value)`` during the continuation.
+        Called as ``progress(branch, points, folds, value)`` during the continuation; what
+        it raises ends that branch (MX, diagnostics of kind "caller"), KeyboardInterrupt
+        the run (`Interrupted`).
     **options
         :class:`~elastica_auto.core.options.ContinuationOptions` by name: ``ds``, ``ds_min``,
         ``ds_max``, ``max_points``, ``ntst``, ``tol``, ``corrector``, ...
@@ -234,7 +250,7 @@ def continuation(problem: Problem, start: StartLike | Iterable[StartLike], param
         # labels numbered as each branch is done (as a saved run's): a switched branch's
         # start names its BP
         compute(plan, first, result, lambda: number_labels(result.branches),
-                Callbacks(progress=progress),
+                Callbacks(progress=_as_callback(progress)),
                 Workers(jobs, scheduler, worker_timeout=worker_timeout))
     except KeyboardInterrupt:  # between branches: the finished ones are kept
         result.interrupted = True

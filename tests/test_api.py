@@ -165,6 +165,25 @@ def test_ctrl_c_returns_what_was_computed(bratu):
     assert br.points[-1].name == "MX1"
 
 
+def test_a_progress_callback_that_raises_is_the_callers_error_not_an_internal_one(bratu):
+    """What the caller's ``progress`` raises ends the branch there (MX, the points so far
+    kept) as the caller's failure: diagnostics of kind "caller" naming the callback's own
+    line, no "internal error" (it was one, which reads as a bug of the engine); Ctrl-C from
+    it stays an interruption (the test above)."""
+    def progress(k, npts, nfolds, lam):
+        if npts == 6:
+            raise ValueError("my callback broke")
+
+    (up,) = ea.continuation(bratu, {"lam": 0.0}, "lam", bounds=(-1, 4), progress=progress)
+    assert up.end == "MX" and len(up.points) == 6 and up.points[-1].type == "MX"
+    assert up.diagnostics["kind"] == "caller" and "text" not in up.diagnostics
+    assert up.diagnostics["exception"] == "ValueError"
+    assert up.diagnostics["where"].startswith("test_api.py:")
+    assert up.diagnostics["where"].endswith("in progress, the progress callback")
+    assert up.message.startswith("ValueError: my callback broke (test_api.py:")
+    assert "internal error" not in up.message
+
+
 def test_a_lost_cluster_returns_what_was_computed(bratu, monkeypatch):
     """hostile H5, from Python: a cluster that had no worker for ``worker_timeout`` raises
     ``ea.ClusterLost``, whose ``branches`` hold the branches computed so far and those not

@@ -104,8 +104,19 @@ def error_text(exc: BaseException) -> str:
 
 
 #: Who failed, as `failure_kind` tells it: what a branch's diagnostics and a run's ``missing``
-#: record under "kind".
-MODULE, NUMERICAL, ENGINE = "module", "numerical", "engine"
+#: record under "kind" (CALLER: a function the Python API's caller passed, `CallbackError`).
+MODULE, NUMERICAL, ENGINE, CALLER = "module", "numerical", "engine", "caller"
+
+
+class CallbackError(Exception):
+    """A function the caller passed (``ea.continuation``'s ``progress``) raised: its own
+    error, not the engine's (``__cause__`` is what it raised). The branch ends there as any
+    failing branch does (MX, the points so far kept), its diagnostics of kind CALLER naming
+    the callback's line."""
+
+    def __init__(self, name: str):
+        super().__init__(name)
+        self.name = name
 
 
 def module_files(module) -> tuple[str, ...]:
@@ -131,6 +142,8 @@ def failure_kind(exc: BaseException, module_file: str | tuple[str, ...] | None) 
     engine's own code raising, which is a bug: the command reports it apart
     (`EXIT_INTERNAL`) rather than as a hard problem."""
     import traceback
+    if isinstance(exc, CallbackError):
+        return CALLER
     if isinstance(exc, (ProblemError, SystemExit)):
         return MODULE
     files = _files(module_file)
@@ -151,8 +164,16 @@ def failure_record(exc: BaseException, module_file: str | tuple[str, ...] | None
     ``traceback`` (the frames, one line each) and, for an internal error, ``text``: the
     whole traceback as Python prints it."""
     import traceback
-    frames = traceback.extract_tb(exc.__traceback__)
     kind = failure_kind(exc, module_file)
+    if kind == CALLER and exc.__cause__ is not None:
+        # what the callback raised, where it raised it (its innermost line)
+        frames = traceback.extract_tb(exc.__cause__.__traceback__)
+        at = frames[-1] if frames else None
+        place = f"{os.path.basename(at.filename)}:{at.lineno} in {at.name}, " if at else ""
+        return {"exception": type(exc.__cause__).__name__, "error": error_text(exc.__cause__),
+                "where": f"{place}the {exc.name} callback", "kind": kind,
+                "traceback": [f"{f.filename}:{f.lineno} in {f.name}" for f in frames]}
+    frames = traceback.extract_tb(exc.__traceback__)
     files = _files(module_file)
     own = [f for f in frames if f.filename in files]
     if own:   # the innermost line of the module, and the hook the engine called
