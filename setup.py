@@ -2,7 +2,9 @@
 count's block work of numerics/stability.py (each C file says why; docs/design.md, "Module
 layout"). Everything else is declared in pyproject.toml.
 
-Each is one C file on Python's buffer protocol (no numpy headers at build time), built without fused
+Each is one C file on Python's buffer protocol (no numpy headers at build time; the two that
+read float64 arrays share elastica_auto/_buffers.h, a dependency of each, which is also what puts
+it in the sdist), built without fused
 multiply-add (``-ffp-contract=off``, gcc and clang) so that its results are the same bits on
 every machine.
 
@@ -33,6 +35,7 @@ flags = [] if sysconfig.get_platform().startswith("win") else ["-ffp-contract=of
 
 setup(ext_modules=[Extension(f"elastica_auto.{package}.{name}",
                              sources=[f"elastica_auto/{package}/{name}.c"],
+                             depends=["elastica_auto/_buffers.h"],
                              extra_compile_args=flags)
                    for package, name in (("numerics", "_banded"), ("numerics", "_blocks"),
                                          ("energy", "_frames"))],

@@ -21,38 +21,7 @@
    every BLAS (the matrix products were BLAS calls). Arrays are reached through the buffer
    protocol (float64; outputs C-contiguous and writable, inputs with any strides). */
 
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <string.h>
-
-typedef Py_ssize_t idx;
-
-/* A float64 buffer of `ndim` dimensions; `shape` entries < 0 are any length and are stored
-   back; C-contiguous and writable if `out`. */
-static int get_array(PyObject *obj, Py_buffer *view, int ndim, idx *shape, int out,
-                     const char *what)
-{
-    int flags = out ? (PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT)
-                    : (PyBUF_STRIDES | PyBUF_FORMAT);
-    if (PyObject_GetBuffer(obj, view, flags) < 0)
-        return -1;
-    const char *f = view->format ? view->format : "B";
-    if (*f == '@' || *f == '=' || *f == '<')
-        f++;
-    int ok = view->itemsize == 8 && strcmp(f, "d") == 0 && view->ndim == ndim;
-    for (int i = 0; ok && i < ndim; i++) {
-        if (shape[i] < 0)
-            shape[i] = view->shape[i];
-        ok = view->shape[i] == shape[i] && (view->strides[i] % 8) == 0;
-    }
-    if (!ok) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a float64 array of %d dimensions "
-                     "of the shape the frame asks", what, ndim);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
+#include "../_buffers.h"
 
 /* The entry of a strided buffer of 2, 3 or 4 dimensions. */
 #define AT2(v, i, j) (*(const double *)((const char *)(v).buf + (i) * (v).strides[0] \
