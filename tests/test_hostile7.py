@@ -288,13 +288,12 @@ def second_variation(s, y, p):
 '''
 
 
-def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
-    """Where A is not positive definite the form has no index (docs/stability.md): each such
-    point's index is unknown and its note says why, which nothing a user reads showed (the
-    run exited 0 with an empty index column). The branch has one warning naming how many
-    points, where, and the first reason; `run` and `show` print a branch's warnings."""
-    path = tmp_path / "legendre.py"
-    path.write_text(BRATU_LEGENDRE)
+def _branch_without_index_past_2(tmp_path, name, text):
+    """The branch of the module ``text`` (saved as ``name``) from lam = 0 to 3, whose form has
+    no index past lam = 2: its points there uncounted (LP/BP aside), those below counted, and
+    its one warning, which names how many points and where."""
+    path = tmp_path / name
+    path.write_text(text)
     (br,) = ea.continuation(ea.load_problem(path), {"lam": 0.0}, "lam", bounds=(-1, 3),
                             max_points=30)
     undefined = [k for k, p in enumerate(br.points, 1) if p.index_direct == -1
@@ -304,33 +303,38 @@ def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
     (warning,) = [w for w in br.warnings if "no stability index" in w]
     assert warning.startswith(f"no stability index at {len(undefined)} points "
                               f"(pt {undefined[0]} to {undefined[-1]}, lam from ")
+    return br, undefined, warning
+
+
+def test_points_without_an_index_are_a_warning_of_the_branch(tmp_path):
+    """Where A is not positive definite the form has no index (docs/stability.md): each such
+    point's index is unknown and its note says why, which nothing a user reads showed (the
+    run exited 0 with an empty index column). The branch has one warning naming how many
+    points, where, and the first reason; `run` and `show` print a branch's warnings."""
+    _, _, warning = _branch_without_index_past_2(tmp_path, "legendre.py", BRATU_LEGENDRE)
     assert "A is not positive definite" in warning and "legendre.py" in warning
 
 
-@pytest.mark.parametrize("where, said", [("B", "at s = "), ("E1", "in an end term")])
-def test_a_second_variation_that_is_not_finite_is_a_warning_of_the_branch(tmp_path, where,
-                                                                           said):
-    """A hook whose B (or end term) is NaN beyond lam = 2 at finite states: those points have
-    no index, and the reason was dropped (only the Legendre condition's was kept as the
-    point's note), so the run said nothing. Now the note and the branch's one warning say
-    where the form is not finite; below lam = 2 the points are counted as before."""
+@pytest.mark.parametrize("where", ["B", "E1"])
+def test_a_second_variation_that_is_not_finite_is_a_warning_of_the_branch(tmp_path, where):
+    """A hook whose B (NaN on s > 1/2) or end term is NaN beyond lam = 2 at finite states:
+    those points have no index, and the reason was dropped (only the Legendre condition's
+    was kept as the point's note), so the run said nothing. Now the note and the branch's
+    one warning say where the form is not finite; below lam = 2 the points are counted."""
     text = BRATU_LEGENDRE.replace(
         "return SecondVariation(-1.0 if p[\"lam\"] > 2 else 1.0, -p[\"lam\"] * np.exp(y[0]),",
         "bad = np.nan if p[\"lam\"] > 2 else 0.0\n"
         "    return SecondVariation(1.0, -p[\"lam\"] * np.exp(y[0])"
-        + (" + bad * (s > 0.5)," if where == "B" else ", E1=bad,"))
+        + (" + np.where(s > 0.5, bad, 0.0)," if where == "B" else ", E1=bad,"))
     assert "bad = np.nan" in text
-    path = tmp_path / "nan_form.py"
-    path.write_text(text)
-    (br,) = ea.continuation(ea.load_problem(path), {"lam": 0.0}, "lam", bounds=(-1, 3),
-                            max_points=30)
-    undefined = [k for k, p in enumerate(br.points, 1) if p.index_direct == -1
-                 and p.type not in ("LP", "BP")]
-    assert undefined and all(br.points[k - 1].params["lam"] > 2 for k in undefined)
-    assert all(p.index_direct >= 0 for p in br.points if p.params["lam"] < 2)
-    (warning,) = [w for w in br.warnings if "no stability index" in w]
-    assert f"nan_form.py: second_variation is not finite {said}" in warning
-    assert said in br.points[undefined[0] - 1].note
+    br, undefined, warning = _branch_without_index_past_2(tmp_path, "nan_form.py", text)
+    said = "nan_form.py: second_variation is not finite "
+    assert said in warning and said in br.points[undefined[0] - 1].note
+    if where == "B":    # the first point where it is not finite: the first node past 1/2
+        at = float(warning.split(said + "at s = ")[1].split(":")[0])
+        assert 0.5 < at < 0.6
+    else:
+        assert said + "in an end term" in warning
 
 
 # -- a value given to a free parameter from a label is refused, not ignored -----------------
